@@ -1,0 +1,1 @@
+"""Command line of brdfpipe (placeholder entry; subcommands are added below)."""
