@@ -1,0 +1,236 @@
+#!/usr/bin/env python
+"""Measure Zarr chunk codecs and chunk widths for the MERL store (``brdfpipe.store``).
+
+What it measures
+----------------
+Each candidate compresses the float32 rows of a few synthetic-like BRDF tables
+(physical units, unmeasured cells negative, exactly what ``brdfpipe.store``
+writes), chunk by chunk, single-threaded (as Zarr and our ingest workers run
+Blosc).  For each candidate it prints the compression ratio (raw / compressed
+bytes over all tables) and the compress and decompress throughput in MB/s of
+*uncompressed* float32 data (best of ``--repeat`` passes, since other work may
+share the machine).  A second table varies the chunk width for the leading
+codecs.
+
+Candidates: Blosc zstd / lz4 / lz4hc × byte shuffle / bitshuffle × clevels,
+plain zstd, plain lz4 and no compression.
+
+Tables come from ``brdfpipe.synth`` when it provides ``synthesize`` (the real
+synthetic database generator); otherwise from an analytic fallback in this
+file (a GGX-like specular lobe plus Lambertian term with random parameters,
+half of the tables with 1 % multiplicative noise as a stand-in for
+measurement noise).  The source is printed with the results.
+
+Usage::
+
+    python benches/bench_codecs.py [--tables 4] [--repeat 3] [--data DIR]
+
+``--data DIR`` uses the ``*.binary`` files in DIR instead (the first
+``--tables`` of them, sorted by name).  Exits 0; this is a report, not a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+import zarr.codecs  # noqa: F401  (sets numcodecs.blosc.use_threads = False, as in Zarr)
+from numcodecs import LZ4, Blosc, Zstd
+from numcodecs.abc import Codec
+
+from brdfpipe import merl
+
+N_COLS = 3 * merl.N_CELLS
+
+
+# ---------------------------------------------------------------------------
+# Test tables
+# ---------------------------------------------------------------------------
+
+
+def analytic_table(seed: int, noise: float = 0.0) -> NDArray[np.float64]:
+    """A smooth, physically plausible table (3, 90, 90, 180) in physical units.
+
+    Lambertian term plus a GGX specular lobe with Schlick Fresnel and Smith
+    shadowing, random parameters from ``seed``; optional multiplicative
+    log-normal noise of relative size ``noise``.  Cells outside
+    :func:`brdfpipe.merl.measured_mask` are set to ``-SCALES[c]`` (raw −1).
+    """
+    rng = np.random.default_rng(seed)
+    wi, wo = merl.cell_directions()
+    theta_h, theta_d, _ = (a.ravel() for a in merl.cell_centres())
+    ci = np.clip(wi[:, 2], 1e-4, 1.0)
+    co = np.clip(wo[:, 2], 1e-4, 1.0)
+    alpha = rng.uniform(0.05, 0.5)
+    a2 = alpha * alpha
+    d = a2 / (np.pi * (np.cos(theta_h) ** 2 * (a2 - 1.0) + 1.0) ** 2)
+    f0 = rng.uniform(0.02, 0.9)
+    f = f0 + (1.0 - f0) * (1.0 - np.cos(theta_d)) ** 5
+
+    def g1(c: NDArray[np.float64]) -> NDArray[np.float64]:
+        return 2.0 / (1.0 + np.sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)))
+
+    spec = d * f * g1(ci) * g1(co) / (4.0 * ci * co)
+    kd = rng.uniform(0.02, 0.8, 3)
+    ks = rng.uniform(0.2, 1.0, 3)
+    out = kd[:, None] / np.pi + ks[:, None] * spec[None, :]
+    if noise:
+        out *= np.exp(noise * rng.standard_normal(out.shape))
+    mask = merl.measured_mask().ravel()
+    out[:, ~mask] = -merl.SCALES[:, None]
+    return out.reshape(merl.SHAPE)
+
+
+def write_fallback_database(out_dir: str, count: int, seed: int = 0) -> list[str]:
+    """Write ``count`` MERL files made from :func:`analytic_table` into ``out_dir``.
+
+    Even-numbered materials are noise-free, odd-numbered ones carry 1 % noise.
+    Returns the paths in order.
+    """
+    os.makedirs(out_dir, exist_ok=True)
+    paths = []
+    for i in range(count):
+        path = os.path.join(out_dir, f"fallback-{i:03d}.binary")
+        merl.write_merl(path, analytic_table(seed + i, 0.01 if i % 2 else 0.0))
+        paths.append(path)
+    return paths
+
+
+def make_database(out_dir: str, count: int, seed: int = 0) -> tuple[list[str], str]:
+    """Write a database of ``count`` materials; returns (paths, description).
+
+    Uses ``brdfpipe.synth.synthesize`` when it exists, else the analytic fallback.
+    """
+    try:
+        from brdfpipe import synth  # type: ignore[attr-defined]
+
+        synthesize = synth.synthesize
+    except (ImportError, AttributeError):
+        synthesize = None
+    if synthesize is not None:
+        try:
+            synthesize(out_dir, count=count, seed=seed, jobs=os.cpu_count() or 1, progress=False)
+            paths = sorted(glob.glob(os.path.join(out_dir, "**", "*.binary"), recursive=True))
+            if len(paths) >= count:
+                return paths[:count], f"brdfpipe.synth.synthesize(count={count}, seed={seed})"
+        except Exception as exc:  # fall back rather than fail the report
+            print(f"note: synth.synthesize failed ({exc!r}); using the analytic fallback")
+    return write_fallback_database(out_dir, count, seed), (
+        f"analytic fallback tables (GGX + Lambert, seed {seed}; odd ones with 1 % noise)"
+    )
+
+
+def load_rows(paths: Sequence[str]) -> list[NDArray[np.float32]]:
+    """The float32 store rows of the given MERL files."""
+    return [merl.read_merl(p).reshape(-1).astype(np.float32) for p in paths]
+
+
+# ---------------------------------------------------------------------------
+# Measurement
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class Result:
+    """One measured candidate."""
+
+    name: str
+    ratio: float
+    compress_mbs: float
+    decompress_mbs: float
+
+
+def candidates() -> list[tuple[str, Codec | None]]:
+    """The codec candidates, by printable name (``None`` = no compression)."""
+    out: list[tuple[str, Codec | None]] = []
+    levels = {"zstd": (1, 3, 5), "lz4": (1, 5, 9), "lz4hc": (1, 5)}
+    for cname, lv in levels.items():
+        for shuffle, sname in ((Blosc.SHUFFLE, "shuffle"), (Blosc.BITSHUFFLE, "bitshuffle")):
+            for level in lv:
+                out.append((f"blosc {cname}-{level} {sname}", Blosc(cname, level, shuffle)))
+    out += [("zstd-1 (plain)", Zstd(1)), ("zstd-3 (plain)", Zstd(3)), ("lz4 (plain)", LZ4())]
+    out.append(("none (a memcpy)", None))
+    return out
+
+
+def _best(fn: Callable[[], object], repeat: int) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def measure(
+    name: str, codec: Codec | None, rows: Sequence[NDArray[np.float32]], width: int, repeat: int
+) -> Result:
+    """Compress every ``width``-column chunk of every row with ``codec``."""
+    chunks = [row[j : j + width] for row in rows for j in range(0, row.size, width)]
+    raw = sum(c.nbytes for c in chunks)
+    if codec is None:
+        t = _best(lambda: [c.tobytes() for c in chunks], repeat)
+        return Result(name, 1.0, raw / t / 1e6, raw / t / 1e6)
+    encoded: list[bytes] = [codec.encode(c) for c in chunks]
+    for c, e in zip(chunks[:3], encoded[:3]):  # sanity: lossless
+        assert np.array_equal(np.frombuffer(codec.decode(e), np.float32), c)
+    tc = _best(lambda: [codec.encode(c) for c in chunks], repeat)
+    td = _best(lambda: [codec.decode(e) for e in encoded], repeat)
+    return Result(name, raw / sum(len(e) for e in encoded), raw / tc / 1e6, raw / td / 1e6)
+
+
+def print_table(title: str, results: Sequence[Result], key: str = "codec") -> None:
+    """Print results as a fixed-width table."""
+    print(f"\n{title}")
+    print(f"{key:<28} {'ratio':>6} {'compress MB/s':>14} {'decompress MB/s':>16}")
+    print("-" * 67)
+    for r in results:
+        print(f"{r.name:<28} {r.ratio:6.2f} {r.compress_mbs:14.0f} {r.decompress_mbs:16.0f}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the measurements and print the tables."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--tables", type=int, default=4, help="number of BRDF tables (default 4)")
+    ap.add_argument("--repeat", type=int, default=3, help="timing repeats, best kept (default 3)")
+    ap.add_argument("--width", type=int, default=145_800, help="chunk width for the codec table")
+    ap.add_argument("--data", help="use the *.binary files in this folder")
+    args = ap.parse_args(argv)
+
+    with tempfile.TemporaryDirectory(prefix="bench_codecs-") as tmp:
+        if args.data:
+            paths = sorted(glob.glob(os.path.join(args.data, "*.binary")))[: args.tables]
+            source = f"{len(paths)} files from {args.data}"
+        else:
+            paths, source = make_database(tmp, args.tables)
+        rows = load_rows(paths)
+    mb = sum(r.nbytes for r in rows) / 1e6
+    print(f"tables: {source}; {len(rows)} rows, {mb:.0f} MB float32")
+    print(f"single-threaded Blosc; throughput = uncompressed MB/s, best of {args.repeat}")
+
+    results = [measure(n, c, rows, args.width, args.repeat) for n, c in candidates()]
+    print_table(f"codecs at chunk width {args.width} columns ({args.width * 4 / 1e3:.0f} kB raw)", results)
+
+    widths = [16_200, 48_600, 145_800, 486_000, 1_458_000]
+    lead = [
+        ("blosc lz4-5 shuffle", Blosc("lz4", 5, Blosc.SHUFFLE)),
+        ("blosc lz4-5 bitshuffle", Blosc("lz4", 5, Blosc.BITSHUFFLE)),
+        ("blosc zstd-1 shuffle", Blosc("zstd", 1, Blosc.SHUFFLE)),
+    ]
+    for name, codec in lead:
+        res = [measure(f"{w:>9,d} cols ({w * 4 / 1e3:6.0f} kB)", codec, rows, w, args.repeat) for w in widths]
+        print_table(f"chunk widths with {name}", res, key="width")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1061 @@
+"""The chunked Zarr store of the materials × cells BRDF matrix (``results/merl.zarr``).
+
+Layout
+------
+A Zarr v3 group holding
+
+* ``brdf`` – float32, shape ``(n_materials, 4_374_000)``, dimensions
+  ``("material", "column")``.  Row *i* is material ``attrs["materials"][i]``;
+  its columns are the red, green and blue blocks of 1,458,000 cells each in
+  MERL file order, i.e. exactly ``merl.read_merl(path).reshape(-1)`` cast to
+  float32 (physical units, sr⁻¹; unmeasured cells stay negative).  Column
+  ``k`` is channel ``k // N_CELLS`` of cell ``k % N_CELLS``, and the cell index
+  is ``iθh·16200 + iθd·180 + iφd``.  Fill value NaN, so a missing chunk can
+  never pass for data.
+* ``valid`` – bool ``(1_458_000,)``: the cell is measured (≥ 0 in all three
+  channels, judged on the float64 source values) in *every* material.
+* ``shard_crc32c`` – uint32 ``(n_materials,)``: CRC-32C of each row's shard
+  file, for :func:`open_store` ``(verify=True)``.
+
+Group attributes: ``format``, ``materials`` (row order), ``database``
+(``"merl"`` or ``"synthetic"``), ``sources`` (sha256 of each source file, by
+material name), ``source_files`` (file names, by material name),
+``channel_scales``, ``layout`` (human-readable description), ``brdfpipe_version``
+and, written last, the completion marker ``brdfpipe_complete``.
+
+Chunks and codec (measured with ``benches/bench_codecs.py``)
+------------------------------------------------------------
+Chunks are 1 row × 145,800 columns (583 kB raw float32 = 9 θh rows of one
+channel, so no chunk straddles two channels; 30 chunks per row), compressed
+with Blosc lz4, clevel 5, byte shuffle (typesize 4), single-threaded.  The 30
+chunks of a row are stored in one shard file (Zarr v3 ``sharding_indexed``,
+shard = one whole row), so a material is one file (~8–10 MB) instead of 30:
+creating a file costs ~0.25 ms here, which would otherwise be paid 3,000
+times in the per-material jobs and again 3,000 times in the assembly copy,
+and a cluster file system prefers few files.  Reads still fetch single
+145,800-column chunks (byte ranges of the shard).
+
+Codec table: 4 materials of ``brdfpipe.synth.synthesize(count=4, seed=0)``
+(default 1 % noise; 70 MB float32), AMD EPYC, 1 thread, MB/s of
+uncompressed data, best of 3 on a shared and therefore noisy machine:
+
+=========================  =====  =============  ===============
+codec                      ratio  compress MB/s  decompress MB/s
+=========================  =====  =============  ===============
+blosc zstd-1 shuffle        1.75       592            1002
+blosc zstd-3 shuffle        1.80       282            1387
+blosc zstd-5 shuffle        1.84       203            1335
+blosc zstd-1 bitshuffle     1.85       432             797
+blosc zstd-5 bitshuffle     1.91       141            1074
+blosc lz4-1 shuffle         1.70      1976            1873
+**blosc lz4-5 shuffle**     1.70      1710            1925
+blosc lz4-9 shuffle         1.71      1562            1907
+blosc lz4-5 bitshuffle      1.72      1080            1382
+blosc lz4hc-1 shuffle       1.74       359            1782
+blosc lz4hc-5 shuffle       1.81       105            1692
+zstd-1 (plain)              1.49       783            1054
+zstd-3 (plain)              1.50       613            1047
+lz4 (plain)                 1.32      1592            2010
+none                        1.00         –               –
+=========================  =====  =============  ===============
+
+(On smooth analytic tables, half of them noise-free, the ratios are higher:
+2.09 for lz4-5 shuffle, 2.19 zstd-1 shuffle, 2.38 zstd-5 shuffle; the ranking
+is the same.)  Chunk width hardly changes ratio or speed (lz4-5 shuffle: 1.70–
+1.71 and ~1.7–2.0 GB/s both ways from 16,200 to 1,458,000 columns), so it is
+chosen for access: 145,800-column blocks of 100 materials (58 MB) are a
+convenient unit for Gram matrices, and no chunk straddles two channels.  The
+ingest speed target (≤ 1.5× a plain ``np.fromfile``, ~4 ms per 35 MB file
+here) leaves almost nothing beyond the mandatory sha256 (~19 ms per file by
+itself), so the codec must compress at ≥ 1.5 GB/s: lz4 + byte shuffle does,
+for 3 % larger files than zstd-1 + shuffle (3× slower to compress) and 11 %
+larger than zstd-5 + bitshuffle (12× slower).  Byte shuffle is faster than
+bitshuffle at about the same ratio; unshuffled codecs compress worse.
+
+Ingest
+------
+One job per material (:func:`ingest_material`) writes a one-row store with
+the final array's chunking, sharding and codec; one assembly job
+(:func:`assemble_store`) copies each row's compressed shard file
+byte-for-byte into the final store (no decode / re-encode), checks it against
+the CRC-32C recorded at ingest, ANDs the measured masks into ``valid``,
+validates the whole store, sets the completion marker last and renames the
+store into place.  :func:`ingest` does both with a process pool.  The
+per-material reader streams the source one chunk at a time (hash, validate,
+scale, cast, compress), so a worker needs ~15 MB and the sha256 is of exactly
+the bytes that were ingested.  Row stores are written with plain file writes
+of metadata documents generated by Zarr itself (the Zarr API costs ~15 ms per
+store in event-loop round trips); the tests check Zarr reads them back
+exactly and that the shard bytes equal those Zarr writes.
+
+Speed and memory (``benches/bench_ingest.py``: 100 ``synth`` materials =
+3.5 GB, warm page cache, 2-core AMD EPYC shared with other jobs, load average
+≈ 2.5, best of 3): a sequential ``np.fromfile`` of all files takes 0.44 s
+(4.4 ms per file: a memcpy from the page cache); ``ingest`` takes 4.4 s with
+2 jobs and 3.7 s with 1 (the other jobs left about one core), i.e. ~37 ms of
+CPU per material: sha256 19 ms (SHA-NI, 1.8 GB/s: hashing the sources alone
+takes 4.3× the ``np.fromfile`` time), lz4 8 ms, read 2.5 ms, scale / cast /
+checks 3.5 ms, writing the 10 MB shard 3–7 ms; the assembly of 100 rows
+≈ 0.5 s.  The issue's target (≤ 1.5× ``np.fromfile``) is therefore out of
+reach on 2 cores from a warm cache: ingest needs ~10× the CPU of the plain
+read, so it would take ≈ 14 idle cores (from a cold cache the ratio was 1.5–3.4
+here, depending on the other load).  Peak RSS: 186 MiB for the driver,
+≤ 132 MiB per worker.  Store: 1.01 GB for 100 materials (1.73× vs float32,
+3.45× vs the float64 sources).
+
+Every writer builds its output in a temporary sibling directory and renames
+it into place; on any error the temporary directory is removed and nothing is
+left at the output path (a store already there is replaced only on success).
+This protects against crashed or interrupted processes, not against power
+loss (nothing is fsync'ed): after a power cut, ``open_store(path,
+verify=True)`` re-checks every shard against its digest.  A process killed
+with SIGKILL can leave a ``.NAME.tmp-*`` sibling behind; it is never taken
+for a store and may be deleted.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import multiprocessing
+import multiprocessing.context
+import os
+import re
+import secrets
+import shutil
+import threading
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_EXCEPTION, Future, ProcessPoolExecutor, ThreadPoolExecutor, wait
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Final
+
+import google_crc32c
+import numpy as np
+import zarr
+import zarr.storage
+from numcodecs import Blosc
+from numpy.typing import NDArray
+from zarr.codecs import BloscCodec
+from zarr.core.buffer import default_buffer_prototype
+from zarr.core.group import GroupMetadata
+
+from brdfpipe import __version__, merl
+from brdfpipe.merl import DIMS, FILE_SIZE, HEADER_BYTES, N_CELLS, SCALES, MerlFormatError
+
+__all__ = [
+    "N_COLS",
+    "CHUNK_COLS",
+    "N_CHUNKS",
+    "BRDF_CODEC",
+    "COMPLETE_ATTR",
+    "DATABASES",
+    "LAYOUT",
+    "StoreError",
+    "BrdfStore",
+    "ingest_material",
+    "assemble_store",
+    "open_store",
+    "ingest",
+    "iter_column_blocks",
+    "iter_valid_blocks",
+]
+
+logger = logging.getLogger("brdfpipe.store")
+
+#: Columns of the matrix: the R, G, B blocks of all cells.
+N_COLS: Final = 3 * N_CELLS  # 4,374,000
+#: Columns per chunk (9 θh rows of one channel; divides N_CELLS).
+CHUNK_COLS: Final = 145_800
+#: Chunks per row (all in one shard file).
+N_CHUNKS: Final = N_COLS // CHUNK_COLS  # 30
+#: Blosc configuration of the ``brdf`` chunks (Zarr v3 ``blosc`` codec).
+BRDF_CODEC: Final[Mapping[str, Any]] = {
+    "cname": "lz4",
+    "clevel": 5,
+    "shuffle": "shuffle",
+    "typesize": 4,
+    "blocksize": 0,
+}
+_MASK_CODEC: Final[Mapping[str, Any]] = {
+    "cname": "lz4",
+    "clevel": 5,
+    "shuffle": "bitshuffle",
+    "typesize": 1,
+    "blocksize": 0,
+}
+_SHUFFLE: Final = {"noshuffle": Blosc.NOSHUFFLE, "shuffle": Blosc.SHUFFLE, "bitshuffle": Blosc.BITSHUFFLE}
+#: Group attribute written last, after validation; stores without it are refused.
+COMPLETE_ATTR: Final = "brdfpipe_complete"
+#: Allowed values of the ``database`` attribute.
+DATABASES: Final = ("merl", "synthetic")
+STORE_FORMAT: Final = "brdfpipe.merl-store/1"
+ROW_FORMAT: Final = "brdfpipe.merl-row/1"
+#: Human-readable description of the layout (the ``layout`` attribute).
+LAYOUT: Final = (
+    "brdf[i, k]: float32 BRDF (sr^-1, physical units; unmeasured cells negative) of "
+    "material attrs['materials'][i]; column k = channel k // 1458000 (0=R, 1=G, 2=B) "
+    "of cell k % 1458000 in MERL file order, cell = i_theta_h*16200 + i_theta_d*180 "
+    "+ i_phi_d (90 x 90 x 180, square-root theta_h binning); row i == "
+    "brdfpipe.merl.read_merl(file).reshape(-1).astype(float32). valid[cell]: the cell "
+    "is >= 0 in all three channels of every material. Chunks 1 x 145800 columns "
+    "(blosc lz4 + byte shuffle), one shard file per row."
+)
+
+assert N_CELLS % CHUNK_COLS == 0
+
+
+class StoreError(ValueError):
+    """A store (or row store) is missing, incomplete or inconsistent; names the path."""
+
+
+# --------------------------------------------------------------------------
+# Metadata, paths and file helpers
+# --------------------------------------------------------------------------
+
+
+def _blosc(config: Mapping[str, Any]) -> Blosc:
+    """The numcodecs Blosc codec Zarr builds for a v3 ``blosc`` configuration."""
+    return Blosc(
+        cname=config["cname"],
+        clevel=config["clevel"],
+        shuffle=_SHUFFLE[config["shuffle"]],
+        blocksize=config["blocksize"],
+        typesize=config["typesize"],
+    )
+
+
+def _create_brdf_array(group: zarr.Group, n_rows: int) -> zarr.Array:
+    return group.create_array(
+        "brdf",
+        shape=(n_rows, N_COLS),
+        shards=(1, N_COLS),
+        chunks=(1, CHUNK_COLS),
+        dtype="float32",
+        compressors=BloscCodec(**BRDF_CODEC),
+        fill_value=np.nan,
+        dimension_names=("material", "column"),
+        config={"write_empty_chunks": True},
+    )
+
+
+def _create_mask_array(group: zarr.Group, name: str) -> zarr.Array:
+    return group.create_array(
+        name,
+        shape=(N_CELLS,),
+        chunks=(N_CELLS,),
+        dtype="bool",
+        compressors=BloscCodec(**_MASK_CODEC),
+        fill_value=False,
+        dimension_names=("cell",),
+        config={"write_empty_chunks": True},
+    )
+
+
+def _doc_bytes(metadata: Any) -> bytes:
+    """The ``zarr.json`` document Zarr itself writes for a metadata object."""
+    return metadata.to_buffer_dict(default_buffer_prototype())["zarr.json"].to_bytes()
+
+
+@lru_cache(maxsize=1)
+def _row_array_docs() -> tuple[bytes, bytes]:
+    """``zarr.json`` of a row store's ``brdf`` and ``measured`` arrays, made by Zarr."""
+    group = zarr.open_group(zarr.storage.MemoryStore(), mode="w", zarr_format=3)
+    brdf = _create_brdf_array(group, 1)
+    measured = _create_mask_array(group, "measured")
+    return _doc_bytes(brdf.metadata), _doc_bytes(measured.metadata)
+
+
+def _group_doc(attributes: dict[str, Any]) -> bytes:
+    return _doc_bytes(GroupMetadata(attributes=attributes, zarr_format=3))
+
+
+def _layout_signature(doc: Mapping[str, Any]) -> dict[str, Any]:
+    """The parts of an array's metadata that must agree for chunk bytes to be copied."""
+    keys = ("data_type", "chunk_grid", "chunk_key_encoding", "codecs", "fill_value")
+    return json.loads(json.dumps({k: doc.get(k) for k in keys}))
+
+
+@lru_cache(maxsize=1)
+def _reference_signature() -> dict[str, Any]:
+    """Layout signature of a ``brdf`` array as this version writes it."""
+    return _layout_signature(json.loads(_row_array_docs()[0]))
+
+
+def _shard_key(row: int) -> str:
+    """Key of row ``row``'s shard (default chunk key encoding, ``/`` separator)."""
+    return f"c/{row}/0"
+
+
+def _tmp_sibling(out: Path, tag: str = "tmp") -> Path:
+    """A fresh, unused name next to ``out`` (same file system, so rename is atomic)."""
+    return out.parent / f".{out.name}.{tag}-{os.getpid()}-{secrets.token_hex(4)}"
+
+
+def _remove(path: Path) -> None:
+    """Remove a file, link or directory tree; missing is fine."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
+def _replace_dir(tmp: Path, out: Path) -> None:
+    """Rename the finished directory ``tmp`` to ``out``, replacing an earlier store.
+
+    An existing ``out`` is first renamed aside (and deleted afterwards), so
+    ``out`` is at every moment either absent, the old store or the new one.
+    Refuses to replace anything that is not a Zarr store or an empty folder
+    (protection against a mistyped output path).
+    """
+    old: Path | None = None
+    if out.is_symlink() or out.exists():
+        replaceable = (
+            out.is_dir() and not out.is_symlink() and ((out / "zarr.json").exists() or not any(out.iterdir()))
+        )
+        if not replaceable:
+            raise StoreError(f"{out}: exists and is not a Zarr store; refusing to replace it")
+        old = _tmp_sibling(out, "old")
+        os.rename(out, old)
+    try:
+        os.rename(tmp, out)
+    except BaseException:
+        if old is not None:
+            os.rename(old, out)
+        raise
+    if old is not None:
+        _remove(old)
+
+
+def _discard_stale(out: Path) -> None:
+    """After a failed run, delete an earlier store at ``out`` (only if it is a Zarr store)."""
+    if out.is_dir() and not out.is_symlink() and (out / "zarr.json").exists():
+        logger.warning("removing the earlier store at %s after a failed run", out)
+        _remove(out)
+
+
+def _write_file(path: Path, parts: Iterable[bytes | bytearray | memoryview]) -> None:
+    with open(path, "wb") as fh:
+        for part in parts:
+            fh.write(part)
+
+
+def _read_file(path: Path) -> bytes:
+    with open(path, "rb") as fh:
+        return fh.read()
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    with open(path, "rb") as fh:
+        doc = json.load(fh)
+    if not isinstance(doc, dict):
+        raise ValueError("not a JSON object")
+    return doc
+
+
+def _normalise_database(database: str) -> str:
+    if database not in DATABASES:
+        raise ValueError(f"database must be one of {DATABASES}, got {database!r}")
+    return database
+
+
+# --------------------------------------------------------------------------
+# Per-material ingest
+# --------------------------------------------------------------------------
+
+
+def _format_error(path: Path, fallback: str) -> MerlFormatError:
+    """The canonical :class:`MerlFormatError` for a bad file (from ``merl``), else ``fallback``.
+
+    The fast streaming reader only detects that something is wrong; the
+    message comes from :func:`brdfpipe.merl.read_merl_raw`, so both readers
+    report bad files identically.
+    """
+    try:
+        merl.read_merl_raw(path)
+    except MerlFormatError as exc:
+        return exc
+    return MerlFormatError(f"{path}: {fallback}")
+
+
+def _readinto_exact(fh: Any, buf: memoryview) -> int:
+    """Fill ``buf`` from ``fh`` (looping over short reads); returns bytes read."""
+    got = 0
+    while got < len(buf):
+        n = fh.readinto(buf[got:])
+        if not n:
+            break
+        got += n
+    return got
+
+
+@dataclass
+class _EncodedRow:
+    sha256: str
+    measured: NDArray[np.bool_]
+    shard_parts: list[bytes]  # the compressed chunks, then the shard index
+    shard_crc32c: int
+    shard_nbytes: int
+
+
+def _encode_source(path: Path) -> _EncodedRow:
+    """Read, validate, convert and compress one MERL file, one chunk at a time.
+
+    Produces the bytes of the row's shard (the 30 compressed float32 chunks in
+    order, then the shard index: (offset, nbytes) uint64 pairs plus their
+    CRC-32C, as Zarr's ``sharding_indexed`` codec writes them), the sha256 of
+    the file and its measured mask.  Raises :class:`MerlFormatError` naming
+    the file.
+    """
+    sha = hashlib.sha256()
+    encoder = _blosc(BRDF_CODEC)
+    buf64 = np.empty(CHUNK_COLS, dtype="<f8")
+    raw_view = memoryview(buf64).cast("B")
+    buf32 = np.empty(CHUNK_COLS, dtype="<f4")
+    ge0 = np.empty(CHUNK_COLS, dtype=bool)
+    measured = np.ones(N_CELLS, dtype=bool)
+    parts: list[bytes] = []
+    index = np.empty((N_CHUNKS, 2), dtype="<u8")
+    offset = 0
+    with open(path, "rb", buffering=0) as fh:
+        size = os.fstat(fh.fileno()).st_size
+        header = fh.read(HEADER_BYTES)
+        if size != FILE_SIZE or len(header) != HEADER_BYTES or tuple(np.frombuffer(header, "<i4")) != DIMS:
+            raise _format_error(path, f"bad header or size ({size} bytes)")
+        sha.update(header)
+        for j in range(N_CHUNKS):
+            if _readinto_exact(fh, raw_view) != raw_view.nbytes:
+                raise _format_error(path, "file shrank while being read")
+            sha.update(raw_view)
+            channel, k0 = divmod(j * CHUNK_COLS, N_CELLS)
+            # The same float64 product as read_merl, then the same rounding as astype.
+            np.multiply(buf64, SCALES[channel], out=buf64)
+            with np.errstate(over="ignore"):  # overflow is reported just below
+                buf32[:] = buf64
+            if not np.isfinite(buf32).all():
+                if np.isfinite(buf64).all():
+                    raise MerlFormatError(
+                        f"{path}: value(s) beyond the float32 range in channel "
+                        f"{'RGB'[channel]}, cells {k0}…{k0 + CHUNK_COLS - 1}"
+                    )
+                raise _format_error(path, "non-finite value(s)")
+            np.greater_equal(buf64, 0.0, out=ge0)
+            measured[k0 : k0 + CHUNK_COLS] &= ge0
+            data = encoder.encode(buf32)
+            parts.append(data)
+            index[j] = (offset, len(data))
+            offset += len(data)
+        if fh.read(1):
+            raise _format_error(path, "file grew while being read")
+    index_bytes = index.tobytes()
+    parts.append(index_bytes + np.array([google_crc32c.value(index_bytes)], dtype="<u4").tobytes())
+    crc = 0
+    for part in parts:
+        crc = google_crc32c.extend(crc, part)
+    return _EncodedRow(sha.hexdigest(), measured, parts, crc, offset + len(parts[-1]))
+
+
+def ingest_material(src: str | os.PathLike[str], out: str | os.PathLike[str], *, name: str) -> None:
+    """Convert one MERL file into a one-row Zarr v3 store at ``out``.
+
+    The row store holds ``brdf`` (float32, shape ``(1, N_COLS)``, the final
+    array's chunking, sharding and codec, so assembly copies its shard file
+    as is), a bool array ``measured`` (cell ≥ 0 in all three channels) and
+    attributes ``name``, ``source_file``, ``sha256`` (of the source file),
+    ``shard_crc32c`` / ``shard_nbytes`` (of the shard file) and the
+    completion marker.  Raises :class:`FileNotFoundError` for a missing file
+    and :class:`MerlFormatError` (naming the file) for an invalid one; a value
+    beyond the float32 range is also a :class:`MerlFormatError`.
+
+    The store is built in a temporary sibling directory and renamed into
+    place (replacing an earlier store at ``out``).  On any error the
+    temporary directory is removed and nothing is left at ``out``: an earlier
+    store there is deleted too, so a stale row can never be assembled in
+    place of this failed one.
+    """
+    src = Path(src)
+    out = Path(out)
+    tmp = _tmp_sibling(out)
+    try:
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"material name must be a non-empty string, got {name!r}")
+        if not src.is_file():
+            raise FileNotFoundError(f"{src}: no such MERL file")
+        if not out.parent.is_dir():
+            out.parent.mkdir(parents=True, exist_ok=True)
+        row = _encode_source(src)
+        brdf_doc, measured_doc = _row_array_docs()
+        for d in (tmp, tmp / "brdf", tmp / "brdf" / "c", tmp / "brdf" / "c" / "0", tmp / "measured", tmp / "measured" / "c"):
+            os.mkdir(d)
+        _write_file(tmp / "brdf" / "zarr.json", [brdf_doc])
+        _write_file(tmp / "brdf" / _shard_key(0), row.shard_parts)
+        _write_file(tmp / "measured" / "zarr.json", [measured_doc])
+        _write_file(tmp / "measured" / "c" / "0", [_blosc(_MASK_CODEC).encode(row.measured.view(np.uint8))])
+        attrs: dict[str, Any] = {
+            "format": ROW_FORMAT,
+            "name": name,
+            "source_file": src.name,
+            "sha256": row.sha256,
+            "shard_crc32c": row.shard_crc32c,
+            "shard_nbytes": row.shard_nbytes,
+            "channel_scales": [float(s) for s in SCALES],
+            "brdfpipe_version": __version__,
+            COMPLETE_ATTR: {"format": ROW_FORMAT},
+        }
+        _write_file(tmp / "zarr.json", [_group_doc(attrs)])  # last: carries the marker
+        _replace_dir(tmp, out)
+    except BaseException:
+        _remove(tmp)
+        _discard_stale(out)
+        raise
+    logger.debug(
+        "ingested %s (%s) -> %s: %.1f MB, compression ratio %.2f",
+        name, src, out, row.shard_nbytes / 1e6, N_COLS * 4 / row.shard_nbytes,
+    )
+
+
+@dataclass(frozen=True)
+class _RowInfo:
+    path: Path
+    name: str
+    sha256: str
+    source_file: str
+    shard_crc32c: int
+    shard_nbytes: int
+
+
+def _open_row(path: Path) -> _RowInfo:
+    """Read and check a row store written by :func:`ingest_material` (metadata only)."""
+    if not path.is_dir():
+        raise StoreError(f"{path}: row store is missing")
+    try:
+        group = _read_json(path / "zarr.json")
+        brdf = _read_json(path / "brdf" / "zarr.json")
+        measured = _read_json(path / "measured" / "zarr.json")
+    except (OSError, ValueError) as exc:
+        raise StoreError(f"{path}: not a readable brdfpipe row store ({exc})") from exc
+    attrs = group.get("attributes", {})
+    if group.get("zarr_format") != 3 or group.get("node_type") != "group" or not isinstance(attrs, dict):
+        raise StoreError(f"{path}: not a Zarr v3 group")
+    if COMPLETE_ATTR not in attrs:
+        raise StoreError(f"{path}: row store is incomplete (no completion marker); re-run its ingest")
+    if attrs.get("format") != ROW_FORMAT:
+        raise StoreError(f"{path}: not a brdfpipe row store (format {attrs.get('format')!r}, expected {ROW_FORMAT!r})")
+    if brdf.get("shape") != [1, N_COLS]:
+        raise StoreError(f"{path}: 'brdf' has shape {brdf.get('shape')}, expected [1, {N_COLS}]")
+    sig = _layout_signature(brdf)
+    if sig != _reference_signature():
+        raise StoreError(
+            f"{path}: row layout (chunks/codec/dtype) {sig} does not match this version's {_reference_signature()}"
+        )
+    if {k: v for k, v in measured.items() if k != "attributes"} != {
+        k: v for k, v in json.loads(_row_array_docs()[1]).items() if k != "attributes"
+    }:
+        raise StoreError(f"{path}: 'measured' array has unexpected metadata")
+    name, sha = attrs.get("name"), attrs.get("sha256")
+    crc, nbytes = attrs.get("shard_crc32c"), attrs.get("shard_nbytes")
+    if not isinstance(name, str) or not name or not isinstance(sha, str) or len(sha) != 64:
+        raise StoreError(f"{path}: row store lacks a valid name / sha256 attribute")
+    if not isinstance(crc, int) or not isinstance(nbytes, int):
+        raise StoreError(f"{path}: row store lacks its shard digest")
+    if [float(s) for s in attrs.get("channel_scales", [])] != [float(s) for s in SCALES]:
+        raise StoreError(f"{path}: channel_scales {attrs.get('channel_scales')} differ from {list(SCALES)}")
+    return _RowInfo(path, name, sha, str(attrs.get("source_file", "")), crc, nbytes)
+
+
+def _read_measured(info: _RowInfo) -> NDArray[np.bool_]:
+    try:
+        data = _blosc(_MASK_CODEC).decode(_read_file(info.path / "measured" / "c" / "0"))
+    except Exception as exc:
+        raise StoreError(f"{info.path}: cannot read the 'measured' mask ({exc})") from exc
+    mask = np.frombuffer(data, dtype=np.uint8)
+    if mask.size != N_CELLS or mask.max(initial=0) > 1:
+        raise StoreError(f"{info.path}: 'measured' mask is damaged")
+    return mask.view(bool)
+
+
+# --------------------------------------------------------------------------
+# Assembly
+# --------------------------------------------------------------------------
+
+
+def _run_threads(fn: Callable[[int], None], items: Iterable[int], threads: int) -> None:
+    """Run ``fn(item)`` for all items on up to ``threads`` threads; re-raise the first error."""
+    items = list(items)
+    if threads <= 1 or len(items) <= 1:
+        for it in items:
+            fn(it)
+        return
+    with ThreadPoolExecutor(max_workers=threads) as ex:
+        futures = [ex.submit(fn, it) for it in items]
+        wait(futures, return_when=FIRST_EXCEPTION)
+        for f in futures:
+            f.cancel()
+        for f in futures:
+            if not f.cancelled():
+                f.result()  # re-raises the first error in submission order
+
+
+def assemble_store(
+    rows: Sequence[str | os.PathLike[str]],
+    out: str | os.PathLike[str],
+    *,
+    database: str,
+    threads: int = 2,
+    link: bool = False,
+) -> None:
+    """Assemble per-material row stores (in row order) into the final store at ``out``.
+
+    Each row's compressed shard file is copied byte-for-byte (never decoded)
+    and checked against the CRC-32C recorded when the row was ingested;
+    ``valid`` is the AND of the rows' ``measured`` masks.  The finished store
+    is then validated as a whole (shape, dtype, layout, every shard present
+    and byte-identical to its source, row order = names, attributes), the
+    completion marker is written last, and the store is renamed into place,
+    replacing an earlier store at ``out``.
+
+    Raises :class:`StoreError` naming the offending row store for a missing,
+    incomplete or damaged row, duplicate names or a mismatched layout, and
+    :class:`ValueError` for an unknown ``database``; nothing is left at
+    ``out`` then (an earlier store there is deleted, as in :func:`ingest_material`).  ``threads`` threads copy rows concurrently.
+
+    ``link=True`` hard-links the shard files instead of copying them (falling
+    back to a copy across file systems): no data is written, and the store
+    shares the immutable shard files with the row stores (which are only ever
+    replaced by rename, never modified in place).  :func:`ingest` uses it for
+    its private, temporary row stores.  The digests are checked either way.
+    """
+    out = Path(out)
+    tmp = _tmp_sibling(out)
+    try:
+        database = _normalise_database(database)
+        row_paths = [Path(r) for r in rows]
+        if not row_paths:
+            raise StoreError(f"{out}: no row stores to assemble")
+        infos = [_open_row(p) for p in row_paths]
+        seen: dict[str, int] = {}
+        for k, info in enumerate(infos):
+            if info.name in seen:
+                j = seen[info.name]
+                raise StoreError(
+                    f"{info.path}: duplicate material name {info.name!r} (row {k}; also row {j}, {infos[j].path})"
+                )
+            seen[info.name] = k
+        names = [info.name for info in infos]
+        n = len(infos)
+        logger.info("assembling %d rows into %s", n, out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        group = zarr.open_group(tmp, mode="w-", zarr_format=3)
+        _create_brdf_array(group, n)
+        valid_arr = _create_mask_array(group, "valid")
+        crc_arr = group.create_array(
+            "shard_crc32c", shape=(n,), chunks=(n,), dtype="uint32", fill_value=0,
+            dimension_names=("material",),
+        )
+        valid = np.ones(N_CELLS, dtype=bool)
+        lock = threading.Lock()
+
+        def place_row(i: int) -> None:
+            info = infos[i]
+            src = info.path / "brdf" / _shard_key(0)
+            dst = tmp / "brdf" / _shard_key(i)
+            os.mkdir(dst.parent)
+            linked = False
+            if link:
+                try:
+                    os.link(src, dst)
+                    linked = True  # the bytes are checked by _validate_store below
+                except FileNotFoundError:
+                    raise StoreError(f"{info.path}: shard file of row {info.name!r} is missing") from None
+                except OSError:
+                    pass  # another file system, or no hard links there: copy
+            if not linked:
+                try:
+                    data = _read_file(src)
+                except FileNotFoundError:
+                    raise StoreError(f"{info.path}: shard file of row {info.name!r} is missing") from None
+                if len(data) != info.shard_nbytes or google_crc32c.value(data) != info.shard_crc32c:
+                    raise StoreError(
+                        f"{info.path}: shard of row {info.name!r} does not match the digest recorded at "
+                        "ingest (row store damaged); re-run its ingest"
+                    )
+                _write_file(dst, [data])
+            mask = _read_measured(info)
+            with lock:
+                np.logical_and(valid, mask, out=valid)
+
+        os.makedirs(tmp / "brdf" / "c")
+        _run_threads(place_row, range(n), threads)
+        crcs = np.array([info.shard_crc32c for info in infos], dtype=np.uint32)
+        valid_arr[:] = valid
+        crc_arr[:] = crcs
+        group.attrs.update(
+            {
+                "format": STORE_FORMAT,
+                "materials": names,
+                "database": database,
+                "sources": {info.name: info.sha256 for info in infos},
+                "source_files": {info.name: info.source_file for info in infos},
+                "channel_scales": [float(s) for s in SCALES],
+                "layout": LAYOUT,
+                "brdfpipe_version": __version__,
+            }
+        )
+        _validate_store(
+            tmp, names=names, sources={i.name: i.sha256 for i in infos}, crcs=crcs, threads=threads,
+            row_paths=row_paths,
+        )
+        group.attrs[COMPLETE_ATTR] = _marker(n)  # last
+        _check_group(zarr.open_group(tmp, mode="r", zarr_format=3), tmp)
+        _replace_dir(tmp, out)
+    except BaseException:
+        _remove(tmp)
+        _discard_stale(out)
+        raise
+    logger.info("assembled %s: %d materials, %d valid cells", out, n, int(valid.sum()))
+
+
+def _marker(n_rows: int) -> dict[str, Any]:
+    return {"format": STORE_FORMAT, "n_materials": n_rows}
+
+
+# --------------------------------------------------------------------------
+# Opening and validation
+# --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BrdfStore:
+    """An opened, checked store (see :func:`open_store`)."""
+
+    path: Path
+    group: zarr.Group
+    brdf: zarr.Array
+    valid: zarr.Array
+    materials: tuple[str, ...]
+    database: str
+    sources: dict[str, str] = field(repr=False)
+
+    @property
+    def n_materials(self) -> int:
+        """Number of rows."""
+        return len(self.materials)
+
+    @property
+    def chunk_cols(self) -> int:
+        """Columns per (inner) chunk of ``brdf``."""
+        return int(self.brdf.chunks[1])
+
+
+def _check_group(group: zarr.Group, path: Path, *, need_marker: bool = True) -> BrdfStore:
+    """Check a store's arrays and attributes; raises :class:`StoreError` naming ``path``."""
+    attrs = dict(group.attrs)
+    if need_marker and COMPLETE_ATTR not in attrs:
+        raise StoreError(
+            f"{path}: incomplete store (no completion marker {COMPLETE_ATTR!r}): it was never "
+            "finished, e.g. its writer crashed; re-run the ingest"
+        )
+    if attrs.get("format") != STORE_FORMAT:
+        raise StoreError(f"{path}: not a brdfpipe MERL store (format {attrs.get('format')!r}, expected {STORE_FORMAT!r})")
+    try:
+        brdf = group["brdf"]
+        valid = group["valid"]
+    except KeyError as exc:
+        raise StoreError(f"{path}: store lacks array {exc}") from exc
+    if not isinstance(brdf, zarr.Array) or not isinstance(valid, zarr.Array):
+        raise StoreError(f"{path}: 'brdf' and 'valid' must be arrays")
+    if brdf.dtype != np.float32 or brdf.ndim != 2 or brdf.shape[1] != N_COLS:
+        raise StoreError(f"{path}: 'brdf' is {brdf.dtype} {brdf.shape}, expected float32 (n_materials, {N_COLS})")
+    if valid.dtype != np.bool_ or valid.shape != (N_CELLS,):
+        raise StoreError(f"{path}: 'valid' is {valid.dtype} {valid.shape}, expected bool ({N_CELLS},)")
+    materials = attrs.get("materials")
+    if not isinstance(materials, list) or not all(isinstance(m, str) and m for m in materials):
+        raise StoreError(f"{path}: attribute 'materials' must be a list of names")
+    if len(materials) != brdf.shape[0] or not materials:
+        raise StoreError(f"{path}: {len(materials)} material names for {brdf.shape[0]} rows")
+    if len(set(materials)) != len(materials):
+        raise StoreError(f"{path}: duplicate material names")
+    sources = attrs.get("sources")
+    if not isinstance(sources, dict) or set(sources) != set(materials):
+        raise StoreError(f"{path}: attribute 'sources' must give a sha256 for every material")
+    database = attrs.get("database")
+    if database not in DATABASES:
+        raise StoreError(f"{path}: attribute 'database' is {database!r}, expected one of {DATABASES}")
+    scales = attrs.get("channel_scales")
+    if not isinstance(scales, list) or [float(s) for s in scales] != [float(s) for s in SCALES]:
+        raise StoreError(f"{path}: attribute 'channel_scales' {scales} differs from {list(SCALES)}")
+    if need_marker and attrs[COMPLETE_ATTR] != _marker(len(materials)):
+        raise StoreError(f"{path}: completion marker {attrs[COMPLETE_ATTR]} disagrees with the arrays")
+    return BrdfStore(path, group, brdf, valid, tuple(materials), str(database), dict(sources))
+
+
+def _validate_store(
+    path: Path,
+    *,
+    names: Sequence[str],
+    sources: Mapping[str, str],
+    crcs: NDArray[np.uint32],
+    threads: int,
+    row_paths: Sequence[Path] | None = None,
+) -> None:
+    """Deep check of a store being assembled: layout, attributes, every shard and its bytes."""
+    group = zarr.open_group(path, mode="r", zarr_format=3)
+    st = _check_group(group, path, need_marker=False)
+    if list(st.materials) != list(names):
+        raise StoreError(f"{path}: row order {st.materials} differs from {list(names)}")
+    if st.sources != dict(sources):
+        raise StoreError(f"{path}: 'sources' attribute differs from the row stores' sha256")
+    if _layout_signature(st.brdf.metadata.to_dict()) != _reference_signature():
+        raise StoreError(f"{path}: 'brdf' layout differs from this version's")
+    stored = np.asarray(group["shard_crc32c"][:], dtype=np.uint32)
+    if not np.array_equal(stored, crcs):
+        raise StoreError(f"{path}: 'shard_crc32c' differs from the row stores' digests")
+    _verify_shards(path, st, crcs, threads, row_paths)
+    # Decode the first values of every row through Zarr: proves the copied bytes are readable.
+    head = np.asarray(st.brdf[:, :16])
+    if not np.isfinite(head).all():
+        raise StoreError(f"{path}: rows do not decode to finite values")
+
+
+def _verify_shards(
+    path: Path, st: BrdfStore, crcs: NDArray[np.uint32], threads: int, row_paths: Sequence[Path] | None = None
+) -> None:
+    """Every row's shard file exists, nothing else does, and each matches its CRC-32C.
+
+    With ``row_paths`` (during assembly) a mismatch is reported against the row store.
+    """
+    n = st.n_materials
+    if crcs.shape != (n,):
+        raise StoreError(f"{path}: shard digest table has shape {crcs.shape}, expected ({n},)")
+    rows_dir = path / "brdf" / "c"
+    present = set(os.listdir(rows_dir)) if rows_dir.is_dir() else set()
+    expected = {str(i) for i in range(n)}
+    if present - expected:
+        raise StoreError(f"{path}: unexpected shard folders {sorted(present - expected)}")
+
+    def check_row(i: int) -> None:
+        shard = path / "brdf" / _shard_key(i)
+        try:
+            data = _read_file(shard)
+        except FileNotFoundError:
+            raise StoreError(f"{path}: shard of row {i} ({st.materials[i]!r}) is missing") from None
+        if google_crc32c.value(data) != int(crcs[i]):
+            if row_paths is not None:
+                raise StoreError(
+                    f"{row_paths[i]}: shard of row {st.materials[i]!r} does not match the digest recorded "
+                    "at ingest (row store damaged); re-run its ingest"
+                )
+            raise StoreError(f"{path}: shard of row {i} ({st.materials[i]!r}) is corrupt (digest mismatch)")
+        extra = set(os.listdir(shard.parent)) - {shard.name}
+        if extra:
+            raise StoreError(f"{path}: unexpected files {sorted(extra)} in row {i}")
+
+    _run_threads(check_row, range(n), threads)
+
+
+def open_store(path: str | os.PathLike[str], *, verify: bool = False) -> BrdfStore:
+    """Open a finished store read-only after checking it.
+
+    Refuses, with a :class:`StoreError` naming the path, a store that is
+    missing, lacks the completion marker (half-written or crashed), has a
+    ``brdf`` / ``valid`` array of the wrong shape or dtype, or attributes
+    inconsistent with the shape (names, sources, database, scales, marker).
+    With ``verify=True`` it also checks that every shard file is present and
+    matches the CRC-32C recorded at assembly (reads the whole store).
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise StoreError(f"{path}: no such store")
+    try:
+        group = zarr.open_group(path, mode="r", zarr_format=3)
+    except Exception as exc:
+        raise StoreError(f"{path}: not a readable Zarr v3 group ({exc})") from exc
+    st = _check_group(group, path)
+    if verify:
+        crcs = group.get("shard_crc32c")
+        if not isinstance(crcs, zarr.Array):
+            raise StoreError(f"{path}: store lacks the 'shard_crc32c' array needed to verify it")
+        _verify_shards(path, st, np.asarray(crcs[:], dtype=np.uint32), threads=2)
+    return st
+
+
+# --------------------------------------------------------------------------
+# Reading by column blocks
+# --------------------------------------------------------------------------
+
+
+def _as_store(store_or_path: BrdfStore | zarr.Group | str | os.PathLike[str]) -> BrdfStore:
+    if isinstance(store_or_path, BrdfStore):
+        return store_or_path
+    if isinstance(store_or_path, zarr.Group):
+        return _check_group(store_or_path, Path(str(store_or_path.store)))
+    return open_store(store_or_path)
+
+
+def _row_selection(st: BrdfStore, rows: Any) -> NDArray[np.intp]:
+    """Row indices of a selection: None (all), a slice, indices, a bool mask or material names."""
+    if rows is None:
+        return np.arange(st.n_materials, dtype=np.intp)
+    if isinstance(rows, slice):
+        return np.arange(*rows.indices(st.n_materials), dtype=np.intp)
+    if isinstance(rows, (str, int, np.integer)):
+        rows = [rows]
+    seq = rows if isinstance(rows, np.ndarray) else list(rows)
+    if isinstance(seq, list) and seq and all(isinstance(r, str) for r in seq):
+        index = {m: i for i, m in enumerate(st.materials)}
+        missing = [r for r in seq if r not in index]
+        if missing:
+            raise KeyError(f"{st.path}: no material(s) {missing}")
+        return np.array([index[r] for r in seq], dtype=np.intp)
+    arr = np.asarray(seq)
+    if arr.dtype == np.bool_:
+        if arr.shape != (st.n_materials,):
+            raise ValueError(f"row mask has shape {arr.shape}, expected ({st.n_materials},)")
+        return np.flatnonzero(arr)
+    idx = arr.astype(np.intp).ravel()
+    if idx.size and (idx.min() < -st.n_materials or idx.max() >= st.n_materials):
+        raise IndexError(f"row index out of range for {st.n_materials} materials")
+    return np.where(idx < 0, idx + st.n_materials, idx)
+
+
+def iter_column_blocks(
+    store_or_path: BrdfStore | zarr.Group | str | os.PathLike[str],
+    block_cols: int | None = None,
+    rows: Any = None,
+) -> Iterator[tuple[int, int, NDArray[np.float32]]]:
+    """Yield ``(start, stop, block)`` over the columns of ``brdf``, left to right.
+
+    ``block`` is a float32 array of shape ``(n_rows, stop - start)``.  The
+    blocks cover all 4,374,000 columns exactly once.  ``block_cols`` defaults
+    to the chunk width (145,800), so blocks are aligned to chunks; multiples of
+    it stay aligned (other widths work but decode some chunks twice).
+    ``rows`` selects rows: None (all), a slice, integer indices, a bool mask or
+    material names (in the order given).  One block is in memory at a time;
+    the whole matrix never is.
+    """
+    st = _as_store(store_or_path)
+    width = st.chunk_cols if block_cols is None else int(block_cols)
+    if width <= 0:
+        raise ValueError(f"block_cols must be positive, got {block_cols}")
+    sel = _row_selection(st, rows)
+    # Runs of consecutive rows, each read with one basic slice (Zarr's orthogonal
+    # selection is ~10x slower on sharded arrays).
+    breaks = np.flatnonzero(np.diff(sel) != 1) + 1
+    runs = [(int(r[0]), int(r[-1]) + 1) for r in np.split(sel, breaks) if r.size]
+    for start in range(0, N_COLS, width):
+        stop = min(start + width, N_COLS)
+        block = np.empty((sel.size, stop - start), dtype=np.float32)
+        k = 0
+        for r0, r1 in runs:
+            block[k : k + r1 - r0] = st.brdf[r0:r1, start:stop]
+            k += r1 - r0
+        yield start, stop, block
+
+
+def iter_valid_blocks(
+    store_or_path: BrdfStore | zarr.Group | str | os.PathLike[str],
+    block_cols: int | None = None,
+    rows: Any = None,
+) -> Iterator[tuple[NDArray[np.int64], NDArray[np.float32]]]:
+    """Like :func:`iter_column_blocks`, restricted to the columns of valid cells.
+
+    Yields ``(columns, block)``: the column indices (int64, ascending) whose
+    cell is valid in every material, and the float32 block of those columns,
+    shape ``(n_rows, len(columns))``.  Blocks without any valid column are
+    skipped.  Every yielded value is ≥ 0.
+    """
+    st = _as_store(store_or_path)
+    valid = np.asarray(st.valid[:], dtype=bool)
+    for start, stop, block in iter_column_blocks(st, block_cols, rows):
+        cols = np.arange(start, stop, dtype=np.int64)
+        keep = valid[cols % N_CELLS]
+        if keep.any():
+            yield cols[keep], block[:, keep]
+
+
+# --------------------------------------------------------------------------
+# Convenience: the whole ingest
+# --------------------------------------------------------------------------
+
+
+def _mp_context() -> multiprocessing.context.BaseContext:
+    """``fork`` while this process is single-threaded (cheap), else a preloaded forkserver."""
+    methods = multiprocessing.get_all_start_methods()
+    if "fork" in methods and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    if "forkserver" in methods:
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["brdfpipe.store"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]", "_", name)[:80]
+
+
+def ingest(
+    sources: Mapping[str, str | os.PathLike[str]] | Sequence[str | os.PathLike[str]],
+    out: str | os.PathLike[str],
+    *,
+    database: str,
+    jobs: int = 1,
+    workdir: str | os.PathLike[str] | None = None,
+) -> None:
+    """Ingest MERL files into the store at ``out`` (:func:`ingest_material` + :func:`assemble_store`).
+
+    ``sources`` maps material names to files (row order = mapping order) or
+    lists files (names = file stems, in list order).  ``jobs`` worker
+    processes convert materials in parallel (``jobs=1``: in this process).
+    Row stores go to ``workdir`` (kept afterwards) or to a temporary sibling of
+    ``out`` (removed afterwards).  The first failing material aborts the
+    ingest with its error (naming the file); nothing is left at ``out`` then
+    (an earlier store there is deleted, as in :func:`ingest_material`).
+    """
+    database = _normalise_database(database)
+    out = Path(out)
+    if isinstance(sources, Mapping):
+        items = [(str(k), Path(v)) for k, v in sources.items()]
+    else:
+        items = [(Path(p).stem, Path(p)) for p in sources]
+    if not items:
+        raise ValueError("no sources to ingest")
+    names = [n for n, _ in items]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"duplicate material names: {dup}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    own_workdir = workdir is None
+    wd = _tmp_sibling(out, "rows") if workdir is None else Path(workdir)
+    wd.mkdir(parents=True, exist_ok=True)
+    row_paths = [wd / f"{i:04d}-{_safe(n)}.zarr" for i, (n, _) in enumerate(items)]
+    n = len(items)
+    try:
+        logger.info("ingesting %d materials into %s with %d job(s)", n, out, jobs)
+        if jobs <= 1 or n == 1:
+            for k, ((name, src), row) in enumerate(zip(items, row_paths), 1):
+                ingest_material(src, row, name=name)
+                if k % 10 == 0 or k == n:
+                    logger.info("ingested %d/%d materials", k, n)
+        else:
+            with ProcessPoolExecutor(max_workers=min(jobs, n), mp_context=_mp_context()) as ex:
+                futures: list[Future[None]] = [
+                    ex.submit(ingest_material, src, row, name=name) for (name, src), row in zip(items, row_paths)
+                ]
+                wait(futures, return_when=FIRST_EXCEPTION)
+                for f in futures:
+                    f.cancel()
+                for f in futures:
+                    if not f.cancelled():
+                        f.result()  # re-raises the first error (in row order)
+            logger.info("ingested %d/%d materials", n, n)
+        # The row stores are private temporaries here: hard-link their shards.
+        assemble_store(row_paths, out, database=database, threads=max(1, min(jobs, 4)), link=own_workdir)
+    except BaseException:
+        _discard_stale(out)
+        raise
+    finally:
+        if own_workdir:
+            _remove(wd)

@@ -1,0 +1,411 @@
+"""Tests of :mod:`brdfpipe.store`: the Zarr store of the materials × cells matrix.
+
+Three full-resolution materials (35 MB each) made from smooth analytic tables,
+each with its own extra unmeasured cells (some negative in one channel only),
+so that ``valid`` really is an AND over materials and channels.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zarr
+from numpy.typing import NDArray
+
+from brdfpipe import __version__, merl, store
+from brdfpipe.merl import N_CELLS, MerlFormatError
+from brdfpipe.store import N_COLS, StoreError
+
+N_MATERIALS = 3
+
+
+def _table(seed: int, mask: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """A smooth positive table with material-specific unmeasured cells."""
+    rng = np.random.default_rng(seed)
+    th, td, pd = merl.cell_centres()
+    alpha = 0.05 + 0.1 * seed
+    lobe = np.exp(-((th / alpha) ** 2)) * (1.0 + 0.3 * np.cos(td)) * (1.0 + 0.05 * np.cos(2 * pd))
+    kd = np.array([0.1, 0.2, 0.3]) + 0.05 * seed
+    table = kd[:, None, None, None] / np.pi + (2.0 + seed) * lobe[None]
+    table = table.reshape(3, N_CELLS)
+    table[:, ~mask.ravel()] = -merl.SCALES[:, None]
+    extra = rng.choice(N_CELLS, size=2000, replace=False)
+    table[seed % 3, extra] = -0.5 * merl.SCALES[seed % 3]  # unmeasured in one channel only
+    table[:, extra[:5]] = 0.0  # zero counts as measured
+    return table.reshape(merl.SHAPE)
+
+
+@pytest.fixture(scope="module")
+def sources(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """name -> MERL file, for three materials."""
+    d = tmp_path_factory.mktemp("merl")
+    mask = merl.measured_mask()
+    out = {}
+    for i in range(N_MATERIALS):
+        path = d / f"mat-{i}.binary"
+        merl.write_merl(path, _table(i, mask))
+        out[f"mat-{i}"] = path
+    return out
+
+
+@pytest.fixture(scope="module")
+def expected(sources: dict[str, Path]) -> NDArray[np.float32]:
+    """The matrix as read directly with read_merl, in source order."""
+    return np.stack([merl.read_merl(p).reshape(-1).astype(np.float32) for p in sources.values()])
+
+
+@pytest.fixture(scope="module")
+def built(sources: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A store made by ``ingest`` with two worker processes."""
+    out = tmp_path_factory.mktemp("built") / "merl.zarr"
+    store.ingest(sources, out, database="synthetic", jobs=2)
+    return out
+
+
+@pytest.fixture(scope="module")
+def rows(sources: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """Row stores made by ``ingest_material`` (read-only for the tests: copy before damaging)."""
+    d = tmp_path_factory.mktemp("rows")
+    paths = []
+    for name, src in sources.items():
+        row = d / f"{name}.zarr"
+        store.ingest_material(src, row, name=name)
+        paths.append(row)
+    return paths
+
+
+def _leftovers(folder: Path) -> list[str]:
+    if not folder.exists():
+        return []
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def _bits(a: NDArray[np.float32]) -> NDArray[np.uint32]:
+    return np.ascontiguousarray(a).view(np.uint32)
+
+
+# --------------------------------------------------------------------------
+# Content
+# --------------------------------------------------------------------------
+
+
+def test_rows_equal_direct_read(built: Path, expected: NDArray[np.float32]) -> None:
+    st = store.open_store(built, verify=True)
+    assert st.brdf.shape == (N_MATERIALS, N_COLS) and st.brdf.dtype == np.float32
+    for i in range(N_MATERIALS):
+        np.testing.assert_array_equal(_bits(st.brdf[i, :]), _bits(expected[i]))
+
+
+def test_valid_is_and_of_masks(built: Path, sources: dict[str, Path]) -> None:
+    want = np.ones(N_CELLS, dtype=bool)
+    for p in sources.values():
+        want &= (merl.read_merl(p).reshape(3, N_CELLS) >= 0).all(axis=0)
+    st = store.open_store(built)
+    got = st.valid[:]
+    assert got.dtype == np.bool_
+    np.testing.assert_array_equal(got, want)
+    assert want.sum() < merl.measured_mask().sum()  # the extra unmeasured cells matter
+
+
+def test_attributes(built: Path, sources: dict[str, Path]) -> None:
+    st = store.open_store(built)
+    attrs = dict(st.group.attrs)
+    assert attrs["materials"] == list(sources) and st.materials == tuple(sources)
+    assert attrs["database"] == "synthetic"
+    for name, path in sources.items():
+        assert attrs["sources"][name] == hashlib.sha256(path.read_bytes()).hexdigest()
+        assert attrs["source_files"][name] == path.name
+    assert attrs["channel_scales"] == list(merl.SCALES)
+    assert "column k" in attrs["layout"] and attrs["brdfpipe_version"] == __version__
+    assert attrs[store.COMPLETE_ATTR]["n_materials"] == N_MATERIALS
+    assert st.brdf.chunks == (1, store.CHUNK_COLS)
+
+
+def test_store_is_plain_zarr(built: Path, expected: NDArray[np.float32]) -> None:
+    """Readable with zarr alone, nothing brdfpipe-specific needed."""
+    group = zarr.open_group(built, mode="r")
+    np.testing.assert_array_equal(group["brdf"][1, 1_000_000:1_000_100], expected[1, 1_000_000:1_000_100])
+
+
+def test_row_shard_bytes_equal_zarrs(rows: list[Path], expected: NDArray[np.float32], tmp_path: Path) -> None:
+    """The hand-written shard is byte-identical to what Zarr writes for the same row."""
+    group = zarr.open_group(tmp_path / "ref.zarr", mode="w", zarr_format=3)
+    arr = store._create_brdf_array(group, 1)
+    arr[0, :] = expected[0]
+    ours = (rows[0] / "brdf" / "c" / "0" / "0").read_bytes()
+    assert (tmp_path / "ref.zarr" / "brdf" / "c" / "0" / "0").read_bytes() == ours
+    row = zarr.open_group(rows[0], mode="r")
+    np.testing.assert_array_equal(_bits(row["brdf"][0, :]), _bits(expected[0]))
+    assert row.attrs["name"] == "mat-0"
+
+
+# --------------------------------------------------------------------------
+# Reading by blocks
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("block_cols", [None, 1_000_003, 2 * store.CHUNK_COLS])
+def test_iter_column_blocks_cover_and_equal(
+    built: Path, expected: NDArray[np.float32], block_cols: int | None
+) -> None:
+    nxt = 0
+    for start, stop, block in store.iter_column_blocks(built, block_cols):
+        assert start == nxt and stop > start and block.dtype == np.float32
+        assert block.shape == (N_MATERIALS, stop - start)
+        if block_cols is None:
+            assert start % store.CHUNK_COLS == 0
+        np.testing.assert_array_equal(block, expected[:, start:stop])
+        nxt = stop
+    assert nxt == N_COLS
+
+
+@pytest.mark.parametrize(
+    "rows_sel, want",
+    [
+        ([2, 0], [2, 0]),
+        (["mat-1"], [1]),
+        (np.array([True, False, True]), [0, 2]),
+        (slice(1, 3), [1, 2]),
+        (slice(None, None, -1), [2, 1, 0]),
+        (-1, [2]),
+    ],
+)
+def test_iter_column_blocks_rows(
+    built: Path, expected: NDArray[np.float32], rows_sel: object, want: list[int]
+) -> None:
+    blocks = list(store.iter_column_blocks(store.open_store(built), 4 * store.CHUNK_COLS, rows=rows_sel))
+    got = np.concatenate([b for _, _, b in blocks], axis=1)
+    np.testing.assert_array_equal(got, expected[want])
+
+
+def test_iter_valid_blocks(built: Path, expected: NDArray[np.float32]) -> None:
+    st = store.open_store(built)
+    valid_cols = np.flatnonzero(np.tile(st.valid[:], 3))
+    cols_seen = []
+    for cols, block in store.iter_valid_blocks(st):
+        assert block.shape == (N_MATERIALS, cols.size)
+        assert (block >= 0).all()
+        np.testing.assert_array_equal(block, expected[:, cols])
+        cols_seen.append(cols)
+    np.testing.assert_array_equal(np.concatenate(cols_seen), valid_cols)
+
+
+# --------------------------------------------------------------------------
+# Bad inputs and failures
+# --------------------------------------------------------------------------
+
+
+def _truncated(src: Path, dst: Path) -> Path:
+    dst.write_bytes(src.read_bytes()[:-8])
+    return dst
+
+
+def _with_nan(src: Path, dst: Path) -> Path:
+    data = bytearray(src.read_bytes())
+    pos = merl.HEADER_BYTES + 8 * (2 * N_CELLS + 123_456)  # a blue value late in the file
+    data[pos : pos + 8] = np.array([np.nan], "<f8").tobytes()
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+def _bad_header(src: Path, dst: Path) -> Path:
+    data = bytearray(src.read_bytes())
+    data[:4] = np.array([91], "<i4").tobytes()
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+def _too_big(src: Path, dst: Path) -> Path:
+    data = bytearray(src.read_bytes())
+    pos = merl.HEADER_BYTES + 8 * 77
+    data[pos : pos + 8] = np.array([1e300], "<f8").tobytes()  # finite, not a float32
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+@pytest.mark.parametrize("damage", [_truncated, _with_nan, _bad_header, _too_big])
+def test_bad_file_fails_and_leaves_nothing(
+    damage: object, sources: dict[str, Path], rows: list[Path], tmp_path: Path
+) -> None:
+    bad = damage(sources["mat-0"], tmp_path / "bad.binary")  # type: ignore[operator]
+    out = tmp_path / "out" / "row.zarr"
+    with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
+        store.ingest_material(bad, out, name="bad")
+    assert not out.exists() and _leftovers(out.parent) == []
+    # An earlier row store at `out` is removed too: it must not stand in for the failed one.
+    shutil.copytree(rows[0], out)
+    with pytest.raises(MerlFormatError):
+        store.ingest_material(bad, out, name="bad")
+    assert not out.exists() and _leftovers(out.parent) == []
+
+
+def test_missing_file_fails(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="nope.binary"):
+        store.ingest_material(tmp_path / "nope.binary", tmp_path / "row.zarr", name="x")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ingest_with_a_bad_file_fails(sources: dict[str, Path], tmp_path: Path) -> None:
+    bad = _with_nan(sources["mat-1"], tmp_path / "bad.binary")
+    out = tmp_path / "store" / "merl.zarr"
+    srcs = {"a": sources["mat-0"], "bad": bad, "c": sources["mat-2"]}
+    with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
+        store.ingest(srcs, out, database="synthetic", jobs=2)
+    assert not out.exists() and _leftovers(out.parent) == []
+
+
+def _copy_rows(rows: list[Path], dst: Path) -> list[Path]:
+    dst.mkdir()
+    return [Path(shutil.copytree(r, dst / r.name)) for r in rows]
+
+
+def _edit_json(path: Path, fn: object) -> None:
+    doc = json.loads(path.read_text())
+    fn(doc)  # type: ignore[operator]
+    path.write_text(json.dumps(doc))
+
+
+def _drop_marker(doc: dict) -> None:
+    del doc["attributes"][store.COMPLETE_ATTR]
+
+
+def _other_chunks(doc: dict) -> None:
+    doc["codecs"][0]["configuration"]["chunk_shape"] = [1, 48_600]
+
+
+def _rename(doc: dict) -> None:
+    doc["attributes"]["name"] = "mat-0"
+
+
+@pytest.mark.parametrize(
+    "problem, message",
+    [
+        ("missing", "row store is missing"),
+        ("no marker", "incomplete"),
+        ("layout", "layout"),
+        ("duplicate", "duplicate material name"),
+        ("damaged", "does not match the digest"),
+        ("no shard", "missing"),
+    ],
+)
+def test_assemble_bad_row_fails_and_leaves_nothing(
+    problem: str, message: str, rows: list[Path], tmp_path: Path
+) -> None:
+    copies = _copy_rows(rows, tmp_path / "rows")
+    bad = copies[1]
+    if problem == "missing":
+        shutil.rmtree(bad)
+    elif problem == "no marker":
+        _edit_json(bad / "zarr.json", _drop_marker)
+    elif problem == "layout":
+        _edit_json(bad / "brdf" / "zarr.json", _other_chunks)
+    elif problem == "duplicate":
+        _edit_json(bad / "zarr.json", _rename)
+    elif problem == "damaged":
+        shard = bad / "brdf" / "c" / "0" / "0"
+        data = bytearray(shard.read_bytes())
+        data[1000] ^= 0xFF
+        shard.write_bytes(bytes(data))
+    elif problem == "no shard":
+        (bad / "brdf" / "c" / "0" / "0").unlink()
+    out = tmp_path / "out" / "merl.zarr"
+    for link in (False, True):
+        with pytest.raises(StoreError, match=message) as err:
+            store.assemble_store(copies, out, database="synthetic", link=link)
+        assert str(bad) in str(err.value)
+        assert not out.exists() and _leftovers(out.parent) == []
+
+
+def test_assemble_copies_and_verifies(rows: list[Path], expected: NDArray[np.float32], tmp_path: Path) -> None:
+    out = tmp_path / "merl.zarr"
+    store.assemble_store(list(reversed(rows)), out, database="merl")
+    st = store.open_store(out, verify=True)
+    assert st.materials == ("mat-2", "mat-1", "mat-0") and st.database == "merl"
+    np.testing.assert_array_equal(st.brdf[0, :], expected[2])
+    for i, row in enumerate(reversed(rows)):
+        shard = out / "brdf" / "c" / str(i) / "0"
+        assert shard.read_bytes() == (row / "brdf" / "c" / "0" / "0").read_bytes()
+        assert shard.stat().st_nlink == 1  # a copy, not a link
+    # A damaged shard passes the cheap checks but not verify=True.
+    shard = out / "brdf" / "c" / "1" / "0"
+    data = bytearray(shard.read_bytes())
+    data[-100] ^= 1
+    shard.write_bytes(bytes(data))
+    store.open_store(out)
+    with pytest.raises(StoreError, match="corrupt"):
+        store.open_store(out, verify=True)
+
+
+def test_assemble_rejects_unknown_database(rows: list[Path], tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="database"):
+        store.assemble_store(rows, tmp_path / "merl.zarr", database="mystery")
+    assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------
+# open_store and reruns
+# --------------------------------------------------------------------------
+
+
+def test_open_store_refuses_incomplete(built: Path, tmp_path: Path) -> None:
+    crashed = Path(shutil.copytree(built, tmp_path / "crashed.zarr"))
+    _edit_json(crashed / "zarr.json", _drop_marker)  # as if the writer died before the marker
+    with pytest.raises(StoreError, match=re.escape(str(crashed)) + ".*completion marker"):
+        store.open_store(crashed)
+    with pytest.raises(StoreError, match="completion marker"):
+        next(store.iter_column_blocks(crashed))
+
+
+def test_open_store_refuses_inconsistent(built: Path, tmp_path: Path) -> None:
+    def fewer_names(doc: dict) -> None:
+        doc["attributes"]["materials"] = doc["attributes"]["materials"][:2]
+
+    def wrong_dtype(doc: dict) -> None:
+        doc["data_type"] = "float64"
+
+    bad = Path(shutil.copytree(built, tmp_path / "bad.zarr"))
+    _edit_json(bad / "zarr.json", fewer_names)
+    with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*2 material names for 3 rows"):
+        store.open_store(bad)
+    bad2 = Path(shutil.copytree(built, tmp_path / "bad2.zarr"))
+    _edit_json(bad2 / "brdf" / "zarr.json", wrong_dtype)
+    with pytest.raises(StoreError, match="float32"):
+        store.open_store(bad2)
+    with pytest.raises(StoreError, match="no such store"):
+        store.open_store(tmp_path / "absent.zarr")
+
+
+def test_rerun_replaces_existing(sources: dict[str, Path], expected: NDArray[np.float32], tmp_path: Path) -> None:
+    out = tmp_path / "merl.zarr"
+    store.ingest(list(sources.values()), out, database="synthetic", jobs=1)
+    assert store.open_store(out).materials == ("mat-0", "mat-1", "mat-2")
+    store.ingest({"only": sources["mat-2"]}, out, database="merl", jobs=1)
+    st = store.open_store(out, verify=True)
+    assert st.materials == ("only",) and st.database == "merl"
+    np.testing.assert_array_equal(st.brdf[:, :], expected[2:3])
+    assert sorted(os.listdir(tmp_path)) == ["merl.zarr"]
+
+
+def test_ingest_keeps_rows_in_workdir(sources: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "merl.zarr"
+    store.ingest(sources, out, database="synthetic", jobs=1, workdir=tmp_path / "rows")
+    kept = sorted(p.name for p in (tmp_path / "rows").iterdir())
+    assert kept == ["0000-mat-0.zarr", "0001-mat-1.zarr", "0002-mat-2.zarr"]
+    assert (out / "brdf" / "c" / "0" / "0").stat().st_nlink == 1  # kept rows are copied, not linked
+    assert store.open_store(out, verify=True).materials == tuple(sources)
+
+
+def test_replace_refuses_non_store(sources: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "precious.txt").write_text("keep me")
+    with pytest.raises(StoreError, match="refusing to replace"):
+        store.ingest_material(sources["mat-0"], out, name="x")
+    assert (out / "precious.txt").read_text() == "keep me"
