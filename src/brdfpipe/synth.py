@@ -1,0 +1,1147 @@
+"""A synthetic, physically based database of MERL-format BRDFs.
+
+The real MERL database (100 measured isotropic BRDFs, Matusik et al. 2003)
+cannot be downloaded everywhere, so the pipeline can run on a synthetic
+stand-in with the same format, the same family mix and measured-data-like
+behaviour.  Every material is
+
+1. an analytic, reciprocal, (approximately) energy-conserving model of one of five
+   families (below), evaluated at the MERL cell centres (:func:`evaluate`);
+2. times a seeded, smooth, low-frequency multiplicative deviation
+   ``exp(g(θh, θd, φd))`` over the whole (θh, θd, φd) cube, so the set is not a
+   handful of analytic families (``g`` is centred to zero mean over the
+   measured cells, then gains, not losses, are soft-limited:
+   ``g → L·tanh(g/L)`` for ``g > 0``, ``L = 0.25``);
+3. rescaled uniformly if its directional albedo
+   (:func:`brdfpipe.merl.directional_albedo`, 46 incident angles 0 … 89.5°,
+   before noise) exceeds :data:`ALBEDO_BOUND`; the scale is the record's
+   ``energy_scale`` (:func:`generate_material`);
+4. times log-normal measurement noise ``exp(noise·z − noise²/2)``, z ~ N(0, 1)
+   independent per cell and channel (relative standard deviation ≈ ``noise``,
+   mean 1);
+
+and every cell outside :func:`brdfpipe.merl.measured_mask` holds
+``-SCALES[c]`` (raw value −1 in the file), like MERL's unmeasured cells.
+
+Families and counts
+-------------------
+Counts mirror MERL's mix: for 100 materials 25 ``metal``, 30 ``paint``
+(paints and plastics), 12 ``metallic-paint``, 12 ``fabric`` and 21
+``phenolic`` (phenolics and acrylics); other counts are apportioned in the same
+proportions (largest remainder), every family present once ``count ≥ 5``.
+Materials are laid out in family blocks in :data:`FAMILIES` order; names are
+``<family>-<colour or metal>[-<variant>]-<index>``, e.g. ``metal-gold-005``,
+``paint-red-plastic-026``, ``fabric-blue-velvet-067``.
+
+Models
+------
+``lobe(α)`` is a microfacet lobe D·G2/(4 cosθi cosθo) with the exact
+height-correlated Smith G2 = 1/(1 + Λ(θi) + Λ(θo)) of its distribution; with
+a ``ggx`` weight t it is t·GGX(α) + (1 − t)·Beckmann(α) (tail shape between
+Beckmann's and GGX's).  ``F_d`` is the exact unpolarised dielectric Fresnel
+term, ``T = (1 − F_d(θi))(1 − F_d(θo))`` the transmission through a
+dielectric interface both ways (so a diffuse base under it conserves energy).
+
+==================  =========================================================
+family / variant    model
+==================  =========================================================
+metal               conductor Fresnel F(θd; n, k) per channel (exact, as
+                    pbrt's ``FrConductor``) × [(1−h)·lobe(α) + h·lobe(α_haze)]
+paint / plastic     ks·F_d(θd; η)·[w1·lobe(α1) + w2·lobe(α2)]
+                    + T·ρ/π·ON(σ)  (ON: Oren–Nayar factor, below)
+metallic-paint      clear coat F_d(θd; η)·lobe(α_coat)
+                    + T·[kd·c/π + k1·c·lobe(α1) + k2·c_flake·lobe(α_flake)]
+fabric (velvet,     ρ/π·ON(σ) + sheen·D_charlie(θh; r)·V_np + ks·F_d·lobe(α)
+felt, satin)        ON(σ) = A + B·max(0, cos Δφ)·sin(max θ)·tan(min θ) (Oren &
+                    Nayar 1994, qualitative model: retro-reflection at grazing);
+                    D_charlie = (2 + 1/r) sin(θh)^(1/r)/(2π) (Estevez & Kulla
+                    2017), V_np = 1/(4(cosθi + cosθo − cosθi cosθo)) (Neubelt &
+                    Pettineo 2013); ks > 0 for satin only
+phenolic / acrylic  coat F_d(θd; η)·[(1−h)·lobe(α_coat) + h·lobe(α_haze)]
+                    + T·ρ·[(1−kb)/π + kb·lobe(α_b)]
+==================  =========================================================
+
+Parameter ranges (U: uniform, logU: log-uniform; colours are linear RGB drawn
+in HSV: hue U(0, 1), saturation s, value v = largest channel; every lobe's
+GGX weight t is 1 (35 %), 0 (25 %) or U(0, 1) (40 %) unless stated)
+
+==================  =========================================================
+metal               metal round-robin over :data:`METALS`; (n, k) × exp(N(0,
+                    0.03)) each (alloy / oxide spread); α logU(0.02, 0.5); haze
+                    with p = 0.5: α_haze = min(0.8, α·U(2, 5)), h U(0.05, 0.4)
+paint (paint /      η U(1.4, 1.6); ks U(0.5, 1); s U(0, 0.95), v logU(0.02,
+plastic alternate)  0.85); σ U(0, 0.5); paint: α1 logU(0.06, 0.45), second lobe
+                    with p = 0.3: α2 U(0.3, 0.6), w2 U(0.1, 0.4); plastic: α1
+                    logU(0.015, 0.12), α2 logU(0.15, 0.45), w2 U(0.05, 0.5);
+                    w1 = 1 − w2
+metallic-paint      η U(1.45, 1.6), α_coat logU(0.015, 0.06) (GGX); c: s U(0,
+                    0.9), v U(0.15, 0.9); kd U(0.02, 0.25), k1 U(0.15, 0.45), k2
+                    U(0.05, 0.25), scaled so kd + k1 + k2 ≤ 0.9; α1 logU(0.06,
+                    0.2), α_flake U(0.3, 0.6); c_flake = mix(c, v, U(0, 0.5))
+fabric (velvet,     s U(0, 0.9), v logU(0.03, 0.7); velvet: σ U(0.2, 0.5), r
+felt, satin         U(0.3, 0.7), sheen U(0.3, 0.8); felt: σ U(0.35, 0.6), r
+alternate)          U(0.6, 1), sheen U(0.05, 0.3); satin: σ U(0.1, 0.3), r U(0.2,
+                    0.45), sheen U(0.2, 0.6), ks U(0.1, 0.4), α U(0.15, 0.35)
+                    (GGX), η 1.5; sheen ≤ 0.95 − v (the sheen lobe's albedo
+                    reaches ≈ 0.96 at grazing); sheen colour = sheen·mix(ρ/v,
+                    1, U(0.2, 0.8))
+phenolic (phenolic  η U(1.48, 1.6) (acrylic U(1.48, 1.5)); α_coat logU(0.015,
+/ acrylic           0.06) (GGX); haze with p = 0.5: α_haze U(0.05, 0.15), h
+alternate)          U(0.05, 0.3); ρ: s U(0.2, 1), v logU(0.01, 0.5); kb U(0,
+                    0.3) (acrylic U(0.05, 0.4)), α_b U(0.1, 0.3)
+deviation           g = Σ c_abc·cos(aπu)·cos(2bθd)·cos(2cφd), u = sqrt(θh/(π/2))
+                    (MERL's θh binning), shared by the channels: a, b < 5,
+                    c < 3 (74 terms, no constant), c_abc ~ N(0, σ²/(1+a+b+c)²),
+                    σ U(0.1, 0.3); plus per channel a, b < 3, c < 2 (17 terms)
+                    with σ_ch = σ·U(0.1, 0.4)
+==================  =========================================================
+
+The smallest roughness is 0.015 for the coats: below about 0.012 the
+nearest-cell albedo quadrature of a MERL table overshoots at grazing incidence
+(the cell centre's cosθo differs from the true one inside the 1° θd bins), and
+such materials would be darkened by the energy rescaling for an artefact.
+
+The cos(2cφd) terms have period π in φd, so the deviations keep Helmholtz
+reciprocity (swapping the directions maps φd → φd + π) and isotropy.
+
+Complex refractive indices of :data:`METALS` (R, G, B ≈ 650, 550, 450 nm)
+are typical literature values rounded to three decimals: Au, Ag, Cu (Johnson &
+Christy 1972), Al (Rakić 1995), Cr, Fe (steel), Pt, Ni, Ti, Co, W (Johnson &
+Christy 1974; Palik) as tabulated for RGB rendering (e.g. Chaos Group,
+"Understanding metalness"; the 3Delight metal table at 642/529/464 nm for Ni,
+Ti, Co, W), brass (Cu–Zn, Querry 1985).  Sources differ by up to ~10 %; the
+per-material perturbation covers that.
+
+Determinism: material ``i`` of ``plan_database(count, seed)`` draws all its
+parameters from its own seed ``SeedSequence(seed, spawn_key=(i,))``; the noise
+uses a stream derived from that seed.  The same ``(count, seed, noise)``
+gives byte-identical files, materials can be generated independently and in
+any order.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import json
+import logging
+import math
+import numbers
+import os
+import re
+import tempfile
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.special import erfc
+
+from brdfpipe import __version__, merl
+
+__all__ = [
+    "FAMILIES",
+    "FAMILY_WEIGHTS",
+    "METALS",
+    "DEFAULT_NOISE",
+    "ALBEDO_BOUND",
+    "ALBEDO_THETA_I",
+    "NAME_RE",
+    "MaterialSpec",
+    "plan_database",
+    "family_counts",
+    "default_test_materials",
+    "default_test_count",
+    "evaluate",
+    "generate_table",
+    "generate_material",
+    "write_material",
+    "write_named_material",
+    "write_manifest",
+    "write_database_manifest",
+    "read_manifest",
+    "synthesize",
+]
+
+log = logging.getLogger("brdfpipe.synth")
+
+#: Material families, in the order of their blocks in a planned database.
+FAMILIES: Final[tuple[str, ...]] = ("metal", "paint", "metallic-paint", "fabric", "phenolic")
+#: Share of each family (per 100 materials), after MERL's mix.
+FAMILY_WEIGHTS: Final[Mapping[str, int]] = {
+    "metal": 25,
+    "paint": 30,
+    "metallic-paint": 12,
+    "fabric": 12,
+    "phenolic": 21,
+}
+#: Default relative standard deviation of the measurement noise.
+DEFAULT_NOISE: Final = 0.01
+#: A material whose directional albedo exceeds this anywhere is rescaled to it.
+ALBEDO_BOUND: Final = 0.97
+#: Incident angles (radians) at which the albedo bound is checked: 0 … 89.5°.
+ALBEDO_THETA_I: Final = np.radians(np.linspace(0.0, 89.5, 46))
+#: Material names: lower-case words joined by hyphens, ending in the running number.
+NAME_RE: Final = re.compile(r"^[a-z0-9]+(?:-[a-z0-9]+)*-[0-9]{3,}$")
+
+#: Complex refractive index (n, k) of metals at R, G, B ≈ 650, 550, 450 nm.
+METALS: Final[Mapping[str, tuple[tuple[float, float, float], tuple[float, float, float]]]] = {
+    #             n (R, G, B)             k (R, G, B)
+    "aluminium": ((1.346, 0.965, 0.617), (7.475, 6.400, 5.303)),
+    "brass": ((0.444, 0.527, 1.094), (3.695, 2.765, 1.829)),
+    "chrome": ((3.107, 3.181, 2.323), (3.331, 3.329, 3.135)),
+    "cobalt": ((2.870, 2.191, 1.809), (4.342, 3.880, 3.492)),
+    "copper": ((0.271, 0.677, 1.316), (3.609, 2.625, 2.292)),
+    "gold": ((0.183, 0.421, 1.373), (3.424, 2.346, 1.770)),
+    "nickel": ((1.994, 1.732, 1.645), (3.768, 3.132, 2.737)),
+    "platinum": ((2.376, 2.085, 1.845), (4.266, 3.715, 3.137)),
+    "silver": ((0.159, 0.145, 0.135), (3.929, 3.190, 2.381)),
+    "steel": ((2.911, 2.950, 2.585), (3.089, 2.932, 2.767)),  # iron
+    "titanium": ((2.184, 1.836, 1.721), (2.955, 2.519, 2.303)),
+    "tungsten": ((3.668, 3.482, 3.316), (2.927, 2.720, 2.572)),
+}
+
+_HALF_PI: Final = 0.5 * math.pi
+_NOISE_STREAM: Final = 0x6E6F6973  # "nois": the noise's sub-stream of a material seed
+# Deviation basis sizes (θh in u = sqrt(θh/(π/2)), θd, φd).
+_DEV_SHARED: Final = (5, 5, 3)
+_DEV_CHANNEL: Final = (3, 3, 2)
+_DEV_DECAY: Final = 1.0  # coefficient std ∝ (1 + a + b + c)^-decay
+_DEV_SIGMA: Final = (0.1, 0.3)  # range of the per-material deviation scale σ
+_DEV_CHANNEL_SIGMA: Final = (0.1, 0.4)  # per-channel σ as a fraction of σ
+_DEV_GAIN_LIMIT: Final = 0.25  # positive log deviations are squashed to below this
+
+
+# --------------------------------------------------------------------------
+# Plan
+# --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MaterialSpec:
+    """Everything needed to generate one material.
+
+    ``params`` is JSON-serialisable (floats, lists, strings); it holds the
+    family model's parameters (with ``family`` and ``variant``) and the
+    deviation coefficients (``deviation``).
+    """
+
+    name: str
+    family: str
+    index: int
+    seed: int
+    params: dict = field(compare=True, hash=False)
+
+    def to_json(self) -> dict[str, Any]:
+        """The manifest entry of this material."""
+        return {
+            "name": self.name,
+            "family": self.family,
+            "index": self.index,
+            "seed": self.seed,
+            "params": self.params,
+        }
+
+
+def _check_int(value: Any, what: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(f"{what} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{what} must be ≥ {minimum}, got {value}")
+    return int(value)
+
+
+def _check_noise(noise: Any) -> float:
+    if isinstance(noise, bool) or not isinstance(noise, numbers.Real):
+        raise ValueError(f"noise must be a number, got {noise!r}")
+    value = float(noise)
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(f"noise must be a finite number ≥ 0, got {noise!r}")
+    return value
+
+
+def family_counts(count: int) -> dict[str, int]:
+    """Materials per family for a database of ``count`` (MERL's proportions).
+
+    Largest-remainder apportionment of :data:`FAMILY_WEIGHTS`; every family
+    gets at least one material when ``count ≥ 5`` (for fewer, the families
+    with the largest shares come first).
+    """
+    count = _check_int(count, "count", 1)
+    total = sum(FAMILY_WEIGHTS.values())
+    quota = {f: FAMILY_WEIGHTS[f] * count / total for f in FAMILIES}
+    if count >= len(FAMILIES):
+        base = {f: max(1, math.floor(quota[f])) for f in FAMILIES}
+    else:
+        base = {f: 0 for f in FAMILIES}
+    order = {f: i for i, f in enumerate(FAMILIES)}
+    while sum(base.values()) > count:  # only possible because of the minimum of one
+        f = max(
+            (f for f in FAMILIES if base[f] > 1), key=lambda f: (base[f] - quota[f], -order[f])
+        )
+        base[f] -= 1
+    while sum(base.values()) < count:
+        f = max(FAMILIES, key=lambda f: (quota[f] - base[f], -order[f]))
+        base[f] += 1
+    return base
+
+
+def _r(x: float) -> float:
+    """Round a drawn parameter to 6 significant digits (readable manifests)."""
+    return float(f"{float(x):.6g}")
+
+
+def _rl(xs: Iterable[float]) -> list[float]:
+    return [_r(x) for x in xs]
+
+
+def _logu(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(np.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _colour(
+    rng: np.random.Generator, s_range: tuple[float, float], v_range: tuple[float, float],
+    log_v: bool,
+) -> tuple[list[float], float, float, float]:
+    """A linear-RGB colour drawn in HSV; returns (rgb, hue, saturation, value)."""
+    h = float(rng.uniform(0.0, 1.0))
+    s = float(rng.uniform(*s_range))
+    v = _logu(rng, *v_range) if log_v else float(rng.uniform(*v_range))
+    rgb = _rl(colorsys.hsv_to_rgb(h, s, v))
+    return rgb, h, s, v
+
+
+def _colour_name(h: float, s: float, v: float, *, metallic: bool = False) -> str:
+    """A short colour word for HSV (hue in [0, 1), value = linear max channel)."""
+    if s < 0.15:
+        if metallic:
+            return "silver" if v >= 0.35 else "gunmetal"
+        if v < 0.04:
+            return "black"
+        return "white" if v >= 0.45 else "grey"
+    if v < 0.025:
+        return "black"
+    deg = h * 360.0
+    if deg < 15 or deg >= 345:
+        name = "red"
+    elif deg < 45:
+        name = "orange"
+    elif deg < 70:
+        name = "yellow"
+    elif deg < 160:
+        name = "green"
+    elif deg < 200:
+        name = "cyan"
+    elif deg < 255:
+        name = "blue"
+    elif deg < 290:
+        name = "purple"
+    else:
+        name = "pink"
+    if name in ("orange", "red", "yellow") and v < 0.12 and s > 0.3 and metallic is False:
+        name = "brown" if name != "red" else "maroon"
+    if metallic and name in ("orange", "yellow") and v >= 0.35:
+        name = "gold"
+    return name
+
+
+def _tail(rng: np.random.Generator) -> float:
+    """GGX weight of a lobe: pure GGX (35 %), pure Beckmann (25 %) or a U(0, 1) mix."""
+    r = float(rng.uniform())
+    return 1.0 if r < 0.35 else (0.0 if r < 0.6 else float(rng.uniform()))
+
+
+def _plan_metal(rng: np.random.Generator, j: int) -> tuple[str, dict]:
+    metal = sorted(METALS)[j % len(METALS)]
+    n0, k0 = METALS[metal]
+    n = [x * math.exp(0.03 * rng.standard_normal()) for x in n0]
+    k = [x * math.exp(0.03 * rng.standard_normal()) for x in k0]
+    ggx = _tail(rng)
+    alpha = _logu(rng, 0.02, 0.5)
+    if rng.uniform() < 0.5:
+        alpha_haze = min(0.8, alpha * float(rng.uniform(2.0, 5.0)))
+        haze = float(rng.uniform(0.05, 0.4))
+    else:
+        alpha_haze, haze = alpha, 0.0
+    params = {
+        "metal": metal, "n": _rl(n), "k": _rl(k), "ggx": _r(ggx), "alpha": _r(alpha),
+        "alpha_haze": _r(alpha_haze), "haze": _r(haze),
+    }
+    return metal, params
+
+
+def _plan_paint(rng: np.random.Generator, j: int) -> tuple[str, dict]:
+    variant = ("paint", "plastic")[j % 2]
+    eta = float(rng.uniform(1.4, 1.6))
+    ks = float(rng.uniform(0.5, 1.0))
+    rgb, h, s, v = _colour(rng, (0.0, 0.95), (0.02, 0.85), log_v=True)
+    if variant == "paint":
+        a1 = _logu(rng, 0.06, 0.45)
+        if rng.uniform() < 0.3:
+            a2, w2 = float(rng.uniform(0.3, 0.6)), float(rng.uniform(0.1, 0.4))
+        else:
+            a2, w2 = a1, 0.0
+    else:
+        a1 = _logu(rng, 0.015, 0.12)
+        a2 = _logu(rng, 0.15, 0.45)
+        w2 = float(rng.uniform(0.05, 0.5))
+    params = {
+        "eta": _r(eta), "ks": _r(ks), "diffuse": rgb,
+        "sigma": _r(rng.uniform(0.0, 0.5)), "ggx": _r(_tail(rng)),
+        "lobes": [[_r(a1), _r(1.0 - w2)], [_r(a2), _r(w2)]],
+    }
+    colour = _colour_name(h, s, v)
+    return (colour if variant == "paint" else f"{colour}-plastic"), params | {"variant": variant}
+
+
+def _plan_metallic_paint(rng: np.random.Generator, j: int) -> tuple[str, dict]:
+    rgb, h, s, v = _colour(rng, (0.0, 0.9), (0.15, 0.9), log_v=False)
+    kd = float(rng.uniform(0.02, 0.25))
+    k1 = float(rng.uniform(0.15, 0.45))
+    k2 = float(rng.uniform(0.05, 0.25))
+    total = kd + k1 + k2
+    if total > 0.9:
+        kd, k1, k2 = (x * 0.9 / total for x in (kd, k1, k2))
+    t = float(rng.uniform(0.0, 0.5))
+    params = {
+        "coat_eta": _r(rng.uniform(1.45, 1.6)),
+        "coat_alpha": _r(_logu(rng, 0.015, 0.06)),
+        "base": rgb,
+        "kd": _r(kd),
+        "k1": _r(k1), "alpha1": _r(_logu(rng, 0.06, 0.2)),
+        "k2": _r(k2), "alpha_flake": _r(rng.uniform(0.3, 0.6)),
+        "ggx": _r(_tail(rng)),
+        "flake_colour": _rl((1.0 - t) * c + t * v for c in rgb),
+    }
+    return _colour_name(h, s, v, metallic=True), params
+
+
+def _plan_fabric(rng: np.random.Generator, j: int) -> tuple[str, dict]:
+    variant = ("velvet", "felt", "satin")[j % 3]
+    rgb, h, s, v = _colour(rng, (0.0, 0.9), (0.03, 0.7), log_v=True)
+    if variant == "velvet":
+        sigma, r, sheen = rng.uniform(0.2, 0.5), rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.8)
+        ks, alpha = 0.0, 0.25
+    elif variant == "felt":
+        sigma, r, sheen = rng.uniform(0.35, 0.6), rng.uniform(0.6, 1.0), rng.uniform(0.05, 0.3)
+        ks, alpha = 0.0, 0.25
+    else:
+        sigma, r, sheen = rng.uniform(0.1, 0.3), rng.uniform(0.2, 0.45), rng.uniform(0.2, 0.6)
+        alpha, ks = rng.uniform(0.15, 0.35), rng.uniform(0.1, 0.4)
+    # the Charlie sheen's albedo reaches ~0.96 at grazing: keep diffuse + sheen ≤ 0.95
+    sheen = min(float(sheen), 0.95 - v)
+    t = float(rng.uniform(0.2, 0.8))
+    sheen_rgb = [sheen * ((1.0 - t) * c / v + t) for c in rgb]
+    params = {
+        "variant": variant, "diffuse": rgb, "sigma": _r(sigma),
+        "sheen": _rl(sheen_rgb), "sheen_roughness": _r(r),
+        "ks": _r(ks), "alpha": _r(alpha), "eta": 1.5,
+    }
+    return f"{_colour_name(h, s, v)}-{variant}", params
+
+
+def _plan_phenolic(rng: np.random.Generator, j: int) -> tuple[str, dict]:
+    variant = ("phenolic", "acrylic")[j % 2]
+    eta = float(rng.uniform(1.48, 1.6) if variant == "phenolic" else rng.uniform(1.48, 1.5))
+    a_coat = _logu(rng, 0.015, 0.06)
+    if rng.uniform() < 0.5:
+        a_haze, haze = float(rng.uniform(0.05, 0.15)), float(rng.uniform(0.05, 0.3))
+    else:
+        a_haze, haze = a_coat, 0.0
+    rgb, h, s, v = _colour(rng, (0.2, 1.0), (0.01, 0.5), log_v=True)
+    kb = float(rng.uniform(0.0, 0.3) if variant == "phenolic" else rng.uniform(0.05, 0.4))
+    params = {
+        "variant": variant, "eta": _r(eta), "coat_alpha": _r(a_coat),
+        "alpha_haze": _r(a_haze), "haze": _r(haze), "diffuse": rgb,
+        "kb": _r(kb), "alpha_base": _r(rng.uniform(0.1, 0.3)),
+        "ggx": _r(_tail(rng)),
+    }
+    colour = _colour_name(h, s, v)
+    return (colour if variant == "phenolic" else f"{colour}-acrylic"), params
+
+
+_PLANNERS: Final = {
+    "metal": _plan_metal,
+    "paint": _plan_paint,
+    "metallic-paint": _plan_metallic_paint,
+    "fabric": _plan_fabric,
+    "phenolic": _plan_phenolic,
+}
+
+
+def _plan_deviation(rng: np.random.Generator) -> dict:
+    sigma = float(rng.uniform(*_DEV_SIGMA))
+    a, b, c = np.meshgrid(*(np.arange(n) for n in _DEV_SHARED), indexing="ij")
+    shared = rng.standard_normal(_DEV_SHARED) * sigma / (1.0 + a + b + c) ** _DEV_DECAY
+    shared[0, 0, 0] = 0.0
+    a, b, c = np.meshgrid(*(np.arange(n) for n in _DEV_CHANNEL), indexing="ij")
+    sig_ch = sigma * float(rng.uniform(*_DEV_CHANNEL_SIGMA))
+    channel = rng.standard_normal((3, *_DEV_CHANNEL)) * sig_ch / (1.0 + a + b + c) ** _DEV_DECAY
+    channel[:, 0, 0, 0] = 0.0
+    return {
+        "sigma": _r(sigma),
+        "shared": _rl(shared.ravel()),
+        "channel": [_rl(ch.ravel()) for ch in channel],
+    }
+
+
+def _material_seed(seed: int, index: int) -> int:
+    ss = np.random.SeedSequence(seed, spawn_key=(index,))
+    return int(ss.generate_state(1, np.uint64)[0] >> np.uint64(11))  # 53 bits: exact in JSON
+
+
+def plan_database(count: int, seed: int) -> list[MaterialSpec]:
+    """The materials of a synthetic database of ``count`` materials (pure, fast).
+
+    Families in blocks (:data:`FAMILIES` order, :func:`family_counts`);
+    inside a family, named metals and variants go round-robin; every other
+    parameter is drawn from the material's own seed, derived from
+    ``(seed, index)``.  Names are ``<family>-<descriptor>-<NNN>`` with the
+    index as running number.  Raises :class:`ValueError` for ``count < 1``
+    or ``seed < 0``.
+    """
+    count = _check_int(count, "count", 1)
+    seed = _check_int(seed, "seed", 0)
+    width = max(3, len(str(count - 1)))
+    specs: list[MaterialSpec] = []
+    index = 0
+    for family, n in family_counts(count).items():
+        for j in range(n):
+            mseed = _material_seed(seed, index)
+            rng = np.random.default_rng(mseed)
+            descriptor, params = _PLANNERS[family](rng, j)
+            params = {"family": family, "variant": params.pop("variant", family), **params}
+            params["deviation"] = _plan_deviation(rng)
+            name = f"{family}-{descriptor}-{index:0{width}d}"
+            specs.append(MaterialSpec(name, family, index, mseed, params))
+            index += 1
+    return specs
+
+
+def default_test_materials(specs: Sequence[MaterialSpec], n: int = 10) -> list[str]:
+    """``n`` held-out material names spanning every family (deterministic).
+
+    Round-robin over the families (in :data:`FAMILIES` order); inside a family
+    the materials are taken in the order of their seeds (a pseudo-random but
+    fixed order).  Returned in database order.  Raises :class:`ValueError` if
+    ``n`` is negative or larger than the database.
+    """
+    n = _check_int(n, "n", 0)
+    if n > len(specs):
+        raise ValueError(f"n = {n} test materials requested from a database of {len(specs)}")
+    groups: dict[str, list[MaterialSpec]] = {}
+    for s in specs:
+        groups.setdefault(s.family, []).append(s)
+    order = [f for f in FAMILIES if f in groups] + sorted(set(groups) - set(FAMILIES))
+    queues = [sorted(groups[f], key=lambda s: (s.seed, s.index)) for f in order]
+    picked: list[MaterialSpec] = []
+    depth = 0
+    while len(picked) < n:
+        for q in queues:
+            if depth < len(q) and len(picked) < n:
+                picked.append(q[depth])
+        depth += 1
+    return [s.name for s in sorted(picked, key=lambda s: s.index)]
+
+
+# --------------------------------------------------------------------------
+# Geometry
+# --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Geom:
+    """Per-pair geometry.
+
+    Functions of θh or θd alone go through :meth:`h` / :meth:`d`.  For
+    direction pairs ``cos_h`` and ``cos_d`` are per pair; on the MERL grid
+    they hold the 90 bin-centre values and ``ih`` / ``idd`` each cell's bin,
+    so such functions are evaluated once per bin and gathered.
+    """
+
+    mu_i: NDArray[np.float64]  # cos θi
+    mu_o: NDArray[np.float64]  # cos θo
+    cos_h: NDArray[np.float64]  # cos θh (n·h)
+    cos_d: NDArray[np.float64]  # cos θd (wi·h = wo·h)
+    cos_phi: NDArray[np.float64]  # cos(φi − φo)
+    ih: NDArray[np.intp] | None = None  # θh bin of each cell (grid only)
+    idd: NDArray[np.intp] | None = None  # θd bin of each cell (grid only)
+
+    def h(self, fn):
+        if self.ih is None:
+            return fn(self.cos_h)
+        return fn(self.cos_h)[..., self.ih]
+
+    def d(self, fn):
+        if self.idd is None:
+            return fn(self.cos_d)
+        return fn(self.cos_d)[..., self.idd]
+
+
+def _direct_geom(wi: NDArray[np.float64], wo: NDArray[np.float64]) -> _Geom:
+    """Geometry of direction pairs, computed with formulas symmetric in (wi, wo)."""
+    s = wi + wo
+    norm = np.sqrt(np.sum(s * s, axis=1))
+    cos_h = np.clip(s[:, 2] / norm, -1.0, 1.0)
+    cos_d = np.clip(0.5 * norm, 0.0, 1.0)  # wi·h = (1 + wi·wo)/|wi + wo| = |wi + wo|/2
+    ri = np.hypot(wi[:, 0], wi[:, 1])
+    ro = np.hypot(wo[:, 0], wo[:, 1])
+    dot = wi[:, 0] * wo[:, 0] + wi[:, 1] * wo[:, 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos_phi = np.where((ri > 0) & (ro > 0), dot / (ri * ro), 0.0)
+    return _Geom(wi[:, 2].copy(), wo[:, 2].copy(), cos_h, cos_d, np.clip(cos_phi, -1.0, 1.0))
+
+
+@dataclass(frozen=True)
+class _Grid:
+    geom: _Geom
+    cells: NDArray[np.intp]  # flat indices of the measured cells
+    u: NDArray[np.float64]  # sqrt(θh/(π/2)) at the θh centres, (90,)
+    theta_d: NDArray[np.float64]  # (90,)
+    phi_d: NDArray[np.float64]  # (180,)
+    mask: NDArray[np.bool_]  # (90, 90, 180)
+
+
+@lru_cache(maxsize=1)
+def _grid() -> _Grid:
+    """Geometry of the measured MERL cell centres (cached per process)."""
+    mask = merl.measured_mask()
+    cells = np.flatnonzero(mask)
+    wi, wo = merl.cell_directions(cells)
+    ih, rest = np.divmod(cells, merl.N_THETA_D * merl.N_PHI_D)
+    id_ = rest // merl.N_PHI_D
+    u = (np.arange(merl.N_THETA_H) + 0.5) / merl.N_THETA_H
+    theta_h = u * u * _HALF_PI
+    theta_d = (np.arange(merl.N_THETA_D) + 0.5) / merl.N_THETA_D * _HALF_PI
+    phi_d = (np.arange(merl.N_PHI_D) + 0.5) / merl.N_PHI_D * math.pi
+    d = _direct_geom(wi, wo)
+    geom = _Geom(
+        d.mu_i, d.mu_o, np.cos(theta_h), np.cos(theta_d), d.cos_phi, ih.astype(np.intp),
+        id_.astype(np.intp),
+    )
+    for a in (geom.mu_i, geom.mu_o, geom.cos_phi, geom.ih, geom.idd, cells):
+        a.setflags(write=False)
+    return _Grid(geom, cells, u, theta_d, phi_d, mask)
+
+
+# --------------------------------------------------------------------------
+# Model building blocks
+# --------------------------------------------------------------------------
+
+
+def _ndf(dist: str, alpha: float, c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Normal distribution D(θh), normalised (∫ D cos θh dω = 1): GGX or Beckmann."""
+    c2 = c * c
+    a2 = alpha * alpha
+    if dist == "ggx":
+        t = c2 * (a2 - 1.0) + 1.0
+        return a2 / (math.pi * t * t)
+    if dist == "beckmann":
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            out = np.exp(-(1.0 - c2) / (c2 * a2)) / (math.pi * a2 * c2 * c2)
+        return np.where(c > 0.0, out, 0.0)
+    raise ValueError(f"unknown microfacet distribution {dist!r}")
+
+
+def _smith_lambda(dist: str, alpha: float, mu: NDArray[np.float64]) -> NDArray[np.float64]:
+    tan2 = (1.0 - mu * mu) / (mu * mu)
+    if dist == "ggx":
+        return 0.5 * (np.sqrt(1.0 + alpha * alpha * tan2) - 1.0)
+    if dist == "beckmann":
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = 1.0 / (alpha * np.sqrt(tan2))
+            lam = 0.5 * (np.exp(-a * a) / (a * math.sqrt(math.pi)) - erfc(a))
+        return np.where(tan2 > 0.0, np.maximum(lam, 0.0), 0.0)
+    raise ValueError(f"unknown microfacet distribution {dist!r}")
+
+
+def _lobe1(g: _Geom, alpha: float, dist: str) -> NDArray[np.float64]:
+    d = g.h(lambda c: _ndf(dist, alpha, c))
+    lam = _smith_lambda(dist, alpha, g.mu_i) + _smith_lambda(dist, alpha, g.mu_o)
+    return d / ((1.0 + lam) * (4.0 * (g.mu_i * g.mu_o)))
+
+
+def _lobe(g: _Geom, alpha: float, ggx: float = 1.0) -> NDArray[np.float64]:
+    """Microfacet lobe D·G2/(4 μi μo) without Fresnel, shape (n,).
+
+    A mixture ``ggx``·GGX(α) + (1 − ``ggx``)·Beckmann(α), each with its exact
+    height-correlated Smith G2, so the tail shape varies between Beckmann's
+    short and GGX's long tail while each part stays energy-consistent.
+    """
+    if ggx >= 1.0:
+        return _lobe1(g, alpha, "ggx")
+    if ggx <= 0.0:
+        return _lobe1(g, alpha, "beckmann")
+    return ggx * _lobe1(g, alpha, "ggx") + (1.0 - ggx) * _lobe1(g, alpha, "beckmann")
+
+
+def _fresnel_dielectric(eta: float, c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Unpolarised Fresnel reflectance from air into a dielectric of index eta > 1."""
+    c = np.clip(c, 0.0, 1.0)
+    g = np.sqrt(eta * eta - 1.0 + c * c)
+    a = (g - c) / (g + c)
+    b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+    return 0.5 * a * a * (1.0 + b * b)
+
+
+def _fresnel_conductor(
+    n: ArrayLike, k: ArrayLike, c: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Unpolarised Fresnel reflectance of a conductor (n + ik) per channel, (3, len(c))."""
+    eta = np.asarray(n, dtype=np.float64)[:, None]
+    etak = np.asarray(k, dtype=np.float64)[:, None]
+    cos2 = np.clip(c, 0.0, 1.0)[None, :] ** 2
+    sin2 = 1.0 - cos2
+    eta2, etak2 = eta * eta, etak * etak
+    t0 = eta2 - etak2 - sin2
+    a2b2 = np.sqrt(t0 * t0 + 4.0 * eta2 * etak2)
+    t1 = a2b2 + cos2
+    a = np.sqrt(0.5 * (a2b2 + t0))
+    t2 = 2.0 * np.sqrt(cos2) * a
+    rs = (t1 - t2) / (t1 + t2)
+    t3 = cos2 * a2b2 + sin2 * sin2
+    t4 = t2 * sin2
+    rp = rs * (t3 - t4) / (t3 + t4)
+    return 0.5 * (rp + rs)
+
+
+def _col(x: Any) -> NDArray[np.float64]:
+    return np.asarray(x, dtype=np.float64).reshape(3, 1)
+
+
+def _transmission(g: _Geom, eta: float) -> NDArray[np.float64]:
+    """(1 − F(θi))(1 − F(θo)): energy through a dielectric interface both ways."""
+    return (1.0 - _fresnel_dielectric(eta, g.mu_i)) * (1.0 - _fresnel_dielectric(eta, g.mu_o))
+
+
+def _oren_nayar(g: _Geom, sigma: float) -> NDArray[np.float64]:
+    """Qualitative Oren–Nayar factor (multiplies ρ/π)."""
+    s2 = sigma * sigma
+    a = 1.0 - 0.5 * s2 / (s2 + 0.33)
+    b = 0.45 * s2 / (s2 + 0.09)
+    mu_min = np.minimum(g.mu_i, g.mu_o)  # cos of α = max(θi, θo)
+    mu_max = np.maximum(g.mu_i, g.mu_o)  # cos of β = min(θi, θo)
+    sin_alpha = np.sqrt(np.maximum(1.0 - mu_min * mu_min, 0.0))
+    tan_beta = np.sqrt(np.maximum(1.0 - mu_max * mu_max, 0.0)) / mu_max
+    return a + b * np.maximum(g.cos_phi, 0.0) * sin_alpha * tan_beta
+
+
+def _charlie(g: _Geom, r: float) -> NDArray[np.float64]:
+    """Charlie sheen D (Estevez & Kulla 2017) × Neubelt–Pettineo visibility."""
+    inv_r = 1.0 / r
+    d = g.h(
+        lambda c: (2.0 + inv_r) * np.sqrt(np.maximum(1.0 - c * c, 0.0)) ** inv_r / (2.0 * math.pi)
+    )
+    v = 1.0 / (4.0 * ((g.mu_i + g.mu_o) - g.mu_i * g.mu_o))
+    return d * v
+
+
+# --------------------------------------------------------------------------
+# Families
+# --------------------------------------------------------------------------
+
+
+def _eval_metal(p: Mapping[str, Any], g: _Geom) -> NDArray[np.float64]:
+    f = g.d(lambda c: _fresnel_conductor(p["n"], p["k"], c))
+    lobes = (1.0 - p["haze"]) * _lobe(g, p["alpha"], p["ggx"])
+    if p["haze"] > 0.0:
+        lobes = lobes + p["haze"] * _lobe(g, p["alpha_haze"], p["ggx"])
+    return f * lobes
+
+
+def _eval_paint(p: Mapping[str, Any], g: _Geom) -> NDArray[np.float64]:
+    eta = p["eta"]
+    f = g.d(lambda c: _fresnel_dielectric(eta, c))
+    spec = 0.0
+    for alpha, w in p["lobes"]:
+        if w > 0.0:
+            spec = spec + w * _lobe(g, alpha, p["ggx"])
+    diffuse = _col(p["diffuse"]) / math.pi * (_oren_nayar(g, p["sigma"]) * _transmission(g, eta))
+    return (p["ks"] * f * spec)[None, :] + diffuse
+
+
+def _eval_metallic_paint(p: Mapping[str, Any], g: _Geom) -> NDArray[np.float64]:
+    eta = p["coat_eta"]
+    coat = g.d(lambda c: _fresnel_dielectric(eta, c)) * _lobe(g, p["coat_alpha"])
+    base = (
+        _col(p["base"]) * (p["kd"] / math.pi + p["k1"] * _lobe(g, p["alpha1"], p["ggx"]))
+        + _col(p["flake_colour"]) * (p["k2"] * _lobe(g, p["alpha_flake"], p["ggx"]))
+    )
+    return coat[None, :] + _transmission(g, eta) * base
+
+
+def _eval_fabric(p: Mapping[str, Any], g: _Geom) -> NDArray[np.float64]:
+    out = _col(p["diffuse"]) / math.pi * _oren_nayar(g, p["sigma"])
+    out = out + _col(p["sheen"]) * _charlie(g, p["sheen_roughness"])
+    if p["ks"] > 0.0:
+        eta = p["eta"]
+        spec = g.d(lambda c: _fresnel_dielectric(eta, c)) * _lobe(g, p["alpha"])
+        out = out + p["ks"] * spec
+    return out
+
+
+def _eval_phenolic(p: Mapping[str, Any], g: _Geom) -> NDArray[np.float64]:
+    eta = p["eta"]
+    lobes = (1.0 - p["haze"]) * _lobe(g, p["coat_alpha"])
+    if p["haze"] > 0.0:
+        lobes = lobes + p["haze"] * _lobe(g, p["alpha_haze"], p["ggx"])
+    coat = g.d(lambda c: _fresnel_dielectric(eta, c)) * lobes
+    kb = p["kb"]
+    base = _col(p["diffuse"]) * ((1.0 - kb) / math.pi + kb * _lobe(g, p["alpha_base"], p["ggx"]))
+    return coat[None, :] + _transmission(g, eta) * base
+
+
+_EVALUATORS: Final = {
+    "metal": _eval_metal,
+    "paint": _eval_paint,
+    "metallic-paint": _eval_metallic_paint,
+    "fabric": _eval_fabric,
+    "phenolic": _eval_phenolic,
+}
+
+
+def _params_of(spec_or_params: MaterialSpec | Mapping[str, Any]) -> Mapping[str, Any]:
+    params = spec_or_params.params if isinstance(spec_or_params, MaterialSpec) else spec_or_params
+    family = params.get("family")
+    if family not in _EVALUATORS:
+        raise ValueError(f"unknown material family {family!r} (expected one of {FAMILIES})")
+    return params
+
+
+def _model(params: Mapping[str, Any], g: _Geom) -> NDArray[np.float64]:
+    out = _EVALUATORS[params["family"]](params, g)
+    return np.broadcast_to(out, (3, g.mu_i.shape[0]))
+
+
+def _as_dirs(v: ArrayLike, name: str) -> NDArray[np.float64]:
+    arr = np.asarray(v, dtype=np.float64)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (n, 3), got {arr.shape}")
+    return arr / np.linalg.norm(arr, axis=1, keepdims=True)
+
+
+def evaluate(
+    spec_or_params: MaterialSpec | Mapping[str, Any], wi: ArrayLike, wo: ArrayLike
+) -> NDArray[np.float64]:
+    """The analytic model of a material (no deviations, noise or energy scale).
+
+    ``wi``, ``wo``: ``(n, 3)`` directions in the local frame (z = normal;
+    normalised here).  Returns ``(n, 3)`` RGB in physical units (sr⁻¹); pairs
+    with either direction at or below the horizon give 0.  Reciprocal:
+    ``evaluate(p, wi, wo) == evaluate(p, wo, wi)`` up to rounding.
+    """
+    params = _params_of(spec_or_params)
+    wi = _as_dirs(wi, "wi")
+    wo = _as_dirs(wo, "wo")
+    if wi.shape != wo.shape:
+        raise ValueError(f"wi and wo must have the same shape, got {wi.shape} and {wo.shape}")
+    ok = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
+    out = np.zeros((wi.shape[0], 3))
+    if ok.any():
+        out[ok] = _model(params, _direct_geom(wi[ok], wo[ok])).T
+    return out
+
+
+# --------------------------------------------------------------------------
+# Tables
+# --------------------------------------------------------------------------
+
+
+def _deviation_log(params: Mapping[str, Any], grid: _Grid) -> NDArray[np.float64]:
+    """Log of the multiplicative deviation on the full grid, (3, 90, 90, 180)."""
+    dev = params["deviation"]
+
+    def cube(coef: NDArray[np.float64]) -> NDArray[np.float64]:
+        na, nb, nc = coef.shape
+        tu = np.cos(np.pi * np.arange(na)[:, None] * grid.u[None, :])  # (na, 90)
+        td = np.cos(2.0 * np.arange(nb)[:, None] * grid.theta_d[None, :])  # (nb, 90)
+        tp = np.cos(2.0 * np.arange(nc)[:, None] * grid.phi_d[None, :])  # (nc, 180)
+        x = np.einsum("abc,ai,bj->ijc", coef, tu, td)
+        return x @ tp  # (90, 90, 180)
+
+    shared = cube(np.asarray(dev["shared"], dtype=np.float64).reshape(_DEV_SHARED))
+    channel = np.asarray(dev["channel"], dtype=np.float64).reshape(3, *_DEV_CHANNEL)
+    return np.stack([shared + cube(channel[c]) for c in range(3)])
+
+
+def _clean_values(spec: MaterialSpec) -> NDArray[np.float64]:
+    """Analytic model × deviation at the measured cells, (3, n_measured)."""
+    params = _params_of(spec)
+    grid = _grid()
+    values = np.array(_model(params, grid.geom), dtype=np.float64)
+    log_dev = _deviation_log(params, grid).reshape(3, -1)[:, grid.cells]
+    log_dev -= log_dev.mean(axis=1, keepdims=True)  # no change of overall brightness
+    # soft limit of the gains (not the losses): exp(g) < exp(_DEV_GAIN_LIMIT)
+    pos = log_dev > 0.0
+    log_dev[pos] = _DEV_GAIN_LIMIT * np.tanh(log_dev[pos] / _DEV_GAIN_LIMIT)
+    values *= np.exp(log_dev)
+    return values
+
+
+def _table(values: NDArray[np.float64], grid: _Grid) -> NDArray[np.float64]:
+    table = np.empty(merl.SHAPE)
+    table[...] = -merl.SCALES[:, None, None, None]
+    table.reshape(3, -1)[:, grid.cells] = values
+    return table
+
+
+def generate_material(
+    spec: MaterialSpec, noise: float = DEFAULT_NOISE
+) -> tuple[NDArray[np.float64], dict[str, float]]:
+    """:func:`generate_table` plus the generation record.
+
+    The record is ``{"energy_scale": s, "max_albedo": a}``: ``a`` is the
+    largest directional albedo (any channel, 46 θi from 0 to 89.5°) of the
+    model with deviations before rescaling, ``s = min(1, ALBEDO_BOUND / a)``
+    the uniform scale applied.
+    """
+    noise = _check_noise(noise)
+    grid = _grid()
+    values = _clean_values(spec)
+    albedo = float(merl.directional_albedo(_table(values, grid), ALBEDO_THETA_I).max())
+    scale = 1.0 if albedo <= ALBEDO_BOUND else ALBEDO_BOUND / albedo
+    if scale != 1.0:
+        values *= scale
+    if noise > 0.0:
+        rng = np.random.default_rng([spec.seed, _NOISE_STREAM])
+        z = rng.standard_normal(values.shape)
+        values *= np.exp(noise * z - 0.5 * noise * noise)
+    return _table(values, grid), {"energy_scale": scale, "max_albedo": albedo}
+
+
+def generate_table(spec: MaterialSpec, noise: float = DEFAULT_NOISE) -> NDArray[np.float64]:
+    """The material's MERL table, ``(3, 90, 90, 180)`` in physical units.
+
+    Measured cells (:func:`brdfpipe.merl.measured_mask`) hold model ×
+    deviation × energy scale × noise (finite, ≥ 0); the others ``-SCALES[c]``.
+    Deterministic: the same spec and noise give identical arrays.
+    """
+    return generate_material(spec, noise)[0]
+
+
+def write_material(
+    spec: MaterialSpec, path: str | os.PathLike[str], noise: float = DEFAULT_NOISE
+) -> dict[str, float]:
+    """Generate a material and write it as a MERL file (atomically).
+
+    Returns the generation record of :func:`generate_material`.
+    """
+    table, record = generate_material(spec, noise)
+    merl.write_merl(path, table)
+    return record
+
+
+def _find_spec(specs: Sequence[MaterialSpec], name: str) -> MaterialSpec:
+    for s in specs:
+        if s.name == name:
+            return s
+    raise ValueError(
+        f"no material named {name!r} in this synthetic database "
+        f"({len(specs)} materials, e.g. {specs[0].name!r})"
+    )
+
+
+def write_named_material(
+    *,
+    name: str,
+    count: int,
+    seed: int,
+    noise: float,
+    path: str | os.PathLike[str],
+    record_path: str | os.PathLike[str] | None = None,
+) -> dict[str, float]:
+    """Generate material ``name`` of ``plan_database(count, seed)`` into ``path``.
+
+    One workflow job per material.  Logs one line; returns the record of
+    :func:`generate_material` and, with ``record_path``, also writes it there
+    as JSON (for :func:`write_database_manifest`).  Raises :class:`ValueError`
+    for an unknown name.
+    """
+    noise = _check_noise(noise)
+    spec = _find_spec(plan_database(count, seed), name)
+    t0 = time.perf_counter()
+    record = write_material(spec, path, noise)
+    log.info(
+        "%s (%s): %.2f s, energy_scale %.4f, max albedo %.4f -> %s",
+        spec.name, spec.family, time.perf_counter() - t0, record["energy_scale"],
+        record["max_albedo"], path,
+    )
+    if record_path is not None:
+        _atomic_write_text(Path(record_path), json.dumps({"name": spec.name, **record}) + "\n")
+    return record
+
+
+# --------------------------------------------------------------------------
+# Manifest and database
+# --------------------------------------------------------------------------
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_manifest(
+    specs: Sequence[MaterialSpec],
+    path: str | os.PathLike[str],
+    *,
+    seed: int,
+    noise: float,
+    test_materials: Sequence[str],
+    records: Mapping[str, Mapping[str, float]] | None = None,
+) -> None:
+    """Write the database's ``manifest.json`` (atomically: temporary file + rename).
+
+    ``records`` (optional) maps material names to their generation records
+    (:func:`generate_material`); they are stored in the materials' params.
+    Raises :class:`ValueError` for duplicate names or unknown test materials.
+    """
+    seed = _check_int(seed, "seed", 0)
+    noise = _check_noise(noise)
+    names = [s.name for s in specs]
+    if len(set(names)) != len(names):
+        raise ValueError("material names in a manifest must be unique")
+    known = set(names)
+    unknown = [t for t in test_materials if t not in known]
+    if unknown:
+        raise ValueError(f"test materials not in the database: {', '.join(unknown)}")
+    records = records or {}
+    materials = []
+    for s in specs:
+        entry = s.to_json()
+        if s.name in records:
+            entry["params"] = {**s.params, **{k: float(v) for k, v in records[s.name].items()}}
+        materials.append(entry)
+    doc = {
+        "kind": "synthetic",
+        "generator": "brdfpipe.synth",
+        "version": __version__,
+        "seed": seed,
+        "count": len(specs),
+        "noise": noise,
+        "materials": materials,
+        "test_materials": list(test_materials),
+    }
+    path = Path(path)
+    _atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+
+
+def write_database_manifest(
+    path: str | os.PathLike[str],
+    *,
+    count: int,
+    seed: int,
+    noise: float,
+    test_materials: Sequence[str],
+    record_files: Sequence[str | os.PathLike[str]],
+) -> None:
+    """Write the manifest of ``plan_database(count, seed)`` with the records of its jobs.
+
+    ``record_files`` are the JSON records that :func:`write_named_material`
+    wrote, one per material; a missing or foreign record is an error naming
+    the file.
+    """
+    specs = plan_database(count, seed)
+    names = {s.name for s in specs}
+    records: dict[str, dict[str, float]] = {}
+    for f in record_files:
+        doc = json.loads(Path(f).read_text(encoding="utf-8"))
+        name = doc.pop("name", None)
+        if name not in names:
+            raise ValueError(f"{f}: record of {name!r}, not a material of this database")
+        records[name] = doc
+    missing = sorted(names - set(records))
+    if missing:
+        raise ValueError(f"no generation record for: {', '.join(missing)}")
+    write_manifest(
+        specs, path, seed=seed, noise=noise, test_materials=test_materials, records=records
+    )
+
+
+def read_manifest(path: str | os.PathLike[str]) -> tuple[dict[str, Any], list[MaterialSpec]]:
+    """Read a manifest: the JSON document and its materials as specs."""
+    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    if doc.get("kind") != "synthetic":
+        raise ValueError(f"{path}: not a synthetic-database manifest")
+    specs = [
+        MaterialSpec(m["name"], m["family"], int(m["index"]), int(m["seed"]), m["params"])
+        for m in doc["materials"]
+    ]
+    return doc, specs
+
+
+def default_test_count(count: int) -> int:
+    """Held-out materials for a synthetic database of ``count`` materials.
+
+    Ten, as in the papers' leave-10-out protocol, once there are at least 40
+    materials; smaller (test) databases hold out a quarter (at least one).
+    """
+    return 10 if count >= 40 else max(1, count // 4)
+
+
+def _synth_one(args: tuple[MaterialSpec, str, float]) -> tuple[dict[str, float], float]:
+    spec, path, noise = args
+    t0 = time.perf_counter()
+    record = write_material(spec, path, noise)
+    return record, time.perf_counter() - t0
+
+
+def synthesize(
+    out_dir: str | os.PathLike[str],
+    count: int,
+    seed: int,
+    noise: float = DEFAULT_NOISE,
+    jobs: int = 1,
+    progress: bool = True,
+) -> Path:
+    """Generate a whole synthetic database into ``out_dir``.
+
+    Writes ``<name>.binary`` for every material of ``plan_database(count,
+    seed)`` and then ``manifest.json`` (with each material's generation
+    record and the default test materials); returns the manifest's path.
+    ``jobs > 1`` generates in a process pool.  One log line per material
+    (logger ``brdfpipe.synth``; INFO if ``progress`` else DEBUG).
+    """
+    count = _check_int(count, "count", 1)
+    seed = _check_int(seed, "seed", 0)
+    noise = _check_noise(noise)
+    jobs = _check_int(jobs, "jobs", 1)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    specs = plan_database(count, seed)
+    tasks = [(s, str(out / f"{s.name}{'.binary'}"), noise) for s in specs]
+    level = logging.INFO if progress else logging.DEBUG
+    records: dict[str, dict[str, float]] = {}
+    t_start = time.perf_counter()
+
+    def done(i: int, spec: MaterialSpec, record: dict[str, float], seconds: float) -> None:
+        records[spec.name] = record
+        log.log(
+            level, "[%d/%d] %s (%s): %.2f s, energy_scale %.4f", i + 1, count, spec.name,
+            spec.family, seconds, record["energy_scale"],
+        )
+
+    if jobs == 1 or count == 1:
+        for i, task in enumerate(tasks):
+            done(i, task[0], *_synth_one(task))
+    else:
+        with ProcessPoolExecutor(max_workers=min(jobs, count)) as pool:
+            for i, (task, result) in enumerate(zip(tasks, pool.map(_synth_one, tasks))):
+                done(i, task[0], *result)
+    test = default_test_materials(specs, default_test_count(count))
+    manifest = out / "manifest.json"
+    write_manifest(specs, manifest, seed=seed, noise=noise, test_materials=test, records=records)
+    log.log(level, "%d materials in %.1f s -> %s", count, time.perf_counter() - t_start, manifest)
+    return manifest
