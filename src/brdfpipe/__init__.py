@@ -8,11 +8,6 @@ Library modules are pure functions with no Snakemake in them:
 * :mod:`brdfpipe.cli`   – the ``brdfpipe`` command line.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("brdfpipe")
-except PackageNotFoundError:  # running from a source tree without installation
-    __version__ = "0.0.0+unknown"
+__version__ = "0.1.0"
 
 __all__ = ["__version__"]

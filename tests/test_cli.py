@@ -1,0 +1,73 @@
+"""The brdfpipe command line: synth → ingest → info, and its errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from brdfpipe import cli, merl, store
+
+
+def test_synth_ingest_info_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "db"
+    assert cli.main(["-q", "synth", "--count", "5", "--seed", "11", "--out", str(out), "--jobs", "2"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    names = sorted(m["name"] for m in manifest["materials"])
+    assert sorted(p.stem for p in out.glob("*.binary")) == names
+
+    zarr_path = tmp_path / "merl.zarr"
+    assert cli.main(["-q", "ingest", str(out), "--out", str(zarr_path), "--jobs", "2"]) == 0
+    st = store.open_store(zarr_path)
+    assert st.database == "synthetic" and list(st.materials) == names
+    row = merl.read_merl(out / f"{names[2]}.binary").reshape(-1).astype(np.float32)
+    assert np.array_equal(st.brdf[2], row)
+
+    capsys.readouterr()
+    assert cli.main(["info", str(zarr_path), "--verify"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["materials"] == 5 and info["database"] == "synthetic" and info["verified"]
+    assert info["valid_cells"] == int(merl.measured_mask().sum())
+
+
+def test_ingest_of_a_bad_file_exits_non_zero_naming_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    table = np.full(merl.SHAPE, 0.2)
+    table[:, ~merl.measured_mask()] = -1.0
+    merl.write_merl(folder / "good.binary", table)
+    data = bytearray((folder / "good.binary").read_bytes())
+    data[100:108] = np.float64(np.nan).tobytes()
+    (folder / "nan-inside.binary").write_bytes(bytes(data))
+    out = tmp_path / "merl.zarr"
+    assert cli.main(["-q", "ingest", str(folder), "--out", str(out), "--jobs", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "nan-inside.binary" in err and "non-finite" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["synth", "--count", "0", "--seed", "1", "--out", "x"],
+        ["synth", "--count", "3", "--seed", "1", "--out", "x", "--noise", "-1"],
+        ["info"],
+    ],
+)
+def test_bad_arguments_exit_with_usage_error(argv: list[str]) -> None:
+    with pytest.raises(SystemExit) as e:
+        cli.main(argv)
+    assert e.value.code == 2
+
+
+def test_missing_folder_and_store_are_clear_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cli.main(["ingest", str(tmp_path / "nowhere"), "--out", str(tmp_path / "s.zarr")]) == 1
+    assert "does not exist" in capsys.readouterr().err
+    assert cli.main(["info", str(tmp_path / "none.zarr")]) == 1
+    assert "no such store" in capsys.readouterr().err
