@@ -1,0 +1,23 @@
+# brdfpipe: reference pipeline for measured-material research.
+# Entry point only: rules live in workflow/rules/, code in src/brdfpipe/.
+
+from snakemake.utils import min_version, validate
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+validate(config, "workflow/schemas/config.schema.yaml", set_default=True)
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/data.smk"
+
+
+rule all:
+    input:
+        store=STORE,
+        splits=SPLITS,
+    default_target: True

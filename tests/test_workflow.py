@@ -1,0 +1,124 @@
+"""The Snakemake workflow on the tiny config: lint, dry-run, a real run, bad config.
+
+These run the real ``snakemake`` of the virtual environment in a scratch working
+directory (``--directory``), so the repository's own ``results/`` is untouched.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from brdfpipe import merl, store
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEFILE = ROOT / "Snakefile"
+TINY = ROOT / "tests" / "config" / "tiny.yaml"
+SNAKEMAKE = Path(sys.executable).with_name("snakemake")
+
+pytestmark = pytest.mark.slow
+
+
+def snakemake(workdir: Path, *args: str, configfile: Path = TINY) -> subprocess.CompletedProcess:
+    cmd = [
+        str(SNAKEMAKE), "--snakefile", str(SNAKEFILE), "--directory", str(workdir),
+        "--configfile", str(configfile), "--cores", "2", *args,
+    ]
+    return subprocess.run(cmd, capture_output=True, text=True, cwd=workdir, timeout=900)
+
+
+def write_config(path: Path, **overrides: object) -> Path:
+    cfg = yaml.safe_load(TINY.read_text())
+    cfg.update(overrides)
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def test_lint_is_clean(tmp_path: Path) -> None:
+    r = snakemake(tmp_path, "--lint")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "Congratulations" in r.stdout + r.stderr, r.stdout + r.stderr
+
+
+def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
+    r = snakemake(tmp_path, "-n", "--quiet", "rules")
+    assert r.returncode == 0, r.stderr
+    out = r.stdout + r.stderr
+    for rule, n in [("synthesize_material", 12), ("ingest_material", 12), ("assemble_store", 1),
+                    ("write_splits", 1), ("write_manifest", 1)]:
+        assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
+
+
+def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
+    r = snakemake(tmp_path)
+    assert r.returncode == 0, r.stderr[-4000:]
+    g = store.open_store(tmp_path / "results" / "merl.zarr")
+    assert g.database == "synthetic"
+    names = list(g.materials)
+    assert len(names) == 12 and g.brdf.shape == (12, 3 * merl.N_CELLS)
+    # ingest == direct read of the generated files (two rows suffice here; test_store covers all)
+    for row in (0, 11):
+        direct = merl.read_merl(tmp_path / "results" / "synthetic" / f"{names[row]}.binary")
+        assert np.array_equal(g.brdf[row], direct.reshape(-1).astype(np.float32))
+    splits = json.loads((tmp_path / "results" / "splits.json").read_text())
+    assert len(splits["test"]) == 3 and len(splits["train"]) == 9
+    assert sorted(splits["test"] + splits["train"]) == sorted(names)
+    manifest = json.loads((tmp_path / "results" / "synthetic" / "manifest.json").read_text())
+    assert sorted(splits["test"]) == sorted(manifest["test_materials"])
+    assert all(0 < m["params"]["energy_scale"] <= 1 for m in manifest["materials"])
+    # per-material ingest rows are temporary and gone; logs and benchmarks exist
+    assert not list((tmp_path / "results").glob("ingest/*.zarr"))
+    assert (tmp_path / "logs" / "assemble_store.log").stat().st_size > 0
+    assert len(list((tmp_path / "benchmarks" / "ingest_material").glob("*.tsv"))) == 12
+    # a second run has nothing to do
+    again = snakemake(tmp_path, "-n")
+    assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"test_materials": ["no-such-material"]}, "unknown material"),
+        ({"synthetic": {"count": 0}}, "minimum"),
+        ({"colour": "red"}, "Additional properties"),
+        ({"merl_dir": "/nonexistent/merl"}, "does not exist"),
+    ],
+)
+def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:
+    cfg = write_config(tmp_path / "bad.yaml", **overrides)
+    r = snakemake(tmp_path, "-n", configfile=cfg)
+    assert r.returncode != 0
+    assert message in r.stdout + r.stderr
+    assert not (tmp_path / "results").exists()
+
+
+def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> None:
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    table = np.full(merl.SHAPE, 0.1)
+    table[:, ~merl.measured_mask()] = -1.0
+    for name in ("alpha", "beta", "gamma"):
+        merl.write_merl(folder / f"{name}.binary", table)
+    good = (folder / "beta.binary").read_bytes()
+    (folder / "beta.binary").write_bytes(good[: len(good) // 2])  # truncated
+    cfg = write_config(tmp_path / "merl.yaml", merl_dir=str(folder), test_materials=["alpha"])
+    r = snakemake(tmp_path, "--keep-going", configfile=cfg)
+    assert r.returncode != 0
+    log = (tmp_path / "logs" / "ingest_material" / "beta.log").read_text()
+    assert "beta.binary" in log and "truncated" in log
+    assert not (tmp_path / "results" / "merl.zarr").exists()
+    assert not (tmp_path / "results" / "ingest" / "beta.zarr").exists()
+    # repair the file: the rerun completes and the store is trusted
+    (folder / "beta.binary").write_bytes(good)
+    r = snakemake(tmp_path, configfile=cfg)
+    assert r.returncode == 0, r.stderr[-3000:]
+    g = store.open_store(tmp_path / "results" / "merl.zarr")
+    assert g.database == "merl" and list(g.materials) == ["alpha", "beta", "gamma"]
+    shutil.rmtree(tmp_path / "results")

@@ -1,0 +1,11 @@
+"""Assemble and validate the whole materials x cells Zarr store (rule assemble_store)."""
+
+from brdfpipe import store
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    store.assemble_store(
+        list(snakemake.input.rows),
+        snakemake.output.store,
+        database=snakemake.params.database,
+    )

@@ -1,0 +1,11 @@
+"""Validate one MERL file and write it as a one-row Zarr store (rule ingest_material)."""
+
+from brdfpipe import store
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    store.ingest_material(
+        snakemake.input.binary,
+        snakemake.output.row,
+        name=snakemake.wildcards.material,
+    )

@@ -1,0 +1,14 @@
+"""Generate one synthetic MERL-format material (rule synthesize_material)."""
+
+from brdfpipe import synth
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    synth.write_named_material(
+        name=snakemake.wildcards.material,
+        count=snakemake.params.n_materials,
+        seed=snakemake.params.seed,
+        noise=snakemake.params.noise,
+        path=snakemake.output.binary,
+        record_path=snakemake.output.record,
+    )

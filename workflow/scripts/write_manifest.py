@@ -1,0 +1,14 @@
+"""Write the synthetic database's manifest (rule write_manifest)."""
+
+from brdfpipe import synth
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    synth.write_database_manifest(
+        snakemake.output.manifest,
+        count=snakemake.params.n_materials,
+        seed=snakemake.params.seed,
+        noise=snakemake.params.noise,
+        test_materials=snakemake.params.test_materials,
+        record_files=snakemake.input.records,
+    )
