@@ -1,0 +1,54 @@
+# brdfpipe: two commands set everything up on a fresh machine.
+#   make run    create .venv, install, check Mitsuba's LLVM backend, run the workflow
+#   make test   the same set-up, then the test suite (unit, workflow dry-run/lint, tiny run)
+#   make bench  the benchmarks in benches/ (they print ratios; they never fail a build)
+
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+SMK    := $(VENV)/bin/snakemake
+STAMP  := $(VENV)/.brdfpipe-installed
+CONFIG ?= config/config.yaml
+CORES  ?= all
+
+.PHONY: run test bench setup llvm dryrun lint clean
+
+setup: $(STAMP) llvm
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[test]"
+	touch $@
+
+# Mitsuba's llvm_ad_rgb variant needs LLVM 19 (Debian's libllvm19); the LLVM 14/15
+# that Debian 12 ships by default crash or are refused by Dr.Jit.
+llvm: $(STAMP)
+	@if ! ldconfig -p | grep -q 'libLLVM\.so\.19'; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing libllvm19 (Mitsuba's CPU backend needs LLVM 19)"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null; \
+	  else \
+	    echo "Mitsuba's llvm_ad_rgb variant needs LLVM 19. Run:  sudo apt-get install libllvm19" >&2; \
+	    exit 1; \
+	  fi; \
+	fi
+	@$(PY) -c "import drjit.llvm as L; assert list(L.Float([1, 2, 3]) * 2) == [2, 4, 6]; print('Dr.Jit LLVM backend: ok')"
+
+run: setup
+	$(SMK) --cores $(CORES) --configfile $(CONFIG)
+
+test: setup
+	$(PY) -m pytest -q
+
+bench: setup
+	$(PY) benches/run_all.py
+
+dryrun: $(STAMP)
+	$(SMK) -n --configfile tests/config/tiny.yaml
+
+lint: $(STAMP)
+	$(SMK) --lint --configfile tests/config/tiny.yaml
+
+clean:
+	rm -rf results/* .snakemake logs benchmarks
