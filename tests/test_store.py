@@ -409,3 +409,17 @@ def test_replace_refuses_non_store(sources: dict[str, Path], tmp_path: Path) -> 
     with pytest.raises(StoreError, match="refusing to replace"):
         store.ingest_material(sources["mat-0"], out, name="x")
     assert (out / "precious.txt").read_text() == "keep me"
+
+
+def test_same_sources_give_the_same_bytes(sources: dict[str, Path], tmp_path: Path) -> None:
+    """Determinism: two ingests (different worker counts) write byte-identical stores."""
+    a, b = tmp_path / "a.zarr", tmp_path / "b.zarr"
+    store.ingest(sources, a, database="synthetic", jobs=1)
+    store.ingest(sources, b, database="synthetic", jobs=2)
+
+    def tree(root: Path) -> dict[str, bytes]:
+        return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+    ta, tb = tree(a), tree(b)
+    assert ta.keys() == tb.keys() and len(ta) > 4
+    assert all(ta[k] == tb[k] for k in ta)

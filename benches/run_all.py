@@ -1,0 +1,36 @@
+#!/usr/bin/env python
+"""Run every benchmark (``make bench``).
+
+Benches print their measurements and ratios against baselines measured in the
+same run; they never fail the build.  When the default workflow's synthetic
+database exists (``results/synthetic``, from ``make run``) it is reused
+instead of generating 100 materials again.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "results" / "synthetic"
+STORE = ROOT / "results" / "merl.zarr"
+
+
+def run(*args: str) -> None:
+    print(f"\n=== {' '.join(args)}", flush=True)
+    subprocess.run([sys.executable, *args], cwd=ROOT, check=False)
+
+
+def main() -> None:
+    have_data = len(list(DATA.glob("*.binary"))) >= 100
+    data = ["--data", str(DATA)] if have_data else []
+    run("benches/bench_codecs.py", *data)
+    run("benches/bench_ingest.py", *data, "--cold")
+    if STORE.is_dir():
+        run("benches/spectrum.py", str(STORE))
+
+
+if __name__ == "__main__":
+    main()
