@@ -15,11 +15,8 @@ codecs.
 Candidates: Blosc zstd / lz4 / lz4hc × byte shuffle / bitshuffle × clevels,
 plain zstd, plain lz4 and no compression.
 
-Tables come from ``brdfpipe.synth`` when it provides ``synthesize`` (the real
-synthetic database generator); otherwise from an analytic fallback in this
-file (a GGX-like specular lobe plus Lambertian term with random parameters,
-half of the tables with 1 % multiplicative noise as a stand-in for
-measurement noise).  The source is printed with the results.
+Tables come from ``brdfpipe.synth.synthesize`` (the synthetic database
+generator, default 1 % noise).  The source is printed with the results.
 
 Usage::
 
@@ -57,76 +54,13 @@ N_COLS = 3 * merl.N_CELLS
 # ---------------------------------------------------------------------------
 
 
-def analytic_table(seed: int, noise: float = 0.0) -> NDArray[np.float64]:
-    """A smooth, physically plausible table (3, 90, 90, 180) in physical units.
-
-    Lambertian term plus a GGX specular lobe with Schlick Fresnel and Smith
-    shadowing, random parameters from ``seed``; optional multiplicative
-    log-normal noise of relative size ``noise``.  Cells outside
-    :func:`brdfpipe.merl.measured_mask` are set to ``-SCALES[c]`` (raw −1).
-    """
-    rng = np.random.default_rng(seed)
-    wi, wo = merl.cell_directions()
-    theta_h, theta_d, _ = (a.ravel() for a in merl.cell_centres())
-    ci = np.clip(wi[:, 2], 1e-4, 1.0)
-    co = np.clip(wo[:, 2], 1e-4, 1.0)
-    alpha = rng.uniform(0.05, 0.5)
-    a2 = alpha * alpha
-    d = a2 / (np.pi * (np.cos(theta_h) ** 2 * (a2 - 1.0) + 1.0) ** 2)
-    f0 = rng.uniform(0.02, 0.9)
-    f = f0 + (1.0 - f0) * (1.0 - np.cos(theta_d)) ** 5
-
-    def g1(c: NDArray[np.float64]) -> NDArray[np.float64]:
-        return 2.0 / (1.0 + np.sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)))
-
-    spec = d * f * g1(ci) * g1(co) / (4.0 * ci * co)
-    kd = rng.uniform(0.02, 0.8, 3)
-    ks = rng.uniform(0.2, 1.0, 3)
-    out = kd[:, None] / np.pi + ks[:, None] * spec[None, :]
-    if noise:
-        out *= np.exp(noise * rng.standard_normal(out.shape))
-    mask = merl.measured_mask().ravel()
-    out[:, ~mask] = -merl.SCALES[:, None]
-    return out.reshape(merl.SHAPE)
-
-
-def write_fallback_database(out_dir: str, count: int, seed: int = 0) -> list[str]:
-    """Write ``count`` MERL files made from :func:`analytic_table` into ``out_dir``.
-
-    Even-numbered materials are noise-free, odd-numbered ones carry 1 % noise.
-    Returns the paths in order.
-    """
-    os.makedirs(out_dir, exist_ok=True)
-    paths = []
-    for i in range(count):
-        path = os.path.join(out_dir, f"fallback-{i:03d}.binary")
-        merl.write_merl(path, analytic_table(seed + i, 0.01 if i % 2 else 0.0))
-        paths.append(path)
-    return paths
-
-
 def make_database(out_dir: str, count: int, seed: int = 0) -> tuple[list[str], str]:
-    """Write a database of ``count`` materials; returns (paths, description).
+    """Write ``count`` synthetic materials into ``out_dir``; returns (paths, description)."""
+    from brdfpipe import synth
 
-    Uses ``brdfpipe.synth.synthesize`` when it exists, else the analytic fallback.
-    """
-    try:
-        from brdfpipe import synth  # type: ignore[attr-defined]
-
-        synthesize = synth.synthesize
-    except (ImportError, AttributeError):
-        synthesize = None
-    if synthesize is not None:
-        try:
-            synthesize(out_dir, count=count, seed=seed, jobs=os.cpu_count() or 1, progress=False)
-            paths = sorted(glob.glob(os.path.join(out_dir, "**", "*.binary"), recursive=True))
-            if len(paths) >= count:
-                return paths[:count], f"brdfpipe.synth.synthesize(count={count}, seed={seed})"
-        except Exception as exc:  # fall back rather than fail the report
-            print(f"note: synth.synthesize failed ({exc!r}); using the analytic fallback")
-    return write_fallback_database(out_dir, count, seed), (
-        f"analytic fallback tables (GGX + Lambert, seed {seed}; odd ones with 1 % noise)"
-    )
+    synth.synthesize(out_dir, count=count, seed=seed, jobs=os.cpu_count() or 1, progress=False)
+    paths = sorted(glob.glob(os.path.join(out_dir, "*.binary")))
+    return paths[:count], f"brdfpipe.synth.synthesize(count={count}, seed={seed})"
 
 
 def load_rows(paths: Sequence[str]) -> list[NDArray[np.float32]]:

@@ -7,9 +7,8 @@ RSS of the ingest stays < 2 GB.
 
 What it does
 ------------
-1. Generates 100 MERL-format materials (``brdfpipe.synth.synthesize`` when it
-   exists, else perturbed copies of a few analytic tables written with
-   ``merl.write_merl``), or reuses the ``*.binary`` files in ``--data DIR``.
+1. Generates 100 MERL-format materials (``brdfpipe.synth.synthesize``), or
+   reuses the ``*.binary`` files in ``--data DIR``.
    Generation runs in a separate process so it does not inflate the RSS
    figures.
 2. In a fresh measuring process: reads every file once (page cache warm-up,
@@ -65,37 +64,11 @@ RSS_TARGET_BYTES = 2 * 1024**3
 
 
 def generate(out_dir: Path, count: int, seed: int = 0) -> str:
-    """Write ``count`` materials into ``out_dir``; returns a description of the source."""
-    from brdfpipe import merl
+    """Write ``count`` synthetic materials into ``out_dir``; returns a description of the source."""
+    from brdfpipe import synth
 
-    try:
-        from brdfpipe import synth  # type: ignore[attr-defined]
-
-        synthesize = synth.synthesize
-    except (ImportError, AttributeError):
-        synthesize = None
-    if synthesize is not None:
-        try:
-            synthesize(out_dir, count=count, seed=seed, jobs=os.cpu_count() or 1, progress=False)
-            if len(list_sources(out_dir)) >= count:
-                return f"brdfpipe.synth.synthesize(count={count}, seed={seed})"
-        except Exception as exc:  # fall back rather than fail the report
-            print(f"note: synth.synthesize failed ({exc!r}); using the analytic fallback", flush=True)
-
-    sys.path.insert(0, str(HERE))
-    from bench_codecs import analytic_table
-
-    rng = np.random.default_rng(seed)
-    bases = [analytic_table(seed + k, 0.0) for k in range(4)]
-    measured = bases[0] >= 0  # same geometric mask for every base table
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for i in range(count):
-        table = bases[i % len(bases)] * rng.uniform(0.5, 1.5, (3, 1, 1, 1))
-        if i % 2:
-            table *= np.exp(0.01 * rng.standard_normal(table.shape))
-        table = np.where(measured, table, -merl.SCALES[:, None, None, None])
-        merl.write_merl(out_dir / f"material-{i:03d}.binary", table)
-    return f"perturbed copies of 4 analytic tables (seed {seed}; odd ones with 1 % noise)"
+    synth.synthesize(out_dir, count=count, seed=seed, jobs=os.cpu_count() or 1, progress=False)
+    return f"brdfpipe.synth.synthesize(count={count}, seed={seed})"
 
 
 def list_sources(data: Path) -> list[Path]:

@@ -43,6 +43,7 @@ __all__ = [
     "read_merl",
     "read_merl_raw",
     "write_merl",
+    "as_directions",
     "half_diff",
     "cell_index",
     "lookup",
@@ -165,7 +166,12 @@ def write_merl(path: str | os.PathLike[str], table: ArrayLike) -> None:
 # --------------------------------------------------------------------------
 
 
-def _as_dirs(v: ArrayLike, name: str) -> NDArray[np.float64]:
+def as_directions(v: ArrayLike, name: str = "directions") -> NDArray[np.float64]:
+    """``v`` as an ``(n, 3)`` float64 array (a single 3-vector becomes one row).
+
+    Raises :class:`ValueError` naming ``name`` for any other shape.  Does not
+    normalise.
+    """
     arr = np.asarray(v, dtype=np.float64)
     if arr.ndim == 1:
         arr = arr[None, :]
@@ -185,8 +191,8 @@ def half_diff(
     (rotate by −φh about the normal, then by −θh about the binormal).
     ``φd`` is returned in (−π, π], before the reciprocity fold.
     """
-    wi = _as_dirs(wi, "wi")
-    wo = _as_dirs(wo, "wo")
+    wi = as_directions(wi, "wi")
+    wo = as_directions(wo, "wo")
     h = wi + wo
     h /= np.linalg.norm(h, axis=1, keepdims=True)
     theta_h = np.arccos(np.clip(h[:, 2], -1.0, 1.0))

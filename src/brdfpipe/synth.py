@@ -818,11 +818,7 @@ def _model(params: Mapping[str, Any], g: _Geom) -> NDArray[np.float64]:
 
 
 def _as_dirs(v: ArrayLike, name: str) -> NDArray[np.float64]:
-    arr = np.asarray(v, dtype=np.float64)
-    if arr.ndim == 1:
-        arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (n, 3), got {arr.shape}")
+    arr = merl.as_directions(v, name)
     return arr / np.linalg.norm(arr, axis=1, keepdims=True)
 
 
