@@ -1,13 +1,20 @@
 """Minimal BRDF sampling (Xu et al. 2016, "Minimal BRDF Sampling for Two-Shot
-Near-Field Reflectance Acquisition"): error metrics.
+Near-Field Reflectance Acquisition"): error metrics, acquisition geometry and
+the direction optimiser.
 
-This module will hold the whole sampling stage.  The part here is the
-**metrics** section: the expected error of a selection of cells (the paper's
-eq. 15), its fast sufficient-statistics form, the literal p-space formula it
-is checked against, the condition-number baseline of Nielsen et al. 2015
-(eq. 6), and the regularised reconstruction of eq. 4.  The acquisition
-geometry (which cells one near-field image observes) and the optimiser are
-added in later sections; they build on the names defined here, which are
+This module holds the whole sampling stage, in three sections:
+
+* **Metrics**: the expected error of a selection of cells (the paper's
+  eq. 15), its fast sufficient-statistics form, the literal p-space formula
+  it is checked against, the condition-number baseline of Nielsen et al.
+  2015 (eq. 6), and the regularised reconstruction of eq. 4.
+* **Acquisition geometry**: setups (:class:`Setup`: point, nearfield,
+  fixed_camera, fixed_light) and which MERL cells one configuration — a
+  point sample or a near-field image — observes (:func:`observation_cells`).
+* **Optimiser**: the greedy few-to-many search of §5 (:func:`optimize`) and
+  the directions files (:func:`write_directions`, :func:`read_directions`).
+
+The later sections build on the names of the metrics section, which are
 therefore kept stable.
 
 Notation (paper §3)
@@ -56,13 +63,24 @@ run with ``OPENBLAS_NUM_THREADS=1``, parallel over candidates if at all
 
 from __future__ import annotations
 
+import functools
+import json
+import logging
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from pathlib import Path
+from typing import Any, Literal, Protocol
 
 import numpy as np
 import scipy.linalg
 import scipy.linalg.blas
 from numpy.typing import ArrayLike, NDArray
+
+from brdfpipe import __version__, merl
 
 __all__ = [
     "DEFAULT_ETA",
@@ -77,6 +95,24 @@ __all__ = [
     "reconstruct_coefficients",
     "remove_rows",
     "selection_stats",
+    # acquisition geometry
+    "SETUP_KINDS",
+    "DEFAULT_GRID",
+    "Config",
+    "Setup",
+    "centre_directions",
+    "pixel_directions",
+    "observation_cells",
+    "config_to_dict",
+    "config_from_dict",
+    # optimiser
+    "DIRECTIONS_FORMAT",
+    "DirectionSet",
+    "Directions",
+    "optimize",
+    "directions_path",
+    "write_directions",
+    "read_directions",
 ]
 
 F64 = NDArray[np.float64]
@@ -780,9 +816,1089 @@ def direct_training_error(
 
 
 # ===========================================================================
-# Acquisition geometry (to come)
+# Acquisition geometry
 # ===========================================================================
+#
+# Which MERL cells one acquisition *configuration* observes.  Four setups:
+#
+# point (Nielsen et al. 2015)
+#     One BRDF sample per configuration.  A configuration is a MERL cell
+#     (iθh, iθd, iφd); its observation is that cell.  Centre directions: the
+#     cell centre (merl.cell_centres) with φh = 0.
+#
+# nearfield (Xu et al. 2016 §5.2, Fig. 4)
+#     A pinhole camera at C = R·wo (R = 1: only ν = r/R matters) looks at the
+#     centre of a flat disk of radius r = ν = tan(α/2) (α = fov); the light is
+#     distant, direction wi for every point of the disk.  A configuration is a
+#     MERL cell (iθh, iθd, iφd): the cell of the *centre pixel*; wi and wo are
+#     the cell centre's directions (φh = 0).  Every other pixel sees the disk
+#     point P its ray hits and the view direction normalize(C − P), hence its
+#     own (θh, θd, φd) cell.
+#
+# fixed_camera / fixed_light (Xu §8)
+#     n images share the camera (resp. light) direction.  The BRDF is
+#     isotropic and the disk rotationally symmetric, so only the shared
+#     direction's elevation and each image's other direction *relative to it*
+#     matter: the shared direction is put at azimuth 0 and a configuration is
+#     three grid indices (i_shared, i_theta, i_phi):
+#
+#         shared direction  (θ = i_shared · 1°,  φ = 0)             i_shared ∈ [0, 90)
+#         other direction   (θ = i_theta · 1°,   φ = i_phi · 2°)     i_theta ∈ [0, 90), i_phi ∈ [0, 180)
+#
+#     (fixed_camera: camera = shared, light = other; fixed_light: the
+#     reverse).  All images of one set carry the same i_shared.  An other
+#     direction at the zenith (i_theta = 0) has no azimuth: only i_phi = 0 is
+#     a valid configuration there.  (With the shared direction at the zenith,
+#     configurations differing in i_phi only are rotations of one another
+#     about z: the same cells up to the pixel lattice's orientation.)  Each image is rendered with the near-field
+#     pixel model above at the configured fov; its "cell" (reported like the
+#     other setups') is that of its centre pixel.  Integer-degree directions
+#     often sit on a MERL bin edge (θd and φd bins are 1° wide), so which of
+#     two neighbouring cells a pixel falls in is decided by rounding — the
+#     same way every time.
+#
+# The near-field pixel model
+# --------------------------
+# The image is square with half-angle α/2: tangent-plane coordinates
+# (u, v) ∈ [−ν, ν]², so at the zenith the disk exactly fills it.  Pixel centres
+# lie on a grid × grid lattice of pitch Δ = 2ν/grid *centred on the optical
+# axis*: u = (i − ⌊grid/2⌋)·Δ, i = 0 … grid − 1 (for an even grid the lattice
+# has one more column on the negative side, which lies on the image border) —
+# so there always is a centre pixel, looking exactly along −wo.  Camera frame:
+# forward f = −wo, right e_r = (−sin φo, cos φo, 0) (horizontal, normal to the
+# camera's plane of incidence; φo = atan2(wo_y, wo_x), 0 at the zenith), up
+# e_u = e_r × f.  The ray f + u·e_r + v·e_u from C meets the plane z = 0 at P
+# (rays with non-negative z component never do and are dropped); a pixel is
+# kept iff |P| ≤ r.  At the zenith ≈ π/4·grid² pixels are kept (795 of 1024 for
+# grid 32).  Oblique cameras see the disk foreshortened into an ellipse and
+# keep fewer pixels (708 at 30°, 420 at 60°, 154 at 80° for 25°/32).
+#
+# Angles: at the zenith every kept ray is within α/2 of the optical axis.  An
+# oblique camera's disk image is not exactly inside the cone of half-angle
+# α/2: the disk lies inside the ball of radius ν about the origin, which
+# subtends asin(ν) from C, and points on the near side of the disk reach up
+# to that bound (12.81° against α/2 = 12.5° at 25°); the square image still
+# clips them at |u|, |v| ≤ ν.
+#
+# The observed cells are cell_index(wi, view) of the kept pixels, in lattice
+# order, with repeats (neighbouring pixels often share a cell; every pixel is
+# one observation row).  Cells outside the *valid* set are dropped: by default
+# the geometrically measured cells (merl.measured_mask: both directions of the
+# cell centre above the horizon); the optimiser passes the model's columns.
+
+
+#: The acquisition setups.
+SETUP_KINDS: tuple[str, ...] = ("point", "nearfield", "fixed_camera", "fixed_light")
+#: Default pixel lattice (grid × grid) of an image setup.
+DEFAULT_GRID: int = 32
+_MAX_GRID: int = 4096
+
+#: A configuration: three non-negative grid indices (see the section comment):
+#: (iθh, iθd, iφd) of the centre cell for point / nearfield,
+#: (i_shared, i_theta, i_phi) for fixed_camera / fixed_light.
+Config = tuple[int, int, int]
+
+_CONFIG_DIMS: tuple[int, int, int] = (merl.N_THETA_H, merl.N_THETA_D, merl.N_PHI_D)  # (90, 90, 180) for all setups
+_FIXED_THETA_DEG: float = 1.0  # elevation steps of fixed_* (shared and per image)
+_FIXED_PHI_DEG: float = 2.0  # azimuth steps of fixed_* (per image)
+_IMAGE_KINDS = frozenset({"nearfield", "fixed_camera", "fixed_light"})
+_FIXED_KINDS = frozenset({"fixed_camera", "fixed_light"})
+
+
+@dataclass(frozen=True)
+class Setup:
+    """An acquisition setup: kind, field of view (degrees) and pixel lattice.
+
+    ``kind`` ∈ :data:`SETUP_KINDS`.  Image setups (``nearfield``,
+    ``fixed_camera``, ``fixed_light``) need ``0 < fov_deg < 180`` and a
+    ``grid`` ≥ 1 (the image is a ``grid × grid`` lattice); ``point`` needs
+    ``fov_deg == 0`` and its ``grid`` is normalised to 1 (one sample per
+    configuration).  :class:`ValueError` otherwise.
+    """
+
+    kind: str
+    fov_deg: float = 0.0
+    grid: int = DEFAULT_GRID
+
+    def __post_init__(self) -> None:
+        if self.kind not in SETUP_KINDS:
+            raise ValueError(f"setup kind must be one of {SETUP_KINDS}, got {self.kind!r}")
+        if isinstance(self.fov_deg, (bool, np.bool_)) or not isinstance(
+            self.fov_deg, (int, float, np.integer, np.floating)
+        ):
+            raise ValueError(f"fov_deg must be a number, got {self.fov_deg!r}")
+        fov = float(self.fov_deg)
+        if isinstance(self.grid, bool) or not isinstance(self.grid, (int, np.integer)):
+            raise ValueError(f"grid must be an integer, got {self.grid!r}")
+        grid = int(self.grid)
+        if self.kind == "point":
+            if fov != 0.0:
+                raise ValueError(f"a point setup has no field of view: fov_deg must be 0, got {self.fov_deg!r}")
+            if grid < 1:
+                raise ValueError(f"grid must be ≥ 1, got {grid}")
+            grid = 1
+        else:
+            if not (np.isfinite(fov) and 0.0 < fov < 180.0):
+                raise ValueError(f"{self.kind} needs 0 < fov_deg < 180, got {self.fov_deg!r}")
+            if not 1 <= grid <= _MAX_GRID:
+                raise ValueError(f"grid must lie in [1, {_MAX_GRID}], got {grid}")
+        object.__setattr__(self, "fov_deg", fov)
+        object.__setattr__(self, "grid", grid)
+
+    @property
+    def is_image(self) -> bool:
+        """True for the image (near-field) setups."""
+        return self.kind in _IMAGE_KINDS
+
+    @property
+    def nu(self) -> float:
+        """ν = r/R = tan(α/2) (0 for point)."""
+        return math.tan(math.radians(self.fov_deg) / 2.0) if self.is_image else 0.0
+
+
+def _check_config(setup: Setup, config: ArrayLike) -> Config:
+    if not isinstance(setup, Setup):
+        raise ValueError(f"setup must be a Setup, got {type(setup).__name__}")
+    try:
+        items = tuple(config)  # type: ignore[arg-type]
+    except TypeError:
+        raise ValueError(f"a configuration is three integer grid indices, got {config!r}") from None
+    if len(items) != 3 or any(isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, np.integer)) for x in items):
+        raise ValueError(f"a configuration is three integer grid indices, got {config!r}")
+    c = (int(items[0]), int(items[1]), int(items[2]))
+    for value, dim in zip(c, _CONFIG_DIMS):
+        if not 0 <= value < dim:
+            raise ValueError(f"configuration {c} out of range: indices must lie in [0, {_CONFIG_DIMS})")
+    if setup.kind in _FIXED_KINDS and c[1] == 0 and c[2] != 0:
+        raise ValueError(f"configuration {c}: a direction at the zenith (i_theta = 0) needs i_phi = 0")
+    return c
+
+
+def _flat_cell(c: Config) -> int:
+    return (c[0] * merl.N_THETA_D + c[1]) * merl.N_PHI_D + c[2]
+
+
+def _cell_config(cell: int) -> Config:
+    ih, rest = divmod(int(cell), merl.N_THETA_D * merl.N_PHI_D)
+    idd, ip = divmod(rest, merl.N_PHI_D)
+    return (ih, idd, ip)
+
+
+def _centre_angles(c: Config) -> tuple[float, float, float]:
+    """(θh, θd, φd) in radians of the centre of cell ``c`` (as merl.cell_centres)."""
+    th = ((c[0] + 0.5) / merl.N_THETA_H) ** 2 * (0.5 * np.pi)
+    td = (c[1] + 0.5) / merl.N_THETA_D * (0.5 * np.pi)
+    pd = (c[2] + 0.5) / merl.N_PHI_D * np.pi
+    return th, td, pd
+
+
+def _unit_vectors(theta_deg: ArrayLike, phi_deg: ArrayLike) -> F64:
+    t = np.radians(np.asarray(theta_deg, dtype=np.float64))
+    p = np.radians(np.asarray(phi_deg, dtype=np.float64))
+    st = np.sin(t)
+    return np.stack([st * np.cos(p), st * np.sin(p), np.cos(t)], axis=-1)
+
+
+def _fixed_directions(kind: str, configs: NDArray[np.intp]) -> tuple[F64, F64]:
+    """(wi, wo), each (n, 3), of (n, 3) fixed_* configurations."""
+    shared = _unit_vectors(configs[:, 0] * _FIXED_THETA_DEG, 0.0)
+    other = _unit_vectors(configs[:, 1] * _FIXED_THETA_DEG, configs[:, 2] * _FIXED_PHI_DEG)
+    return (other, shared) if kind == "fixed_camera" else (shared, other)
+
+
+def _centre_cells(setup: Setup, configs: NDArray[np.intp]) -> NDArray[np.intp]:
+    """Centre cells of an (n, 3) array of in-range configurations (vectorised)."""
+    configs = np.asarray(configs, dtype=np.intp).reshape(-1, 3)
+    if setup.kind in _FIXED_KINDS:
+        wi, wo = _fixed_directions(setup.kind, configs)
+        return merl.cell_index(wi, wo)
+    return (configs[:, 0] * merl.N_THETA_D + configs[:, 1]) * merl.N_PHI_D + configs[:, 2]
+
+
+def centre_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
+    """Light and camera unit vectors ``(wi, wo)``, each (3,), of a configuration's centre.
+
+    point / nearfield: the centre of cell (iθh, iθd, iφd) with φh = 0
+    (:func:`brdfpipe.merl.directions_from_half_diff`); fixed_*: the shared
+    direction at (i_shared°, azimuth 0) and the other one at
+    (i_theta°, 2·i_phi°).  For nearfield and fixed_* ``wo`` is the direction
+    from the disk centre to the camera.
+    """
+    c = _check_config(setup, config)
+    if setup.kind in _FIXED_KINDS:
+        wi, wo = _fixed_directions(setup.kind, np.asarray([c], dtype=np.intp))
+    else:
+        wi, wo = merl.directions_from_half_diff(*_centre_angles(c))
+    return wi[0], wo[0]
+
+
+@functools.lru_cache(maxsize=16)
+def _lattice(fov_deg: float, grid: int) -> tuple[F64, F64, int]:
+    """Tangent-plane pixel coordinates (u, v) of the axis-centred lattice and the centre pixel's index."""
+    nu = math.tan(math.radians(fov_deg) / 2.0)
+    step = 2.0 * nu / grid
+    j = np.arange(grid) - grid // 2
+    a, b = np.meshgrid(j, j, indexing="ij")
+    u = a.ravel() * step
+    v = b.ravel() * step
+    for arr in (u, v):
+        arr.setflags(write=False)
+    return u, v, (grid // 2) * grid + grid // 2
+
+
+def _pixel_views(setup: Setup, wo: F64) -> F64:
+    """View directions (n, 3) of the kept pixels of a camera at ``wo`` (see the section comment)."""
+    if wo[2] <= 0.0:
+        return np.zeros((0, 3))
+    u, v, centre = _lattice(setup.fov_deg, setup.grid)
+    nu = setup.nu
+    phi = math.atan2(wo[1], wo[0]) if (wo[0] != 0.0 or wo[1] != 0.0) else 0.0
+    e_r = np.array([-math.sin(phi), math.cos(phi), 0.0])
+    f = -wo
+    e_u = np.cross(e_r, f)
+    ray = f + u[:, None] * e_r + v[:, None] * e_u
+    dz = ray[:, 2]
+    hit = dz < 0.0
+    t = np.where(hit, -wo[2] / np.where(hit, dz, -1.0), 0.0)
+    px = wo[0] + t * ray[:, 0]
+    py = wo[1] + t * ray[:, 1]
+    keep = hit & (px * px + py * py <= nu * nu * (1.0 + 1e-12))
+    view = np.stack([wo[0] - px, wo[1] - py, np.full(px.shape, wo[2])], axis=1)
+    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    view[centre] = wo  # the centre pixel looks exactly along −wo (P = 0)
+    return view[keep]
+
+
+def pixel_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
+    """Light and view directions ``(wi, wo)``, each (n, 3), of every sample of a configuration.
+
+    point: the centre directions (n = 1).  Image setups: one row per kept
+    pixel of the near-field pixel model (lattice order; the light is the same
+    for every pixel) — before any cell filtering.  Empty (0, 3) arrays when
+    the camera is not above the horizon.
+    """
+    wi, wo = centre_directions(setup, config)
+    if not setup.is_image:
+        return wi[None, :], wo[None, :]
+    view = _pixel_views(setup, wo)
+    return np.broadcast_to(wi, view.shape).copy(), view
+
+
+@functools.lru_cache(maxsize=1)
+def _measured_flat() -> NDArray[np.bool_]:
+    mask = merl.measured_mask().ravel()
+    mask.setflags(write=False)
+    return mask
+
+
+def _as_valid(valid: ArrayLike | None) -> NDArray[np.bool_]:
+    if valid is None:
+        return _measured_flat()
+    mask = np.asarray(valid)
+    if mask.dtype != np.bool_ or mask.size != merl.N_CELLS:
+        raise ValueError(f"valid must be a boolean mask of all {merl.N_CELLS} cells, got {mask.dtype} {mask.shape}")
+    return mask.reshape(-1)
+
+
+def observation_cells(setup: Setup, config: ArrayLike, valid: ArrayLike | None = None) -> NDArray[np.intp]:
+    """MERL cells observed by one configuration, with repeats (one entry per observation).
+
+    point: the configuration's cell.  Image setups: the cell of every kept
+    pixel (see the section comment), in lattice order; the centre pixel's
+    cell is the configuration's centre cell.  Cells not in ``valid`` — a
+    boolean mask over all ``merl.N_CELLS`` cells, default
+    :func:`brdfpipe.merl.measured_mask` (both directions of the cell centre
+    above the horizon) — are dropped; so are all pixels when the light is
+    not above the horizon.
+    """
+    mask = _as_valid(valid)
+    c = _check_config(setup, config)
+    if not setup.is_image:
+        cell = _flat_cell(c)
+        return np.array([cell] if mask[cell] else [], dtype=np.intp)
+    wi, view = pixel_directions(setup, c)
+    if view.shape[0] == 0 or wi[0, 2] <= 0.0:
+        return np.zeros(0, dtype=np.intp)
+    cells = merl.cell_index(wi, view)
+    return cells[mask[cells]]
+
+
+def _half_diff_deg(wi: F64, wo: F64) -> tuple[float, float, float]:
+    th, td, pd = merl.half_diff(wi, wo)
+    phi = float(pd[0]) + (np.pi if pd[0] < 0.0 else 0.0)
+    return float(np.degrees(th[0])), float(np.degrees(td[0])), float(np.degrees(phi))
+
+
+def config_to_dict(setup: Setup, config: ArrayLike) -> dict[str, Any]:
+    """A JSON-friendly record of a configuration's centre.
+
+    Keys: ``cell`` (flat MERL cell index of the centre pixel / point),
+    ``theta_h_deg``, ``theta_d_deg``, ``phi_d_deg`` (the centre's half/difference
+    angles in degrees, φd folded into [0, 180]: the cell centre for point and
+    nearfield, the exact angles of the centre directions for fixed_*),
+    ``light`` and ``camera`` (the centre directions ``wi`` and ``wo`` as
+    [x, y, z] unit vectors).
+    """
+    c = _check_config(setup, config)
+    wi, wo = centre_directions(setup, c)
+    if setup.kind in _FIXED_KINDS:
+        cell = int(merl.cell_index(wi, wo)[0])
+        th, td, pd = _half_diff_deg(wi[None, :], wo[None, :])
+    else:
+        cell = _flat_cell(c)
+        th, td, pd = (float(np.degrees(a)) for a in _centre_angles(c))
+    return {
+        "cell": cell,
+        "theta_h_deg": th,
+        "theta_d_deg": td,
+        "phi_d_deg": pd,
+        "light": [float(x) for x in wi],
+        "camera": [float(x) for x in wo],
+    }
+
+
+def _vector(record: dict[str, Any], key: str) -> F64:
+    v = np.asarray(record.get(key), dtype=np.float64)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or abs(float(np.linalg.norm(v)) - 1.0) > 1e-6:
+        raise ValueError(f"configuration record: {key!r} must be a unit 3-vector, got {record.get(key)!r}")
+    return v
+
+
+def config_from_dict(setup: Setup, record: dict[str, Any]) -> Config:
+    """Inverse of :func:`config_to_dict`.
+
+    point / nearfield: from ``cell``.  fixed_*: from the ``light`` and
+    ``camera`` vectors (any common rotation about z is allowed): the shared
+    direction's elevation and the other direction's elevation and azimuth
+    relative to it, rounded to the grid; :class:`ValueError` if the vectors
+    are more than 1e-6 off the grid or the record's ``cell`` disagrees.
+    """
+    if not isinstance(record, dict):
+        raise ValueError(f"configuration record must be a dict, got {type(record).__name__}")
+    cell = record.get("cell")
+    if isinstance(cell, bool) or not isinstance(cell, (int, np.integer)) or not 0 <= int(cell) < merl.N_CELLS:
+        raise ValueError(f"configuration record: 'cell' must be a MERL cell index, got {cell!r}")
+    if setup.kind not in _FIXED_KINDS:
+        return _check_config(setup, _cell_config(int(cell)))
+    light, camera = _vector(record, "light"), _vector(record, "camera")
+    shared, other = (camera, light) if setup.kind == "fixed_camera" else (light, camera)
+    ts = math.degrees(math.acos(min(1.0, max(-1.0, shared[2]))))
+    to = math.degrees(math.acos(min(1.0, max(-1.0, other[2]))))
+    phi_s = math.degrees(math.atan2(shared[1], shared[0])) if np.hypot(shared[0], shared[1]) > 1e-12 else 0.0
+    phi_o = math.degrees(math.atan2(other[1], other[0])) if np.hypot(other[0], other[1]) > 1e-12 else phi_s
+    c = (
+        int(round(ts / _FIXED_THETA_DEG)),
+        int(round(to / _FIXED_THETA_DEG)),
+        int(round(((phi_o - phi_s) % 360.0) / _FIXED_PHI_DEG)) % merl.N_PHI_D,
+    )
+    c = _check_config(setup, c)
+    wi, wo = centre_directions(setup, c)
+    rot = math.radians(phi_s)
+    rz = np.array([[math.cos(rot), -math.sin(rot), 0.0], [math.sin(rot), math.cos(rot), 0.0], [0.0, 0.0, 1.0]])
+    if max(np.abs(rz @ wi - light).max(), np.abs(rz @ wo - camera).max()) > 1e-6:
+        raise ValueError(f"configuration record is not on the {setup.kind} grid: {record!r}")
+    if int(merl.cell_index(wi, wo)[0]) != int(cell):
+        raise ValueError(f"configuration record: 'cell' {cell} disagrees with its directions")
+    return c
+
 
 # ===========================================================================
-# Optimiser (to come)
+# Optimiser
 # ===========================================================================
+#
+# Greedy few-to-many search of Xu et al. §5.1 (after Nielsen et al. 2015),
+# for every setup of the geometry section:
+#
+# for n = 1 … n_max:
+#   1. greedy add: draw t = ``candidates`` distinct random configurations not
+#      in the set, uniformly over the valid ones (centre cell a model column,
+#      ≥ 1 observation row; for fixed_* with n > 1 the shared elevation is the
+#      set's); evaluate each from the current statistics (G, qsum) +
+#      add_rows(its observation rows) and add the best;
+#   2. local search: for step s in ``steps`` (3, 2, 1): sweep over the
+#      configurations in a random order (seeded); for each, evaluate the
+#      moves by ±s grid units along each of its axes and the combined
+#      "gradient" move (every axis whose better ± move improves, moved
+#      together — the paper's step along ∇E); take the best if it improves
+#      the metric; repeat sweeps until one changes nothing, then go to the
+#      next step.  Converged when a sweep at the last step changes nothing.
+#      fixed_* sets also have the shared elevation as a unit of the sweep: its
+#      ±s moves re-render every image.
+#
+# Moves stay in the measured region: a move whose centre cell is not a model
+# column (or which observes nothing, or lands on a configuration already in
+# the set, or leaves the index range) is not evaluated.  Axis ranges: point:
+# iθh, iθd bounded, iφd periodic (φd and φd + π are one cell: reciprocity);
+# nearfield: all bounded (across iφd = 179 → 0 light and camera would trade
+# places); fixed_*: elevations bounded, the azimuth index periodic (360°).
+#
+# Metrics: "error" minimises E(S) (eq. 15, η and β as given).  "condition"
+# minimises κ(Q̃) (eq. 6) — computed from the Gram matrix G when the set has
+# more rows than k, from the rows otherwise — with ties (in particular κ = inf
+# for both, rank-deficient Q̃, which the κ metric of near-field images often
+# gives) broken by the smaller E(S): finite κ always wins, among equal κ the
+# smaller E.  That the κ search is poor for near-field images is the paper's
+# point (§3.1, Fig. 5) and is left as it is.  Improvements must exceed a
+# relative 1e-12, so rounding noise never counts as one (and the search
+# cannot cycle).
+#
+# Cost per evaluation: gather the rows (Q float32 kept in memory, cell →
+# column lookup), one dsyrk of them, one Cholesky + solve (E) or one
+# eigvalsh (κ) — scipy's BLAS/LAPACK only, see the performance note at the
+# top.  Deterministic for a seed (numpy Generator).
+
+logger = logging.getLogger("brdfpipe.sampling")
+
+#: Format tag of the directions JSON file.
+DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
+_METRICS = ("error", "condition")
+_REL_IMPROVE: float = 1e-12
+_CELL_CACHE_MAX: int = 10_000  # configurations whose observed cells are cached (≤ ~40 MB)
+_Q_READ_ROWS: int = 36_450 * 4
+_AXIS_NAMES = {
+    "point": ("iθh", "iθd", "iφd"),
+    "nearfield": ("iθh", "iθd", "iφd"),
+    "fixed_camera": ("θcam", "θlight", "φlight"),
+    "fixed_light": ("θlight", "θcam", "φcam"),
+}
+
+
+class ModelLike(Protocol):
+    """What :func:`optimize` needs of a model (:class:`brdfpipe.svd.Model` has it)."""
+
+    Q: Any  # (p, k) array-like (zarr or numpy), rows in ``cells`` order
+    sigma: Any  # (k,)
+    U: Any  # (m, k)
+    cells: Any  # (p,) MERL cell of each row of Q
+
+
+@dataclass(frozen=True)
+class DirectionSet:
+    """The optimised set of ``n`` configurations (one entry of :func:`optimize`'s result).
+
+    ``records`` are :func:`config_to_dict` of ``configurations``;
+    ``expected_error`` (E(S), eq. 15, with the run's η and β) and
+    ``condition_number`` (κ(Q̃), eq. 6; inf when rank deficient) are always
+    computed, from scratch, from the ``n_observations`` observation rows.
+    ``greedy_value`` and ``metric_value`` are the optimised metric (E or κ)
+    after the greedy add and after the local search, and ``moves`` the number
+    of accepted moves (None when read from a file).
+    """
+
+    n: int
+    configurations: tuple[Config, ...]
+    records: tuple[dict[str, Any], ...]
+    expected_error: float
+    condition_number: float
+    n_observations: int
+    greedy_value: float | None = None
+    metric_value: float | None = None
+    moves: int | None = None
+
+
+@dataclass(frozen=True)
+class Directions:
+    """A directions file as read by :func:`read_directions`."""
+
+    setup: Setup
+    metric: str
+    split: str
+    eta: float
+    beta: float
+    seed: int | None
+    database: str
+    model: str
+    sets: tuple[DirectionSet, ...]
+
+
+@dataclass
+class _Block:
+    """One configuration of the current set and its observation rows."""
+
+    config: Config
+    rows: NDArray[np.float32]  # (n_i, k)
+    G: F64
+    qsum: F64
+
+    @property
+    def n(self) -> int:
+        return int(self.rows.shape[0])
+
+
+def _emit(log: Callable[[str], Any] | logging.Logger | None, msg: str) -> None:
+    if log is None:
+        logger.info(msg)
+    elif isinstance(log, logging.Logger):
+        log.info(msg)
+    else:
+        log(msg)
+
+
+def _better(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
+    """Lexicographic ``a < b`` where differences within a relative 1e-12 are ties (inf == inf)."""
+    for x, y in zip(a, b):
+        if x == y:
+            continue
+        if math.isinf(x) or math.isinf(y):
+            return y > x
+        tol = _REL_IMPROVE * max(abs(x), abs(y))
+        if x < y - tol:
+            return True
+        if x > y + tol:
+            return False
+    return False
+
+
+def _load_q(Q: Any) -> NDArray[np.float32]:
+    """The whole (p, k) matrix as a C-contiguous float32 array (read in row blocks)."""
+    if isinstance(Q, np.ndarray):
+        return np.ascontiguousarray(Q, dtype=np.float32)
+    shape = tuple(int(s) for s in Q.shape)
+    if len(shape) != 2:
+        raise ValueError(f"model Q must be 2-D, got shape {shape}")
+    out = np.empty(shape, dtype=np.float32)
+    chunk = getattr(Q, "chunks", None)
+    rows = max(int(chunk[0]), 1) if chunk else 1
+    step = rows * max(_Q_READ_ROWS // rows, 1)  # whole chunks at a time
+    for a in range(0, shape[0], step):
+        b = min(a + step, shape[0])
+        out[a:b] = np.asarray(Q[a:b], dtype=np.float32)
+    return out
+
+
+class _Optimizer:
+    """State shared by the greedy add and the local search of one run."""
+
+    def __init__(
+        self,
+        model: ModelLike,
+        setup: Setup,
+        metric: str,
+        eta: float,
+        beta: float,
+        rng: np.random.Generator,
+        log: Callable[[str], Any] | logging.Logger | None,
+    ) -> None:
+        sigma = np.asarray(model.sigma, dtype=np.float64)
+        U = np.asarray(model.U, dtype=np.float64)
+        cells = np.asarray(model.cells)
+        if cells.ndim != 1 or cells.size == 0 or not np.issubdtype(cells.dtype, np.integer):
+            raise ValueError(f"model cells must be a non-empty 1-D integer array, got {cells.dtype} {cells.shape}")
+        cells = cells.astype(np.int64)
+        if cells.min() < 0 or cells.max() >= merl.N_CELLS:
+            raise ValueError(f"model cells must lie in [0, {merl.N_CELLS})")
+        if not np.all(np.diff(cells) > 0) and np.unique(cells).size != cells.size:
+            raise ValueError("model cells must be distinct")
+        q_shape = tuple(int(s) for s in model.Q.shape)
+        if q_shape != (cells.size, sigma.size):
+            raise ValueError(f"model Q has shape {q_shape}, expected (p, k) = ({cells.size}, {sigma.size})")
+        self.setup = setup
+        self.metric = metric
+        self.rng = rng
+        self.log = log
+        self.em = ErrorModel(sigma, U, eta=eta, beta=beta)  # validates σ, U, η, β
+        self.k = int(sigma.size)
+        self.cells = cells
+        self.lookup = np.full(merl.N_CELLS, -1, dtype=np.int32)
+        self.lookup[cells] = np.arange(cells.size, dtype=np.int32)
+        self.valid = self.lookup >= 0
+        self.Q = _load_q(model.Q)
+        self.fixed = setup.kind in _FIXED_KINDS
+        self.axes: tuple[int, ...] = (1, 2) if self.fixed else (0, 1, 2)
+        self.wrap = (False, False, setup.kind != "nearfield")
+        self._cache: dict[Config, NDArray[np.int32] | None] = {}
+        self.evaluations = 0
+
+    # -- configurations --------------------------------------------------
+
+    def obs(self, config: Config) -> NDArray[np.int32] | None:
+        """Observed cells of a configuration, or None if it is not valid for this model."""
+        hit = self._cache.get(config, False)
+        if hit is not False:
+            return hit  # type: ignore[return-value]
+        result: NDArray[np.int32] | None = None
+        centre = int(_centre_cells(self.setup, np.asarray([config]))[0])
+        if self.valid[centre]:
+            cells = observation_cells(self.setup, config, self.valid)
+            if cells.size:
+                result = cells.astype(np.int32)
+        if len(self._cache) >= _CELL_CACHE_MAX:
+            self._cache.clear()
+        self._cache[config] = result
+        return result
+
+    def rows(self, cells: NDArray[np.intp]) -> NDArray[np.float32]:
+        return self.Q[self.lookup[cells]]
+
+    def block(self, config: Config, rows: NDArray[np.float32]) -> _Block:
+        G, qsum = selection_stats(rows)
+        return _Block(config, rows, G, qsum)
+
+    def shift(self, config: Config, axis: int, delta: int) -> Config | None:
+        c = list(config)
+        v = c[axis] + delta
+        dim = _CONFIG_DIMS[axis]
+        if self.wrap[axis]:
+            v %= dim
+        elif not 0 <= v < dim:
+            return None
+        c[axis] = v
+        if self.fixed and c[1] == 0:
+            c[2] = 0  # the zenith has no azimuth (see the geometry section)
+        return (c[0], c[1], c[2])
+
+    def sample(self, t: int, exclude: set[Config], shared: int | None) -> list[Config]:
+        """Up to ``t`` distinct random configurations with a model-column centre cell, not in ``exclude``."""
+        out: list[Config] = []
+        if not self.fixed:
+            p = self.cells.size
+            idx = self.rng.choice(p, size=min(p, t + len(exclude)), replace=False)
+            for cell in self.cells[idx]:
+                c = _cell_config(int(cell))
+                if c not in exclude:
+                    out.append(c)
+                    if len(out) == t:
+                        break
+            return out
+        seen = set(exclude)
+        for _ in range(64):
+            batch = 4 * t
+            ish = (self.rng.integers(0, _CONFIG_DIMS[0], batch) if shared is None
+                   else np.full(batch, shared, dtype=np.int64))
+            it = self.rng.integers(0, _CONFIG_DIMS[1], batch)
+            ip = self.rng.integers(0, _CONFIG_DIMS[2], batch)
+            configs = np.stack([ish, it, ip], axis=1)
+            ok = self.valid[_centre_cells(self.setup, configs)] & ((it != 0) | (ip == 0))
+            for row in configs[ok]:
+                c = (int(row[0]), int(row[1]), int(row[2]))
+                if c not in seen:
+                    seen.add(c)
+                    out.append(c)
+                    if len(out) == t:
+                        return out
+        return out
+
+    # -- metric ------------------------------------------------------------
+
+    def key(self, G: F64, qsum: F64, nrows: int, parts: Callable[[], list[NDArray[np.float32]]]) -> tuple[float, ...]:
+        self.evaluations += 1
+        E = expected_error(self.em, G, qsum)
+        if self.metric == "error":
+            return (E,)
+        if nrows <= self.k:
+            kappa = condition_number(np.concatenate(parts(), axis=0))
+        else:
+            kappa = condition_number(G, nrows)
+        return (kappa, E)
+
+    def totals(self, blocks: Sequence[_Block]) -> tuple[F64, F64, int]:
+        G, qsum = empty_stats(self.k)
+        n = 0
+        for b in blocks:
+            G += b.G
+            qsum += b.qsum
+            n += b.n
+        return G, qsum, n
+
+    def fmt(self, key: tuple[float, ...]) -> str:
+        if self.metric == "error":
+            return f"E = {key[0]:.6g}"
+        return f"κ = {key[0]:.6g} (E = {key[1]:.6g})"
+
+    def describe(self, config: Config) -> str:
+        names = _AXIS_NAMES[self.setup.kind]
+        inner = ", ".join(f"{n}={v}" for n, v in zip(names, config))
+        if self.fixed:
+            return f"({inner}; cell {int(_centre_cells(self.setup, np.asarray([config]))[0])})"
+        return f"({inner})"
+
+    # -- search steps --------------------------------------------------------
+
+    def greedy_add(self, blocks: list[_Block], t: int) -> tuple[tuple[float, ...], int]:
+        G0, q0, n0 = self.totals(blocks)
+        exclude = {b.config for b in blocks}
+        shared = blocks[0].config[0] if (self.fixed and blocks) else None
+        base_parts = [b.rows for b in blocks]
+        best: tuple[tuple[float, ...], Config, NDArray[np.float32]] | None = None
+        tried = 0
+        for cfg in self.sample(t, exclude, shared):
+            cells = self.obs(cfg)
+            if cells is None:
+                continue
+            tried += 1
+            R = self.rows(cells)
+            G, q = add_rows(G0, q0, R)
+            key = self.key(G, q, n0 + R.shape[0], lambda: base_parts + [R])
+            if best is None or key < best[0]:
+                best = (key, cfg, R)
+        if best is None:
+            raise ValueError(
+                f"no valid {self.setup.kind} configuration left to add to a set of {len(blocks)} "
+                "(the model's columns leave none)"
+            )
+        blocks.append(self.block(best[1], best[2]))
+        return best[0], tried
+
+    def _eval_single(
+        self, blocks: list[_Block], j: int, cfg: Config, rest: tuple[F64, F64, int], taken: set[Config]
+    ) -> tuple[tuple[float, ...], Config, NDArray[np.float32]] | None:
+        if cfg in taken:
+            return None
+        cells = self.obs(cfg)
+        if cells is None:
+            return None
+        R = self.rows(cells)
+        G, q = add_rows(rest[0], rest[1], R)
+        parts = lambda: [b.rows for i, b in enumerate(blocks) if i != j] + [R]  # noqa: E731
+        return self.key(G, q, rest[2] + R.shape[0], parts), cfg, R
+
+    def move_single(
+        self, blocks: list[_Block], j: int, s: int, current: tuple[float, ...]
+    ) -> tuple[tuple[float, ...], list[_Block], str] | None:
+        """Best improving move of configuration ``j`` by ±s (or the combined move), or None."""
+        others = [b for i, b in enumerate(blocks) if i != j]
+        rest = self.totals(others)
+        taken = {b.config for b in others}
+        cfg = blocks[j].config
+        results: dict[tuple[int, int], tuple[tuple[float, ...], Config, NDArray[np.float32]]] = {}
+        for axis in self.axes:
+            for d in (1, -1):
+                new = self.shift(cfg, axis, d * s)
+                if new is None or new == cfg:
+                    continue
+                r = self._eval_single(blocks, j, new, rest, taken)
+                if r is not None:
+                    results[(axis, d)] = r
+        candidates = list(results.values())
+        # The paper's gradient step: move along every axis that improves, at once.
+        dirs: dict[int, int] = {}
+        for axis in self.axes:
+            opts = [(results[(axis, d)][0], d) for d in (1, -1) if (axis, d) in results]
+            if opts:
+                k_best, d_best = min(opts)
+                if _better(k_best, current):
+                    dirs[axis] = d_best
+        if len(dirs) >= 2:
+            new: Config | None = cfg
+            for axis, d in dirs.items():
+                new = self.shift(new, axis, d * s) if new is not None else None
+            if new is not None and new != cfg:
+                r = self._eval_single(blocks, j, new, rest, taken)
+                if r is not None:
+                    candidates.append(r)
+        if not candidates:
+            return None
+        key, new_cfg, R = min(candidates, key=lambda r: r[0])
+        if not _better(key, current):
+            return None
+        new_blocks = list(blocks)
+        new_blocks[j] = self.block(new_cfg, R)
+        unit = "direction" if self.setup.kind == "point" else "image"
+        return key, new_blocks, f"{unit} {j + 1} {self.describe(cfg)} -> {self.describe(new_cfg)}"
+
+    def move_shared(
+        self, blocks: list[_Block], s: int, current: tuple[float, ...]
+    ) -> tuple[tuple[float, ...], list[_Block], str] | None:
+        """Best improving ±s move of the shared elevation (fixed_*), or None."""
+        best: tuple[tuple[float, ...], list[Config], list[NDArray[np.float32]]] | None = None
+        for d in (1, -1):
+            news = [self.shift(b.config, 0, d * s) for b in blocks]
+            if any(c is None for c in news):
+                continue
+            parts: list[NDArray[np.float32]] = []
+            for c in news:
+                cells = self.obs(c)  # type: ignore[arg-type]
+                if cells is None:
+                    break
+                parts.append(self.rows(cells))
+            else:
+                G, q = selection_stats(np.concatenate(parts, axis=0))
+                nrows = sum(p_.shape[0] for p_ in parts)
+                key = self.key(G, q, nrows, lambda: parts)
+                if best is None or key < best[0]:
+                    best = (key, news, parts)  # type: ignore[assignment]
+        if best is None or not _better(best[0], current):
+            return None
+        new_blocks = [self.block(c, R) for c, R in zip(best[1], best[2])]
+        name = _AXIS_NAMES[self.setup.kind][0]
+        return best[0], new_blocks, f"shared {name} {blocks[0].config[0]} -> {best[1][0][0]}"
+
+    def local_search(
+        self, blocks: list[_Block], key: tuple[float, ...], steps: Sequence[int], n: int
+    ) -> tuple[list[_Block], tuple[float, ...], int]:
+        moves = 0
+        for si, s in enumerate(steps):
+            if si > 0:
+                _emit(self.log, f"n={n} step {steps[si - 1]} -> {s}: {self.fmt(key)}")
+            while True:
+                units: list[int | None] = list(range(len(blocks))) + ([None] if self.fixed else [])
+                changed = False
+                for ui in self.rng.permutation(len(units)):
+                    unit = units[int(ui)]
+                    res = (self.move_shared(blocks, s, key) if unit is None
+                           else self.move_single(blocks, unit, s, key))
+                    if res is None:
+                        continue
+                    key, blocks, what = res
+                    moves += 1
+                    changed = True
+                    _emit(self.log, f"n={n} step {s}: move {what}: {self.fmt(key)}")
+                if not changed:
+                    break
+        return blocks, key, moves
+
+    def summarise(self, blocks: Sequence[_Block], greedy: tuple[float, ...], final: tuple[float, ...],
+                  moves: int) -> DirectionSet:
+        rows = np.concatenate([b.rows for b in blocks], axis=0)
+        G, qsum = selection_stats(rows)
+        configs = tuple(b.config for b in blocks)
+        return DirectionSet(
+            n=len(blocks),
+            configurations=configs,
+            records=tuple(config_to_dict(self.setup, c) for c in configs),
+            expected_error=expected_error(self.em, G, qsum),
+            condition_number=condition_number(rows),
+            n_observations=int(rows.shape[0]),
+            greedy_value=float(greedy[0]),
+            metric_value=float(final[0]),
+            moves=moves,
+        )
+
+
+def _check_steps(steps: Sequence[int]) -> tuple[int, ...]:
+    try:
+        out = tuple(steps)
+    except TypeError:
+        raise ValueError(f"steps must be a sequence of positive integers, got {steps!r}") from None
+    if not out or any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 1 for s in out):
+        raise ValueError(f"steps must be a non-empty sequence of positive integers, got {steps!r}")
+    return tuple(int(s) for s in out)
+
+
+def optimize(
+    model: ModelLike,
+    setup: Setup,
+    *,
+    metric: Literal["error", "condition"] = "error",
+    n_max: int,
+    candidates: int = 500,
+    steps: Sequence[int] = (3, 2, 1),
+    eta: float = DEFAULT_ETA,
+    beta: float = 0.0,
+    seed: int | None = 0,
+    log: Callable[[str], Any] | logging.Logger | None = None,
+) -> list[DirectionSet]:
+    """Optimal acquisition configurations for n = 1 … ``n_max`` (Xu et al. §5; see the section comment).
+
+    Parameters
+    ----------
+    model:
+        The PCA model (:func:`brdfpipe.svd.open_model`, or anything with
+        ``Q`` (p, k), ``sigma`` (k,), ``U`` (m, k) and ``cells`` (p,)).  ``Q``
+        is read into memory as float32 (1.2 GB at p = 1.1 M, k = 270); E(S)
+        averages over the m rows of ``U``.
+    setup:
+        The acquisition :class:`Setup`.
+    metric:
+        ``"error"`` (E(S), eq. 15) or ``"condition"`` (κ(Q̃), eq. 6, ties and
+        inf broken by E(S)).
+    n_max:
+        Largest set size (≥ 1).
+    candidates:
+        t, random candidates per greedy add (paper: 500).
+    steps:
+        Local-search step lengths in grid units, largest first (paper: 3, 2, 1).
+    eta, beta:
+        η > 0 and β ≥ 0 of E(S) (used for the "error" metric, the tie-break
+        and the reported E(S) alike).
+    seed:
+        Seed of the ``numpy.random.Generator`` (candidates, sweep order).
+    log:
+        A callable taking one line, a :class:`logging.Logger`, or None (the
+        ``brdfpipe.sampling`` logger, INFO): one line per greedy add, accepted
+        move, step change and convergence, with the metric value.
+
+    Returns
+    -------
+    list[DirectionSet]
+        The sets for n = 1 … n_max, each grown from the previous one.
+
+    Raises
+    ------
+    ValueError
+        Bad parameters or model, or no valid configuration left to add.
+    """
+    if not isinstance(setup, Setup):
+        raise ValueError(f"setup must be a Setup, got {type(setup).__name__}")
+    if metric not in _METRICS:
+        raise ValueError(f"metric must be one of {_METRICS}, got {metric!r}")
+    if isinstance(n_max, bool) or not isinstance(n_max, (int, np.integer)) or n_max < 1:
+        raise ValueError(f"n_max must be a positive integer, got {n_max!r}")
+    if isinstance(candidates, bool) or not isinstance(candidates, (int, np.integer)) or candidates < 1:
+        raise ValueError(f"candidates must be a positive integer, got {candidates!r}")
+    step_list = _check_steps(steps)
+    ErrorModel(np.ones(1), np.zeros((1, 1)), eta=eta, beta=beta)  # checks η and β before the model is read
+    opt = _Optimizer(model, setup, metric, eta, beta, np.random.default_rng(seed), log)
+    _emit(log, f"optimise {setup.kind} fov {setup.fov_deg:g}° grid {setup.grid}, metric {metric}, "
+               f"n = 1..{n_max}, t = {candidates}, steps {step_list}, η = {opt.em.eta:g}, β = {opt.em.beta:g}, "
+               f"seed {seed}; model p = {opt.cells.size}, k = {opt.k}, m = {opt.em.m}")
+    blocks: list[_Block] = []
+    sets: list[DirectionSet] = []
+    for n in range(1, int(n_max) + 1):
+        t0 = time.perf_counter()
+        evals0 = opt.evaluations
+        greedy, tried = opt.greedy_add(blocks, int(candidates))
+        _emit(log, f"n={n} greedy add: best of {tried} candidates {opt.describe(blocks[-1].config)}, "
+                   f"{sum(b.n for b in blocks)} rows: {opt.fmt(greedy)} ({time.perf_counter() - t0:.1f} s)")
+        blocks, final, moves = opt.local_search(blocks, greedy, step_list, n)
+        result = opt.summarise(blocks, greedy, final, moves)
+        sets.append(result)
+        kappa = result.condition_number
+        _emit(log, f"n={n} converged after {moves} moves: {opt.fmt(final)} (greedy {opt.fmt(greedy)}); "
+                   f"E = {result.expected_error:.6g}, κ = {kappa:.6g}, {result.n_observations} rows, "
+                   f"{time.perf_counter() - t0:.1f} s, {opt.evaluations - evals0} metric evaluations")
+    return sets
+
+
+# ---------------------------------------------------------------------------
+# Directions files
+# ---------------------------------------------------------------------------
+#
+# JSON, written atomically (temporary sibling + rename):
+#
+#   {"format": "brdfpipe.directions/1", "setup": kind, "fov": degrees (0 for
+#    point), "grid": g, "metric": "error" | "condition", "split": …, "eta": η,
+#    "beta": β, "seed": …, "database": …, "model": path, "brdfpipe_version": …,
+#    "sets": [{"n": n, "configurations": [config_to_dict records],
+#              "expected_error": E, "condition_number": κ (null when
+#              infinite), "n_observations": rows}, …]}
+
+
+def _fov_tag(fov: float) -> str:
+    return f"{fov:g}"
+
+
+def directions_path(results_dir: str | os.PathLike[str], split: str, setup: Setup, metric: str) -> Path:
+    """``{results_dir}/directions/{split}/{kind}-fov{fov}-{metric}.json`` (fov 0 for point)."""
+    if metric not in _METRICS:
+        raise ValueError(f"metric must be one of {_METRICS}, got {metric!r}")
+    return Path(results_dir) / "directions" / split / f"{setup.kind}-fov{_fov_tag(setup.fov_deg)}-{metric}.json"
+
+
+def _json_number(x: float) -> float | int:
+    return int(x) if float(x).is_integer() else float(x)
+
+
+def write_directions(
+    path: str | os.PathLike[str],
+    sets: Sequence[DirectionSet],
+    *,
+    setup: Setup,
+    metric: str,
+    split: str,
+    model_path: str | os.PathLike[str],
+    seed: int | None,
+    eta: float,
+    beta: float,
+    database: str,
+) -> Path:
+    """Write :func:`optimize`'s sets as the directions JSON (format above), atomically.
+
+    The configuration records are regenerated from the configurations and
+    ``setup``.  Parent folders are created.  Returns the path.
+    """
+    if not isinstance(setup, Setup):
+        raise ValueError(f"setup must be a Setup, got {type(setup).__name__}")
+    if metric not in _METRICS:
+        raise ValueError(f"metric must be one of {_METRICS}, got {metric!r}")
+    eta = _check_eta(eta)
+    beta = float(beta)
+    if not np.isfinite(beta) or beta < 0:
+        raise ValueError(f"beta must be finite and ≥ 0, got {beta!r}")
+    out_sets = []
+    for s in sets:
+        if s.n != len(s.configurations):
+            raise ValueError(f"set n = {s.n} holds {len(s.configurations)} configurations")
+        kappa = float(s.condition_number)
+        out_sets.append({
+            "n": int(s.n),
+            "configurations": [config_to_dict(setup, c) for c in s.configurations],
+            "expected_error": float(s.expected_error),
+            "condition_number": kappa if math.isfinite(kappa) else None,
+            "n_observations": int(s.n_observations),
+        })
+    doc = {
+        "format": DIRECTIONS_FORMAT,
+        "setup": setup.kind,
+        "fov": _json_number(setup.fov_deg),
+        "grid": setup.grid,
+        "metric": metric,
+        "split": str(split),
+        "eta": eta,
+        "beta": beta,
+        "seed": None if seed is None else int(seed),
+        "database": str(database),
+        "model": str(model_path),
+        "brdfpipe_version": __version__,
+        "sets": out_sets,
+    }
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(doc, fh, indent=1, allow_nan=False)
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def read_directions(path: str | os.PathLike[str]) -> Directions:
+    """Read a directions file written by :func:`write_directions`.
+
+    Configurations are rebuilt from their records (:func:`config_from_dict`);
+    a null κ reads as inf.  :class:`ValueError` naming the file for a wrong
+    format or inconsistent content.
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not JSON ({exc})") from exc
+    if not isinstance(doc, dict) or doc.get("format") != DIRECTIONS_FORMAT:
+        raise ValueError(f"{path}: not a directions file (format {doc.get('format') if isinstance(doc, dict) else None!r})")
+    try:
+        setup = Setup(doc["setup"], doc["fov"], doc["grid"])
+        metric = doc["metric"]
+        if metric not in _METRICS:
+            raise ValueError(f"unknown metric {metric!r}")
+        sets = []
+        for entry in doc["sets"]:
+            configs = tuple(config_from_dict(setup, r) for r in entry["configurations"])
+            if int(entry["n"]) != len(configs):
+                raise ValueError(f"set n = {entry['n']} holds {len(configs)} configurations")
+            kappa = entry["condition_number"]
+            sets.append(DirectionSet(
+                n=int(entry["n"]),
+                configurations=configs,
+                records=tuple(entry["configurations"]),
+                expected_error=float(entry["expected_error"]),
+                condition_number=float("inf") if kappa is None else float(kappa),
+                n_observations=int(entry["n_observations"]),
+            ))
+        return Directions(
+            setup=setup,
+            metric=metric,
+            split=str(doc["split"]),
+            eta=float(doc["eta"]),
+            beta=float(doc["beta"]),
+            seed=None if doc.get("seed") is None else int(doc["seed"]),
+            database=str(doc["database"]),
+            model=str(doc["model"]),
+            sets=tuple(sets),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: invalid directions file: {exc}") from exc

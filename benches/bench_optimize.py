@@ -1,0 +1,156 @@
+#!/usr/bin/env python
+"""Wall time of the near-field direction optimisation (Xu et al. 2016 §5).
+
+Target (from the sampling issue): the near-field 2-image optimisation at a
+25° field of view with default settings — t = 500 candidates per greedy add,
+a 32 × 32 pixel lattice, steps 3 → 2 → 1, η = 40, β = 0, the "error" metric —
+on a model with k = 270 components from 90 training materials takes
+≤ 10 minutes on 2 cores.
+
+What it does
+------------
+1. Opens the model given by ``--model PATH`` (a model written by
+   :mod:`brdfpipe.svd`).  Without one it fits one in a scratch folder under
+   /tmp (never under results/): the ``train`` log-map of ``--store``
+   (default results/merl.zarr; training materials from results/splits.json)
+   with :func:`brdfpipe.logmap.write_logmap`, then :func:`brdfpipe.svd.fit`.
+   Not timed (its time is printed); the folder is removed at the end unless
+   ``--keep``.
+2. Runs :func:`brdfpipe.sampling.optimize` once, timed as a whole — reading Q
+   (float32) into memory included — and prints the time to the first log
+   line (= model loading), the log (``--quiet``: greedy adds and convergence
+   lines only, which give each n's time and number of metric evaluations),
+   and per n E(S), κ, the observation rows and the configurations.
+3. Prints PASS/FAIL against the 10-minute target.  Exit status 0 either way:
+   benches report, they do not gate CI.
+
+BLAS threads: ``--blas-threads N`` sets OPENBLAS_NUM_THREADS / OMP_NUM_THREADS
+before numpy is imported (default: leave the environment alone).  The machine
+may be shared; the 1-minute load average is printed before and after.
+
+Usage::
+
+    python benches/bench_optimize.py [--model PATH] [--store results/merl.zarr]
+        [--fov 25] [--n 2] [--candidates 500] [--grid 32] [--metric error]
+        [--setup nearfield] [--seed 0] [--blas-threads N] [--work DIR] [--keep]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TARGET_S = 600.0
+
+
+def fit_model(store_path: Path, splits: Path, work: Path) -> Path:
+    """Write the train log-map and fit the model in ``work``; returns the model path."""
+    from brdfpipe import logmap, store, svd
+
+    st = store.open_store(store_path)
+    if splits.is_file():
+        doc = json.loads(splits.read_text())
+        train = list(doc["train"])
+        if doc.get("database") != st.database or not set(train) <= set(st.materials):
+            raise SystemExit(f"{splits} does not describe {store_path}")
+    else:
+        train = list(st.materials)
+    split = "train" if set(train) != set(st.materials) else "all"
+    lm_path, model_path = work / "train-logmap.zarr", work / "model.zarr"
+    t0 = time.perf_counter()
+    logmap.write_logmap(store_path, lm_path, split=split, materials_train=train)
+    t1 = time.perf_counter()
+    svd.fit(lm_path, model_path)
+    t2 = time.perf_counter()
+    shutil.rmtree(lm_path, ignore_errors=True)
+    print(f"fitted model ({split}, {len(train)} materials): log-map {t1 - t0:.1f} s, SVD {t2 - t1:.1f} s "
+          f"-> {model_path}", flush=True)
+    return model_path
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--model", type=Path, default=None, help="an svd model (default: fit one in /tmp)")
+    ap.add_argument("--store", type=Path, default=ROOT / "results" / "merl.zarr")
+    ap.add_argument("--splits", type=Path, default=ROOT / "results" / "splits.json")
+    ap.add_argument("--setup", default="nearfield", choices=["point", "nearfield", "fixed_camera", "fixed_light"])
+    ap.add_argument("--fov", type=float, default=25.0)
+    ap.add_argument("--grid", type=int, default=32)
+    ap.add_argument("--n", type=int, default=2, help="n_max (images)")
+    ap.add_argument("--candidates", type=int, default=500)
+    ap.add_argument("--metric", default="error", choices=["error", "condition"])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--blas-threads", type=int, default=None)
+    ap.add_argument("--work", type=Path, default=None, help="scratch folder (default: a new one in /tmp)")
+    ap.add_argument("--keep", action="store_true", help="keep the scratch folder (and a fitted model)")
+    ap.add_argument("--quiet", action="store_true", help="print only the per-n summary lines of the log")
+    args = ap.parse_args()
+
+    if args.blas_threads is not None:
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ[var] = str(args.blas_threads)
+
+    from brdfpipe import sampling, svd  # numpy is imported here, after the thread settings
+
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores; BLAS threads: "
+          f"{ {v: os.environ.get(v) for v in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS')} }; "
+          f"1-min load average {os.getloadavg()[0]:.2f} (other users count)", flush=True)
+    own_work = args.work is None and args.model is None
+    work = Path(tempfile.mkdtemp(prefix="bench_optimize-", dir="/tmp")) if own_work else args.work
+    if work is not None:
+        work.mkdir(parents=True, exist_ok=True)
+        if (ROOT / "results") in work.resolve().parents or work.resolve() == ROOT / "results":
+            raise SystemExit("refusing to write scratch data under results/")
+    try:
+        if args.model is None:
+            if not args.store.is_dir():
+                raise SystemExit(f"{args.store}: no store (run the workflow's data stage first) — or pass --model")
+            assert work is not None
+            model_path = fit_model(args.store, args.splits, work)
+        else:
+            model_path = args.model
+        model = svd.open_model(model_path)
+        print(f"model {model_path}: p = {model.p}, k = {model.k}, m = {model.m} "
+              f"({len(model.materials)} materials, split {model.split})", flush=True)
+        setup = sampling.Setup(args.setup, args.fov if args.setup != "point" else 0.0, args.grid)
+
+        t0 = time.perf_counter()
+        first: list[float] = []
+
+        def log(line: str) -> None:
+            if not first:
+                first.append(time.perf_counter() - t0)
+            if not args.quiet or "converged" in line or "greedy add" in line or line.startswith("optimise"):
+                print(f"  [{time.perf_counter() - t0:7.1f} s] {line}", flush=True)
+
+        load0 = os.getloadavg()[0]
+        sets = sampling.optimize(model, setup, metric=args.metric, n_max=args.n, candidates=args.candidates,
+                                 seed=args.seed, log=log)
+        wall = time.perf_counter() - t0
+        load1 = os.getloadavg()[0]
+        for s in sets:
+            print(f"n = {s.n}: E = {s.expected_error:.6g}, κ = {s.condition_number:.4g}, "
+                  f"{s.n_observations} rows, {s.moves} moves; configurations "
+                  + "; ".join(f"cell {r['cell']} (θh {r['theta_h_deg']:.2f}°, θd {r['theta_d_deg']:.2f}°, "
+                              f"φd {r['phi_d_deg']:.2f}°)" for r in s.records))
+        print(f"optimisation ({setup.kind}, fov {setup.fov_deg:g}°, grid {setup.grid}, n = 1..{args.n}, "
+              f"t = {args.candidates}, metric {args.metric}): {wall:.1f} s wall "
+              f"(model load {first[0] if first else float('nan'):.1f} s); load average {load0:.2f} -> {load1:.2f}")
+        print(f"{'PASS' if wall <= TARGET_S else 'FAIL'}: {wall:.1f} s vs target <= {TARGET_S:.0f} s")
+    finally:
+        if own_work and not args.keep and work is not None:
+            shutil.rmtree(work, ignore_errors=True)
+        elif work is not None and own_work:
+            print(f"kept {work}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

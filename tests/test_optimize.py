@@ -1,0 +1,362 @@
+"""Tests of the optimiser section of :mod:`brdfpipe.sampling` (Xu et al. 2016 §5).
+
+The model is a fake, built with numpy in a few seconds: m = 24 "material
+channels" that are random mixtures of r = 16 smooth functions of the cell
+angles (specular-like lobes in θh of several widths, a Fresnel-like term in
+θd, low-frequency Fourier modes) over every geometrically measured MERL cell
+(p = 1,096,216, as the real model) or a subset of them.  The centred matrix has
+rank 15 = k, so E(S) must equal the direct reconstruction error of the
+training rows.  Q is stored as float32, as the real model does.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from brdfpipe import merl
+from brdfpipe.sampling import (
+    DIRECTIONS_FORMAT,
+    DirectionSet,
+    ErrorModel,
+    Setup,
+    condition_number,
+    config_to_dict,
+    direct_training_error,
+    directions_path,
+    expected_error,
+    observation_cells,
+    optimize,
+    read_directions,
+    selection_stats,
+    write_directions,
+)
+
+T = 40  # candidates per greedy add (the paper's 500 is the default; small here for speed)
+
+
+@dataclass
+class FakeModel:
+    """What optimize() needs (Q, sigma, U, cells), plus mean and X for the direct check."""
+
+    Q: NDArray[np.float32]
+    sigma: NDArray[np.float64]
+    U: NDArray[np.float64]
+    cells: NDArray[np.int64]
+    mean: NDArray[np.float64]
+    X: NDArray[np.float64]
+
+
+def make_model(cells: NDArray[np.int64], m: int = 24, r: int = 16, seed: int = 0) -> FakeModel:
+    rng = np.random.default_rng(seed)
+    th, td, pd = (a.ravel()[cells] for a in merl.cell_centres())
+    feats = [np.exp(-((th / w) ** 2)) for w in (0.03, 0.08, 0.2, 0.5)]
+    feats += [(1.0 - np.cos(td)) ** 5, np.cos(td), np.sin(td) * np.cos(pd)]
+    while len(feats) < r:
+        om = rng.normal(0.0, 2.0, 3)
+        feats.append(np.cos(2 * om[0] * th + om[1] * td + om[2] * pd + rng.uniform(0, 2 * np.pi)))
+    F = np.array(feats)
+    X = 1.0 + (rng.standard_normal((m, r)) * np.arange(1, r + 1) ** -0.7) @ F
+    mean = X.mean(axis=0)
+    Y = X - mean
+    lam, V = np.linalg.eigh(Y @ Y.T)
+    keep = lam > 1e-9 * lam[-1]
+    lam, V = lam[keep][::-1], V[:, keep][:, ::-1]
+    Q = (Y.T @ V).astype(np.float32)
+    return FakeModel(Q=Q, sigma=np.sqrt(lam), U=V, cells=cells, mean=mean, X=X)
+
+
+@functools.lru_cache(maxsize=None)
+def full_model() -> FakeModel:
+    return make_model(np.flatnonzero(merl.measured_mask().ravel()))
+
+
+@functools.lru_cache(maxsize=None)
+def partial_model() -> FakeModel:
+    """Only part of the measured region: θh < 50°-ish, θd < 60°, φd < 150°."""
+    ih, idd, ip = np.meshgrid(*(np.arange(d) for d in merl.DIMS), indexing="ij")
+    mask = merl.measured_mask() & (ih < 67) & (idd < 60) & (ip < 150)
+    return make_model(np.flatnonzero(mask.ravel()), seed=1)
+
+
+def setup_of(kind: str, grid: int = 16) -> Setup:
+    return Setup(kind, 0.0 if kind == "point" else 25.0, grid)
+
+
+def lookup_of(model: FakeModel) -> NDArray[np.int64]:
+    lut = np.full(merl.N_CELLS, -1, dtype=np.int64)
+    lut[model.cells] = np.arange(model.cells.size)
+    return lut
+
+
+def rows_of(model: FakeModel, setup: Setup, configs: tuple) -> NDArray[np.int64]:
+    """Model rows observed by a set, recomputed independently of the optimiser."""
+    lut = lookup_of(model)
+    cells = np.concatenate([observation_cells(setup, c, lut >= 0) for c in configs])
+    return lut[cells]
+
+
+@functools.lru_cache(maxsize=None)
+def run(kind: str, metric: str = "error", seed: int = 0, n_max: int = 3, partial: bool = False,
+        beta: float = 0.0) -> tuple[DirectionSet, ...]:
+    model = partial_model() if partial else full_model()
+    n = 5 if kind == "point" and n_max == 3 else n_max
+    return tuple(optimize(model, setup_of(kind), metric=metric, n_max=n, candidates=T, seed=seed, beta=beta,
+                          log=lambda line: None))
+
+
+KINDS = ("point", "nearfield", "fixed_camera", "fixed_light")
+
+
+# ---------------------------------------------------------------------------
+# Results
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_deterministic_with_a_seed(kind: str) -> None:
+    a = run(kind, seed=3)
+    b = optimize(full_model(), setup_of(kind), metric="error", n_max=len(a), candidates=T, seed=3,
+                 log=lambda line: None)
+    assert [s.configurations for s in a] == [s.configurations for s in b]
+    assert [s.expected_error for s in a] == [s.expected_error for s in b]
+    c = run(kind, seed=4)
+    assert [s.configurations for s in a] != [s.configurations for s in c]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_nested_sets(kind: str) -> None:
+    sets = run(kind)
+    setup = setup_of(kind)
+    assert [s.n for s in sets] == list(range(1, len(sets) + 1))
+    for s in sets:
+        assert len(s.configurations) == s.n == len(s.records)
+        assert len(set(s.configurations)) == s.n
+        assert list(s.records) == [config_to_dict(setup, c) for c in s.configurations]
+        assert s.n_observations == rows_of(full_model(), setup, s.configurations).size
+        assert s.moves is not None and s.moves >= 0
+        if kind in ("fixed_camera", "fixed_light"):
+            assert len({c[0] for c in s.configurations}) == 1  # one shared elevation per set
+    if kind == "point":
+        assert [s.n_observations for s in sets] == [s.n for s in sets]
+    else:
+        assert all(s.n_observations > 20 * s.n for s in sets)
+
+
+@pytest.mark.parametrize("kind,beta", [(k, 0.0) for k in KINDS] + [("nearfield", 0.5)])
+def test_reported_metrics_recomputed_from_scratch(kind: str, beta: float) -> None:
+    model = full_model()
+    em = ErrorModel(model.sigma, model.U, eta=40.0, beta=beta)
+    for s in run(kind, beta=beta):
+        rows = model.Q[rows_of(model, setup_of(kind), s.configurations)]
+        G, qsum = selection_stats(rows)
+        assert s.expected_error == pytest.approx(expected_error(em, G, qsum), rel=1e-12)
+        assert s.condition_number == pytest.approx(condition_number(rows), rel=1e-9)
+        assert math.isfinite(s.expected_error) and s.expected_error > 0
+
+
+def test_point_error_equals_direct_training_error() -> None:
+    """The issue's acceptance check: predicted E(S) = mean reconstruction error of the training rows."""
+    model = full_model()
+    for s in run("point"):
+        rows = rows_of(model, setup_of("point"), s.configurations)
+        direct = direct_training_error(model.Q, model.U, model.sigma, model.mean, model.X, rows)
+        assert s.expected_error == pytest.approx(direct, rel=1e-6)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_centre_cells_are_model_columns(kind: str) -> None:
+    model = partial_model()
+    in_model = np.zeros(merl.N_CELLS, dtype=bool)
+    in_model[model.cells] = True
+    for metric in ("error", "condition"):
+        for s in run(kind, metric=metric, partial=True):
+            for c, rec in zip(s.configurations, s.records):
+                assert in_model[rec["cell"]], (c, rec)
+            # every observation row is a model row
+            assert s.n_observations == rows_of(model, setup_of(kind), s.configurations).size
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("metric", ["error", "condition"])
+def test_local_search_never_worsens_greedy(kind: str, metric: str) -> None:
+    for s in run(kind, metric=metric):
+        assert s.greedy_value is not None and s.metric_value is not None
+        assert s.metric_value <= s.greedy_value or s.metric_value == s.greedy_value == math.inf
+        if metric == "error":
+            assert s.expected_error <= s.greedy_value * (1 + 1e-9)
+            assert s.expected_error == pytest.approx(s.metric_value, rel=1e-9)
+
+
+def test_point_result_is_a_local_minimum() -> None:
+    """Converged: no ±1 move of any direction (valid, not in the set) lowers E(S)."""
+    model = full_model()
+    em = ErrorModel(model.sigma, model.U)
+    lut = lookup_of(model)
+    s = run("point")[-1]
+    configs = list(s.configurations)
+    for j, c in enumerate(configs):
+        for axis in range(3):
+            for d in (1, -1):
+                new = list(c)
+                new[axis] += d
+                if axis == 2:
+                    new[axis] %= merl.N_PHI_D
+                if not 0 <= new[axis] < merl.DIMS[axis] or tuple(new) in configs:
+                    continue
+                cell = int(np.ravel_multi_index(new, merl.DIMS))
+                if lut[cell] < 0:
+                    continue
+                trial = configs[:j] + [tuple(new)] + configs[j + 1:]
+                rows = model.Q[rows_of(model, setup_of("point"), tuple(trial))]
+                assert expected_error(em, *selection_stats(rows)) >= s.expected_error * (1 - 1e-9)
+
+
+def test_error_metric_beats_condition_metric_near_field() -> None:
+    """Paper Fig. 5: minimising κ is a poor proxy for near-field images (soft: mean over seeds)."""
+    e_err = [run("nearfield", "error", seed)[-1].expected_error for seed in (0, 1, 2)]
+    e_cond = [run("nearfield", "condition", seed)[-1].expected_error for seed in (0, 1, 2)]
+    assert np.mean(e_err) < np.mean(e_cond)
+    # ... and each metric wins at its own game on average
+    k_err = [run("nearfield", "error", seed)[-1].condition_number for seed in (0, 1, 2)]
+    k_cond = [run("nearfield", "condition", seed)[-1].condition_number for seed in (0, 1, 2)]
+    assert np.mean(np.log(k_cond)) < np.mean(np.log(k_err))
+
+
+def test_more_images_help() -> None:
+    for kind in KINDS:
+        errs = [s.expected_error for s in run(kind)]
+        assert errs[-1] < errs[0]
+
+
+# ---------------------------------------------------------------------------
+# Parameters and logging
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"metric": "rmse"},
+        {"n_max": 0},
+        {"n_max": 1.5},
+        {"candidates": 0},
+        {"steps": ()},
+        {"steps": (3, 0, 1)},
+        {"steps": (2.5,)},
+        {"eta": 0.0},
+        {"beta": -1.0},
+    ],
+)
+def test_bad_parameters_raise(kwargs: dict) -> None:
+    args = {"metric": "error", "n_max": 1, "candidates": 5, "seed": 0, "log": lambda line: None} | kwargs
+    with pytest.raises(ValueError):
+        optimize(full_model(), setup_of("point"), **args)
+
+
+def test_bad_models_raise() -> None:
+    good = full_model()
+    bad_cells = FakeModel(good.Q[:10], good.sigma, good.U, np.array([5] * 10), good.mean, good.X)
+    with pytest.raises(ValueError):
+        optimize(bad_cells, setup_of("point"), n_max=1, candidates=5, seed=0)
+    bad_shape = FakeModel(good.Q[:10], good.sigma, good.U, good.cells[:11], good.mean, good.X)
+    with pytest.raises(ValueError):
+        optimize(bad_shape, setup_of("point"), n_max=1, candidates=5, seed=0)
+    with pytest.raises(ValueError):
+        optimize(good, "nearfield", n_max=1, candidates=5, seed=0)  # type: ignore[arg-type]
+
+
+def test_runs_out_of_configurations() -> None:
+    good = full_model()
+    tiny = FakeModel(good.Q[:2], good.sigma, good.U, good.cells[:2], good.mean, good.X)
+    with pytest.raises(ValueError, match="no valid"):
+        optimize(tiny, setup_of("point"), n_max=3, candidates=5, seed=0, log=lambda line: None)
+
+
+def test_log_lines(caplog: pytest.LogCaptureFixture) -> None:
+    lines: list[str] = []
+    sets = optimize(full_model(), setup_of("nearfield"), n_max=2, candidates=10, seed=0, log=lines.append)
+    assert sum("greedy add" in line for line in lines) == 2
+    assert sum("converged" in line for line in lines) == 2
+    moves = [line for line in lines if ": move " in line]
+    assert len(moves) == sum(s.moves for s in sets)  # type: ignore[misc]
+    assert all("E = " in line for line in lines[1:])
+    assert sum("step 3 -> 2" in line for line in lines) == 2
+    with caplog.at_level(logging.INFO, logger="brdfpipe.sampling"):
+        optimize(full_model(), setup_of("point"), n_max=1, candidates=5, seed=0)
+    assert any("greedy add" in r.getMessage() for r in caplog.records)
+    condition_lines: list[str] = []
+    optimize(full_model(), setup_of("point"), metric="condition", n_max=1, candidates=5, seed=0,
+             log=condition_lines.append)
+    assert all("κ = " in line for line in condition_lines[1:])
+
+
+# ---------------------------------------------------------------------------
+# Directions files
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_write_read_directions(tmp_path, kind: str) -> None:  # type: ignore[no-untyped-def]
+    setup = setup_of(kind)
+    sets = run(kind)
+    path = directions_path(tmp_path / "results", "train", setup, "error")
+    fov = "0" if kind == "point" else "25"
+    assert path == tmp_path / "results" / "directions" / "train" / f"{kind}-fov{fov}-error.json"
+    out = write_directions(path, sets, setup=setup, metric="error", split="train", model_path="/tmp/m.zarr",
+                           seed=0, eta=40.0, beta=0.0, database="synthetic")
+    assert out == path and path.is_file()
+    assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary left
+    doc = json.loads(path.read_text())
+    assert doc["format"] == DIRECTIONS_FORMAT
+    assert {k: doc[k] for k in ("setup", "fov", "grid", "metric", "split", "eta", "beta", "seed", "database",
+                                "model")} == {
+        "setup": kind, "fov": 0 if kind == "point" else 25, "grid": setup.grid, "metric": "error",
+        "split": "train", "eta": 40.0, "beta": 0.0, "seed": 0, "database": "synthetic", "model": "/tmp/m.zarr"}
+    assert [set(s) for s in doc["sets"]] == [
+        {"n", "configurations", "expected_error", "condition_number", "n_observations"}] * len(sets)
+    back = read_directions(path)
+    assert back.setup == setup and back.metric == "error" and back.seed == 0
+    for a, b in zip(sets, back.sets):
+        assert a.configurations == b.configurations
+        assert list(a.records) == list(b.records)
+        assert (a.expected_error, a.condition_number, a.n_observations) == (
+            b.expected_error, b.condition_number, b.n_observations)
+
+
+def test_infinite_condition_number_is_null(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    s = run("point")[0]
+    inf = DirectionSet(s.n, s.configurations, s.records, s.expected_error, math.inf, s.n_observations)
+    path = tmp_path / "d.json"
+    write_directions(path, [inf], setup=setup_of("point"), metric="condition", split="all", model_path="m",
+                     seed=None, eta=40, beta=0, database="merl")
+    assert json.loads(path.read_text())["sets"][0]["condition_number"] is None
+    assert read_directions(path).sets[0].condition_number == math.inf
+
+
+def test_bad_directions_files(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    p = tmp_path / "x.json"
+    p.write_text("{not json")
+    with pytest.raises(ValueError):
+        read_directions(p)
+    p.write_text(json.dumps({"format": "something else"}))
+    with pytest.raises(ValueError):
+        read_directions(p)
+    sets = run("nearfield")
+    write_directions(p, sets, setup=setup_of("nearfield"), metric="error", split="train", model_path="m",
+                     seed=0, eta=40, beta=0, database="merl")
+    doc = json.loads(p.read_text())
+    doc["sets"][0]["n"] = 7
+    p.write_text(json.dumps(doc))
+    with pytest.raises(ValueError):
+        read_directions(p)
+    with pytest.raises(ValueError):
+        write_directions(p, sets, setup=setup_of("nearfield"), metric="kappa", split="train", model_path="m",
+                         seed=0, eta=40, beta=0, database="merl")
