@@ -1,0 +1,639 @@
+"""The log-relative mapping of the MERL matrix (Xu et al. 2016 §3, Nielsen et al. 2015).
+
+Every BRDF value ρ of a cell is mapped to
+
+    x = ln((ρ·w + ε) / (ρ_ref·w + ε)),        ε = 0.001,
+
+and back with ρ = (exp(x)·(ρ_ref·w + ε) − ε) / w (:func:`forward`,
+:func:`inverse`).  ``ρ_ref`` is the per-cell median over the *training rows*
+(every channel of every training material; :func:`median_reference`) and ``w``
+a per-cell weight computed from the light and view directions of the cell
+centre (:func:`cell_weights`, with θi / θo the zenith angles of
+``merl.cell_directions``):
+
+* ``"product"`` (default): ``w = max(cos θi · cos θo, 0.01)``, as in the code
+  released with Nielsen et al. 2015;
+* ``"max"``: ``w = max(cos θi, cos θo)``, as written in Xu et al. 2016 §3.
+
+Rows and columns
+----------------
+Rows are *material-channels*: row ``r = 3·i + c`` is channel ``c`` (0 = R,
+1 = G, 2 = B) of material ``i`` of the given material list, so m = 3 × the
+number of materials.  Columns are the cells valid (measured) in every material
+of the *store* (``store.valid``), in increasing cell order (p ≈ 1.1 M); column
+``j`` is MERL cell ``cells[j]`` (flat index ``iθh·16200 + iθd·180 + iφd``).
+Whatever materials a log-map holds, its columns are the same for one store, so
+log-maps of the training and the test materials line up column for column.
+
+Splits
+------
+``split`` names the training set and is checked against it: ``"all"`` = every
+material of the store, ``"train"`` = the store's materials minus the held-out
+test materials (a non-empty proper subset).  The rows written
+(``materials_out``) default to the training materials; the test materials'
+rows are written by giving them as ``materials_out`` with the same training
+set (so they are mapped relative to the *training* median).
+
+On-disk format (:func:`write_logmap`, read with :func:`open_logmap`)
+-------------------------------------------------------------------
+A Zarr v3 group holding
+
+* ``X`` – float32 ``(m_out, p)``, dimensions ``("row", "column")``: the mapped
+  rows of ``materials_out``; chunks ``(m_out, 36_450)`` (:data:`CHUNK_COLS`,
+  a quarter of the store's 145,800-column chunks), Blosc lz4 + byte shuffle,
+  fill value NaN.  Chunks span all rows, so a column block is one chunk read;
+  36,450 columns keep a chunk at 39 MB for m = 270 (its float64 working copy
+  79 MB) and give 31 chunks, i.e. up to 31 chunk-aligned column ranges for
+  the distributed SVD (:mod:`brdfpipe.svd`).
+* ``reference`` – float64 ``(p,)``: ρ_ref, the per-cell median of the training
+  rows (sr⁻¹).
+* ``weight`` – float64 ``(p,)``: w.
+* ``cells`` – int32 ``(p,)``: column → MERL cell index, strictly increasing.
+
+Group attributes: ``format`` (``"brdfpipe.logmap/1"``), ``split``,
+``weighting``, ``epsilon``, ``materials`` (of the rows, in order), ``rows``
+(``[material, channel]`` for every row), ``train_materials`` (in store order),
+``database`` (copied from the store), ``brdfpipe_version`` and, written last,
+the completion marker ``brdfpipe_complete`` = ``{"rows": m_out, "columns": p,
+"id": <hex digest>}``; the ``id`` is a sha256 digest of the attributes, the
+store's source digests and ρ_ref, so it identifies this log-map's content
+(the SVD refuses Gram partials computed from another one) while the same
+inputs still give the same bytes.
+
+The output is built in a temporary sibling directory and renamed into place;
+on any error nothing is left at ``out`` (an earlier log-map there is removed,
+as for the store, so that a stale result never passes for a fresh one).
+
+Memory: the store is read in blocks of 145,800 cells (all three channels of
+the needed materials, float32: 175 MB for 100 materials) and mapped in float64
+sub-blocks of 8,192 columns; the m × p matrix is never held, and at most one
+X chunk of output is buffered.  The ``train`` log-map of the default
+synthetic database (90 materials, m = 270, p = 1,096,216) takes ≈ 12 s and
+0.7 GB peak RSS on a shared 2-core AMD EPYC; X is 0.85 GB on disk (lz4 +
+shuffle: 1.39× smaller than raw float32).
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import json
+import logging
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import zarr
+from numpy.typing import ArrayLike, NDArray
+from zarr.codecs import BloscCodec
+
+from brdfpipe import __version__, merl
+from brdfpipe.merl import N_CELLS
+from brdfpipe.store import (
+    CHUNK_COLS as STORE_CHUNK_COLS,
+)
+from brdfpipe.store import BrdfStore, _remove, _replace_dir, _tmp_sibling, open_store
+
+__all__ = [
+    "EPS",
+    "WEIGHTINGS",
+    "SPLITS",
+    "PRODUCT_FLOOR",
+    "CHUNK_COLS",
+    "LOGMAP_FORMAT",
+    "COMPLETE_ATTR",
+    "LogmapError",
+    "Logmap",
+    "cell_weights",
+    "forward",
+    "inverse",
+    "median_reference",
+    "write_logmap",
+    "open_logmap",
+    "iter_columns",
+]
+
+logger = logging.getLogger("brdfpipe.logmap")
+
+#: ε of the mapping (Xu et al. 2016 §3).
+EPS: Final = 1e-3
+#: Weightings w of a cell: ``product`` = max(cos θi·cos θo, 0.01) (Nielsen 2015 code),
+#: ``max`` = max(cos θi, cos θo) (Xu 2016 text).
+WEIGHTINGS: Final = ("product", "max")
+#: Floor of the ``product`` weighting.
+PRODUCT_FLOOR: Final = 0.01
+#: Splits: ``all`` = every material is a training material; ``train`` = all minus the test materials.
+SPLITS: Final = ("all", "train")
+#: Columns per chunk of ``X`` (a quarter of the store's chunk width).
+CHUNK_COLS: Final = STORE_CHUNK_COLS // 4  # 36,450
+LOGMAP_FORMAT: Final = "brdfpipe.logmap/1"
+#: Group attribute written last; log-maps without it are refused.
+COMPLETE_ATTR: Final = "brdfpipe_complete"
+#: Columns per float64 working sub-block while mapping.
+_SUB_COLS: Final = 8192
+_CODEC: Final = {"cname": "lz4", "clevel": 5, "shuffle": "shuffle", "blocksize": 0}
+
+
+class LogmapError(ValueError):
+    """A log-map is missing, incomplete or inconsistent; the message names the path."""
+
+
+# --------------------------------------------------------------------------
+# The mapping
+# --------------------------------------------------------------------------
+
+
+def _check_weighting(kind: str) -> str:
+    if kind not in WEIGHTINGS:
+        raise ValueError(f"unknown weighting {kind!r}; expected one of {', '.join(WEIGHTINGS)}")
+    return kind
+
+
+def cell_weights(cells: ArrayLike, kind: str = "product") -> NDArray[np.float64]:
+    """Weights w of MERL cells, shape ``(p,)`` float64, from their centre's light/view directions.
+
+    ``cells`` are flat cell indices (0 … 1,457,999); θi and θo are the zenith
+    angles of ``merl.cell_directions(cells)`` (cell centre, φh = 0).
+    ``kind="product"``: ``max(cos θi · cos θo, 0.01)``; ``kind="max"``:
+    ``max(cos θi, cos θo)``.  Raises ValueError for an unknown kind or a cell
+    index out of range.  (For cells with both directions below the horizon
+    ``max`` can be ≤ 0; such cells are never measured.)
+    """
+    _check_weighting(kind)
+    idx = np.asarray(cells, dtype=np.int64).ravel()
+    wi, wo = merl.cell_directions(idx)
+    cos_i, cos_o = wi[:, 2], wo[:, 2]
+    if kind == "product":
+        return np.maximum(cos_i * cos_o, PRODUCT_FLOOR)
+    return np.maximum(cos_i, cos_o)
+
+
+def forward(rho: ArrayLike, ref: ArrayLike, w: ArrayLike, eps: float = EPS) -> NDArray[np.float64]:
+    """Log-relative map ``ln((ρ·w + ε)/(ρ_ref·w + ε))`` in float64.
+
+    ``rho`` has shape ``(..., p)`` (e.g. ``(rows, p)``); ``ref`` and ``w``
+    broadcast against it (normally ``(p,)``).  Pure and vectorised.
+    """
+    r = np.asarray(rho, dtype=np.float64)
+    ref64 = np.asarray(ref, dtype=np.float64)
+    w64 = np.asarray(w, dtype=np.float64)
+    return np.log((r * w64 + eps) / (ref64 * w64 + eps))
+
+
+def inverse(x: ArrayLike, ref: ArrayLike, w: ArrayLike, eps: float = EPS) -> NDArray[np.float64]:
+    """Inverse of :func:`forward`: ``ρ = (exp(x)·(ρ_ref·w + ε) − ε)/w`` in float64 (broadcasting)."""
+    x64 = np.asarray(x, dtype=np.float64)
+    ref64 = np.asarray(ref, dtype=np.float64)
+    w64 = np.asarray(w, dtype=np.float64)
+    return (np.exp(x64) * (ref64 * w64 + eps) - eps) / w64
+
+
+# --------------------------------------------------------------------------
+# Reading the store by cell blocks
+# --------------------------------------------------------------------------
+
+
+def _runs(sorted_rows: NDArray[np.intp]) -> list[tuple[int, int]]:
+    """Runs ``(r0, r1)`` of consecutive row indices (each read with one basic slice)."""
+    if sorted_rows.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(sorted_rows) != 1) + 1
+    return [(int(r[0]), int(r[-1]) + 1) for r in np.split(sorted_rows, breaks)]
+
+
+def _iter_cell_blocks(
+    st: BrdfStore, rows: NDArray[np.intp], cells: NDArray[np.int64]
+) -> Iterator[tuple[int, int, NDArray[np.float32]]]:
+    """Yield ``(j0, j1, data)``: columns ``cells[j0:j1]`` of store rows ``rows`` (ascending).
+
+    ``data`` is float32 ``(len(rows), 3, j1 - j0)`` (all three channels), read
+    one chunk-aligned block of 145,800 cells at a time.
+    """
+    runs = _runs(rows)
+    n = rows.size
+    for start in range(0, N_CELLS, STORE_CHUNK_COLS):
+        stop = start + STORE_CHUNK_COLS
+        j0, j1 = (int(v) for v in np.searchsorted(cells, [start, stop]))
+        if j0 == j1:
+            continue
+        raw = np.empty((n, 3, stop - start), dtype=np.float32)
+        for c in range(3):
+            k = 0
+            for r0, r1 in runs:
+                raw[k : k + r1 - r0, c] = st.brdf[r0:r1, c * N_CELLS + start : c * N_CELLS + stop]
+                k += r1 - r0
+        local = cells[j0:j1] - start
+        yield j0, j1, raw[:, :, local] if local.size < raw.shape[2] else raw
+
+
+def _material_indices(st: BrdfStore, names: Sequence[str], what: str) -> NDArray[np.intp]:
+    """Row indices of ``names`` in the store; ValueError for bad input."""
+    if isinstance(names, str):
+        raise ValueError(f"{what} must be a list of material names, not the string {names!r}")
+    names = list(names)
+    if not names:
+        raise ValueError(f"{what} is empty: at least one material is needed")
+    bad = [n for n in names if not isinstance(n, str)]
+    if bad:
+        raise ValueError(f"{what}: material names must be strings, got {bad!r}")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"{what}: listed more than once: {', '.join(dup)}")
+    index = {m: i for i, m in enumerate(st.materials)}
+    unknown = [n for n in names if n not in index]
+    if unknown:
+        avail = ", ".join(st.materials[:8]) + (" …" if st.n_materials > 8 else "")
+        raise ValueError(
+            f"{what}: unknown material(s) {', '.join(unknown)} in {st.path} "
+            f"({st.n_materials} materials: {avail})"
+        )
+    return np.array([index[n] for n in names], dtype=np.intp)
+
+
+def _check_cells(cells: ArrayLike) -> NDArray[np.int64]:
+    idx = np.asarray(cells, dtype=np.int64).ravel()
+    if idx.size == 0:
+        raise ValueError("no cells given")
+    if idx.min() < 0 or idx.max() >= N_CELLS:
+        raise ValueError(f"cell indices must lie in [0, {N_CELLS})")
+    if idx.size > 1 and not (np.diff(idx) > 0).all():
+        raise ValueError("cells must be strictly increasing")
+    return idx
+
+
+def _median_rows(block: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
+    """Per-column median of a ``(rows, cols)`` block, in float64; equals ``np.median(block, axis=0)``.
+
+    Partitions a transposed float32 copy, one row of values per column, in
+    sub-blocks of 8,192 columns (2× faster than ``np.median`` along axis 0);
+    the middle value(s) are exact and an even count's two are averaged in
+    float64.
+    """
+    n, ncols = block.shape
+    k = n // 2
+    out = np.empty(ncols, dtype=np.float64)
+    for a in range(0, ncols, _SUB_COLS):
+        b = min(a + _SUB_COLS, ncols)
+        t = np.ascontiguousarray(block[:, a:b].T)
+        if n % 2:
+            out[a:b] = np.partition(t, k, axis=1)[:, k]
+        else:
+            part = np.partition(t, [k - 1, k], axis=1)
+            out[a:b] = 0.5 * (part[:, k - 1].astype(np.float64) + part[:, k].astype(np.float64))
+    return out
+
+
+def median_reference(
+    store: BrdfStore | str | os.PathLike[str], rows_materials: Sequence[str], cells: ArrayLike
+) -> NDArray[np.float64]:
+    """ρ_ref: per-cell median over all channels of ``rows_materials``, shape ``(p,)`` float64.
+
+    ``store`` is an opened store or its path; ``cells`` strictly increasing
+    flat cell indices (normally ``np.flatnonzero(store.valid)``).  The median
+    is over the 3 × len(rows_materials) values of each cell (float32 data,
+    median taken in float64).  Streamed by 145,800-cell blocks.  ValueError
+    for unknown / duplicate / no materials or bad cells.
+    """
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    idx = np.sort(_material_indices(st, rows_materials, "rows_materials"))
+    cells64 = _check_cells(cells)
+    ref = np.empty(cells64.size, dtype=np.float64)
+    for j0, j1, data in _iter_cell_blocks(st, idx, cells64):
+        ref[j0:j1] = _median_rows(data.reshape(-1, j1 - j0))
+    return ref
+
+
+# --------------------------------------------------------------------------
+# Writing and opening a log-map
+# --------------------------------------------------------------------------
+
+
+def _group_format(path: Path) -> str | None:
+    """The ``format`` attribute of a Zarr v3 group at ``path`` (None if there is none)."""
+    try:
+        doc = json.loads((path / "zarr.json").read_text(encoding="utf-8"))
+        return str(doc["attributes"]["format"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _check_replaceable(out: Path, fmt: str) -> None:
+    """Refuse an output path holding anything but an earlier output of format ``fmt``.
+
+    Protects stores and unrelated folders from a mistyped output path: an
+    existing ``out`` must be an empty folder or a Zarr group whose ``format``
+    attribute is ``fmt``.
+    """
+    if out.is_symlink() or out.exists():
+        ok = out.is_dir() and not out.is_symlink() and (
+            not any(out.iterdir()) or _group_format(out) == fmt
+        )
+        if not ok:
+            raise ValueError(f"{out}: exists and is not a {fmt} output; refusing to replace it")
+
+
+def _discard_stale(out: Path, fmt: str) -> None:
+    """After a failed run, delete an earlier output of format ``fmt`` at ``out`` (nothing else)."""
+    if out.is_dir() and not out.is_symlink() and _group_format(out) == fmt:
+        logger.warning("removing the earlier output at %s after a failed run", out)
+        _remove(out)
+
+
+class _ChunkWriter:
+    """Buffers column blocks of a 2-D array and writes whole chunks (no read-modify-write)."""
+
+    def __init__(self, array: zarr.Array, width: int) -> None:
+        self.array = array
+        self.width = width
+        self.buf = np.empty((array.shape[0], width), dtype=array.dtype)
+        self.fill = 0
+        self.offset = 0
+
+    def write(self, block: NDArray[Any]) -> None:
+        a = 0
+        n = block.shape[1]
+        while a < n:
+            take = min(n - a, self.width - self.fill)
+            self.buf[:, self.fill : self.fill + take] = block[:, a : a + take]
+            self.fill += take
+            a += take
+            if self.fill == self.width:
+                self.flush()
+
+    def flush(self) -> None:
+        if self.fill:
+            self.array[:, self.offset : self.offset + self.fill] = self.buf[:, : self.fill]
+            self.offset += self.fill
+            self.fill = 0
+
+
+def _create(group: zarr.Group, name: str, data_or_shape: Any, chunks: tuple[int, ...], dtype: Any,
+            dims: tuple[str, ...], *, compress: bool = True) -> zarr.Array:
+    """A Zarr array in ``group`` (Blosc lz4 + shuffle unless ``compress=False``), filled if data is given."""
+    shape = data_or_shape.shape if isinstance(data_or_shape, np.ndarray) else data_or_shape
+    fill = np.nan if np.dtype(dtype).kind == "f" else 0
+    arr = group.create_array(
+        name,
+        shape=shape,
+        chunks=chunks,
+        dtype=dtype,
+        compressors=BloscCodec(typesize=np.dtype(dtype).itemsize, **_CODEC) if compress else None,
+        fill_value=fill,
+        dimension_names=dims,
+        config={"write_empty_chunks": True},
+    )
+    if isinstance(data_or_shape, np.ndarray):
+        arr[...] = data_or_shape
+    return arr
+
+
+def _check_split(split: str, st: BrdfStore, train: Sequence[str]) -> None:
+    if split not in SPLITS:
+        raise ValueError(f"unknown split {split!r}; expected one of {', '.join(SPLITS)}")
+    if split == "all" and set(train) != set(st.materials):
+        missing = [m for m in st.materials if m not in set(train)]
+        raise ValueError(
+            f"split 'all' trains on every material of the store, but materials_train lacks "
+            f"{len(missing)}: {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''}"
+        )
+    if split == "train" and set(train) == set(st.materials):
+        raise ValueError("split 'train' must hold out at least one test material, but "
+                         "materials_train lists every material of the store (use split 'all')")
+
+
+def write_logmap(
+    store_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    split: str,
+    materials_train: Sequence[str],
+    materials_out: Sequence[str] | None = None,
+    weighting: str = "product",
+    eps: float = EPS,
+) -> None:
+    """Write the log-map of ``materials_out`` (default: the training materials) to ``out``.
+
+    ρ_ref is the median over every channel of ``materials_train``; columns are
+    the store's valid cells; rows are ``3·i + c`` for material ``i`` of
+    ``materials_out`` in the order given.  See the module docstring for the
+    format.  Raises ValueError (before writing anything) for an unknown
+    ``split`` or ``weighting``, an empty training set, unknown or duplicate
+    materials, a training set inconsistent with ``split``, ε ≤ 0, or an
+    ``out`` that exists and is not a log-map (a store is never replaced); and
+    :class:`brdfpipe.store.StoreError` for a bad store.  Atomic: on any error
+    nothing is left at ``out``.
+    """
+    _check_weighting(weighting)
+    if not (isinstance(eps, (int, float)) and np.isfinite(eps) and eps > 0):
+        raise ValueError(f"eps must be a positive finite number, got {eps!r}")
+    eps = float(eps)
+    out = Path(out)
+    st = open_store(store_path)
+    train_idx = _material_indices(st, materials_train, "materials_train")
+    _check_split(split, st, list(materials_train))
+    if materials_out is None:
+        materials_out = list(materials_train)
+    out_idx = _material_indices(st, materials_out, "materials_out")
+    train_names = [st.materials[i] for i in sorted(train_idx)]  # store order
+    out_names = [st.materials[i] for i in out_idx]  # order given
+
+    valid = np.asarray(st.valid[:], dtype=bool)
+    cells = np.flatnonzero(valid).astype(np.int64)
+    if cells.size == 0:
+        raise ValueError(f"{st.path}: no cell is valid in every material")
+    w = cell_weights(cells, weighting)
+    if not (w > 0).all():
+        bad = cells[~(w > 0)]
+        raise ValueError(f"weighting {weighting!r} gives w <= 0 at {bad.size} valid cell(s) (first: {bad[0]})")
+    m_out, p = 3 * len(out_names), int(cells.size)
+
+    # Rows read from the store: training ∪ output materials, ascending (long runs).
+    need = np.union1d(train_idx, out_idx).astype(np.intp)
+    pos = {int(r): k for k, r in enumerate(need)}
+    train_pos = np.array([pos[int(r)] for r in sorted(train_idx)], dtype=np.intp)
+    out_pos = np.array([pos[int(r)] for r in out_idx], dtype=np.intp)
+
+    _check_replaceable(out, LOGMAP_FORMAT)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _tmp_sibling(out, "tmp")
+    logger.info("log-mapping %d rows x %d cells of %s (train: %d materials, split %s, weighting %s) -> %s",
+                m_out, p, st.path, len(train_names), split, weighting, out)
+    try:
+        group = zarr.open_group(tmp, mode="w-", zarr_format=3)
+        x_arr = _create(group, "X", (m_out, p), (m_out, CHUNK_COLS), "float32", ("row", "column"))
+        writer = _ChunkWriter(x_arr, CHUNK_COLS)
+        ref = np.empty(p, dtype=np.float64)
+        for j0, j1, data in _iter_cell_blocks(st, need, cells):
+            for a in range(0, j1 - j0, _SUB_COLS):
+                b = min(a + _SUB_COLS, j1 - j0)
+                sub = data[:, :, a:b]
+                r = _median_rows(sub[train_pos].reshape(-1, b - a))
+                ref[j0 + a : j0 + b] = r
+                x = forward(sub[out_pos].reshape(m_out, b - a), r, w[j0 + a : j0 + b], eps)
+                writer.write(x.astype(np.float32))
+        writer.flush()
+        if writer.offset != p:  # cannot happen unless the store changed underfoot
+            raise LogmapError(f"{out}: wrote {writer.offset} of {p} columns")
+        _create(group, "reference", ref, (p,), "float64", ("column",))
+        _create(group, "weight", w, (p,), "float64", ("column",))
+        _create(group, "cells", cells.astype(np.int32), (p,), "int32", ("column",))
+        attrs = {
+            "format": LOGMAP_FORMAT,
+            "split": split,
+            "weighting": weighting,
+            "epsilon": eps,
+            "materials": out_names,
+            "rows": [[name, c] for name in out_names for c in range(3)],
+            "train_materials": train_names,
+            "database": st.database,
+            "brdfpipe_version": __version__,
+        }
+        group.attrs.update(attrs)
+        digest = hashlib.sha256(json.dumps([attrs, st.sources], sort_keys=True).encode())
+        digest.update(ref.tobytes())
+        group.attrs[COMPLETE_ATTR] = {"rows": m_out, "columns": p, "id": digest.hexdigest()[:16]}
+        open_logmap(tmp)  # check what was written
+        _replace_dir(tmp, out)
+    except BaseException:
+        _remove(tmp)
+        _discard_stale(out, LOGMAP_FORMAT)
+        raise
+    logger.info("wrote log-map %s", out)
+
+
+@dataclass
+class Logmap:
+    """An opened, checked log-map (see :func:`open_logmap`).
+
+    ``X`` is the lazily read Zarr array; ``reference``, ``weight`` and
+    ``cells`` are loaded (p values each).
+    """
+
+    path: Path
+    group: zarr.Group
+    X: zarr.Array
+    reference: NDArray[np.float64] = field(repr=False)
+    weight: NDArray[np.float64] = field(repr=False)
+    cells: NDArray[np.int32] = field(repr=False)
+    materials: tuple[str, ...]
+    rows: tuple[tuple[str, int], ...] = field(repr=False)
+    train_materials: tuple[str, ...] = field(repr=False)
+    split: str
+    weighting: str
+    epsilon: float
+    database: str
+    id: str
+
+    @property
+    def m(self) -> int:
+        """Number of rows (3 × materials)."""
+        return int(self.X.shape[0])
+
+    @property
+    def p(self) -> int:
+        """Number of columns (cells)."""
+        return int(self.X.shape[1])
+
+    @property
+    def chunk_cols(self) -> int:
+        """Columns per chunk of ``X``."""
+        return int(self.X.chunks[1])
+
+
+def open_logmap(path: str | os.PathLike[str]) -> Logmap:
+    """Open a finished log-map after checking it; :class:`LogmapError` naming ``path`` if not.
+
+    Refuses a missing or unreadable group, one without the completion marker
+    (never finished), of another format, or whose arrays and attributes
+    disagree (shapes, dtypes, rows vs materials, split / weighting / ε values,
+    cells not strictly increasing, weights not positive).
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise LogmapError(f"{path}: no such log-map")
+    try:
+        group = zarr.open_group(path, mode="r", zarr_format=3)
+    except Exception as exc:
+        raise LogmapError(f"{path}: not a readable Zarr v3 group ({exc})") from exc
+    attrs = dict(group.attrs)
+    if attrs.get("format") != LOGMAP_FORMAT:
+        raise LogmapError(
+            f"{path}: not a brdfpipe log-map (format {attrs.get('format')!r}, expected {LOGMAP_FORMAT!r})"
+        )
+    marker = attrs.get(COMPLETE_ATTR)
+    if not isinstance(marker, dict):
+        raise LogmapError(f"{path}: incomplete log-map (no completion marker {COMPLETE_ATTR!r}); re-run it")
+    arrays: dict[str, zarr.Array] = {}
+    for name, dtype, ndim in (("X", np.float32, 2), ("reference", np.float64, 1),
+                              ("weight", np.float64, 1), ("cells", np.int32, 1)):
+        arr = group.get(name)
+        if not isinstance(arr, zarr.Array):
+            raise LogmapError(f"{path}: log-map lacks array {name!r}")
+        if arr.dtype != dtype or arr.ndim != ndim:
+            raise LogmapError(f"{path}: {name!r} is {arr.dtype} {arr.shape}, expected {np.dtype(dtype)} {ndim}-D")
+        arrays[name] = arr
+    m, p = arrays["X"].shape
+    if marker.get("rows") != m or marker.get("columns") != p or not isinstance(marker.get("id"), str):
+        raise LogmapError(f"{path}: completion marker {marker} disagrees with X {arrays['X'].shape}")
+    for name in ("reference", "weight", "cells"):
+        if arrays[name].shape != (p,):
+            raise LogmapError(f"{path}: {name!r} has shape {arrays[name].shape}, expected ({p},)")
+    materials = attrs.get("materials")
+    rows = attrs.get("rows")
+    train = attrs.get("train_materials")
+    if not isinstance(materials, list) or not materials or 3 * len(materials) != m:
+        raise LogmapError(f"{path}: attribute 'materials' does not match the {m} rows of X")
+    if rows != [[name, c] for name in materials for c in range(3)]:
+        raise LogmapError(f"{path}: attribute 'rows' is not [material, channel] for 3·i + c")
+    if not isinstance(train, list) or not train:
+        raise LogmapError(f"{path}: attribute 'train_materials' must be a non-empty list")
+    if attrs.get("split") not in SPLITS or attrs.get("weighting") not in WEIGHTINGS:
+        raise LogmapError(f"{path}: bad split {attrs.get('split')!r} or weighting {attrs.get('weighting')!r}")
+    eps = attrs.get("epsilon")
+    if not isinstance(eps, (int, float)) or not eps > 0:
+        raise LogmapError(f"{path}: bad epsilon {eps!r}")
+    cells = np.asarray(arrays["cells"][:], dtype=np.int32)
+    if p and (cells.min() < 0 or cells.max() >= N_CELLS or (p > 1 and not (np.diff(cells) > 0).all())):
+        raise LogmapError(f"{path}: 'cells' must be strictly increasing cell indices in [0, {N_CELLS})")
+    weight = np.asarray(arrays["weight"][:], dtype=np.float64)
+    if not (weight > 0).all():
+        raise LogmapError(f"{path}: 'weight' must be positive")
+    return Logmap(
+        path=path,
+        group=group,
+        X=arrays["X"],
+        reference=np.asarray(arrays["reference"][:], dtype=np.float64),
+        weight=weight,
+        cells=cells,
+        materials=tuple(materials),
+        rows=tuple((str(a), int(c)) for a, c in rows),
+        train_materials=tuple(train),
+        split=str(attrs["split"]),
+        weighting=str(attrs["weighting"]),
+        epsilon=float(eps),
+        database=str(attrs.get("database")),
+        id=str(marker["id"]),
+    )
+
+
+def iter_columns(
+    logmap: Logmap | str | os.PathLike[str], start: int = 0, stop: int | None = None
+) -> Iterator[tuple[int, int, NDArray[np.float32]]]:
+    """Yield ``(a, b, X[:, a:b])`` (float32) over columns ``start:stop`` of a log-map.
+
+    Blocks are cut at chunk boundaries, so each is at most one chunk wide and
+    every chunk is decoded once.
+    """
+    lm = logmap if isinstance(logmap, Logmap) else open_logmap(logmap)
+    stop = lm.p if stop is None else int(stop)
+    if not 0 <= start <= stop <= lm.p:
+        raise ValueError(f"column range [{start}, {stop}) outside [0, {lm.p}]")
+    width = lm.chunk_cols
+    a = start
+    while a < stop:
+        b = min((a // width + 1) * width, stop)
+        yield a, b, np.asarray(lm.X[:, a:b], dtype=np.float32)
+        a = b

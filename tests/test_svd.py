@@ -1,0 +1,317 @@
+"""Tests of :mod:`brdfpipe.svd`: the streamed PCA of a log-map against a dense SVD.
+
+One store of six synthetic materials (~5 s) and its ``all`` log-map (m = 18,
+p ≈ 1.1 M, 80 MB float32) are built once; the dense reference is
+``numpy.linalg.svd`` of the float64 centred matrix (160 MB).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from brdfpipe import __version__, logmap, store, svd, synth
+from brdfpipe.database import folder_database
+from brdfpipe.svd import ModelError
+
+# --------------------------------------------------------------------------
+# Fixtures
+# --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("svd")
+    synth.synthesize(d / "db", count=6, seed=5, noise=0.01, jobs=1, progress=False)
+    db = folder_database(d / "db")
+    st_path = d / "merl.zarr"
+    store.ingest(db.sources, st_path, database=db.kind, jobs=1)
+    lm_path = d / "all.zarr"
+    logmap.write_logmap(st_path, lm_path, split="all", materials_train=db.materials)
+    return {"db": d / "db", "store": st_path, "logmap": lm_path, "dir": d}
+
+
+@pytest.fixture(scope="module")
+def dense(data: dict[str, Path]) -> dict[str, np.ndarray]:
+    x = logmap.open_logmap(data["logmap"]).X[:].astype(np.float64)
+    mu = x.mean(axis=0)
+    u, s, vt = np.linalg.svd(x - mu, full_matrices=False)
+    return {"X": x, "mu": mu, "U": u, "s": s, "Vt": vt}
+
+
+@pytest.fixture(scope="module")
+def model(data: dict[str, Path]) -> svd.Model:
+    out = data["dir"] / "model.zarr"
+    svd.fit(data["logmap"], out, n_blocks=3)
+    return svd.open_model(out)
+
+
+def _leftovers(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+# --------------------------------------------------------------------------
+# Against the dense SVD
+# --------------------------------------------------------------------------
+
+
+def test_singular_values_match_dense(model: svd.Model, dense: dict[str, np.ndarray]) -> None:
+    m = dense["X"].shape[0]
+    assert m == 18 and model.m == 18
+    assert model.k == m - 1  # six distinct materials: full rank after centring
+    assert dense["s"][-1] < 1e-9 * dense["s"][0]  # the null direction of the centred matrix
+    np.testing.assert_allclose(model.sigma, dense["s"][: model.k], rtol=1e-6)
+
+
+def test_q_spans_the_dense_principal_subspace(model: svd.Model, dense: dict[str, np.ndarray]) -> None:
+    q = np.asarray(model.Q[:], dtype=np.float64)
+    vs = dense["Vt"][: model.k].T * dense["s"][: model.k]
+    assert scipy.linalg.subspace_angles(q, vs).max() < 1e-4
+    # Column by column too (signs aside): every component is well separated here.
+    cos = np.abs(np.sum(q * vs, axis=0)) / (np.linalg.norm(q, axis=0) * np.linalg.norm(vs, axis=0))
+    assert np.all(cos > 1 - 1e-6)
+
+
+def test_qtq_is_sigma_squared(model: svd.Model) -> None:
+    q = np.asarray(model.Q[:], dtype=np.float64)
+    qtq = q.T @ q
+    scale = np.outer(model.sigma, model.sigma)
+    assert np.abs(qtq - np.diag(model.sigma**2)).max() <= 1e-5 * scale.max()
+    assert np.all(np.abs(qtq - np.diag(model.sigma**2)) <= 1e-5 * scale)
+
+
+def test_every_row_is_reproduced(model: svd.Model, dense: dict[str, np.ndarray]) -> None:
+    x = dense["X"]
+    q = np.asarray(model.Q[:], dtype=np.float64)
+    np.testing.assert_allclose(model.mean, dense["mu"], rtol=0, atol=1e-12)
+    recon = model.mean + model.U @ q.T  # row r: μ + Q u_r
+    err = np.abs(recon - x).max()
+    assert err <= 4 * np.finfo(np.float32).eps * np.abs(x).max(), err
+    # U is orthonormal, orthogonal to 1, and matches the dense U up to sign.
+    np.testing.assert_allclose(model.U.T @ model.U, np.eye(model.k), atol=1e-12)
+    assert np.abs(model.U.sum(axis=0)).max() < 1e-12
+    np.testing.assert_allclose(np.abs(model.U), np.abs(dense["U"][:, : model.k]), atol=1e-7)
+
+
+def test_model_format(model: svd.Model, data: dict[str, Path]) -> None:
+    lm = logmap.open_logmap(data["logmap"])
+    assert model.Q.dtype == np.float32 and model.Q.shape == (lm.p, model.k)
+    assert model.Q.chunks == (lm.chunk_cols, model.k)
+    assert np.array_equal(model.cells, lm.cells) and np.array_equal(model.reference, lm.reference)
+    assert np.array_equal(model.weight, lm.weight)
+    attrs = dict(model.group.attrs)
+    assert attrs["rows"] == [list(r) for r in lm.rows] and attrs["materials"] == list(lm.materials)
+    assert attrs["split"] == "all" and attrs["weighting"] == "product" and attrs["epsilon"] == 1e-3
+    assert attrs["database"] == "synthetic" and attrs["k"] == model.k and attrs["tolerance"] == svd.TOL
+    assert attrs["brdfpipe_version"] == __version__
+    assert attrs[logmap.COMPLETE_ATTR]["logmap_id"] == lm.id
+
+
+# --------------------------------------------------------------------------
+# Scatter / gather
+# --------------------------------------------------------------------------
+
+
+def test_block_ranges_cover_and_align() -> None:
+    for p, chunk in ((1_096_216, 36_450), (100, 7), (5, 10)):
+        n_chunks = -(-p // chunk)
+        for n in (1, 2, 3, n_chunks, n_chunks + 1, 3 * n_chunks + 2):
+            edges = [svd.block_range(p, n, b, chunk) for b in range(n)]
+            assert edges[0][0] == 0 and edges[-1][1] == p
+            assert all(edges[i][1] == edges[i + 1][0] for i in range(n - 1))
+            assert all(a <= b for a, b in edges)
+            if n <= n_chunks:
+                assert all(a % chunk == 0 for a, _ in edges)
+    with pytest.raises(ValueError):
+        svd.block_range(10, 0, 0, 5)
+    with pytest.raises(ValueError):
+        svd.block_range(10, 2, 2, 5)
+
+
+def test_partial_grams_add_up(data: dict[str, Path], dense: dict[str, np.ndarray]) -> None:
+    lm = logmap.open_logmap(data["logmap"])
+    g1, s1, p1 = svd.combine([svd.gram_partial(lm, 0, 1)])
+    x = dense["X"]
+    assert p1 == lm.p
+    np.testing.assert_allclose(g1, x @ x.T, rtol=1e-12)
+    np.testing.assert_allclose(s1, x.sum(axis=1), rtol=1e-11)
+    n_chunks = -(-lm.p // lm.chunk_cols)
+    for n in (2, 5, n_chunks, n_chunks + 3):
+        g, s, p = svd.combine(svd.gram_partial(lm, b, n) for b in range(n))
+        assert p == lm.p
+        np.testing.assert_allclose(g, g1, rtol=1e-12)
+        np.testing.assert_allclose(s, s1, rtol=1e-11, atol=1e-9)
+
+
+def test_saved_partials_give_the_fitted_model(data: dict[str, Path], model: svd.Model, tmp_path: Path) -> None:
+    n = 4
+    paths = []
+    for b in range(n):
+        part = svd.gram_partial(data["logmap"], b, n)
+        path = tmp_path / "parts" / f"{b}.npz"
+        svd.save_partial(path, part, logmap_path=data["logmap"], block=b, n_blocks=n)
+        loaded = svd.load_partial(path)
+        assert np.array_equal(loaded.gram, part.gram) and np.array_equal(loaded.colsum, part.colsum)
+        assert loaded.ncols == part.ncols
+        info = svd.partial_info(path)
+        assert (info.block, info.n_blocks, info.m) == (b, n, 18)
+        paths.append(path)
+    assert _leftovers(tmp_path / "parts") == []
+    # The workflow's entry point: Snakemake scatter item "i-of-n" is block i - 1 of n.
+    via_item = tmp_path / "item.npz"
+    svd.write_partial(via_item, logmap_path=data["logmap"], scatteritem="2-of-4")
+    assert svd.partial_info(via_item) == svd.partial_info(paths[1])
+    assert np.array_equal(svd.load_partial(via_item).gram, svd.load_partial(paths[1]).gram)
+    for item in ("0-of-4", "5-of-4", "2of4"):
+        with pytest.raises(ValueError, match="scatter item"):
+            svd.write_partial(tmp_path / "bad.npz", logmap_path=data["logmap"], scatteritem=item)
+    out = tmp_path / "model.zarr"
+    svd.write_model(data["logmap"], paths[::-1], out)  # any order
+    other = svd.open_model(out)
+    np.testing.assert_allclose(other.sigma, model.sigma, rtol=1e-10)
+    q = model.Q[:]
+    np.testing.assert_allclose(other.Q[:], q, rtol=0, atol=1e-6 * np.abs(q).max())
+    assert np.array_equal(other.mean, model.mean)
+
+    # Refusals: missing / repeated blocks, mixed block counts, another log-map's partials.
+    odd = tmp_path / "parts" / "odd.npz"
+    svd.save_partial(odd, svd.gram_partial(data["logmap"], 0, 3), logmap_path=data["logmap"], block=0, n_blocks=3)
+    foreign = tmp_path / "parts" / "foreign.npz"
+    with np.load(paths[0]) as z:
+        doc = dict(z)
+    doc["logmap_id"] = np.array("0123456789abcdef")
+    np.savez(foreign, **doc)
+    bad_sets = {
+        "missing": (paths[:3], "missing \\[3\\]"),
+        "repeated": ([*paths, paths[1]], "repeated \\[1\\]"),
+        "mixed": ([*paths, odd], "different block counts"),
+        "foreign": ([foreign, *paths[1:]], "another log-map"),
+    }
+    for name, (subset, message) in bad_sets.items():
+        bad_out = tmp_path / f"{name}.zarr"
+        with pytest.raises(ModelError, match=message):
+            svd.write_model(data["logmap"], subset, bad_out)
+        assert not bad_out.exists()
+    with pytest.raises(ModelError, match="no such Gram partial"):
+        svd.load_partial(tmp_path / "nothing.npz")
+    with pytest.raises(ValueError, match="columns"):
+        svd.save_partial(tmp_path / "x.npz", svd.gram_partial(data["logmap"], 0, 2), logmap_path=data["logmap"],
+                         block=1, n_blocks=2)
+    assert _leftovers(tmp_path) == []
+
+
+# --------------------------------------------------------------------------
+# decompose, rank deficiency
+# --------------------------------------------------------------------------
+
+
+def test_decompose_small_dense_cases() -> None:
+    rng = np.random.default_rng(0)
+    for m, p, rank in ((6, 400, 6), (9, 300, 4), (12, 5, 5), (3, 50, 1)):
+        x = rng.normal(size=(m, rank)) @ rng.normal(size=(rank, p)) + 3.0  # offset: centring matters
+        g = x @ x.T
+        u, s = svd.decompose(g, x.sum(axis=1), p)
+        xc = x - x.mean(axis=0)
+        ref = np.linalg.svd(xc, compute_uv=False)
+        expect_k = min(np.linalg.matrix_rank(xc), m - 1)
+        assert u.shape == (m, expect_k) and s.shape == (expect_k,) and expect_k <= m - 1
+        np.testing.assert_allclose(s, ref[:expect_k], rtol=1e-8)
+        np.testing.assert_allclose(u.T @ u, np.eye(expect_k), atol=1e-12)
+        assert np.abs(u.sum(axis=0)).max() < 1e-12
+        q = xc.T @ u
+        np.testing.assert_allclose(x.mean(axis=0) + u @ q.T, x, atol=1e-9 * np.abs(x).max())
+
+
+def test_decompose_errors() -> None:
+    g = np.eye(3)
+    with pytest.raises(ValueError, match="square"):
+        svd.decompose(np.ones((2, 3)), np.zeros(2), 10)
+    with pytest.raises(ValueError, match="colsum"):
+        svd.decompose(g, np.zeros(4), 10)
+    with pytest.raises(ValueError, match="tol"):
+        svd.decompose(g, np.zeros(3), 10, tol=0.0)
+    with pytest.raises(ValueError, match="at least 2 rows"):
+        svd.decompose(np.ones((1, 1)), np.ones(1), 10)
+    with pytest.raises(ValueError, match="NaN"):
+        svd.decompose(np.full((3, 3), np.nan), np.zeros(3), 10)
+    with pytest.raises(ValueError, match="all rows identical"):
+        svd.decompose(np.full((3, 3), 4.0), np.full(3, 2.0), 1)  # three identical rows of ones·2
+    with pytest.raises(ValueError, match="no partials"):
+        svd.combine([])
+
+
+def test_duplicate_material_is_rank_deficient(data: dict[str, Path], tmp_path: Path) -> None:
+    """Four materials, one a byte copy of another: the centred 12 × p matrix has rank 8."""
+    db = folder_database(data["db"])
+    names = db.materials[:3]
+    sources = {n: db.sources[n] for n in names}
+    sources["twin"] = tmp_path / "twin.binary"
+    shutil.copyfile(db.sources[names[1]], sources["twin"])
+    st_path = tmp_path / "merl.zarr"
+    store.ingest(sources, st_path, database="synthetic", jobs=1)
+    lm_path = tmp_path / "lm.zarr"
+    logmap.write_logmap(st_path, lm_path, split="all", materials_train=list(sources))
+    out = tmp_path / "model.zarr"
+    svd.fit(lm_path, out, n_blocks=2)
+    md = svd.open_model(out)
+    assert md.m == 12 and md.k == 12 - 1 - 3
+    x = logmap.open_logmap(lm_path).X[:].astype(np.float64)
+    recon = md.mean + md.U @ np.asarray(md.Q[:], dtype=np.float64).T
+    assert np.abs(recon - x).max() <= 4 * np.finfo(np.float32).eps * np.abs(x).max()
+
+
+# --------------------------------------------------------------------------
+# Atomic output and checks
+# --------------------------------------------------------------------------
+
+
+def test_failed_fit_leaves_nothing(data: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = tmp_path / "model.zarr"
+    svd.fit(data["logmap"], out)  # an earlier, good model
+    real = svd.iter_columns
+
+    def failing(lm, start=0, stop=None):  # type: ignore[no-untyped-def]
+        for i, item in enumerate(real(lm, start, stop)):
+            if i == 2:
+                raise OSError("disk full")
+            yield item
+
+    monkeypatch.setattr(svd, "iter_columns", failing)
+    with pytest.raises(OSError, match="disk full"):
+        svd.fit(data["logmap"], out)
+    assert not out.exists() and _leftovers(tmp_path) == []
+
+
+def test_refuses_to_overwrite_the_logmap(data: dict[str, Path], tmp_path: Path) -> None:
+    copy = tmp_path / "lm.zarr"
+    shutil.copytree(data["logmap"], copy)
+    with pytest.raises(ValueError, match="refusing to replace"):
+        svd.fit(copy, copy)
+    logmap.open_logmap(copy)
+
+
+def test_open_model_refuses_bad_outputs(model: svd.Model, data: dict[str, Path], tmp_path: Path) -> None:
+    with pytest.raises(ModelError, match="no such model"):
+        svd.open_model(tmp_path / "none.zarr")
+    with pytest.raises(ModelError, match="not a brdfpipe model"):
+        svd.open_model(data["logmap"])
+
+    def edit(name: str, fn) -> Path:  # type: ignore[no-untyped-def]
+        bad = tmp_path / f"{name}.zarr"
+        shutil.copytree(model.path, bad)
+        doc = json.loads((bad / "zarr.json").read_text())
+        fn(doc["attributes"])
+        (bad / "zarr.json").write_text(json.dumps(doc))
+        return bad
+
+    with pytest.raises(ModelError, match="incomplete model"):
+        svd.open_model(edit("incomplete", lambda a: a.pop(logmap.COMPLETE_ATTR)))
+    with pytest.raises(ModelError, match="completion marker"):
+        svd.open_model(edit("k", lambda a: a.update(k=3)))
+    with pytest.raises(ModelError, match="'rows'"):
+        svd.open_model(edit("rows", lambda a: a.update(rows=a["rows"][:-3])))
