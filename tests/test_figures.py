@@ -1,0 +1,292 @@
+"""Tests of :mod:`brdfpipe.figures` (Xu 2016 figure analogues) on small fixtures.
+
+The fixtures are written here: an errors.csv with 2 near-field FOVs (15° and
+25°), fixed camera / fixed light at 25°, point sampling, n = 1…3, both
+metrics, 3 held-out materials × 3 channels (+ ``all`` and ``mean`` rows) and
+the deviation floor; a training_size.csv with two material orders; directions
+files written by :func:`brdfpipe.sampling.write_directions`.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import math
+from pathlib import Path
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+from brdfpipe import figures
+from brdfpipe.figures import (
+    FIG08_COLUMNS,
+    FIGURE_STEMS,
+    FigureInputError,
+    database_label,
+    fig05_error_vs_images,
+    fig08_optimal_configurations,
+    fig18_per_material,
+    make_acquisition_figures,
+    read_errors,
+)
+from brdfpipe.sampling import DirectionSet, Setup, config_to_dict, read_directions, write_directions
+
+DB = "synthetic"
+MATERIALS = ("blue-acrylic", "gold-metallic-paint", "white-fabric")
+FOVS = (15.0, 25.0)
+N_MAX = 3
+# (setup, fov) → base error; condition-number directions are worse.
+SETUPS = {("point", 0.0): 1.2, ("nearfield", 15.0): 0.5, ("nearfield", 25.0): 0.4,
+          ("fixed_camera", 25.0): 0.55, ("fixed_light", 25.0): 0.6}
+# Near-field configurations (iθh, iθd, iφd) per FOV: n = 1, then n = 2 (grown from n = 1).
+CONFIGS = {15.0: [(16, 50, 90), (20, 70, 60)], 25.0: [(17, 48, 90), (30, 75, 100)]}
+
+
+def _value(setup: str, fov: float, metric: str, n: int, mi: int, ch: int) -> float:
+    base = SETUPS[(setup, fov)] * (1.6 if metric == "condition" else 1.0)
+    return base / n ** 0.7 * (1.0 + 0.15 * mi) * (1.0 + 0.05 * ch)
+
+
+def write_errors(path: Path, database: str = DB, drop: str | None = None) -> Path:
+    cols = [c for c in figures.ERRORS_COLUMNS if c != drop]
+    rows = []
+    for (setup, fov), _ in SETUPS.items():
+        for metric in ("error", "condition"):
+            for n in range(1, N_MAX + 1):
+                for kind in ("rms_log", "relrms_linear"):
+                    scale = 1.0 if kind == "rms_log" else 0.3
+                    per_mat = []
+                    for mi, mat in enumerate(MATERIALS):
+                        chans = [scale * _value(setup, fov, metric, n, mi, ch) for ch in range(3)]
+                        for ch, v in enumerate(chans):
+                            rows.append((database, "train", setup, fov, metric, n, mat, str(ch), kind, v))
+                        v_all = float(np.sqrt(np.mean(np.square(chans))))
+                        rows.append((database, "train", setup, fov, metric, n, mat, "all", kind, v_all))
+                        per_mat.append(v_all)
+                    rows.append((database, "train", setup, fov, metric, n, "mean", "all", kind,
+                                 float(np.mean(per_mat))))
+    devs = []
+    for mi, mat in enumerate(MATERIALS):
+        d = 0.1 + 0.02 * mi
+        devs.append(d)
+        for ch in ("0", "1", "2", "all"):
+            rows.append((database, "train", "all", 0, "none", 0, mat, ch, "deviation", d))
+    rows.append((database, "train", "all", 0, "none", 0, "mean", "all", "deviation", float(np.mean(devs))))
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols)
+        for r in rows:
+            rec = dict(zip(figures.ERRORS_COLUMNS, r))
+            w.writerow([f"{rec[c]:g}" if isinstance(rec[c], float) and c == "fov" else rec[c] for c in cols])
+    return path
+
+
+def write_training(path: Path, database: str = DB) -> Path:
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(figures.TRAINING_COLUMNS)
+        for seed in (0, 1):
+            for n_train in range(5, 30, 5):
+                vals = []
+                for mi, mat in enumerate(MATERIALS):
+                    v = 0.3 + 2.0 / n_train + 0.02 * mi + 0.01 * seed * (n_train % 10 == 0)
+                    vals.append(v)
+                    w.writerow([database, n_train, seed, mat, "all", "rms_log", v])
+                w.writerow([database, n_train, seed, "mean", "all", "rms_log", float(np.mean(vals))])
+    return path
+
+
+def write_dirs(root: Path, database: str = DB) -> dict[float, Path]:
+    """Directions for FOV 15 (split train only) and FOV 25 (train and all: 'all' must win)."""
+    used = {}
+    for fov, configs in CONFIGS.items():
+        setup = Setup("nearfield", fov)
+        sets = [DirectionSet(n=k, configurations=tuple(configs[:k]),
+                             records=tuple(config_to_dict(setup, c) for c in configs[:k]),
+                             expected_error=0.5 / k + fov / 1000.0, condition_number=1e3 * k,
+                             n_observations=700 * k)
+                for k in (1, 2)]
+        splits = ("train",) if fov == 15.0 else ("train", "all")
+        for split in splits:
+            # the 'train' file of FOV 25 carries a different E(S): the table must not use it
+            ss = sets if split == "all" or fov == 15.0 else [
+                DirectionSet(s.n, s.configurations, s.records, 9.0, s.condition_number, s.n_observations)
+                for s in sets]
+            p = write_directions(root / split / f"nearfield-fov{fov:g}-error.json", ss, setup=setup,
+                                 metric="error", split=split, model_path="model.zarr", seed=0,
+                                 eta=40.0, beta=0.0, database=database)
+            used[fov] = p  # the last one written: 'all' for 25, 'train' for 15
+    return used
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("fig-inputs")
+    dirs = root / "directions"
+    used = write_dirs(dirs)
+    return {
+        "errors": write_errors(root / "errors.csv"),
+        "training": write_training(root / "training_size.csv"),
+        "dirs": dirs,
+        "dir15": used[15.0],
+        "dir25": used[25.0],
+    }
+
+
+@pytest.fixture(scope="module")
+def outputs(inputs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
+    out = tmp_path_factory.mktemp("figs-a")
+    files = make_acquisition_figures(inputs["errors"], inputs["training"], inputs["dirs"], out,
+                                     fovs=FOVS, n_point=N_MAX)
+    return out, files
+
+
+def test_wrapper_writes_every_file(outputs: tuple[Path, list[Path]]) -> None:
+    out, files = outputs
+    expected = {out / f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in ("png", "pdf")}
+    expected |= {out / "fig08-optimal-configurations.csv", out / "fig08-optimal-configurations.md"}
+    assert set(files) == expected
+    assert len(files) == len(expected)
+    for p in files:
+        assert p.is_file() and p.stat().st_size > 200, p
+    for p in out.iterdir():  # no temporary files left behind
+        assert not p.name.startswith("."), p
+    for stem in FIGURE_STEMS.values():
+        img = matplotlib.image.imread(out / f"{stem}.png")
+        assert img.ndim == 3 and img.shape[2] in (3, 4) and min(img.shape[:2]) > 300
+        assert float(img[..., :3].std()) > 0.02, f"{stem}.png looks blank"
+        assert (out / f"{stem}.pdf").read_bytes().startswith(b"%PDF-")
+
+
+def test_png_shape_and_titles(inputs: dict[str, Path], tmp_path: Path) -> None:
+    res = fig05_error_vs_images(inputs["errors"], tmp_path / "f5", fovs=FOVS)
+    img = matplotlib.image.imread(res.files[0])
+    assert img.shape[:2] == res.size_px
+    assert "synthetic database" in res.title
+    assert res.panel_titles == ("near-field, FOV 15°", "near-field, FOV 25°")
+    assert res.warnings == ()
+    # The title is the PNG's and the PDF's Title metadata.
+    assert b"synthetic database" in res.files[0].read_bytes()
+    assert b"synthetic database" in res.files[1].read_bytes()
+
+
+def test_database_named_in_every_title(outputs: tuple[Path, list[Path]]) -> None:
+    out, _ = outputs
+    for stem in FIGURE_STEMS.values():
+        for ext in ("png", "pdf"):
+            data = (out / f"{stem}.{ext}").read_bytes()
+            assert b"synthetic database" in data, f"{stem}.{ext}"
+    assert "synthetic database" in (out / "fig08-optimal-configurations.md").read_text(encoding="utf-8")
+
+
+def test_database_taken_from_input(tmp_path: Path) -> None:
+    errs = write_errors(tmp_path / "errors.csv", database="merl")
+    res = fig18_per_material(errs, tmp_path / "f18", n=2)
+    assert "MERL database" in res.title and res.database == "merl"
+    assert database_label("synthetic") == "synthetic database"
+    assert database_label("merl") == "MERL database"
+    assert database_label("my-db") == "my-db database"
+
+
+def test_fig08_table_matches_directions(inputs: dict[str, Path], outputs: tuple[Path, list[Path]]) -> None:
+    out, _ = outputs
+    with (out / "fig08-optimal-configurations.csv").open(encoding="utf-8", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0].keys()) == FIG08_COLUMNS
+    assert len(rows) == 2 * (1 + 2)  # 2 FOVs × (1 + 2 images)
+    for fov, path in ((15.0, inputs["dir15"]), (25.0, inputs["dir25"])):
+        d = read_directions(path)
+        assert d.split == ("train" if fov == 15.0 else "all")
+        for s in d.sets:
+            got = [r for r in rows if float(r["fov_deg"]) == fov and int(r["n_images"]) == s.n]
+            assert [int(r["image"]) for r in got] == list(range(1, s.n + 1))
+            for r, rec in zip(got, s.records):
+                assert r["split"] == d.split and r["database"] == DB
+                assert float(r["expected_error"]) == pytest.approx(s.expected_error, rel=1e-9)
+                for col, key in (("theta_h_deg", "theta_h_deg"), ("theta_d_deg", "theta_d_deg"),
+                                 ("phi_d_deg", "phi_d_deg")):
+                    assert float(r[col]) == pytest.approx(rec[key], abs=1e-5)
+                for who in ("light", "camera"):
+                    x, y, z = rec[who]
+                    assert float(r[f"{who}_theta_deg"]) == pytest.approx(math.degrees(math.acos(z)), abs=1e-5)
+                    phi = math.degrees(math.atan2(y, x)) % 360.0
+                    assert float(r[f"{who}_phi_deg"]) == pytest.approx(phi, abs=1e-5)
+    md = (out / "fig08-optimal-configurations.md").read_text(encoding="utf-8")
+    assert md.count("\n| 15° |") == 3 and md.count("\n| 25° |") == 3
+
+
+def test_deterministic(inputs: dict[str, Path], outputs: tuple[Path, list[Path]], tmp_path: Path) -> None:
+    out_a, files_a = outputs
+    files_b = make_acquisition_figures(inputs["errors"], inputs["training"], inputs["dirs"], tmp_path,
+                                       fovs=FOVS, n_point=N_MAX)
+    assert [p.name for p in files_a] == [p.name for p in files_b]
+    for a, b in zip(files_a, files_b):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: Path,
+                                            caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.figures"):
+        files = make_acquisition_figures(inputs["errors"], inputs["training"], inputs["dirs"], tmp_path,
+                                         fovs=(15, 25, 35), n_point=7, fov_fixed=30)
+    assert len(files) == 2 * len(FIGURE_STEMS) + 2
+    text = caplog.text
+    assert "FOV 35°" in text  # fig05/06/08
+    assert "n = 7" in text  # fig18
+    assert "FOV 30°" in text  # fig13
+    with (tmp_path / "fig08-optimal-configurations.csv").open(encoding="utf-8") as fh:
+        assert sum(1 for _ in fh) == 1 + 6  # FOV 35 has no rows
+
+
+def test_no_directions_at_all(inputs: dict[str, Path], tmp_path: Path) -> None:
+    empty = tmp_path / "nodirs"
+    empty.mkdir()
+    res = fig08_optimal_configurations(empty, tmp_path / "f8", fovs=(25,))
+    assert len(res.files) == 4 and all(p.is_file() for p in res.files)
+    assert res.warnings and "FOV 25°" in res.warnings[0]
+
+
+def test_missing_column_names_file(tmp_path: Path) -> None:
+    bad = write_errors(tmp_path / "bad-errors.csv", drop="kind")
+    with pytest.raises(FigureInputError, match=r"bad-errors\.csv.*kind"):
+        read_errors(bad)
+    with pytest.raises(FigureInputError, match=r"bad-errors\.csv"):
+        make_acquisition_figures(bad, tmp_path / "t.csv", tmp_path, tmp_path / "out", fovs=FOVS, n_point=3)
+    tr = tmp_path / "bad-training.csv"
+    tr.write_text("database,n_train,material,channel,kind,value\nsynthetic,5,mean,all,rms_log,0.3\n")
+    with pytest.raises(FigureInputError, match=r"bad-training\.csv.*order_seed"):
+        figures.fig07_training_size(tr, tmp_path / "f7")
+    # The wrapper checks every input first: nothing is written when one is bad.
+    good = write_errors(tmp_path / "good-errors.csv")
+    with pytest.raises(FigureInputError, match=r"bad-training\.csv"):
+        make_acquisition_figures(good, tr, tmp_path, tmp_path / "out2", fovs=FOVS, n_point=3)
+    assert not (tmp_path / "out2").exists()
+
+
+def test_empty_missing_and_malformed_inputs(inputs: dict[str, Path], tmp_path: Path) -> None:
+    empty = tmp_path / "empty.csv"
+    empty.write_text("")
+    with pytest.raises(FigureInputError, match=r"empty\.csv.*empty"):
+        read_errors(empty)
+    header_only = tmp_path / "header.csv"
+    header_only.write_text(",".join(figures.ERRORS_COLUMNS) + "\n")
+    with pytest.raises(FigureInputError, match=r"header\.csv.*no data rows"):
+        read_errors(header_only)
+    with pytest.raises(FileNotFoundError, match=r"absent\.csv"):
+        read_errors(tmp_path / "absent.csv")
+    badnum = tmp_path / "badnum.csv"
+    badnum.write_text(",".join(figures.ERRORS_COLUMNS) + "\nsynthetic,train,point,0,error,x,mean,all,rms_log,1\n")
+    with pytest.raises(FigureInputError, match=r"badnum\.csv: line 2.*'n'"):
+        read_errors(badnum)
+    two_db = tmp_path / "twodb.csv"
+    two_db.write_text(",".join(figures.ERRORS_COLUMNS) + "\nA,train,point,0,error,1,mean,all,rms_log,1\n"
+                      "B,train,point,0,error,2,mean,all,rms_log,1\n")
+    with pytest.raises(FigureInputError, match=r"twodb\.csv.*more than one database"):
+        read_errors(two_db)
+    # A malformed directions file is an error naming it, not a skipped FOV.
+    dirs = tmp_path / "dirs"
+    (dirs / "all").mkdir(parents=True)
+    (dirs / "all" / "nearfield-fov25-error.json").write_text("{not json")
+    with pytest.raises(ValueError, match=r"nearfield-fov25-error\.json"):
+        fig08_optimal_configurations(dirs, tmp_path / "f8", fovs=(25,))
