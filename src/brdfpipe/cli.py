@@ -5,6 +5,7 @@ Subcommands::
     brdfpipe synth  --count N --seed S --out DIR [--noise X] [--jobs J]
     brdfpipe ingest DIR --out results/merl.zarr [--jobs J]
     brdfpipe info   results/merl.zarr
+    brdfpipe reconstruct OBSERVATIONS --model results/svd/train.zarr --out FILE.binary [--eta η]
 
 Every subcommand exits non-zero with a one-line message naming the file and
 the problem on bad input.
@@ -83,6 +84,21 @@ def _cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not (value > 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+def _cmd_reconstruct(args: argparse.Namespace) -> int:
+    from brdfpipe import reconstruct
+
+    reconstruct.write_reconstruction(args.model, args.observations, args.out, eta=args.eta)
+    print(args.out)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``brdfpipe`` command."""
     parser = argparse.ArgumentParser(prog="brdfpipe", description=__doc__.split("\n\n")[0])
@@ -113,6 +129,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--verify", action="store_true",
                    help="also check every row's bytes against its recorded digest")
     p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("reconstruct", help="reconstruct a full MERL BRDF from sparse observations")
+    p.add_argument("observations", help="CSV (wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,r,g,b or theta_h,theta_d,phi_d,r,g,b; "
+                   "degrees) or NPZ (wi, wo, rgb or theta_h, theta_d, phi_d, rgb) of BRDF values in sr^-1")
+    p.add_argument("--model", required=True, help="the PCA model (e.g. results/svd/train.zarr)")
+    p.add_argument("--out", required=True, help="the MERL .binary file to write")
+    p.add_argument("--eta", type=_positive_float, default=40.0,
+                   help="Tikhonov weight of the coefficient fit (default 40, Xu et al. 2016)")
+    p.set_defaults(func=_cmd_reconstruct)
     return parser
 
 

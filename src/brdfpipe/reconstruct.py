@@ -1,0 +1,1240 @@
+"""Reconstruction of a full BRDF from sparse observations, and the leave-out evaluation (Xu et al. 2016).
+
+Two parts, both built on a PCA model (:func:`brdfpipe.svd.open_model`:
+``Q = VΣ`` (p × k), mean μ, and the log-relative mapping's reference ρ_ref
+and weight w at the model's p columns = MERL cells).
+
+Reconstruction (issue §7)
+-------------------------
+Observations are physical BRDF values (sr⁻¹) of one material at some light /
+view direction pairs, read by :func:`load_observations` from
+
+* CSV with a header line: ``wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,r,g,b`` (unit
+  vectors in the local frame, z = normal; they are normalised) or
+  ``theta_h,theta_d,phi_d,r,g,b`` (Rusinkiewicz angles in degrees, θh and θd
+  in [0, 90], φd taken modulo 180 by reciprocity); header names are
+  case-insensitive, extra columns are ignored, ``#`` lines are comments;
+* NPZ with arrays ``wi``, ``wo`` (n, 3) and ``rgb`` (n, 3), or ``theta_h``,
+  ``theta_d``, ``phi_d`` (n,) and ``rgb`` (n, 3).
+
+Each observation is binned into its MERL cell (:func:`brdfpipe.merl.cell_index`,
+or MERL's binning of the angles directly).  Repeated cells are kept as
+repeated observations.  Every channel is its own BRDF (paper §3):
+observations on cells that are not model columns are dropped, the rest are
+log-mapped (:func:`brdfpipe.logmap.forward` with the model's ρ_ref, w, ε),
+``ỹ = x̃ − μ̃`` and
+
+    c̄ = (Q̃ᵀQ̃ + ηI)⁻¹ Q̃ᵀ ỹ                  (eq. 4, η = 40)
+    x̂ = μ + Q c̄                              (all p model columns)
+    ρ̂ = max(logmap.inverse(x̂), 0)
+
+(:func:`reconstruct_log`, :func:`reconstruct_brdf`); cells that are not
+model columns are written as unmeasured (raw value −1, negative as in MERL
+files) by :func:`write_reconstruction`.
+
+Leave-out evaluation (issue §6)
+-------------------------------
+:func:`evaluate` reconstructs the held-out material-channels (rows of the
+store, log-mapped with the *train* model's ρ_ref and w) from simulated
+acquisitions: for every directions file (setup, fov, metric; optimised on the
+``train`` split) and every n, the observations are the values at
+:func:`brdfpipe.sampling.observation_cells` of the set's configurations
+(pixels on cells that are not model columns dropped, repeated cells
+repeated), c̄ by eq. 4 and x̂ = μ + Q c̄.  Reported per material-channel and as
+the mean over them (material ``mean``, channel ``all``):
+
+* ``rms_log`` = ‖x − x̂‖/√p, the RMS error in log-mapped space (the papers'
+  measure);
+* ``relrms_linear`` = ‖(ρ̂ − ρ)·cos θi·cos θo‖ / ‖ρ·cos θi·cos θo‖ over the
+  model's columns (cell-centre cosines; ρ̂ clamped ≥ 0), the relative RMS of
+  the cosine-weighted BRDF in linear space;
+* ``deviation`` = ‖(I − VVᵀ) y‖/√p (eq. 9): the floor with every cell
+  observed (y = x − μ); rows with setup ``all``, fov 0, metric ``none``, n 0.
+
+How it is computed (no p-vector per (set, material) is ever formed at once):
+
+1. one streamed pass over the model's columns (Q chunk by chunk, the store's
+   held-out rows block by block, each decoded once, read ahead in a thread)
+   accumulates QᵀQ (k × k), QᵀY (k × m_t), ‖y_i‖² and keeps Y and Q at the
+   union of all observed columns;
+2. c̄ for every (set, row) from the kept columns (k × k solves), and the
+   log-space errors by the Gram identity
+   ‖y − Qc̄‖² = ‖y‖² − 2c̄ᵀQᵀy + c̄ᵀ(QᵀQ)c̄; the deviation floor is
+   ‖y‖² − (Qᵀy)ᵀ(QᵀQ)⁻¹(Qᵀy) (the stored Q's own Gram matrix is used, so the
+   numbers are those of an explicit least-squares projection on the stored Q);
+3. a second pass for the linear error: per row block of Q, x̂ for all
+   (set × row) coefficient columns at once (one GEMM), mapped back and
+   compared in place, in sub-blocks of :data:`_SUB_ROWS` rows.  The product
+   Q c̄ is taken in float32 (sgemm, ~2.5× faster than dgemm here), the rest
+   in float64: this moves ``relrms_linear`` by < 1e-6 relative (7.5e-7 at
+   most on the default store against an all-float64 pass); the log-space
+   numbers are all float64.
+
+Precision: on the default synthetic store (k = 269) the Gram identity agrees
+with explicitly formed float64 residuals to 6e-13 (``rms_log``) and 3e-11
+(``deviation``) relative.
+
+Cost on the default synthetic store (p = 1,096,216, k = 269, 30 held-out
+rows, 100 direction sets; shared, loaded 2-core AMD EPYC,
+``OPENBLAS_NUM_THREADS=1``): :func:`check_consistency` ≈ 11 s (270 training
+rows), :func:`evaluate` ≈ 40 s (pass 1 ≈ 4 s; pass 2 ≈ 35 s, about half of
+it the p × k × 3,000 sgemm, half the exp / max / square-sum over 3.3·10⁹
+values), :func:`training_size_curve` ≈ 6 s; :func:`run_evaluation` ≈ 1 min
+in all, peak RSS 0.87 GB.
+
+Consistency check (:func:`check_consistency`): for every directions set the
+expected error E(S) recorded in the JSON is recomputed directly from the
+training log-map rows: each row is reconstructed from its own observations
+(eq. 4, the file's η) and ‖y_i − Q c̄_i‖ measured, by the same Gram identity
+with QᵀY of the training rows from one streamed pass (nothing assumes
+y_i = Q u_i); plus β‖Q(Q̃ᵀQ̃ + ηI)⁻¹Q̃ᵀ1‖ if the file's β > 0.  Writes
+``consistency.csv`` and raises :class:`ConsistencyError` if any relative
+difference exceeds 1e-6.
+
+Error vs number of training materials (:func:`training_size_curve`, Xu Fig. 7):
+the training materials in a seeded random order; for each size N the PCA of
+the first N materials' 3N rows, and the held-out rows reconstructed from one
+directions set (default: the 2-image near-field 25° error-metric set).  One
+streamed pass accumulates X Xᵀ and X Y_testᵀ of the training and test rows,
+the row sums, and both at the observed columns (the *cross-Gram trick*); then
+for each N, with G_N the rows' Gram block, (U, σ) = svd.decompose(G_N)
+(exactly as :func:`brdfpipe.svd.fit` does), A = C U, Q_N = X_Nᵀ A and
+μ_N = X_Nᵀ 1/m: Q̃_N, μ̃_N come from the observed columns, QᵀQ = AᵀG_N A,
+Qᵀy = Aᵀ(X_N x − G_N 1/m) and ‖y‖² = ‖x‖² − 2·1ᵀX_N x/m + 1ᵀG_N 1/m² — no
+p-space pass per N.  Two documented approximations: every N uses the
+``train`` log-mapping (ρ_ref = median of *all* training materials, not of the
+first N), and the directions optimised for the full ``train`` model (not
+re-optimised per N).
+
+Output files (tidy CSV, written atomically; :func:`run_evaluation` writes all three)
+----------------------------------------------------------------------------------
+* ``errors.csv``: ``database,split,setup,fov,metric,n,material,channel,kind,value``
+  (channel R, G, B; ``mean`` / ``all`` rows average the material-channels);
+* ``consistency.csv``: ``setup,fov,metric,n,predicted,direct,rel_diff``;
+* ``training_size.csv``: ``database,n_train,order_seed,material,channel,kind,value``
+  (kind ``rms_log``, plus ``mean`` / ``all`` rows).
+
+Floats are written with Python's shortest round-trip repr.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import math
+import os
+import queue
+import tempfile
+import threading
+import time
+import warnings
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+from brdfpipe import logmap, merl, sampling, svd
+from brdfpipe.logmap import Logmap, open_logmap
+from brdfpipe.merl import N_CELLS
+from brdfpipe.sampling import DEFAULT_ETA, Directions, read_directions, reconstruct_coefficients
+from brdfpipe.store import BrdfStore, open_store
+from brdfpipe.store import CHUNK_COLS as STORE_CHUNK_COLS
+from brdfpipe.svd import Model, open_model
+
+__all__ = [
+    "CHANNELS",
+    "ERROR_COLUMNS",
+    "CONSISTENCY_COLUMNS",
+    "TRAINING_SIZE_COLUMNS",
+    "DEFAULT_SIZES",
+    "CONSISTENCY_RTOL",
+    "ObservationError",
+    "ConsistencyError",
+    "load_observations",
+    "reconstruct_log",
+    "reconstruct_brdf",
+    "write_reconstruction",
+    "evaluate",
+    "evaluate_selections",
+    "check_consistency",
+    "training_size_curve",
+    "write_errors",
+    "run_evaluation",
+]
+
+logger = logging.getLogger("brdfpipe.reconstruct")
+
+F64 = NDArray[np.float64]
+
+#: Channel names of the rows 3·i + c.
+CHANNELS: Final = ("R", "G", "B")
+#: Columns of ``errors.csv``.
+ERROR_COLUMNS: Final = ("database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value")
+#: Columns of ``consistency.csv``.
+CONSISTENCY_COLUMNS: Final = ("setup", "fov", "metric", "n", "predicted", "direct", "rel_diff")
+#: Columns of ``training_size.csv``.
+TRAINING_SIZE_COLUMNS: Final = ("database", "n_train", "order_seed", "material", "channel", "kind", "value")
+#: Default training-set sizes of the training-size curve (capped at the number of training materials).
+DEFAULT_SIZES: Final = (10, 20, 30, 40, 50, 60, 70, 80, 90)
+#: Largest accepted relative difference between recorded and recomputed E(S).
+CONSISTENCY_RTOL: Final = 1e-6
+
+#: Rows of Q per sub-block in the linear-error pass (bounds the (rows × sets·materials) work array).
+_SUB_ROWS: Final = 1024
+#: Seconds between progress lines in the streamed passes.
+_PROGRESS_S: Final = 10.0
+#: A direction counts as above the horizon when its z component exceeds this.
+_HORIZON: Final = 1e-12
+
+_DIR_COLS: Final = ("wi_x", "wi_y", "wi_z", "wo_x", "wo_y", "wo_z")
+_ANG_COLS: Final = ("theta_h", "theta_d", "phi_d")
+_RGB_COLS: Final = ("r", "g", "b")
+
+
+class ObservationError(ValueError):
+    """An observations file is missing, malformed or holds invalid values; the message names the file."""
+
+
+class ConsistencyError(ValueError):
+    """A directions file's recorded E(S) disagrees with the direct recomputation."""
+
+
+# ==========================================================================
+# Observations
+# ==========================================================================
+
+
+def _csv_columns(path: Path) -> tuple[dict[str, int], int]:
+    """Header (lower-cased name → column) of a CSV file and the number of lines before the data."""
+    try:
+        fh = open(path, encoding="utf-8-sig", newline="")
+    except FileNotFoundError:
+        raise ObservationError(f"{path}: no such observations file") from None
+    except OSError as exc:
+        raise ObservationError(f"{path}: cannot read observations ({exc})") from exc
+    with fh:
+        skipped = 0
+        for line in fh:
+            skipped += 1
+            if not line.strip() or line.lstrip().startswith("#"):
+                continue
+            names = [c.strip().lower() for c in next(csv.reader([line]))]
+            break
+        else:
+            raise ObservationError(f"{path}: empty observations file (no header line)")
+    dup = sorted({n for n in names if n and names.count(n) > 1})
+    if dup:
+        raise ObservationError(f"{path}: column(s) {', '.join(dup)} appear more than once in the header")
+    return {n: i for i, n in enumerate(names)}, skipped
+
+
+def _pick_format(path: Path, names: Iterable[str]) -> str:
+    """``"directions"`` or ``"angles"`` from the available column / array names."""
+    have = set(names)
+    rgb_missing = [c for c in _RGB_COLS if c not in have]
+    dirs = all(c in have for c in _DIR_COLS)
+    angs = all(c in have for c in _ANG_COLS)
+    if dirs and angs:
+        raise ObservationError(f"{path}: holds both direction ({','.join(_DIR_COLS)}) and angle "
+                               f"({','.join(_ANG_COLS)}) columns; keep one of them")
+    if not (dirs or angs):
+        miss_d = [c for c in _DIR_COLS if c not in have]
+        miss_a = [c for c in _ANG_COLS if c not in have]
+        raise ObservationError(
+            f"{path}: missing columns: need {','.join(_DIR_COLS)},r,g,b (missing {','.join(miss_d + rgb_missing)}) "
+            f"or {','.join(_ANG_COLS)},r,g,b (missing {','.join(miss_a + rgb_missing)})"
+        )
+    if rgb_missing:
+        raise ObservationError(f"{path}: missing columns: {','.join(rgb_missing)}")
+    return "directions" if dirs else "angles"
+
+
+def _read_csv(path: Path) -> tuple[str, dict[str, F64]]:
+    index, skip = _csv_columns(path)
+    fmt = _pick_format(path, index)
+    names = (_DIR_COLS if fmt == "directions" else _ANG_COLS) + _RGB_COLS
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data": reported below
+            data = np.loadtxt(path, delimiter=",", skiprows=skip, comments="#", usecols=[index[n] for n in names],
+                              dtype=np.float64, ndmin=2, encoding="utf-8-sig", quotechar='"')
+    except ValueError as exc:
+        raise ObservationError(f"{path}: malformed observations ({exc})") from exc
+    if data.shape[0] == 0:
+        raise ObservationError(f"{path}: no observations (header only)")
+    return fmt, {n: data[:, j] for j, n in enumerate(names)}
+
+
+def _read_npz(path: Path) -> tuple[str, dict[str, F64]]:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {name: np.asarray(z[name]) for name in z.files}
+    except FileNotFoundError:
+        raise ObservationError(f"{path}: no such observations file") from None
+    except Exception as exc:
+        raise ObservationError(f"{path}: not a readable NPZ file ({exc})") from exc
+    have = set(arrays)
+    if "rgb" not in have:
+        raise ObservationError(f"{path}: missing array 'rgb' (arrays: {', '.join(sorted(have)) or 'none'})")
+    if {"wi", "wo"} & have and set(_ANG_COLS) & have:
+        raise ObservationError(f"{path}: holds both direction (wi, wo) and angle ({', '.join(_ANG_COLS)}) arrays")
+    if "wi" in have or "wo" in have:
+        missing = [a for a in ("wi", "wo") if a not in have]
+        if missing:
+            raise ObservationError(f"{path}: missing array(s) {', '.join(missing)}")
+        fmt, names3 = "directions", ("wi", "wo", "rgb")
+    elif all(a in have for a in _ANG_COLS):
+        fmt, names3 = "angles", ("rgb",)
+    else:
+        missing = [a for a in _ANG_COLS if a not in have]
+        raise ObservationError(f"{path}: missing arrays: need wi, wo, rgb or theta_h, theta_d, phi_d, rgb "
+                               f"(missing {', '.join(['wi', 'wo'] + missing)})")
+    out: dict[str, F64] = {}
+    n: int | None = None
+    for name in names3:
+        a = arrays[name]
+        if a.ndim != 2 or a.shape[1] != 3 or not np.issubdtype(a.dtype, np.number):
+            raise ObservationError(f"{path}: array {name!r} must be numeric with shape (n, 3), got {a.dtype} {a.shape}")
+        n = a.shape[0] if n is None else n
+        if a.shape[0] != n:
+            raise ObservationError(f"{path}: arrays disagree in length ({name!r} has {a.shape[0]}, expected {n})")
+        for j in range(3):
+            key = {"wi": _DIR_COLS[j], "wo": _DIR_COLS[3 + j], "rgb": _RGB_COLS[j]}[name]
+            out[key] = a[:, j].astype(np.float64)
+    if fmt == "angles":
+        for name in _ANG_COLS:
+            a = arrays[name]
+            if a.ndim != 1 or not np.issubdtype(a.dtype, np.number) or a.shape[0] != n:
+                raise ObservationError(f"{path}: array {name!r} must be numeric with shape ({n},), "
+                                       f"got {a.dtype} {a.shape}")
+            out[name] = a.astype(np.float64)
+    if not n:
+        raise ObservationError(f"{path}: no observations (empty arrays)")
+    return fmt, out
+
+
+def _first(mask: NDArray[np.bool_]) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+def load_observations(path: str | os.PathLike[str]) -> tuple[NDArray[np.intp], F64]:
+    """Observations of one material from a CSV or NPZ file: ``(cells, rgb)``.
+
+    See the module docstring for the formats (the file type is chosen by the
+    ``.npz`` suffix; anything else is read as CSV).  Returns the flat MERL
+    cell of each observation (``(n,)`` intp, repeats kept) and the physical
+    RGB BRDF values (``(n, 3)`` float64, sr⁻¹).
+
+    Raises
+    ------
+    ObservationError
+        (a ValueError naming the file) for a missing file, missing columns /
+        arrays, unparsable numbers, no observations, NaN or infinite values,
+        negative BRDF values, zero-length direction vectors, θh or θd outside
+        [0°, 90°], or a light or view direction at or below the horizon.
+    """
+    path = Path(path)
+    fmt, cols = _read_npz(path) if path.suffix.lower() == ".npz" else _read_csv(path)
+    names = (_DIR_COLS if fmt == "directions" else _ANG_COLS) + _RGB_COLS
+    data = np.stack([cols[n] for n in names], axis=1)
+    bad = ~np.isfinite(data)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise ObservationError(f"{path}: {int(bad.sum())} NaN or infinite value(s), first in observation {r + 1} "
+                               f"(column {names[c]})")
+    rgb = data[:, -3:].copy()
+    if (rgb < 0).any():
+        r = _first((rgb < 0).any(axis=1))
+        raise ObservationError(f"{path}: {int((rgb < 0).any(axis=1).sum())} observation(s) with a negative BRDF value, "
+                               f"first observation {r + 1} ({rgb[r].tolist()}); values must be physical BRDFs ≥ 0")
+    if fmt == "directions":
+        wi, wo = data[:, 0:3], data[:, 3:6]
+        ni, no = np.linalg.norm(wi, axis=1), np.linalg.norm(wo, axis=1)
+        zero = (ni == 0) | (no == 0)
+        if zero.any():
+            raise ObservationError(f"{path}: zero-length direction vector in observation {_first(zero) + 1}")
+        wi, wo = wi / ni[:, None], wo / no[:, None]
+        low = (wi[:, 2] <= _HORIZON) | (wo[:, 2] <= _HORIZON)
+        if low.any():
+            raise ObservationError(f"{path}: {int(low.sum())} observation(s) with a direction at or below the "
+                                   f"horizon (z ≤ 0), first observation {_first(low) + 1}")
+        cells = merl.cell_index(wi, wo)
+    else:
+        th, td, pd = data[:, 0], data[:, 1], data[:, 2]
+        out = (th < 0) | (th > 90) | (td < 0) | (td > 90)
+        if out.any():
+            r = _first(out)
+            raise ObservationError(f"{path}: θh and θd must lie in [0, 90] degrees; observation {r + 1} has "
+                                   f"θh = {th[r]:g}, θd = {td[r]:g}")
+        th_r, td_r = np.radians(th), np.radians(td)
+        pd_r = np.radians(np.mod(pd, 180.0))
+        wi, wo = merl.directions_from_half_diff(th_r, td_r, pd_r)
+        low = (wi[:, 2] <= _HORIZON) | (wo[:, 2] <= _HORIZON)
+        if low.any():
+            r = _first(low)
+            raise ObservationError(f"{path}: {int(low.sum())} observation(s) with the light or view direction at or "
+                                   f"below the horizon, first observation {r + 1} (θh = {th[r]:g}, θd = {td[r]:g}, "
+                                   f"φd = {pd[r]:g})")
+        ih, idd, ip = merl._bin_indices(th_r, td_r, pd_r)
+        cells = (ih * merl.N_THETA_D + idd) * merl.N_PHI_D + ip
+    logger.info("%s: %d observations (%s), %d distinct cells", path, cells.size, fmt, np.unique(cells).size)
+    return np.asarray(cells, dtype=np.intp), rgb
+
+
+# ==========================================================================
+# Reconstruction
+# ==========================================================================
+
+
+def _as_model(model: Model | str | os.PathLike[str]) -> Model:
+    return model if isinstance(model, Model) else open_model(model)
+
+
+def _lookup(cells: NDArray[np.integer[Any]]) -> NDArray[np.intp]:
+    """MERL cell → model column (−1 where the cell is not a column)."""
+    lut = np.full(N_CELLS, -1, dtype=np.intp)
+    lut[np.asarray(cells, dtype=np.intp)] = np.arange(cells.size, dtype=np.intp)
+    return lut
+
+
+def _q_rows(model: Model, rows: NDArray[np.intp]) -> F64:
+    """Rows ``rows`` of Q (repeats allowed) as float64 (each needed chunk read once)."""
+    uniq, inv = np.unique(rows, return_inverse=True)
+    if uniq.size == 0:
+        return np.zeros((0, model.k))
+    got = np.asarray(model.Q.get_orthogonal_selection((uniq, slice(None))), dtype=np.float64)
+    return got[inv]
+
+
+def _q_chunks(model: Model) -> Iterator[tuple[int, int]]:
+    width = int(model.Q.chunks[0])
+    for a in range(0, model.p, width):
+        yield a, min(a + width, model.p)
+
+
+def _check_obs(cells: ArrayLike, rgb: ArrayLike) -> tuple[NDArray[np.intp], F64]:
+    c = np.asarray(cells)
+    v = np.asarray(rgb, dtype=np.float64)
+    if c.ndim != 1 or (c.size and not np.issubdtype(c.dtype, np.integer)):
+        raise ValueError(f"cells must be a 1-D integer array, got {c.dtype} {c.shape}")
+    if v.shape != (c.size, 3):
+        raise ValueError(f"rgb must have shape ({c.size}, 3), got {v.shape}")
+    if c.size and (c.min() < 0 or c.max() >= N_CELLS):
+        raise ValueError(f"cells must lie in [0, {N_CELLS})")
+    if not np.isfinite(v).all() or (v < 0).any():
+        raise ValueError("rgb must be finite and ≥ 0 (physical BRDF values)")
+    return c.astype(np.intp), v
+
+
+def reconstruct_log(
+    model: Model | str | os.PathLike[str], cells: ArrayLike, rgb: ArrayLike, eta: float = DEFAULT_ETA
+) -> tuple[F64, F64, int]:
+    """Log-space reconstruction ``x̂ = μ + Q c̄`` of each channel: ``(xhat, coef, n_used)``.
+
+    ``xhat`` is (3, p) over the model's columns, ``coef`` the (k, 3)
+    coefficients of eq. 4 and ``n_used`` the number of observations on model
+    columns (the others are dropped, with a warning).  ValueError if none is
+    left, for bad shapes or values, or η ≤ 0.
+    """
+    mdl = _as_model(model)
+    c, v = _check_obs(cells, rgb)
+    cols = _lookup(mdl.cells)[c]
+    keep = cols >= 0
+    if not keep.all():
+        logger.warning("%d of %d observations fall on cells that are not model columns; dropped",
+                       int((~keep).sum()), c.size)
+    cols, v = cols[keep], v[keep]
+    if cols.size == 0:
+        raise ValueError("no observation falls on a model column (a measured cell of the model)")
+    x_obs = logmap.forward(v.T, mdl.reference[cols], mdl.weight[cols], mdl.epsilon)  # (3, n)
+    y_obs = (x_obs - mdl.mean[cols]).T  # (n, 3)
+    coef = reconstruct_coefficients(_q_rows(mdl, cols), y_obs, eta)  # (k, 3)
+    xhat = np.empty((3, mdl.p))
+    for a, b in _q_chunks(mdl):
+        q = np.asarray(mdl.Q[a:b], dtype=np.float64)
+        xhat[:, a:b] = (q @ coef).T + mdl.mean[a:b]
+    logger.info("reconstructed from %d observations at %d distinct cells (k = %d, η = %g)",
+                cols.size, np.unique(cols).size, mdl.k, eta)
+    return xhat, coef, int(cols.size)
+
+
+def reconstruct_brdf(
+    model: Model | str | os.PathLike[str], cells: ArrayLike, rgb: ArrayLike, eta: float = DEFAULT_ETA
+) -> F64:
+    """The reconstructed BRDF as a (3, 90, 90, 180) table in physical units (sr⁻¹).
+
+    Per channel: :func:`reconstruct_log`, then ρ̂ = logmap.inverse(x̂) with
+    negative values clamped to 0 (their number is logged).  Cells that are
+    not model columns hold −SCALES[c] (raw MERL value −1: unmeasured).
+    """
+    mdl = _as_model(model)
+    xhat, _, _ = reconstruct_log(mdl, cells, rgb, eta)
+    rho = logmap.inverse(xhat, mdl.reference, mdl.weight, mdl.epsilon)
+    neg = rho < 0
+    if neg.any():
+        logger.info("clamped %s negative reconstructed value(s) to 0 (R, G, B: %s of %d cells)",
+                    int(neg.sum()), ", ".join(str(int(n)) for n in neg.sum(axis=1)), mdl.p)
+        rho[neg] = 0.0
+    table = np.empty((3, N_CELLS))
+    table[:] = -merl.SCALES[:, None]
+    table[:, mdl.cells] = rho
+    return table.reshape(merl.SHAPE)
+
+
+def write_reconstruction(
+    model_path: Model | str | os.PathLike[str],
+    observations_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    eta: float = DEFAULT_ETA,
+) -> Path:
+    """Reconstruct the material of ``observations_path`` and write it as a MERL file at ``out``.
+
+    :func:`load_observations` → :func:`reconstruct_brdf` → :func:`brdfpipe.merl.write_merl`
+    (atomic).  Parent folders are created.  Returns ``out``.
+    """
+    out = Path(out)
+    mdl = _as_model(model_path)
+    cells, rgb = load_observations(observations_path)
+    try:
+        table = reconstruct_brdf(mdl, cells, rgb, eta)
+    except ValueError as exc:
+        raise ValueError(f"{observations_path}: {exc}") from exc
+    out.parent.mkdir(parents=True, exist_ok=True)
+    merl.write_merl(out, table)
+    logger.info("wrote %s", out)
+    return out
+
+
+# ==========================================================================
+# Streaming helpers
+# ==========================================================================
+
+
+_END: Final = object()
+
+
+def _read_ahead(items: Iterator[Any]) -> Iterator[Any]:
+    """Iterate ``items`` in a background thread, one item ahead (decoding overlaps the BLAS work)."""
+    box: queue.Queue[Any] = queue.Queue(maxsize=1)
+    halt = threading.Event()
+
+    def put(item: Any) -> bool:
+        while not halt.is_set():
+            try:
+                box.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def produce() -> None:
+        try:
+            for item in items:
+                if not put(item):
+                    return
+            put(_END)
+        except BaseException as exc:  # handed to the consumer
+            put(exc)
+
+    reader = threading.Thread(target=produce, name="brdfpipe-reconstruct-reader", daemon=True)
+    reader.start()
+    try:
+        while True:
+            item = box.get()
+            if item is _END:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        halt.set()
+        reader.join()
+
+
+class _StoreColumns:
+    """Values of some store rows at the model's columns, served by column range in increasing order.
+
+    Each 145,800-cell store chunk is decoded once (the latest is cached).
+    ``get(a, b)`` returns float32 ``(len(rows), 3, b − a)`` in the order of
+    ``rows`` given.
+    """
+
+    def __init__(self, st: BrdfStore, rows: ArrayLike, cells: NDArray[np.integer[Any]]) -> None:
+        idx = np.asarray(rows, dtype=np.intp)
+        self.st = st
+        self.order = np.argsort(idx, kind="stable")
+        self.sorted = idx[self.order]
+        self.inverse = np.empty_like(self.order)
+        self.inverse[self.order] = np.arange(idx.size)
+        self.identity = bool(np.array_equal(self.order, np.arange(idx.size)))
+        self.runs = logmap._runs(self.sorted)
+        self.cells = np.asarray(cells, dtype=np.int64)
+        self._start = -1
+        self._data: NDArray[np.float32] | None = None
+
+    def _block(self, start: int) -> NDArray[np.float32]:
+        if start != self._start or self._data is None:
+            stop = min(start + STORE_CHUNK_COLS, N_CELLS)
+            raw = np.empty((self.sorted.size, 3, stop - start), dtype=np.float32)
+            for c in range(3):
+                k = 0
+                for r0, r1 in self.runs:
+                    raw[k : k + r1 - r0, c] = self.st.brdf[r0:r1, c * N_CELLS + start : c * N_CELLS + stop]
+                    k += r1 - r0
+            self._start, self._data = start, raw
+        return self._data
+
+    def get(self, a: int, b: int) -> NDArray[np.float32]:
+        cells = self.cells[a:b]
+        out = np.empty((self.sorted.size, 3, b - a), dtype=np.float32)
+        j = 0
+        while j < cells.size:
+            start = int(cells[j]) // STORE_CHUNK_COLS * STORE_CHUNK_COLS
+            j1 = int(np.searchsorted(cells, start + STORE_CHUNK_COLS))
+            out[:, :, j:j1] = self._block(start)[:, :, cells[j:j1] - start]
+            j = j1
+        return out if self.identity else out[self.inverse]
+
+
+class _Progress:
+    """A progress line every :data:`_PROGRESS_S` seconds (and at the end) of a pass over p columns."""
+
+    def __init__(self, what: str, p: int) -> None:
+        self.what, self.p = what, p
+        self.t0 = self.last = time.perf_counter()
+
+    def step(self, done: int) -> None:
+        now = time.perf_counter()
+        if done >= self.p or now - self.last >= _PROGRESS_S:
+            self.last = now
+            logger.info("%s: %d/%d columns (%.0f%%), %.1f s", self.what, done, self.p, 100.0 * done / self.p,
+                        now - self.t0)
+
+
+def _material_rows(st: BrdfStore, names: Sequence[str], what: str) -> NDArray[np.intp]:
+    return logmap._material_indices(st, names, what)
+
+
+def _check_columns(st: BrdfStore, mdl: Model) -> None:
+    valid = np.asarray(st.valid[:], dtype=bool)
+    if not valid[mdl.cells].all():
+        n = int((~valid[mdl.cells]).sum())
+        raise ValueError(f"{mdl.path}: {n} model column(s) are cells not measured in every material of {st.path}; "
+                         f"the model was fitted to another store")
+
+
+def _test_materials(st: BrdfStore, train: Sequence[str], test_materials: Sequence[str] | None) -> list[str]:
+    if test_materials is None:
+        names = [m for m in st.materials if m not in set(train)]
+        if not names:
+            raise ValueError(f"{st.path}: every material is a training material; nothing is held out")
+        return names
+    names = list(test_materials)
+    clash = [m for m in names if m in set(train)]
+    if clash:
+        raise ValueError(f"test material(s) {', '.join(clash)} are training materials of the model; "
+                         f"the evaluation needs held-out materials")
+    _material_rows(st, names, "test_materials")  # unknown / duplicate names
+    return names
+
+
+def _fov(value: float) -> float | int:
+    return int(value) if float(value).is_integer() else float(value)
+
+
+# ==========================================================================
+# Direction sets
+# ==========================================================================
+
+
+@dataclass(frozen=True, eq=False)
+class _Combo:
+    """One direction set of one file: its tags, its observed model columns (with repeats) and its recorded E."""
+
+    path: Path
+    setup: str
+    fov: float | int
+    metric: str
+    n: int
+    rows: NDArray[np.intp]
+    predicted: float
+    eta: float
+    beta: float
+
+
+def _check_directions(path: Path, d: Directions, mdl: Model) -> None:
+    if d.split != mdl.split:
+        raise ValueError(f"{path}: directions were optimised on split {d.split!r}, the model {mdl.path} is of "
+                         f"split {mdl.split!r}")
+    if d.database != mdl.database:
+        raise ValueError(f"{path}: directions are of database {d.database!r}, the model {mdl.path} of "
+                         f"{mdl.database!r}")
+    if d.model and Path(d.model).resolve() != Path(mdl.path).resolve():
+        logger.warning("%s: directions were optimised with model %s, evaluated with %s", path, d.model, mdl.path)
+
+
+def _combos(paths: Sequence[str | os.PathLike[str]], mdl: Model) -> list[_Combo]:
+    """Every set of every directions file, with its observed model columns (cells off the model dropped)."""
+    lut = _lookup(mdl.cells)
+    valid = lut >= 0
+    out: list[_Combo] = []
+    seen: dict[tuple[str, float, str, int], Path] = {}
+    for p in paths:
+        path = Path(p)
+        d = read_directions(path)
+        _check_directions(path, d, mdl)
+        fov = _fov(d.setup.fov_deg)
+        for s in d.sets:
+            key = (d.setup.kind, float(fov), d.metric, s.n)
+            if key in seen:
+                raise ValueError(f"{path}: set {key} also comes from {seen[key]}; give each (setup, fov, metric) once")
+            seen[key] = path
+            parts = [sampling.observation_cells(d.setup, c, valid) for c in s.configurations]
+            cells = np.concatenate(parts) if parts else np.zeros(0, dtype=np.intp)
+            out.append(_Combo(path, d.setup.kind, fov, d.metric, s.n, lut[cells], s.expected_error, d.eta, d.beta))
+    return out
+
+
+class _Gathered:
+    """Columns of a matrix kept at a set of model columns while streaming (sorted unique ``cols``)."""
+
+    def __init__(self, cols: NDArray[np.intp]) -> None:
+        self.cols = np.unique(cols)
+
+    def take(self, a: int, b: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """(positions in ``cols``, offsets in [0, b − a)) of the kept columns inside [a, b)."""
+        i0, i1 = np.searchsorted(self.cols, [a, b])
+        return np.arange(i0, i1), self.cols[i0:i1] - a
+
+    def pos(self, rows: NDArray[np.intp]) -> NDArray[np.intp]:
+        return np.searchsorted(self.cols, rows)
+
+
+def _sq_err(yy: F64, qty: F64, qtq: F64, coef: F64) -> F64:
+    """‖y − Q c̄‖² of each column: ‖y‖² − 2c̄ᵀQᵀy + c̄ᵀ(QᵀQ)c̄, clamped at 0."""
+    e = yy - 2.0 * np.einsum("kj,kj->j", coef, qty) + np.einsum("kj,kj->j", coef, qtq @ coef)
+    return np.maximum(e, 0.0)
+
+
+# ==========================================================================
+# Leave-out evaluation
+# ==========================================================================
+
+
+def evaluate(
+    store_path: BrdfStore | str | os.PathLike[str],
+    model_path: Model | str | os.PathLike[str],
+    directions_paths: Sequence[str | os.PathLike[str]],
+    *,
+    test_materials: Sequence[str] | None,
+    eta: float = DEFAULT_ETA,
+    linear: bool = True,
+) -> list[dict[str, Any]]:
+    """Reconstruction errors of the held-out material-channels for every set of every directions file.
+
+    Parameters
+    ----------
+    store_path:
+        The store holding the held-out materials (the one the model's log-map was made from).
+    model_path:
+        The PCA model of the training split (ρ_ref, w, μ, Q).
+    directions_paths:
+        Directions files (:func:`brdfpipe.sampling.write_directions`) of the
+        model's split and database; each (setup, fov, metric) once.  The
+        observations of a set are :func:`brdfpipe.sampling.observation_cells`
+        of its configurations with the model's columns as the valid cells.
+    test_materials:
+        The held-out materials (None: the store's materials that are not
+        training materials of the model).  Must not be training materials.
+    eta:
+        η of eq. 4 for the reconstructions.
+    linear:
+        Also compute ``relrms_linear`` (the second pass over Q); False skips it.
+
+    Returns
+    -------
+    list of dict
+        Rows with keys :data:`ERROR_COLUMNS` (see the module docstring),
+        ready for :func:`write_errors`.
+    """
+    mdl = _as_model(model_path)
+    combos = _combos(directions_paths, mdl)
+    logger.info("%d direction sets from %d files", len(combos), len(directions_paths))
+    return _evaluate(store_path, mdl, combos, test_materials, eta, linear)
+
+
+def evaluate_selections(
+    store_path: BrdfStore | str | os.PathLike[str],
+    model_path: Model | str | os.PathLike[str],
+    selections: Sequence[tuple[dict[str, Any], ArrayLike]],
+    *,
+    test_materials: Sequence[str] | None,
+    eta: float = DEFAULT_ETA,
+    linear: bool = True,
+) -> list[dict[str, Any]]:
+    """:func:`evaluate` for explicit selections: ``(label, cells)`` pairs.
+
+    ``label`` holds the ``setup``, ``fov``, ``metric`` and ``n`` written to
+    the rows; ``cells`` are the observed MERL cells (repeats = repeated
+    observations; cells that are not model columns are dropped).
+    """
+    mdl = _as_model(model_path)
+    lut = _lookup(mdl.cells)
+    combos = []
+    for label, cells in selections:
+        c = np.asarray(cells, dtype=np.intp).ravel()
+        if c.size and (c.min() < 0 or c.max() >= N_CELLS):
+            raise ValueError(f"selection {label}: cells must lie in [0, {N_CELLS})")
+        r = lut[c]
+        combos.append(_Combo(Path("."), str(label["setup"]), _fov(label["fov"]), str(label["metric"]),
+                             int(label["n"]), r[r >= 0], math.nan, DEFAULT_ETA, 0.0))
+    return _evaluate(store_path, mdl, combos, test_materials, eta, linear)
+
+
+def _evaluate(
+    store_path: BrdfStore | str | os.PathLike[str],
+    mdl: Model,
+    combos: Sequence[_Combo],
+    test_materials: Sequence[str] | None,
+    eta: float,
+    linear: bool,
+) -> list[dict[str, Any]]:
+    eta = sampling._check_eta(eta)
+    t0 = time.perf_counter()
+    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    if st.database != mdl.database:
+        raise ValueError(f"{st.path} is database {st.database!r}, the model {mdl.path} {mdl.database!r}")
+    _check_columns(st, mdl)
+    names = _test_materials(st, mdl.train_materials, test_materials)
+    if not combos:
+        raise ValueError("no direction sets to evaluate")
+    n_combo = len(combos)
+    p, k, m_t = mdl.p, mdl.k, 3 * len(names)
+    logger.info("evaluating %d selections on %d held-out rows (%d materials); p = %d, k = %d, η = %g",
+                n_combo, m_t, len(names), p, k, eta)
+    reader = _StoreColumns(st, _material_rows(st, names, "test_materials"), mdl.cells)
+    keep = _Gathered(np.concatenate([c.rows for c in combos]))
+
+    # Pass 1: QᵀQ, QᵀY, ‖y‖², and Y, Q at the observed columns.
+    qtq = np.zeros((k, k))
+    qty = np.zeros((k, m_t))
+    yy = np.zeros(m_t)
+    q_obs = np.empty((keep.cols.size, k))
+    y_obs = np.empty((m_t, keep.cols.size))
+
+    def blocks() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float32]]]:
+        for a, b in _q_chunks(mdl):
+            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), reader.get(a, b)
+
+    prog = _Progress("evaluation pass 1 (Gram statistics)", p)
+    for a, b, q32, rho in _read_ahead(blocks()):
+        q = q32.astype(np.float64)
+        y = logmap.forward(rho.reshape(m_t, b - a), mdl.reference[a:b], mdl.weight[a:b], mdl.epsilon)
+        y -= mdl.mean[a:b]
+        qtq += q.T @ q
+        qty += q.T @ y.T
+        yy += np.einsum("ij,ij->i", y, y)
+        pos, off = keep.take(a, b)
+        q_obs[pos] = q[off]
+        y_obs[:, pos] = y[:, off]
+        prog.step(b)
+    qtq = 0.5 * (qtq + qtq.T)
+
+    # Coefficients of every (selection, row); log-space errors by the Gram identity.
+    coefs = np.zeros((k, n_combo * m_t))
+    for ci, c in enumerate(combos):
+        pos = keep.pos(c.rows)
+        if pos.size:
+            coefs[:, ci * m_t : (ci + 1) * m_t] = reconstruct_coefficients(q_obs[pos], y_obs[:, pos].T, eta)
+        else:
+            logger.warning("%s %g %s n=%d observes no model column: reconstruction = mean",
+                           c.setup, c.fov, c.metric, c.n)
+    sq = _sq_err(np.tile(yy, n_combo), np.tile(qty, (1, n_combo)), qtq, coefs)
+    rms_log = np.sqrt(sq / p).reshape(n_combo, m_t)
+    proj = scipy.linalg.solve(qtq, qty, assume_a="pos")
+    deviation = np.sqrt(np.maximum(yy - np.einsum("kj,kj->j", qty, proj), 0.0) / p)
+
+    # Pass 2: the linear-space error, all (selection × row) columns per block of Q.
+    rel_lin = _linear_errors(mdl, reader, coefs, n_combo, m_t) if linear else None
+
+    rows: list[dict[str, Any]] = []
+    base = {"database": mdl.database, "split": mdl.split}
+    labels = [(mat, CHANNELS[ch]) for mat in names for ch in range(3)]
+
+    def emit(setup: str, fov: float | int, metric: str, n: int, kind: str, values: F64) -> None:
+        for (mat, ch), v in zip(labels, values):
+            rows.append({**base, "setup": setup, "fov": fov, "metric": metric, "n": n, "material": mat,
+                         "channel": ch, "kind": kind, "value": float(v)})
+        rows.append({**base, "setup": setup, "fov": fov, "metric": metric, "n": n, "material": "mean",
+                     "channel": "all", "kind": kind, "value": float(np.mean(values))})
+
+    emit("all", 0, "none", 0, "deviation", deviation)
+    for ci, c in enumerate(combos):
+        emit(c.setup, c.fov, c.metric, c.n, "rms_log", rms_log[ci])
+        if rel_lin is not None:
+            emit(c.setup, c.fov, c.metric, c.n, "relrms_linear", rel_lin[ci])
+    logger.info("evaluation done in %.1f s: %d rows; mean deviation floor (rms_log) %.4g",
+                time.perf_counter() - t0, len(rows), float(deviation.mean()))
+    return rows
+
+
+def _linear_errors(mdl: Model, reader: _StoreColumns, coefs: F64, n_combo: int, m_t: int) -> F64:
+    """relrms_linear (n_combo, m_t): ‖(ρ̂ − ρ)·cc‖/‖ρ·cc‖ with ρ̂ = max(inverse(μ + Q c̄), 0)."""
+    wi, wo = merl.cell_directions(mdl.cells)
+    cc = wi[:, 2] * wo[:, 2]
+    # With e = exp(x̂)·(ρ_ref·w + ε) and s = cc/w:  ρ̂·cc = max(e − ε, 0)·s = max(e·s, ε·s) − ε·s, and
+    # e·s = exp(Q c̄ + μ + ln(ρ_ref·w + ε) + ln s).  So per value: one exp, one max, one subtraction
+    # of K = ε·s + ρ·cc, one square-sum.
+    scale = cc / mdl.weight
+    offset = mdl.mean + np.log(mdl.reference * mdl.weight + mdl.epsilon) + np.log(scale)
+    floor = mdl.epsilon * scale
+    num = np.zeros(n_combo * m_t)
+    den = np.zeros(m_t)
+    clamped = 0
+    coefs32 = np.ascontiguousarray(coefs, dtype=np.float32)
+
+    def blocks() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float32]]]:
+        for a, b in _q_chunks(mdl):
+            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), reader.get(a, b)
+
+    prog = _Progress("evaluation pass 2 (linear-space error)", mdl.p)
+    for a, b, q32, rho32 in _read_ahead(blocks()):
+        rho_cc = rho32.reshape(m_t, b - a).T.astype(np.float64) * cc[a:b, None]  # (b − a, m_t)
+        den += np.einsum("ij,ij->j", rho_cc, rho_cc)
+        kk = rho_cc + floor[a:b, None]
+        for s0 in range(0, b - a, _SUB_ROWS):
+            s1 = min(s0 + _SUB_ROWS, b - a)
+            lo = floor[a + s0 : a + s1, None]
+            # Q c̄ in float32 (sgemm, see the module docstring), everything after it in float64.
+            z = np.add(q32[s0:s1] @ coefs32, offset[a + s0 : a + s1, None], dtype=np.float64)
+            np.exp(z, out=z)
+            clamped += int(np.count_nonzero(z < lo))
+            np.maximum(z, lo, out=z)
+            z3 = z.reshape(s1 - s0, n_combo, m_t)
+            z3 -= kk[s0:s1, None, :]
+            num += np.einsum("ij,ij->j", z, z)
+        prog.step(b)
+    if clamped:
+        logger.info("linear-space error: %d of %d reconstructed values clamped at 0 (%.3g%%)",
+                    clamped, mdl.p * n_combo * m_t, 100.0 * clamped / (mdl.p * n_combo * m_t))
+    den_all = np.tile(den, n_combo)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(den_all > 0, np.sqrt(num / den_all), np.where(num > 0, np.inf, 0.0))
+    return rel.reshape(n_combo, m_t)
+
+
+# ==========================================================================
+# Consistency check
+# ==========================================================================
+
+
+def check_consistency(
+    logmap_path: Logmap | str | os.PathLike[str],
+    model_path: Model | str | os.PathLike[str],
+    directions_paths: Sequence[str | os.PathLike[str]],
+    *,
+    out: str | os.PathLike[str] | None = None,
+    rtol: float = CONSISTENCY_RTOL,
+) -> list[dict[str, Any]]:
+    """Recompute E(S) of every directions set directly from the training rows and compare.
+
+    For each set, every training row ``x_i`` of the log-map (the rows the
+    model was fitted to; its id must match the model's) is reconstructed
+    from its own observations, ``c̄_i = (Q̃ᵀQ̃ + ηI)⁻¹ Q̃ᵀ S(x_i − μ)`` with the
+    file's η, and ``direct = mean_i ‖x_i − μ − Q c̄_i‖ (+ β‖Q(Q̃ᵀQ̃ + ηI)⁻¹Q̃ᵀ1‖
+    when the file's β > 0)``, by the Gram identity with QᵀQ, QᵀY and ‖y_i‖²
+    from one streamed pass over the log-map and Q (the p-space error of
+    :func:`brdfpipe.sampling.direct_training_error`, without assuming
+    y_i = Q u_i).  ``rel_diff = |direct − predicted|/|predicted|`` with
+    ``predicted`` the file's ``expected_error``.
+
+    Writes the rows (:data:`CONSISTENCY_COLUMNS`) to ``out`` when given —
+    also when the check fails — and raises :class:`ConsistencyError` naming
+    the worst set if any ``rel_diff`` > ``rtol``.  Returns the rows.
+    """
+    t0 = time.perf_counter()
+    lm = logmap_path if isinstance(logmap_path, Logmap) else open_logmap(logmap_path)
+    mdl = _as_model(model_path)
+    if lm.id != mdl.logmap_id:
+        raise ValueError(f"{mdl.path} was not fitted to the log-map {lm.path} (log-map ids differ)")
+    if lm.p != mdl.p or not np.array_equal(lm.cells, mdl.cells):
+        raise ValueError(f"{lm.path} and {mdl.path} disagree in their columns")
+    combos = _combos(directions_paths, mdl)
+    if not combos:
+        raise ValueError("no direction sets to check")
+    p, k, m = mdl.p, mdl.k, lm.m
+    keep = _Gathered(np.concatenate([c.rows for c in combos]))
+    qtq = np.zeros((k, k))
+    qty = np.zeros((k, m))
+    yy = np.zeros(m)
+    q_obs = np.empty((keep.cols.size, k))
+    y_obs = np.empty((m, keep.cols.size))
+    logger.info("consistency check of %d direction sets against %d training rows of %s", len(combos), m, lm.path)
+
+    def blocks() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float32]]]:
+        for a, b in _q_chunks(mdl):
+            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), np.asarray(lm.X[:, a:b], dtype=np.float32)
+
+    prog = _Progress("consistency pass", p)
+    for a, b, q32, x32 in _read_ahead(blocks()):
+        q = q32.astype(np.float64)
+        y = x32.astype(np.float64)
+        y -= mdl.mean[a:b]
+        qtq += q.T @ q
+        qty += q.T @ y.T
+        yy += np.einsum("ij,ij->i", y, y)
+        pos, off = keep.take(a, b)
+        q_obs[pos] = q[off]
+        y_obs[:, pos] = y[:, off]
+        prog.step(b)
+    qtq = 0.5 * (qtq + qtq.T)
+
+    rows: list[dict[str, Any]] = []
+    worst: tuple[float, _Combo, float] | None = None
+    for c in combos:
+        pos = keep.pos(c.rows)
+        qt = q_obs[pos]
+        coef = reconstruct_coefficients(qt, y_obs[:, pos].T, c.eta) if pos.size else np.zeros((k, m))
+        direct = float(np.mean(np.sqrt(_sq_err(yy, qty, qtq, coef))))
+        if c.beta > 0.0:
+            w = reconstruct_coefficients(qt, np.ones(pos.size), c.eta) if pos.size else np.zeros(k)
+            direct += c.beta * math.sqrt(max(float(w @ qtq @ w), 0.0))
+        rel = abs(direct - c.predicted) / max(abs(c.predicted), np.finfo(np.float64).tiny)
+        if not math.isfinite(rel):
+            rel = math.inf  # a NaN must fail the check, not slip past the comparison
+        rows.append({"setup": c.setup, "fov": c.fov, "metric": c.metric, "n": c.n, "predicted": c.predicted,
+                     "direct": direct, "rel_diff": rel})
+        if worst is None or rel > worst[0]:
+            worst = (rel, c, direct)
+    if out is not None:
+        write_errors(out, rows, CONSISTENCY_COLUMNS)
+    assert worst is not None
+    logger.info("consistency check: %d sets, largest relative difference %.3g (%s %g° %s n=%d) in %.1f s",
+                len(rows), worst[0], worst[1].setup, worst[1].fov, worst[1].metric, worst[1].n,
+                time.perf_counter() - t0)
+    if not worst[0] <= rtol:
+        bad = sum(1 for r in rows if not r["rel_diff"] <= rtol)
+        c = worst[1]
+        raise ConsistencyError(
+            f"{c.path}: recorded E(S) of the set n = {c.n} ({c.setup}, fov {c.fov}, metric {c.metric}) is "
+            f"{c.predicted:.10g}, the direct recomputation from {lm.path} gives "
+            f"{worst[2]:.10g}: relative difference {worst[0]:.3g} > {rtol:g} "
+            f"({bad} of {len(rows)} set(s) fail the check)"
+        )
+    return rows
+
+
+# ==========================================================================
+# Error vs number of training materials
+# ==========================================================================
+
+
+def training_size_curve(
+    store_path: BrdfStore | str | os.PathLike[str],
+    logmap_path: Logmap | str | os.PathLike[str],
+    directions_path: str | os.PathLike[str],
+    *,
+    test_materials: Sequence[str] | None,
+    sizes: Sequence[int] = DEFAULT_SIZES,
+    order_seed: int = 0,
+    n_images: int = 2,
+    eta: float = DEFAULT_ETA,
+    tol: float = svd.TOL,
+) -> list[dict[str, Any]]:
+    """Mean log-space RMS error of the held-out rows vs the number N of training materials (Xu Fig. 7).
+
+    The training materials of ``logmap_path`` (the ``train`` log-map) are
+    put in the order ``numpy.random.default_rng(order_seed).permutation``;
+    for each N in ``sizes`` (capped at their number, duplicates dropped) the
+    PCA of the first N materials' rows (channels as rows; k ≤ 3N − 1, the
+    tolerance ``tol`` as :func:`brdfpipe.svd.fit`) reconstructs the held-out
+    rows from the set with ``n_images`` configurations of
+    ``directions_path`` (normally the near-field 25° error-metric file of
+    the ``train`` optimisation).  Approximations (see the module docstring):
+    the ``train`` log-mapping's ρ_ref and the ``train`` directions for every N.
+
+    Returns rows with keys :data:`TRAINING_SIZE_COLUMNS` (kind ``rms_log``,
+    per material-channel and ``mean``/``all``).
+    """
+    eta = sampling._check_eta(eta)
+    t0 = time.perf_counter()
+    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    lm = logmap_path if isinstance(logmap_path, Logmap) else open_logmap(logmap_path)
+    if st.database != lm.database:
+        raise ValueError(f"{st.path} is database {st.database!r}, the log-map {lm.path} {lm.database!r}")
+    if set(lm.materials) != set(lm.train_materials):
+        raise ValueError(f"{lm.path}: rows are not the training materials of its split")
+    valid = np.asarray(st.valid[:], dtype=bool)
+    if not valid[lm.cells].all():
+        raise ValueError(f"{lm.path}: columns are not measured in every material of {st.path}")
+    names = _test_materials(st, lm.train_materials, test_materials)
+    d = read_directions(directions_path)
+    if d.split != lm.split or d.database != lm.database:
+        raise ValueError(f"{directions_path}: directions of split {d.split!r} / database {d.database!r}, the log-map "
+                         f"{lm.path} is {lm.split!r} / {lm.database!r}")
+    chosen = [s for s in d.sets if s.n == n_images]
+    if not chosen:
+        raise ValueError(f"{directions_path}: no set with n = {n_images}")
+    lut = _lookup(lm.cells)
+    cells = np.concatenate([sampling.observation_cells(d.setup, c, lut >= 0) for c in chosen[0].configurations])
+    obs_rows = lut[cells]
+    mats = list(lm.materials)
+    n_mat = len(mats)
+    want = sorted({min(int(s), n_mat) for s in sizes})
+    if not want or want[0] < 1:
+        raise ValueError(f"sizes must be positive integers, got {list(sizes)}")
+    order = np.random.default_rng(order_seed).permutation(n_mat)
+    p, m, m_t = lm.p, lm.m, 3 * len(names)
+    logger.info("training-size curve: N = %s of %d training materials (order seed %d), %s fov %g n = %d "
+                "(%d observations), %d held-out rows", want, n_mat, order_seed, d.setup.kind, d.setup.fov_deg,
+                n_images, obs_rows.size, m_t)
+
+    reader = _StoreColumns(st, _material_rows(st, names, "test_materials"), lm.cells)
+    keep = _Gathered(obs_rows)
+    g_tt = np.zeros((m, m))
+    g_ts = np.zeros((m, m_t))
+    s_tr = np.zeros(m)
+    xx_t = np.zeros(m_t)
+    xo_tr = np.empty((m, keep.cols.size))
+    xo_te = np.empty((m_t, keep.cols.size))
+
+    def blocks() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float32]]]:
+        width = lm.chunk_cols
+        for a in range(0, p, width):
+            b = min(a + width, p)
+            yield a, b, np.asarray(lm.X[:, a:b], dtype=np.float32), reader.get(a, b)
+
+    prog = _Progress("training-size pass (cross-Gram)", p)
+    for a, b, x32, rho in _read_ahead(blocks()):
+        x = x32.astype(np.float64)
+        xt = logmap.forward(rho.reshape(m_t, b - a), lm.reference[a:b], lm.weight[a:b], lm.epsilon)
+        g_tt += x @ x.T
+        g_ts += x @ xt.T
+        s_tr += x.sum(axis=1)
+        xx_t += np.einsum("ij,ij->i", xt, xt)
+        pos, off = keep.take(a, b)
+        xo_tr[:, pos] = x[:, off]
+        xo_te[:, pos] = xt[:, off]
+        prog.step(b)
+    g_tt = 0.5 * (g_tt + g_tt.T)
+    pos = keep.pos(obs_rows)
+    xo_tr, xo_te = xo_tr[:, pos], xo_te[:, pos]  # (m, n_obs), (m_t, n_obs), repeats expanded
+
+    rows: list[dict[str, Any]] = []
+    labels = [(mat, CHANNELS[ch]) for mat in names for ch in range(3)]
+    for n_train in want:
+        sel = np.sort((3 * order[:n_train, None] + np.arange(3)[None, :]).ravel())
+        g = g_tt[np.ix_(sel, sel)]
+        u, sigma = svd.decompose(g, s_tr[sel], p, tol)
+        mn = sel.size
+        amat = u - u.mean(axis=0)  # C U
+        avec = np.full(mn, 1.0 / mn)
+        q_obs = xo_tr[sel].T @ amat  # (n_obs, k)
+        y_obs = xo_te.T - (xo_tr[sel].T @ avec)[:, None]  # (n_obs, m_t)
+        coef = reconstruct_coefficients(q_obs, y_obs, eta) if obs_rows.size else np.zeros((sigma.size, m_t))
+        ga = g @ avec
+        xg = g_ts[sel]  # X_N x_t
+        yy = xx_t - 2.0 * (avec @ xg) + float(avec @ ga)
+        qty = amat.T @ (xg - ga[:, None])
+        qtq = amat.T @ g @ amat
+        rms = np.sqrt(_sq_err(yy, qty, 0.5 * (qtq + qtq.T), coef) / p)
+        for (mat, ch), v in zip(labels, rms):
+            rows.append({"database": lm.database, "n_train": n_train, "order_seed": order_seed, "material": mat,
+                         "channel": ch, "kind": "rms_log", "value": float(v)})
+        rows.append({"database": lm.database, "n_train": n_train, "order_seed": order_seed, "material": "mean",
+                     "channel": "all", "kind": "rms_log", "value": float(rms.mean())})
+        logger.info("N = %d materials (m = %d rows, k = %d): mean rms_log %.5g", n_train, mn, sigma.size,
+                    float(rms.mean()))
+    logger.info("training-size curve done in %.1f s", time.perf_counter() - t0)
+    return rows
+
+
+# ==========================================================================
+# Output
+# ==========================================================================
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf" if v < 0 else "nan")
+    if isinstance(value, np.integer):
+        return str(int(value))
+    return str(value)
+
+
+def write_errors(
+    path: str | os.PathLike[str], rows: Sequence[dict[str, Any]], columns: Sequence[str] = ERROR_COLUMNS
+) -> Path:
+    """Write ``rows`` (dicts with at least ``columns``) as a CSV with a header line, atomically.
+
+    Parent folders are created; the file is written under a temporary name
+    and renamed into place.  ValueError if a row lacks a column.  Returns the path.
+    """
+    path = Path(path)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for i, r in enumerate(rows):
+        missing = [c for c in columns if c not in r]
+        if missing:
+            raise ValueError(f"row {i} lacks column(s) {', '.join(missing)}")
+        w.writerow([_fmt(r[c]) for c in columns])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            fh.write(buf.getvalue())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def run_evaluation(
+    store_path: str | os.PathLike[str],
+    model_path: str | os.PathLike[str],
+    logmap_path: str | os.PathLike[str],
+    directions_paths: Sequence[str | os.PathLike[str]],
+    out_dir: str | os.PathLike[str],
+    *,
+    test_materials: Sequence[str] | None = None,
+    eta: float = DEFAULT_ETA,
+    sizes: Sequence[int] = DEFAULT_SIZES,
+    order_seed: int = 0,
+    curve_directions: str | os.PathLike[str] | None = None,
+) -> dict[str, Path]:
+    """The whole evaluation stage: ``errors.csv``, ``consistency.csv`` and ``training_size.csv`` in ``out_dir``.
+
+    The consistency check runs first (and raises :class:`ConsistencyError`
+    after writing ``consistency.csv`` if it fails).  The training-size curve
+    uses ``curve_directions``, by default the file among ``directions_paths``
+    with setup ``nearfield``, fov 25 and metric ``error`` (skipped, with a
+    warning, when there is none).  Returns the paths written.
+    """
+    out = Path(out_dir)
+    written: dict[str, Path] = {}
+    check_consistency(logmap_path, model_path, directions_paths, out=out / "consistency.csv")
+    written["consistency"] = out / "consistency.csv"
+    rows = evaluate(store_path, model_path, directions_paths, test_materials=test_materials, eta=eta)
+    written["errors"] = write_errors(out / "errors.csv", rows)
+    if curve_directions is None:
+        for pth in directions_paths:
+            d = read_directions(pth)
+            if d.setup.kind == "nearfield" and d.setup.fov_deg == 25.0 and d.metric == "error":
+                curve_directions = pth
+                break
+    if curve_directions is None:
+        logger.warning("no near-field 25° error-metric directions file: training-size curve skipped")
+    else:
+        curve = training_size_curve(store_path, logmap_path, curve_directions, test_materials=test_materials,
+                                    sizes=sizes, order_seed=order_seed, eta=eta)
+        written["training_size"] = write_errors(out / "training_size.csv", curve, TRAINING_SIZE_COLUMNS)
+    return written
