@@ -151,6 +151,7 @@ def write_merl(path: str | os.PathLike[str], table: ArrayLike) -> None:
     raw = (arr / SCALES[:, None, None, None]).astype("<f8", copy=False)
     header = np.asarray(DIMS, dtype="<i4").tobytes()
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(header)

@@ -113,6 +113,7 @@ __all__ = [
     "directions_path",
     "write_directions",
     "read_directions",
+    "optimize_to_file",
 ]
 
 F64 = NDArray[np.float64]
@@ -1845,6 +1846,7 @@ def write_directions(
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=1, allow_nan=False)
@@ -1902,3 +1904,43 @@ def read_directions(path: str | os.PathLike[str]) -> Directions:
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{path}: invalid directions file: {exc}") from exc
+
+
+def optimize_to_file(
+    model_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    setup: str,
+    fov: float,
+    grid: int,
+    metric: str,
+    n_max: int,
+    candidates: int,
+    eta: float,
+    beta: float,
+    seed: int,
+) -> Path:
+    """Optimise the direction sets of one setup on a PCA model and write them as JSON.
+
+    The workflow's ``optimize_directions`` job: opens the model written by
+    :func:`brdfpipe.svd.write_model`, runs :func:`optimize` (one log line per
+    step) and writes :func:`write_directions`'s JSON to ``out``; the split
+    and database recorded are the model's.
+    """
+    from brdfpipe.svd import open_model
+
+    model = open_model(model_path)
+    kind_setup = Setup(setup, fov_deg=0.0 if setup == "point" else float(fov), grid=int(grid))
+    log = logging.getLogger("brdfpipe.sampling")
+    log.info(
+        "optimising %s fov %g (%s metric) on %s: n_max %d, %d candidates, seed %d",
+        setup, kind_setup.fov_deg, metric, model_path, n_max, candidates, seed,
+    )
+    sets = optimize(
+        model, kind_setup, metric=metric, n_max=n_max, candidates=candidates,
+        eta=eta, beta=beta, seed=seed, log=log,
+    )
+    return write_directions(
+        out, sets, setup=kind_setup, metric=metric, split=model.split,
+        model_path=model_path, seed=seed, eta=eta, beta=beta, database=model.database,
+    )

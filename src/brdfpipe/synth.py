@@ -980,6 +980,7 @@ def write_named_material(
 
 def _atomic_write_text(path: Path, text: str) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
