@@ -14,10 +14,15 @@ validate(config, "workflow/schemas/config.schema.yaml", set_default=True)
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/data.smk"
+include: "workflow/rules/acquisition.smk"
 
 
 rule all:
     input:
         store=STORE,
         splits=SPLITS,
+        pca=expand(f"{RESULTS}/svd/{{split}}.zarr", split=PCA_SPLITS),
+        directions=direction_files("train") + direction_files("all"),
+        evaluation=f"{RESULTS}/evaluation/errors.csv",
+        figures=ACQUISITION_FIGURES,
     default_target: True

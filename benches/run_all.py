@@ -16,6 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "results" / "synthetic"
 STORE = ROOT / "results" / "merl.zarr"
+LOGMAP = ROOT / "results" / "logmap" / "train.zarr"
+MODEL = ROOT / "results" / "svd" / "train.zarr"
 
 
 def run(*args: str) -> None:
@@ -30,6 +32,10 @@ def main() -> None:
     run("benches/bench_ingest.py", *data, "--cold")
     if STORE.is_dir():
         run("benches/spectrum.py", str(STORE))
+    # Acquisition track: reuse the default run's log-map and model when present.
+    run("benches/bench_error_metric.py", *(["--model", str(MODEL)] if MODEL.is_dir() else []))
+    run("benches/bench_svd.py", *(["--logmap", str(LOGMAP)] if LOGMAP.is_dir() else []))
+    run("benches/bench_optimize.py", *(["--model", str(MODEL)] if MODEL.is_dir() else []))
 
 
 if __name__ == "__main__":

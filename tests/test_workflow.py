@@ -52,7 +52,9 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr
     out = r.stdout + r.stderr
     for rule, n in [("synthesize_material", 12), ("ingest_material", 12), ("assemble_store", 1),
-                    ("write_splits", 1), ("write_manifest", 1)]:
+                    ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
+                    ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
+                    ("evaluate", 1), ("plot_acquisition_figures", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 
 
@@ -77,6 +79,31 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert not list((tmp_path / "results").glob("ingest/*.zarr"))
     assert (tmp_path / "logs" / "assemble_store.log").stat().st_size > 0
     assert len(list((tmp_path / "benchmarks" / "ingest_material").glob("*.tsv"))) == 12
+    # acquisition track: models of both splits, direction sets of every setup
+    from brdfpipe import sampling, svd
+
+    model = svd.open_model(tmp_path / "results" / "svd" / "train.zarr")
+    assert model.database == "synthetic" and model.m == 27
+    files = sorted((tmp_path / "results" / "directions" / "train").glob("*.json"))
+    assert len(files) == 8
+    for f in files:
+        d = sampling.read_directions(f)
+        assert [s.n for s in d.sets] == list(range(1, len(d.sets) + 1))
+    assert (tmp_path / "results" / "directions" / "all" / "nearfield-fov25-error.json").is_file()
+    # evaluation: every predicted E(S) matched its direct recomputation (else the rule fails)
+    import csv
+
+    with open(tmp_path / "results" / "evaluation" / "consistency.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    # one row per (file, n): point 3 + three image setups x 2, for both metrics
+    assert len(rows) == 2 * (3 + 3 * 2)
+    assert all(float(r["rel_diff"]) <= 1e-6 for r in rows)
+    with open(tmp_path / "results" / "evaluation" / "errors.csv") as fh:
+        errors = list(csv.DictReader(fh))
+    assert {r["database"] for r in errors} == {"synthetic"}
+    assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
+    figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
+    assert len(figures) == 16 and "fig05-error-vs-images.png" in figures
     # a second run has nothing to do
     again = snakemake(tmp_path, "-n")
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
@@ -117,7 +144,7 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
     assert not (tmp_path / "results" / "ingest" / "beta.zarr").exists()
     # repair the file: the rerun completes and the store is trusted
     (folder / "beta.binary").write_bytes(good)
-    r = snakemake(tmp_path, configfile=cfg)
+    r = snakemake(tmp_path, "results/merl.zarr", configfile=cfg)  # the data stage
     assert r.returncode == 0, r.stderr[-3000:]
     g = store.open_store(tmp_path / "results" / "merl.zarr")
     assert g.database == "merl" and list(g.materials) == ["alpha", "beta", "gamma"]

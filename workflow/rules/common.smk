@@ -2,11 +2,13 @@
 # Everything that can fail on bad configuration fails here, at parse time,
 # before any job runs.
 
+import os
 import re
 
 from snakemake.exceptions import WorkflowError
 
 from brdfpipe import database as brdf_db
+from brdfpipe.figures import FIGURE_STEMS
 
 
 RESULTS = "results"
@@ -15,6 +17,7 @@ INGEST_DIR = f"{RESULTS}/ingest"
 STORE = f"{RESULTS}/merl.zarr"
 SPLITS = f"{RESULTS}/splits.json"
 MANIFEST = f"{SYNTH_DIR}/manifest.json"
+FIGURES = f"{RESULTS}/figures"
 
 
 def _load_database():
@@ -32,11 +35,71 @@ def _load_database():
 
 DATABASE, TEST_MATERIALS = _load_database()
 MATERIALS = DATABASE.materials
+TRAIN_MATERIALS = [m for m in MATERIALS if m not in TEST_MATERIALS]
 SYNTHETIC = DATABASE.kind == "synthetic"
+PCA_SPLITS = ["all", "train"]
+ACQ = config["acquisition"]
+
+
+def split_training_materials(split):
+    """Materials whose channels are the rows (and whose median is the reference) of a split."""
+    return MATERIALS if split == "all" else TRAIN_MATERIALS
+
+
+def _fov_tag(fov):
+    """File-name form of a field of view (as brdfpipe.sampling.directions_path writes it)."""
+    return f"{float(fov):g}"
+
+
+def direction_files(split):
+    """Direction sets optimised on a split: every setup x FOV x metric on `train`
+    (they are evaluated); on `all` only the near-field sets of the error metric
+    (the paper's table of optimal configurations, Xu Fig. 8)."""
+    files = []
+    for setup in ACQ["setups"]:
+        if split == "all" and setup != "nearfield":
+            continue
+        if setup == "point":
+            fovs = [0]
+        elif setup == "nearfield":
+            fovs = ACQ["fovs"]
+        else:
+            fovs = [ACQ["fixed_fov"]]
+        metrics = ACQ["metrics"] if split == "train" else ["error"]
+        files += [
+            f"{RESULTS}/directions/{split}/{setup}-fov{_fov_tag(fov)}-{metric}.json"
+            for fov in fovs
+            for metric in metrics
+        ]
+    return files
+
+
+# Error vs training-set size (Xu Fig. 7): sizes that fit the training set, and
+# the two-image near-field directions at 25° (or the first FOV) it uses.
+TRAINING_SIZES = [n for n in ACQ["training_sizes"] if n <= len(TRAIN_MATERIALS)]
+_CURVE_FOV = 25 if 25 in ACQ["fovs"] else ACQ["fovs"][0]
+CURVE_DIRECTIONS = (
+    f"{RESULTS}/directions/train/nearfield-fov{_fov_tag(_CURVE_FOV)}-error.json"
+    if "nearfield" in ACQ["setups"] and "error" in ACQ["metrics"]
+    else None
+)
+ACQUISITION_FIGURES = [
+    f"{FIGURES}/{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in ("png", "pdf")
+] + [f"{FIGURES}/{FIGURE_STEMS['fig08']}.{ext}" for ext in ("csv", "md")]
+
+
+# Column blocks of the streamed SVD's Gram matrix (override: --set-scatter gram=N).
+scattergather:
+    gram=4,
 
 
 wildcard_constraints:
     material="|".join(re.escape(m) for m in MATERIALS),
+    split="all|train",
+    scatteritem=r"\d+-of-\d+",
+    setup="point|nearfield|fixed_camera|fixed_light",
+    metric="error|condition",
+    fov=r"\d+(\.\d+)?",
 
 
 def source_file(wildcards):

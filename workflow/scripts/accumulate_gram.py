@@ -1,0 +1,11 @@
+"""One column block's share of the row Gram matrix (rule accumulate_gram)."""
+
+from brdfpipe import svd
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    svd.write_partial(
+        snakemake.output.partial,
+        logmap_path=snakemake.input.logmap,
+        scatteritem=snakemake.wildcards.scatteritem,
+    )

@@ -1,0 +1,11 @@
+"""Combine the Gram blocks, decompose and write the PCA model (rule decompose_svd)."""
+
+from brdfpipe import svd
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    svd.write_model(
+        snakemake.input.logmap,
+        list(snakemake.input.partials),
+        snakemake.output.model,
+    )

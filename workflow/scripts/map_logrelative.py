@@ -1,0 +1,13 @@
+"""Log-relative mapping of one split's training rows (rule map_logrelative)."""
+
+from brdfpipe import logmap
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    logmap.write_logmap(
+        snakemake.input.store,
+        snakemake.output.logmap,
+        split=snakemake.wildcards.split,
+        materials_train=snakemake.params.train,
+        weighting=snakemake.params.weighting,
+    )
