@@ -24,5 +24,6 @@ rule all:
         pca=expand(f"{RESULTS}/svd/{{split}}.zarr", split=PCA_SPLITS),
         directions=direction_files("train") + direction_files("all"),
         evaluation=f"{RESULTS}/evaluation/errors.csv",
+        consistency_all=f"{RESULTS}/evaluation/consistency-all.csv",
         figures=ACQUISITION_FIGURES,
     default_target: True

@@ -54,7 +54,7 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
     for rule, n in [("synthesize_material", 12), ("ingest_material", 12), ("assemble_store", 1),
                     ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
                     ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
-                    ("evaluate", 1), ("plot_acquisition_figures", 1)]:
+                    ("evaluate", 1), ("plot_acquisition_figures", 1), ("check_directions", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 
 
@@ -116,6 +116,11 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         ({"synthetic": {"count": 0}}, "minimum"),
         ({"colour": "red"}, "Additional properties"),
         ({"merl_dir": "/nonexistent/merl"}, "does not exist"),
+        ({"acquisition": {"setups": ["gonioreflectometer"]}}, "is not one of"),
+        ({"acquisition": {"fovs": [0]}}, "less than or equal to the minimum of 0"),
+        ({"acquisition": {"fovs": [180]}}, "greater than or equal to the maximum of 180"),
+        ({"acquisition": {"n_max_images": 0}}, "less than the minimum of 1"),
+        ({"acquisition": {"eta": 0}}, "less than or equal to the minimum of 0"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:

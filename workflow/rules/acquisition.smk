@@ -145,3 +145,22 @@ rule plot_acquisition_figures:
         "../../envs/brdfpipe.yaml"
     script:
         "../scripts/plot_acquisition_figures.py"
+
+
+rule check_directions:
+    input:
+        logmap=f"{RESULTS}/logmap/all.zarr",
+        model=f"{RESULTS}/svd/all.zarr",
+        directions=direction_files("all"),
+    output:
+        consistency=f"{RESULTS}/evaluation/consistency-all.csv",
+    log:
+        "logs/check_directions.log",
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    conda:
+        "../../envs/brdfpipe.yaml"
+    script:
+        "../scripts/check_directions.py"

@@ -1,0 +1,15 @@
+"""Predicted E(S) of the `all` split's direction sets vs a direct recomputation (rule check_directions).
+
+(The `train` split's sets are checked by rule evaluate.)
+"""
+
+from brdfpipe import reconstruct
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    reconstruct.check_consistency(
+        snakemake.input.logmap,
+        snakemake.input.model,
+        list(snakemake.input.directions),
+        out=snakemake.output.consistency,
+    )
