@@ -124,9 +124,7 @@ import io
 import logging
 import math
 import os
-import queue
 import tempfile
-import threading
 import time
 import warnings
 from collections.abc import Iterable, Iterator, Sequence
@@ -142,7 +140,7 @@ from brdfpipe import logmap, merl, sampling, svd
 from brdfpipe.logmap import Logmap, open_logmap
 from brdfpipe.merl import N_CELLS
 from brdfpipe.sampling import DEFAULT_ETA, Directions, read_directions, reconstruct_coefficients
-from brdfpipe.store import BrdfStore, open_store
+from brdfpipe.store import BrdfStore, open_store, read_ahead
 from brdfpipe.store import CHUNK_COLS as STORE_CHUNK_COLS
 from brdfpipe.svd import Model, open_model
 
@@ -515,47 +513,6 @@ def write_reconstruction(
 # ==========================================================================
 
 
-_END: Final = object()
-
-
-def _read_ahead(items: Iterator[Any]) -> Iterator[Any]:
-    """Iterate ``items`` in a background thread, one item ahead (decoding overlaps the BLAS work)."""
-    box: queue.Queue[Any] = queue.Queue(maxsize=1)
-    halt = threading.Event()
-
-    def put(item: Any) -> bool:
-        while not halt.is_set():
-            try:
-                box.put(item, timeout=0.1)
-                return True
-            except queue.Full:
-                continue
-        return False
-
-    def produce() -> None:
-        try:
-            for item in items:
-                if not put(item):
-                    return
-            put(_END)
-        except BaseException as exc:  # handed to the consumer
-            put(exc)
-
-    reader = threading.Thread(target=produce, name="brdfpipe-reconstruct-reader", daemon=True)
-    reader.start()
-    try:
-        while True:
-            item = box.get()
-            if item is _END:
-                return
-            if isinstance(item, BaseException):
-                raise item
-            yield item
-    finally:
-        halt.set()
-        reader.join()
-
-
 class _StoreColumns:
     """Values of some store rows at the model's columns, served by column range in increasing order.
 
@@ -832,7 +789,7 @@ def _evaluate(
             yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), reader.get(a, b)
 
     prog = _Progress("evaluation pass 1 (Gram statistics)", p)
-    for a, b, q32, rho in _read_ahead(blocks()):
+    for a, b, q32, rho in read_ahead(blocks()):
         q = q32.astype(np.float64)
         y = logmap.forward(rho.reshape(m_t, b - a), mdl.reference[a:b], mdl.weight[a:b], mdl.epsilon)
         y -= mdl.mean[a:b]
@@ -903,7 +860,7 @@ def _linear_errors(mdl: Model, reader: _StoreColumns, coefs: F64, n_combo: int, 
             yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), reader.get(a, b)
 
     prog = _Progress("evaluation pass 2 (linear-space error)", mdl.p)
-    for a, b, q32, rho32 in _read_ahead(blocks()):
+    for a, b, q32, rho32 in read_ahead(blocks()):
         rho_cc = rho32.reshape(m_t, b - a).T.astype(np.float64) * cc[a:b, None]  # (b − a, m_t)
         den += np.einsum("ij,ij->j", rho_cc, rho_cc)
         kk = rho_cc + floor[a:b, None]
@@ -981,7 +938,7 @@ def check_consistency(
             yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), np.asarray(lm.X[:, a:b], dtype=np.float32)
 
     prog = _Progress("consistency pass", p)
-    for a, b, q32, x32 in _read_ahead(blocks()):
+    for a, b, q32, x32 in read_ahead(blocks()):
         q = q32.astype(np.float64)
         y = x32.astype(np.float64)
         y -= mdl.mean[a:b]
@@ -1110,7 +1067,7 @@ def training_size_curve(
             yield a, b, np.asarray(lm.X[:, a:b], dtype=np.float32), reader.get(a, b)
 
     prog = _Progress("training-size pass (cross-Gram)", p)
-    for a, b, x32, rho in _read_ahead(blocks()):
+    for a, b, x32, rho in read_ahead(blocks()):
         x = x32.astype(np.float64)
         xt = logmap.forward(rho.reshape(m_t, b - a), lm.reference[a:b], lm.weight[a:b], lm.epsilon)
         g_tt += x @ x.T

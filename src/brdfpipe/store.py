@@ -125,6 +125,7 @@ import logging
 import multiprocessing
 import multiprocessing.context
 import os
+import queue
 import re
 import secrets
 import shutil
@@ -150,6 +151,7 @@ from brdfpipe import __version__, merl
 from brdfpipe.merl import DIMS, FILE_SIZE, HEADER_BYTES, N_CELLS, SCALES, MerlFormatError
 
 __all__ = [
+    "read_ahead",
     "N_COLS",
     "CHUNK_COLS",
     "N_CHUNKS",
@@ -1063,3 +1065,55 @@ def ingest(
     finally:
         if own_workdir:
             _remove(wd)
+
+
+# --------------------------------------------------------------------------
+# Streaming helper
+# --------------------------------------------------------------------------
+
+
+_READ_AHEAD_END: Final = object()
+
+
+def read_ahead(items: Iterable[Any]) -> Iterator[Any]:
+    """Iterate ``items`` in a background thread, one item ahead.
+
+    Used by the streaming stages so that decoding the next block (Blosc and
+    casts release the GIL) overlaps the BLAS work on the current one.  An
+    exception in the producer is re-raised in the consumer; leaving the loop
+    early stops the producer.
+    """
+    box: queue.Queue[Any] = queue.Queue(maxsize=1)
+    halt = threading.Event()
+
+    def put(item: Any) -> bool:
+        while not halt.is_set():
+            try:
+                box.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def produce() -> None:
+        try:
+            for item in items:
+                if not put(item):
+                    return
+            put(_READ_AHEAD_END)
+        except BaseException as exc:  # handed to the consumer
+            put(exc)
+
+    reader = threading.Thread(target=produce, name="brdfpipe-read-ahead", daemon=True)
+    reader.start()
+    try:
+        while True:
+            item = box.get()
+            if item is _READ_AHEAD_END:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        halt.set()
+        reader.join()

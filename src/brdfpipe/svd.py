@@ -97,9 +97,7 @@ import hashlib
 
 import logging
 import os
-import queue
 import re
-import threading
 from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -121,7 +119,7 @@ from brdfpipe.logmap import (
     open_logmap,
 )
 from brdfpipe.merl import N_CELLS
-from brdfpipe.store import _remove, _replace_dir, _tmp_sibling
+from brdfpipe.store import _remove, _replace_dir, _tmp_sibling, read_ahead
 
 __all__ = [
     "TOL",
@@ -214,51 +212,13 @@ def _as_logmap(logmap_path: Logmap | str | os.PathLike[str]) -> Logmap:
     return logmap_path if isinstance(logmap_path, Logmap) else open_logmap(logmap_path)
 
 
-_END: Final = object()
-
-
 def _float64_blocks(lm: Logmap, start: int, stop: int) -> Iterator[tuple[int, int, NDArray[np.float64]]]:
     """:func:`~brdfpipe.logmap.iter_columns` cast to float64, read one chunk ahead in a thread.
 
     Decoding (single-threaded Blosc) and the cast overlap the BLAS work on the
-    previous chunk; at most three chunks (two float64 copies in flight) are
-    in memory.  An error in the reader is re-raised here; leaving the loop
-    early stops the reader.
+    previous chunk (:func:`brdfpipe.store.read_ahead`).
     """
-    box: queue.Queue[Any] = queue.Queue(maxsize=1)
-    halt = threading.Event()
-
-    def put(item: Any) -> bool:
-        while not halt.is_set():
-            try:
-                box.put(item, timeout=0.1)
-                return True
-            except queue.Full:
-                continue
-        return False
-
-    def produce() -> None:
-        try:
-            for a, b, x32 in iter_columns(lm, start, stop):
-                if not put((a, b, x32.astype(np.float64))):
-                    return
-            put(_END)
-        except BaseException as exc:  # handed to the consumer
-            put(exc)
-
-    reader = threading.Thread(target=produce, name="brdfpipe-svd-reader", daemon=True)
-    reader.start()
-    try:
-        while True:
-            item = box.get()
-            if item is _END:
-                return
-            if isinstance(item, BaseException):
-                raise item
-            yield item
-    finally:
-        halt.set()
-        reader.join()
+    return read_ahead((a, b, x32.astype(np.float64)) for a, b, x32 in iter_columns(lm, start, stop))
 
 
 def gram_partial(logmap_path: Logmap | str | os.PathLike[str], block: int, n_blocks: int) -> GramPartial:
