@@ -1,0 +1,893 @@
+"""The core of Soler et al. 2018's GPLVM over measured materials (§2.1–§3).
+
+Data
+----
+``Z`` has one row per material: the concatenated R, G, B values of the cells
+valid (measured) in every material of the store, so ``d = 3 × valid cells``
+(:func:`gram_matrix`).  The mean BRDF (column mean over the materials) is
+subtracted (Soler §3), so far from the data the interpolant tends to the mean.
+The optimisation needs only the N × N Gram matrix ``(Z − 1μ̄ᵀ)(Z − 1μ̄ᵀ)ᵀ``,
+streamed from the store by blocks of cells and accumulated in float64 (the
+N × d matrix is never held in float64).  Data spaces:
+
+* ``raw``: the stored values (the paper);
+* ``cosine``: each cell × cos θi · cos θo of its centre (``merl.cell_directions``);
+* ``log``: ``ln((ρw + ε)/(ρ_ref w + ε))`` like the acquisition track
+  (:func:`brdfpipe.logmap.forward`, ``w`` = :func:`brdfpipe.logmap.cell_weights`
+  "product", ρ_ref = per-cell median over all channels of the materials used).
+
+Model
+-----
+Kernel (eq. 5) ``c(x, x′) = μ·δ(x, x′) + exp(−‖x − x′‖²/2ℓ²)``, so
+``K = exp(−D²/2ℓ²) + μI``; objective (eq. 6)
+``L(X) = −(d/2)·log|K| − ½·tr(K⁻¹ Gc)``, with ``Gc`` the centred Gram.
+
+Optimisation (:func:`fit`): Hooke–Jeeves direct search over the latent points.
+Moving point ``i`` changes row and column ``i`` of ``K`` (its diagonal stays
+1 + μ): ``K′ = K + u e_iᵀ + e_i uᵀ`` with ``u = k′_i − k_i`` (``u_i = 0``),
+i.e. a symmetric rank-2 update ``K′ = K + U C Uᵀ``, ``U = [u, e_i]``,
+``C = [[0, 1], [1, 0]]``.  With ``A = K⁻¹U`` and the 2 × 2 capacitance
+``M = C⁻¹ + UᵀK⁻¹U`` (``C⁻¹ = C``):
+
+* Woodbury (= Sherman–Morrison applied twice): ``K′⁻¹ = K⁻¹ − A M⁻¹ Aᵀ``;
+* determinant lemma (applied twice): ``|K′| = |K|·|C|·|M| = −|K|·|M|``, so
+  ``log|K′| = log|K| + log(−det M)``;
+* trace: ``tr(K′⁻¹Gc) = tr(K⁻¹Gc) − ⟨M⁻¹, Aᵀ Gc A⟩``.
+
+A candidate move is therefore scored in O(N²) (``K⁻¹u`` and ``Gc A``) without
+forming ``K′⁻¹``; ``K⁻¹`` is updated (O(N²)) only when the move is accepted,
+and refactorised from scratch (Cholesky) every ``refactor_every`` accepted
+moves and at the end, which bounds the drift of the bookkeeping.
+
+Initial scale
+-------------
+The initial points are the truncated PCA of the centred data (the top ``q``
+eigenvectors of ``Gc`` times the square roots of their eigenvalues), then
+scaled by one factor.  Since ``ℓ`` and the scale of ``X`` are interchangeable
+(Soler §3), only the scale relative to ``ℓ`` matters, and the raw PCA
+coordinates of BRDF data (units of sr⁻¹·√d) can be anything from 1e-2 to
+1e4 × ℓ: far too small and ``K`` ≈ 11ᵀ + μI is nearly singular, far too large
+and ``K`` ≈ (1 + μ)I carries no structure, and in both cases a local search
+with fixed steps crawls.  Rules tried (:data:`INIT_SCALES`):
+
+* ``"nn"``: median nearest-neighbour distance = ℓ;
+* ``"rms"``: RMS pairwise distance = ℓ·√(2q) (unit variance per latent axis
+  summed over q axes: the spread of a standard-normal prior, the usual GPLVM
+  convention of unit-variance latents);
+* ``"unit"``: the first PCA coordinate has unit standard deviation.
+
+No rule wins everywhere (measured with N = 100 on the synthetic 100-material
+store ``results/merl.zarr`` in the three spaces and on a random structured
+Gram matrix, d = 4e6; final L after convergence, single-threaded):
+
+========  =====  ===============  ===============  ===============
+case      q      ``nn``           ``rms``          ``unit``
+========  =====  ===============  ===============  ===============
+raw       2      −2.54e16         **−1.69e16**     −1.80e16
+raw       5      −2.49e16         **−6.57e15**     −7.10e15
+cosine    2      **−4.49e9**      −1.50e10         −1.80e10
+cosine    5      −4.81e9          −1.61e9          **−1.50e9**
+log       2      **−5.01e7**      −1.08e8          −1.27e10
+log       5      9.48e7           **1.46e8**       1.01e8
+random    2      **1.91e8**       1.66e8           1.61e8
+random    5      3.37e8           3.76e8           **4.05e8**
+========  =====  ===============  ===============  ===============
+
+so ``init_scale="best"`` (the default) runs every rule for ``trial_sweeps``
+sweeps (10) and continues the search from the one with the highest L; on the
+eight cases above it ends within 2 % of the best single rule or above it
+(raw q = 2: −1.36e16), for about 30 % more time.  The tendencies: ``nn``
+(points spread so neighbours sit at ℓ) wins at q = 2 when the data are on
+the kernel's scale; when the data variance per column (tr Gc / (N·d)) is far
+above the kernel's unit amplitude, as in raw units, the likelihood wants the
+points much closer together than ℓ (strongly correlated K), which ``rms`` /
+``unit`` give (factors 100× smaller than ``nn``'s on the raw store).
+
+Interpolation
+-------------
+``b(x*) = K⁻¹ k(x*)`` (eq. 4) and the interpolated BRDF is
+``z* = μ̄ + bᵀ(Z − 1μ̄ᵀ) = Σ w_i z_i`` with ``w_i = b_i + (1 − Σb)/N``
+(:func:`blend_weights`; Σw = 1), so images rendered from the materials blend
+with the same ``w``.  "Exact reproduction": ``k(x*)`` includes the μδ term
+when ``x*`` coincides (bitwise) with a training point ``x_i``, so ``k(x_i)``
+is column ``i`` of ``K`` and ``b(x_i) = e_i`` (to rounding); an ``x*`` a hair
+away from ``x_i`` drops the δ term and gives ``b ≈ e_i·1/(1+μ)``-like
+weights (the "negligible discontinuity" of Soler §3).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+from brdfpipe import logmap, merl
+from brdfpipe.merl import N_CELLS
+from brdfpipe.store import BrdfStore, iter_column_blocks, open_store
+
+__all__ = [
+    "SPACES",
+    "INIT_SCALES",
+    "MEAN_HANDLING",
+    "GramInfo",
+    "FitResult",
+    "GplvmModel",
+    "gram_matrix",
+    "save_gram",
+    "load_gram",
+    "kernel_matrix",
+    "kernel_vector",
+    "log_likelihood",
+    "pca_init",
+    "rank2_update",
+    "fit",
+    "weights",
+    "blend_weights",
+    "interpolate_table",
+    "save_model",
+    "load_model",
+]
+
+logger = logging.getLogger("brdfpipe.gplvm")
+
+#: Data spaces of :func:`gram_matrix`.
+SPACES: Final = ("raw", "cosine", "log")
+#: Initial-scale rules of :func:`fit` (plus ``"best"``: try all, keep the best L).
+INIT_SCALES: Final = ("nn", "rms", "unit")
+MEAN_HANDLING: Final = "mean subtracted"
+MODEL_FORMAT: Final = "brdfpipe.gplvm/1"
+GRAM_FORMAT: Final = "brdfpipe.gplvm.gram/1"
+_SUB_COLS: Final = 16384
+
+
+# --------------------------------------------------------------------------
+# Validation
+# --------------------------------------------------------------------------
+
+
+def _check_hyper(ell: float, mu: float) -> tuple[float, float]:
+    ell_f, mu_f = float(ell), float(mu)
+    if not np.isfinite(ell_f) or ell_f <= 0:
+        raise ValueError(f"length scale ell must be a finite number > 0, got {ell!r}")
+    if not np.isfinite(mu_f) or mu_f < 0:
+        raise ValueError(f"noise parameter mu must be a finite number >= 0, got {mu!r}")
+    return ell_f, mu_f
+
+
+def _check_q(q: Any) -> int:
+    if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or int(q) < 1:
+        raise ValueError(f"latent dimension q must be an integer >= 1, got {q!r}")
+    return int(q)
+
+
+def _check_gram(gram: ArrayLike, d: Any) -> tuple[NDArray[np.float64], float]:
+    g = np.asarray(gram, dtype=np.float64)
+    if g.ndim != 2 or g.shape[0] != g.shape[1] or g.shape[0] < 2:
+        raise ValueError(f"gram must be a square N x N matrix with N >= 2, got shape {g.shape}")
+    if not np.isfinite(g).all():
+        raise ValueError("gram has non-finite entries")
+    d_f = float(d)
+    if not np.isfinite(d_f) or d_f <= 0:
+        raise ValueError(f"column count d must be > 0, got {d!r}")
+    return 0.5 * (g + g.T), d_f
+
+
+def _check_X(X: ArrayLike, what: str = "X") -> NDArray[np.float64]:
+    x = np.asarray(X, dtype=np.float64)
+    if x.ndim != 2 or x.shape[0] < 1 or x.shape[1] < 1:
+        raise ValueError(f"{what} must be an N x q matrix, got shape {x.shape}")
+    if not np.isfinite(x).all():
+        raise ValueError(f"{what} has non-finite entries")
+    return x
+
+
+def _check_space(space: str) -> str:
+    if space not in SPACES:
+        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(SPACES)}")
+    return space
+
+
+# --------------------------------------------------------------------------
+# The Gram matrix
+# --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GramInfo:
+    """What :func:`gram_matrix` computed besides the centred Gram matrix."""
+
+    materials: tuple[str, ...]
+    space: str
+    #: Row sums of the (mapped, un-centred) data, ``Z 1`` (N,): the row means are ``row_sums / d``.
+    row_sums: NDArray[np.float64] = field(repr=False)
+    #: The un-centred Gram matrix ``Z Zᵀ``.
+    raw_gram: NDArray[np.float64] = field(repr=False)
+    mean_handling: str = MEAN_HANDLING
+
+
+def _select(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
+    if materials is None:
+        return np.arange(st.n_materials, dtype=np.intp)
+    return logmap._material_indices(st, materials, "materials")
+
+
+def _space_maps(
+    st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64], space: str
+) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+    """Per-cell factor (cosine) or (ρ_ref, w) (log) of a space; (None, None) for raw."""
+    if space == "cosine":
+        wi, wo = merl.cell_directions(cells)
+        return wi[:, 2] * wo[:, 2], None
+    if space == "log":
+        return logmap.median_reference(st, list(names), cells), logmap.cell_weights(cells, "product")
+    return None, None
+
+
+def _map_block(
+    data: NDArray[np.float32], space: str, a: NDArray[np.float64] | None, b: NDArray[np.float64] | None
+) -> NDArray[np.float64]:
+    """Map a float32 ``(n, 3, cols)`` block to float64 in ``space`` (a, b: the block's per-cell maps)."""
+    x = data.astype(np.float64)
+    if space == "cosine":
+        assert a is not None
+        x *= a
+    elif space == "log":
+        assert a is not None and b is not None
+        x = logmap.forward(x, a, b)
+    return x
+
+
+def gram_matrix(
+    store_path: str | os.PathLike[str] | BrdfStore,
+    *,
+    space: str = "raw",
+    materials: Sequence[str] | None = None,
+) -> tuple[NDArray[np.float64], int, GramInfo]:
+    """Centred Gram matrix ``(Z − 1μ̄ᵀ)(Z − 1μ̄ᵀ)ᵀ`` (N × N float64), ``d`` and a :class:`GramInfo`.
+
+    ``Z``: one row per material (``materials`` in the order given, default all
+    of the store), the R, G, B values of the cells valid in every material of
+    the store, mapped to ``space`` (``raw``, ``cosine`` or ``log``, see the
+    module docstring); ``d`` = 3 × valid cells.  Streamed by blocks of 145,800
+    cells, each mapped to float64 in sub-blocks of 16,384 cells and
+    accumulated as ``G += B Bᵀ`` and ``s += B 1``; then centred with
+    ``C = I − 11ᵀ/N``: ``Gc = C G C`` equals the Gram matrix of the
+    mean-subtracted rows exactly (in exact arithmetic).  ValueError for an
+    unknown space or bad material names.
+    """
+    _check_space(space)
+    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    idx = _select(st, materials)
+    names = [st.materials[i] for i in idx]
+    order = np.argsort(idx, kind="stable")
+    rows = idx[order]  # ascending store rows
+    cells = np.flatnonzero(np.asarray(st.valid[:], dtype=bool)).astype(np.int64)
+    if cells.size == 0:
+        raise ValueError(f"{st.path}: no cell is valid in every material")
+    a_all, b_all = _space_maps(st, names, cells, space)
+    n = rows.size
+    G = np.zeros((n, n), dtype=np.float64)
+    s = np.zeros(n, dtype=np.float64)
+    for j0, j1, data in logmap._iter_cell_blocks(st, rows, cells):
+        for a0 in range(0, j1 - j0, _SUB_COLS):
+            a1 = min(a0 + _SUB_COLS, j1 - j0)
+            sa = None if a_all is None else a_all[j0 + a0 : j0 + a1]
+            sb = None if b_all is None else b_all[j0 + a0 : j0 + a1]
+            B = _map_block(data[:, :, a0:a1], space, sa, sb).reshape(n, -1)
+            G += B @ B.T
+            s += B.sum(axis=1)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(n)
+    G = G[np.ix_(inv, inv)]
+    s = s[inv]
+    d = 3 * int(cells.size)
+    Gc = centre_gram(G)
+    return Gc, d, GramInfo(tuple(names), space, s, G)
+
+
+def centre_gram(G: ArrayLike) -> NDArray[np.float64]:
+    """``C G C`` with ``C = I − 11ᵀ/N`` (double centring), symmetrised."""
+    g = np.asarray(G, dtype=np.float64)
+    r = g.mean(axis=1, keepdims=True)
+    c = g.mean(axis=0, keepdims=True)
+    out = g - r - c + g.mean()
+    return 0.5 * (out + out.T)
+
+
+def _atomic_savez(path: Path, **arrays: Any) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def save_gram(path: str | os.PathLike[str], gram: ArrayLike, d: int, info: GramInfo) -> None:
+    """Write a Gram matrix, ``d`` and its :class:`GramInfo` to an npz file atomically (tmp + rename)."""
+    _atomic_savez(
+        Path(path),
+        format=np.array(GRAM_FORMAT),
+        gram=np.asarray(gram, dtype=np.float64),
+        d=np.array(int(d)),
+        materials=np.array(info.materials, dtype=str),
+        space=np.array(info.space),
+        mean_handling=np.array(info.mean_handling),
+        row_sums=info.row_sums,
+        raw_gram=info.raw_gram,
+    )
+
+
+def load_gram(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], int, GramInfo]:
+    """Read what :func:`save_gram` wrote; ValueError naming the path if it is not such a file."""
+    with np.load(Path(path), allow_pickle=False) as z:
+        if "format" not in z or str(z["format"]) != GRAM_FORMAT:
+            raise ValueError(f"{path}: not a brdfpipe GPLVM Gram file")
+        info = GramInfo(
+            tuple(str(m) for m in z["materials"]), str(z["space"]), z["row_sums"], z["raw_gram"],
+            str(z["mean_handling"]),
+        )
+        return z["gram"], int(z["d"]), info
+
+
+# --------------------------------------------------------------------------
+# Kernel and likelihood
+# --------------------------------------------------------------------------
+
+
+def _sqdist(X: NDArray[np.float64]) -> NDArray[np.float64]:
+    diff = X[:, None, :] - X[None, :, :]
+    return np.einsum("ijk,ijk->ij", diff, diff)
+
+
+def kernel_matrix(X: ArrayLike, ell: float = 1.0, mu: float = 1e-4) -> NDArray[np.float64]:
+    """``K_ij = μ δ_ij + exp(−‖x_i − x_j‖²/2ℓ²)`` (eq. 5) for the rows of ``X`` (N × q)."""
+    ell, mu = _check_hyper(ell, mu)
+    x = _check_X(X)
+    K = np.exp(-_sqdist(x) / (2.0 * ell * ell))
+    K[np.diag_indices_from(K)] = 1.0 + mu
+    return K
+
+
+def kernel_vector(X: ArrayLike, x_star: ArrayLike, ell: float = 1.0, mu: float = 1e-4) -> NDArray[np.float64]:
+    """``k(x*)_j = c(x_j, x*)`` including μ where ``x*`` equals ``x_j`` exactly (see module docstring)."""
+    ell, mu = _check_hyper(ell, mu)
+    x = _check_X(X)
+    xs = _check_xstar(x_star, x.shape[1])
+    diff = x - xs
+    d2 = np.einsum("ij,ij->i", diff, diff)
+    k = np.exp(-d2 / (2.0 * ell * ell))
+    k[(diff == 0).all(axis=1)] += mu
+    return k
+
+
+def _check_xstar(x_star: ArrayLike, q: int) -> NDArray[np.float64]:
+    xs = np.asarray(x_star, dtype=np.float64)
+    if xs.ndim != 1 or xs.shape[0] != q:
+        raise ValueError(f"x_star must be a vector of length q = {q}, got shape {xs.shape}")
+    if not np.isfinite(xs).all():
+        raise ValueError("x_star has non-finite entries")
+    return xs
+
+
+def _loglik_from_chol(
+    cf: tuple[NDArray[np.float64], bool], gram: NDArray[np.float64], d: float
+) -> tuple[float, float, float]:
+    """(L, log|K|, tr(K⁻¹G)) from a Cholesky factor of K."""
+    logdet = 2.0 * float(np.log(np.diag(cf[0])).sum())
+    tr = float(np.trace(scipy.linalg.cho_solve(cf, gram)))
+    return -0.5 * d * logdet - 0.5 * tr, logdet, tr
+
+
+def log_likelihood(
+    X: ArrayLike, gram: ArrayLike, d: float, ell: float = 1.0, mu: float = 1e-4
+) -> float:
+    """``L = −(d/2) log|K| − ½ tr(K⁻¹ G)`` (eq. 6), computed directly with a Cholesky factor of K."""
+    g, d_f = _check_gram(gram, d)
+    K = kernel_matrix(X, ell, mu)
+    if K.shape[0] != g.shape[0]:
+        raise ValueError(f"X has {K.shape[0]} rows but gram is {g.shape[0]} x {g.shape[0]}")
+    cf = scipy.linalg.cho_factor(K, lower=True)
+    return _loglik_from_chol(cf, g, d_f)[0]
+
+
+# --------------------------------------------------------------------------
+# The incremental (rank-2) update
+# --------------------------------------------------------------------------
+
+
+@dataclass
+class _State:
+    X: NDArray[np.float64]
+    K: NDArray[np.float64]
+    Kinv: NDArray[np.float64]
+    logdet: float
+    tr: float
+
+
+def _full_state(X: NDArray[np.float64], gram: NDArray[np.float64], ell: float, mu: float) -> _State:
+    K = kernel_matrix(X, ell, mu)
+    cf = scipy.linalg.cho_factor(K, lower=True)
+    Kinv = scipy.linalg.cho_solve(cf, np.eye(K.shape[0]))
+    Kinv = 0.5 * (Kinv + Kinv.T)
+    logdet = 2.0 * float(np.log(np.diag(cf[0])).sum())
+    tr = float(np.einsum("ij,ji->", Kinv, gram))
+    return _State(X.copy(), K, Kinv, logdet, tr)
+
+
+def _candidate(
+    st: _State, gram: NDArray[np.float64], i: int, xi: NDArray[np.float64], inv2l2: float
+) -> tuple[float, float, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
+    """Score moving point ``i`` to ``xi``: (Δlog|K|, Δtr, new column, Aᵀ (2 × N), M⁻¹); None if K′ is not PD.
+
+    ``U = [u, e_i]``, ``A = K⁻¹U``, ``M = C + UᵀK⁻¹U`` (see the module docstring).
+    """
+    diff = st.X - xi
+    diff *= diff
+    col = np.exp(diff.sum(axis=1) * -inv2l2)
+    Kii = st.K[i, i]
+    col[i] = Kii
+    u = col - st.K[i]  # K is symmetric: row i = column i
+    u[i] = 0.0
+    At = np.empty((2, u.size))
+    np.dot(st.Kinv, u, out=At[0])
+    At[1] = st.Kinv[i]
+    m00 = float(u @ At[0])
+    m01 = float(At[0, i]) + 1.0
+    m11 = float(At[1, i])
+    det = m00 * m11 - m01 * m01
+    ratio = -det  # |K′|/|K| (determinant lemma, twice)
+    if not ratio > 0.0:
+        return None
+    Minv = np.array([[m11, -m01], [-m01, m00]]) / det
+    AGA = (At @ gram) @ At.T
+    dtr = -float(np.sum(Minv * AGA))
+    return float(np.log(ratio)), dtr, col, At, Minv
+
+
+def _accept(st: _State, i: int, xi: NDArray[np.float64], col: NDArray[np.float64],
+            At: NDArray[np.float64], Minv: NDArray[np.float64], dlogdet: float, dtr: float) -> None:
+    """Apply a scored move: Woodbury ``K′⁻¹ = K⁻¹ − A M⁻¹ Aᵀ`` (Sherman–Morrison twice), K, X, log|K|, tr."""
+    st.Kinv -= At.T @ (Minv @ At)
+    st.K[:, i] = col
+    st.K[i, :] = col
+    st.X[i] = xi
+    st.logdet += dlogdet
+    st.tr += dtr
+
+
+def rank2_update(
+    Kinv: ArrayLike, logdet: float, X: ArrayLike, i: int, x_new: ArrayLike, ell: float = 1.0, mu: float = 1e-4
+) -> tuple[NDArray[np.float64], float]:
+    """K⁻¹ and log|K| after moving latent point ``i`` of ``X`` to ``x_new`` (Woodbury 2 × 2 + determinant lemma).
+
+    ``Kinv`` / ``logdet`` must belong to ``kernel_matrix(X, ell, mu)``.  O(N²).
+    Exposed for tests; :func:`fit` uses the same code.  ValueError if the
+    updated K is not positive definite.
+    """
+    ell, mu = _check_hyper(ell, mu)
+    x = _check_X(X)
+    K = kernel_matrix(x, ell, mu)
+    st = _State(x.copy(), K, np.array(Kinv, dtype=np.float64), float(logdet), 0.0)
+    xi = _check_xstar(x_new, x.shape[1])
+    res = _candidate(st, np.zeros_like(K), int(i), xi, 1.0 / (2.0 * ell * ell))
+    if res is None:
+        raise ValueError("the updated kernel matrix is not positive definite")
+    dlogdet, dtr, col, A, Minv = res
+    _accept(st, int(i), xi, col, A, Minv, dlogdet, dtr)
+    return st.Kinv, st.logdet
+
+
+# --------------------------------------------------------------------------
+# Initialisation and fit
+# --------------------------------------------------------------------------
+
+
+def pca_init(gram: ArrayLike, q: int) -> NDArray[np.float64]:
+    """Truncated PCA scores of the centred data from its Gram matrix: ``V_q Λ_q^{1/2}`` (N × q), unscaled.
+
+    Signs are fixed (largest-magnitude entry of each column positive) so the
+    result is deterministic.
+    """
+    q = _check_q(q)
+    g = np.asarray(gram, dtype=np.float64)
+    n = g.shape[0]
+    if q > n:
+        raise ValueError(f"latent dimension q = {q} exceeds the number of materials N = {n}")
+    lam, V = np.linalg.eigh(0.5 * (g + g.T))
+    top = np.argsort(lam)[::-1][:q]
+    lam, V = np.clip(lam[top], 0.0, None), V[:, top]
+    sign = np.sign(V[np.abs(V).argmax(axis=0), np.arange(q)])
+    sign[sign == 0] = 1.0
+    return V * sign * np.sqrt(lam)
+
+
+def _scale_factor(Y: NDArray[np.float64], rule: str, ell: float) -> float:
+    """Factor turning PCA scores ``Y`` into initial latents under ``rule`` (see module docstring)."""
+    n, q = Y.shape
+    if rule == "unit":
+        sd = float(Y[:, 0].std())
+        return 1.0 / sd if sd > 0 else 1.0
+    D = np.sqrt(_sqdist(Y))
+    if rule == "nn":
+        np.fill_diagonal(D, np.inf)
+        nn = np.median(D.min(axis=1))
+        return ell / nn if np.isfinite(nn) and nn > 0 else 1.0
+    if rule == "rms":
+        rms = float(np.sqrt((D**2).sum() / (n * (n - 1))))
+        return ell * np.sqrt(2.0 * q) / rms if rms > 0 else 1.0
+    raise ValueError(f"unknown init_scale {rule!r}; expected a number or one of best, {', '.join(INIT_SCALES)}")
+
+
+@dataclass
+class FitResult:
+    """Outcome of :func:`fit`."""
+
+    X: NDArray[np.float64]
+    log_likelihood: float
+    #: ``(sweep, L)`` after each sweep; sweep 0 is the initial point.
+    trace: list[tuple[int, float]]
+    ell: float
+    mu: float
+    d: float
+    init_scale: str
+    init_factor: float
+    initial_log_likelihood: float
+    sweeps: int
+    accepted_moves: int
+    evaluations: int
+    final_step: float
+    #: Largest |L_incremental − L_refactored| seen at a refactorisation (relative to |L|).
+    max_drift: float
+    seconds: float
+    #: The best L reached from each initial-scale rule tried (``init_scale="best"``).
+    scale_trials: dict[str, float] = field(default_factory=dict)
+
+
+def _hooke_jeeves(
+    st: _State, gram: NDArray[np.float64], d: float, ell: float, mu: float, *,
+    rng: np.random.Generator, max_sweeps: int, step: float, min_step: float, refactor_every: int,
+    tol: float, ftol: float,
+) -> tuple[list[tuple[int, float]], int, int, float, float, int]:
+    n, q = st.X.shape
+    inv2l2 = 1.0 / (2.0 * ell * ell)
+
+    def L() -> float:
+        return -0.5 * d * st.logdet - 0.5 * st.tr
+
+    trace = [(0, L())]
+    accepted = evals = since = 0
+    max_drift = 0.0
+    sweep = 0
+
+    def refactor() -> None:
+        nonlocal max_drift
+        before = L()
+        fresh = _full_state(st.X, gram, ell, mu)
+        st.K, st.Kinv, st.logdet, st.tr = fresh.K, fresh.Kinv, fresh.logdet, fresh.tr
+        max_drift = max(max_drift, abs(before - L()) / max(abs(L()), 1.0))
+
+    def try_move(i: int, xi: NDArray[np.float64]) -> bool:
+        nonlocal accepted, evals, since
+        evals += 1
+        res = _candidate(st, gram, i, xi, inv2l2)
+        if res is None:
+            return False
+        dlogdet, dtr, col, A, Minv = res
+        dL = -0.5 * d * dlogdet - 0.5 * dtr
+        if not dL > tol * max(abs(L()), 1.0):
+            return False
+        _accept(st, i, xi, col, A, Minv, dlogdet, dtr)
+        accepted += 1
+        since += 1
+        if since >= refactor_every:
+            refactor()
+            since = 0
+        return True
+
+    steps = np.full(n, step)
+    stalled = 0
+    patience = 5
+    while sweep < max_sweeps and steps.max() >= min_step:
+        sweep += 1
+        L_before = L()
+        for i in rng.permutation(n):
+            if steps[i] < min_step:
+                continue
+            h = steps[i]
+            base = st.X[i].copy()
+            # exploratory moves: ±h on each coordinate, first improvement taken
+            for k in rng.permutation(q):
+                for sgn in (1.0, -1.0):
+                    xi = st.X[i].copy()
+                    xi[k] += sgn * h
+                    if try_move(int(i), xi):
+                        break
+            delta = st.X[i] - base
+            if delta.any():
+                # pattern moves: keep going in the direction that improved, doubling
+                for _ in range(8):
+                    if not try_move(int(i), st.X[i] + delta):
+                        break
+                    delta = 2.0 * delta
+            else:
+                steps[i] = 0.5 * h
+        trace.append((sweep, L()))
+        # converged: no significant gain for `patience` sweeps in a row (the steps shrink meanwhile)
+        stalled = stalled + 1 if L() - L_before <= ftol * max(abs(L()), 1.0) else 0
+        if stalled >= patience:
+            break
+    step = float(steps.max())
+    refactor()
+    trace[-1] = (trace[-1][0], L())
+    return trace, accepted, evals, step, max_drift, sweep
+
+
+def fit(
+    gram: ArrayLike,
+    d: float,
+    *,
+    q: int,
+    ell: float = 1.0,
+    mu: float = 1e-4,
+    seed: int = 0,
+    max_sweeps: int = 200,
+    init_scale: str | float = "best",
+    refactor_every: int = 200,
+    step: float | None = None,
+    min_step: float | None = None,
+    trial_sweeps: int = 10,
+    tol: float = 1e-15,
+    ftol: float = 1e-9,
+) -> FitResult:
+    """Maximise eq. 6 over the latent points with Hooke–Jeeves direct search.
+
+    ``gram``: centred Gram matrix (N × N); ``d``: column count (enters only
+    as a number).  Initialisation: :func:`pca_init` scaled by ``init_scale``
+    (a rule of :data:`INIT_SCALES`, a number = the factor itself, or
+    ``"best"``: every rule is run for ``trial_sweeps`` sweeps and the one with
+    the highest L continues).  Search: a global step (default ``ℓ/4``) for
+    every coordinate; each sweep visits the points in a seeded random order,
+    tries ±step on each coordinate of the point (first improvement taken),
+    then pattern moves along the point's displacement (doubling while L
+    improves); a sweep without any accepted move halves the step; stop after
+    ``max_sweeps`` sweeps or when the step falls below ``min_step`` (default
+    ``ℓ·1e-3``).  Only strictly improving moves (ΔL > tol·|L|) are accepted, so
+    the trace never decreases (up to the refactorisation drift, recorded in
+    ``max_drift``).  ``K⁻¹`` and log|K| are updated by the rank-2 formulas
+    and refactorised every ``refactor_every`` accepted moves and at the end.
+    """
+    q = _check_q(q)
+    ell, mu = _check_hyper(ell, mu)
+    g, d_f = _check_gram(gram, d)
+    if isinstance(max_sweeps, bool) or int(max_sweeps) < 0:
+        raise ValueError(f"max_sweeps must be >= 0, got {max_sweeps!r}")
+    if int(refactor_every) < 1:
+        raise ValueError(f"refactor_every must be >= 1, got {refactor_every!r}")
+    step0 = ell / 4.0 if step is None else float(step)
+    min_step_f = ell * 1e-3 if min_step is None else float(min_step)
+    if not step0 > 0 or not min_step_f > 0:
+        raise ValueError("step and min_step must be > 0")
+    t0 = time.perf_counter()
+    Y = pca_init(g, q)
+
+    def run(X0: NDArray[np.float64], sweeps: int, sweep0: int = 0) -> tuple[_State, list[tuple[int, float]], tuple[int, int, float, float, int]]:
+        st = _full_state(X0, g, ell, mu)
+        rng = np.random.default_rng([seed, sweep0])
+        trace, acc, ev, stp, drift, nsw = _hooke_jeeves(
+            st, g, d_f, ell, mu, rng=rng, max_sweeps=sweeps, step=step0, min_step=min_step_f,
+            refactor_every=int(refactor_every), tol=tol, ftol=ftol,
+        )
+        return st, [(s + sweep0, v) for s, v in trace], (acc, ev, stp, drift, nsw)
+
+    trials: dict[str, float] = {}
+    trace: list[tuple[int, float]] = []
+    acc = ev = 0
+    drift = 0.0
+    if isinstance(init_scale, str) and init_scale == "best":
+        best: tuple[float, str, float, _State, list[tuple[int, float]]] | None = None
+        n_trial = min(int(trial_sweeps), int(max_sweeps))
+        for rule in INIT_SCALES:
+            factor = _scale_factor(Y, rule, ell)
+            st_t, tr_t, (a_t, e_t, _, dr_t, _) = run(Y * factor, n_trial)
+            acc, ev, drift = acc + a_t, ev + e_t, max(drift, dr_t)
+            L_t = tr_t[-1][1]
+            trials[rule] = L_t
+            if best is None or L_t > best[0]:
+                best = (L_t, rule, factor, st_t, tr_t)
+        assert best is not None
+        _, label, factor, st_b, trace = best
+        X0, sweep0 = st_b.X, trace[-1][0]
+        L_init = trace[0][1]
+        remaining = int(max_sweeps) - sweep0
+    else:
+        if isinstance(init_scale, str):
+            label, factor = init_scale, _scale_factor(Y, init_scale, ell)
+        else:
+            factor = float(init_scale)
+            if not np.isfinite(factor) or factor <= 0:
+                raise ValueError(f"init_scale factor must be > 0, got {init_scale!r}")
+            label = "factor"
+        X0, sweep0, remaining, L_init = Y * factor, 0, int(max_sweeps), None
+    st, tr2, (a2, e2, stp, dr2, _) = run(X0, max(remaining, 0), sweep0)
+    trace = trace + (tr2[1:] if trace else tr2)
+    if L_init is None:
+        L_init = trace[0][1]
+    res = FitResult(
+        st.X, trace[-1][1], trace, ell, mu, d_f, label, factor, L_init, trace[-1][0], acc + a2, ev + e2,
+        stp, max(drift, dr2), 0.0,
+    )
+    res.scale_trials = trials
+    res.seconds = time.perf_counter() - t0
+    logger.info(
+        "GPLVM fit N=%d q=%d: L %.6g -> %.6g in %d sweeps (%d moves, %d evaluations, init %s x%.3g), %.2f s",
+        g.shape[0], q, res.initial_log_likelihood, res.log_likelihood, res.sweeps, res.accepted_moves,
+        res.evaluations, label, factor, res.seconds,
+    )
+    return res
+
+
+# --------------------------------------------------------------------------
+# Interpolation
+# --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GplvmModel:
+    """A saved fit (:func:`save_model` / :func:`load_model`)."""
+
+    names: tuple[str, ...]
+    X: NDArray[np.float64]
+    ell: float
+    mu: float
+    space: str
+    mean_handling: str
+    #: Lower Cholesky factor of K (for b = K⁻¹k).
+    chol: NDArray[np.float64] = field(repr=False)
+    log_likelihood: float
+    d: float
+    trace: NDArray[np.float64] = field(repr=False)
+
+
+def weights(
+    fit_or_X: FitResult | GplvmModel | ArrayLike,
+    x_star: ArrayLike,
+    ell: float | None = None,
+    mu: float | None = None,
+) -> NDArray[np.float64]:
+    """``b = K⁻¹ k(x*)`` (N,) (eq. 4), with the δ convention of the module docstring (b(x_i) = e_i).
+
+    ``fit_or_X``: a :class:`FitResult`, a :class:`GplvmModel` (ℓ, μ default to
+    theirs) or an N × q latent matrix (ℓ, μ default to 1, 1e-4).  ValueError if
+    ``x_star`` is not a length-q vector.
+    """
+    chol = None
+    if isinstance(fit_or_X, (FitResult, GplvmModel)):
+        X = fit_or_X.X
+        ell = fit_or_X.ell if ell is None else ell
+        mu = fit_or_X.mu if mu is None else mu
+        if isinstance(fit_or_X, GplvmModel) and ell == fit_or_X.ell and mu == fit_or_X.mu:
+            chol = fit_or_X.chol
+    else:
+        X = _check_X(fit_or_X)
+        ell = 1.0 if ell is None else ell
+        mu = 1e-4 if mu is None else mu
+    k = kernel_vector(X, x_star, ell, mu)
+    if chol is None:
+        chol = np.linalg.cholesky(kernel_matrix(X, ell, mu))
+    return scipy.linalg.cho_solve((chol, True), k)
+
+
+def blend_weights(b: ArrayLike) -> NDArray[np.float64]:
+    """``w_i = b_i + (1 − Σb)/N``: weights of the un-centred material rows, Σw = 1.
+
+    ``z* = μ̄ + bᵀ(Z − 1μ̄ᵀ) = Σ_i w_i z_i``, so images of the materials blend
+    with the same ``w``.
+    """
+    b64 = np.asarray(b, dtype=np.float64)
+    if b64.ndim != 1 or b64.size == 0:
+        raise ValueError(f"b must be a non-empty vector, got shape {b64.shape}")
+    return b64 + (1.0 - b64.sum()) / b64.size
+
+
+def interpolate_table(
+    store_path: str | os.PathLike[str] | BrdfStore,
+    weights: ArrayLike,
+    *,
+    materials: Sequence[str] | None = None,
+) -> tuple[NDArray[np.float64], int]:
+    """``Σ_i w_i z_i`` as a MERL table ``(3, 90, 90, 180)`` float64 and the number of clamped values.
+
+    ``weights``: blend weights (:func:`blend_weights`) of ``materials`` (in
+    that order; default all of the store).  The blend is of the stored (raw)
+    values, which equals the blend in the ``raw`` and ``cosine`` spaces (the
+    cosine factor is per cell).  Cells not valid in every material of the
+    store are written as −1 (unmeasured, like MERL); values that come out
+    negative in valid cells are clamped to 0 and counted (logged as a
+    warning).  Streamed by column blocks of the store.
+    """
+    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    idx = _select(st, materials)
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (idx.size,):
+        raise ValueError(f"weights must have shape ({idx.size},) (one per material), got {w.shape}")
+    if not np.isfinite(w).all():
+        raise ValueError("weights have non-finite entries")
+    order = np.argsort(idx, kind="stable")
+    rows, w_sorted = idx[order], w[order]
+    valid = np.asarray(st.valid[:], dtype=bool)
+    out = np.full(3 * N_CELLS, -1.0)
+    clamped = 0
+    for start, stop, block in iter_column_blocks(st, rows=rows):
+        keep = valid[np.arange(start, stop) % N_CELLS]
+        if not keep.any():
+            continue
+        vals = w_sorted @ block[:, keep].astype(np.float64)
+        neg = vals < 0
+        clamped += int(neg.sum())
+        vals[neg] = 0.0
+        seg = out[start:stop]
+        seg[keep] = vals
+    if clamped:
+        logger.warning("interpolated table: %d negative values in measured cells clamped to 0", clamped)
+    return out.reshape(merl.SHAPE), clamped
+
+
+# --------------------------------------------------------------------------
+# Saving a fit
+# --------------------------------------------------------------------------
+
+
+def save_model(
+    path: str | os.PathLike[str],
+    result: FitResult,
+    names: Sequence[str],
+    *,
+    space: str = "raw",
+    mean_handling: str = MEAN_HANDLING,
+) -> None:
+    """Write a fit to an npz file atomically: names, X, ℓ, μ, space, mean handling, chol(K), L, d, trace."""
+    _check_space(space)
+    names = [str(n) for n in names]
+    if len(names) != result.X.shape[0]:
+        raise ValueError(f"{len(names)} names for {result.X.shape[0]} latent points")
+    chol = np.linalg.cholesky(kernel_matrix(result.X, result.ell, result.mu))
+    _atomic_savez(
+        Path(path),
+        format=np.array(MODEL_FORMAT),
+        names=np.array(names, dtype=str),
+        X=result.X,
+        ell=np.array(result.ell),
+        mu=np.array(result.mu),
+        space=np.array(space),
+        mean_handling=np.array(mean_handling),
+        chol=chol,
+        log_likelihood=np.array(result.log_likelihood),
+        d=np.array(result.d),
+        trace=np.array(result.trace, dtype=np.float64).reshape(-1, 2),
+    )
+
+
+def load_model(path: str | os.PathLike[str]) -> GplvmModel:
+    """Read what :func:`save_model` wrote; ValueError naming the path if it is not such a file."""
+    with np.load(Path(path), allow_pickle=False) as z:
+        if "format" not in z or str(z["format"]) != MODEL_FORMAT:
+            raise ValueError(f"{path}: not a brdfpipe GPLVM model file")
+        return GplvmModel(
+            tuple(str(n) for n in z["names"]), z["X"], float(z["ell"]), float(z["mu"]), str(z["space"]),
+            str(z["mean_handling"]), z["chol"], float(z["log_likelihood"]), float(z["d"]), z["trace"],
+        )

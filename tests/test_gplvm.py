@@ -1,0 +1,322 @@
+"""brdfpipe.gplvm: Gram matrix, rank-2 bookkeeping, Hooke–Jeeves fit, interpolation weights, saving."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from brdfpipe import gplvm, logmap, merl, store, synth
+from brdfpipe.merl import N_CELLS
+
+
+# --------------------------------------------------------------------------
+# Fixtures
+# --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def small_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    tmp = tmp_path_factory.mktemp("gplvm")
+    db = tmp / "db"
+    synth.synthesize(db, count=6, seed=1, jobs=1, progress=False)
+    out = tmp / "merl.zarr"
+    store.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=1)
+    return out
+
+
+@pytest.fixture(scope="module")
+def dense(small_store: Path) -> dict[str, np.ndarray]:
+    """The store's data as dense float64 arrays (6 materials: small enough)."""
+    st = store.open_store(small_store)
+    brdf = np.asarray(st.brdf[:], dtype=np.float32)
+    valid = np.asarray(st.valid[:], dtype=bool)
+    cells = np.flatnonzero(valid)
+    data = brdf.reshape(st.n_materials, 3, N_CELLS)[:, :, cells]  # float32 (n, 3, p)
+    return {"brdf": brdf, "valid": valid, "cells": cells, "data": data}
+
+
+def _random_gram(n: int, seed: int, d: float) -> np.ndarray:
+    """A centred Gram matrix of random data with a low-dimensional non-linear structure, scaled to d."""
+    rng = np.random.default_rng(seed)
+    lat = rng.normal(size=(n, 3))
+    F = np.concatenate([np.sin(lat @ rng.normal(size=(3, 200))), 0.1 * rng.normal(size=(n, 300))], axis=1)
+    F -= F.mean(axis=0)
+    return F @ F.T * (d / F.shape[1])
+
+
+# --------------------------------------------------------------------------
+# Gram matrix
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("space", ["raw", "cosine", "log"])
+def test_gram_matrix_equals_dense_computation(small_store: Path, dense: dict, space: str) -> None:
+    G, d, info = gplvm.gram_matrix(small_store, space=space)
+    data = dense["data"].astype(np.float64)
+    cells = dense["cells"]
+    if space == "cosine":
+        wi, wo = merl.cell_directions(cells)
+        data = data * (wi[:, 2] * wo[:, 2])
+    elif space == "log":
+        ref = np.median(dense["data"].reshape(-1, cells.size).astype(np.float64), axis=0)
+        data = logmap.forward(data, ref, logmap.cell_weights(cells, "product"))
+    Z = data.reshape(data.shape[0], -1)
+    Zc = Z - Z.mean(axis=0)
+    expected = Zc @ Zc.T
+    assert d == Z.shape[1] == 3 * cells.size
+    assert info.space == space and len(info.materials) == 6
+    assert np.allclose(G, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    assert np.allclose(info.row_sums, Z.sum(axis=1), rtol=1e-9)
+    assert np.allclose(G, G.T)
+
+
+def test_gram_material_subset_order_and_save_load(small_store: Path, tmp_path: Path) -> None:
+    st = store.open_store(small_store)
+    names = [st.materials[4], st.materials[1], st.materials[2]]
+    G, d, info = gplvm.gram_matrix(small_store, materials=names)
+    Gall, _, info_all = gplvm.gram_matrix(small_store)
+    idx = [4, 1, 2]
+    raw = info_all.raw_gram[np.ix_(idx, idx)]
+    assert info.materials == tuple(names)
+    assert np.allclose(info.raw_gram, raw, rtol=1e-12)
+    assert np.allclose(G, gplvm.centre_gram(raw), rtol=0, atol=1e-9 * np.abs(G).max())
+    path = tmp_path / "g" / "gram.npz"
+    gplvm.save_gram(path, G, d, info)
+    G2, d2, info2 = gplvm.load_gram(path)
+    assert np.array_equal(G2, G) and d2 == d and info2.materials == info.materials
+    assert [p.name for p in path.parent.iterdir()] == ["gram.npz"]  # no temporary left
+    with pytest.raises(ValueError, match="unknown data space"):
+        gplvm.gram_matrix(small_store, space="sqrt")
+
+
+# --------------------------------------------------------------------------
+# Kernel, likelihood, rank-2 update
+# --------------------------------------------------------------------------
+
+
+def test_log_likelihood_matches_definition() -> None:
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(12, 3))
+    Z = rng.normal(size=(12, 40))
+    G = Z @ Z.T
+    K = np.exp(-((X[:, None] - X[None]) ** 2).sum(-1) / (2 * 0.7**2)) + 1e-3 * np.eye(12)
+    expected = -0.5 * 40 * np.linalg.slogdet(K)[1] - 0.5 * np.trace(np.linalg.solve(K, G))
+    assert gplvm.log_likelihood(X, G, 40, ell=0.7, mu=1e-3) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_rank2_update_equals_fresh_cholesky(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n, q = 40, 4
+    X = rng.normal(size=(n, q))
+    K = gplvm.kernel_matrix(X)
+    cf = scipy.linalg.cho_factor(K, lower=True)
+    Kinv = scipy.linalg.cho_solve(cf, np.eye(n))
+    logdet = 2 * np.log(np.diag(cf[0])).sum()
+    i = int(rng.integers(n))
+    x_new = X[i] + rng.normal(scale=0.5, size=q)
+    Kinv2, logdet2 = gplvm.rank2_update(Kinv, logdet, X, i, x_new)
+    X2 = X.copy()
+    X2[i] = x_new
+    K2 = gplvm.kernel_matrix(X2)
+    cf2 = scipy.linalg.cho_factor(K2, lower=True)
+    fresh = scipy.linalg.cho_solve(cf2, np.eye(n))
+    assert np.abs(Kinv2 - fresh).max() <= 1e-9 * np.abs(fresh).max()
+    assert logdet2 == pytest.approx(2 * np.log(np.diag(cf2[0])).sum(), abs=1e-9)
+
+
+def test_candidate_trace_update_matches_direct() -> None:
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(30, 2))
+    Z = rng.normal(size=(30, 50))
+    G = Z @ Z.T
+    st = gplvm._full_state(X, G, 1.0, 1e-4)
+    x_new = X[7] + np.array([0.3, -0.2])
+    dlogdet, dtr, *_ = gplvm._candidate(st, G, 7, x_new, 0.5)
+    X2 = X.copy()
+    X2[7] = x_new
+    fresh = gplvm._full_state(X2, G, 1.0, 1e-4)
+    assert st.logdet + dlogdet == pytest.approx(fresh.logdet, abs=1e-9)
+    assert st.tr + dtr == pytest.approx(fresh.tr, rel=1e-10)
+
+
+# --------------------------------------------------------------------------
+# Fit
+# --------------------------------------------------------------------------
+
+
+def test_fit_improves_never_decreases_and_has_not_drifted(tmp_path: Path) -> None:
+    d = 4e6
+    G = _random_gram(40, 1, d)
+    r = gplvm.fit(G, d, q=2, seed=7, max_sweeps=60, init_scale="nn", refactor_every=50)
+    Ls = np.array([v for _, v in r.trace])
+    assert [s for s, _ in r.trace] == list(range(len(Ls)))
+    assert np.all(np.diff(Ls) >= -1e-12 * np.abs(Ls).max())  # non-decreasing (up to refactor rounding)
+    assert r.log_likelihood > r.initial_log_likelihood
+    pca = gplvm.pca_init(G, 2) * r.init_factor
+    assert r.log_likelihood > gplvm.log_likelihood(pca, G, d)
+    assert r.max_drift < 1e-8
+    # the bookkept L equals an independent recomputation from the saved X and ZZᵀ
+    path = tmp_path / "model.npz"
+    gplvm.save_model(path, r, [f"m{i}" for i in range(40)])
+    m = gplvm.load_model(path)
+    assert gplvm.log_likelihood(m.X, G, d, m.ell, m.mu) == pytest.approx(r.log_likelihood, rel=1e-8)
+    assert m.log_likelihood == r.log_likelihood and m.d == d and m.space == "raw"
+    assert m.mean_handling == "mean subtracted" and m.names[3] == "m3"
+    assert np.allclose(m.chol @ m.chol.T, gplvm.kernel_matrix(m.X, m.ell, m.mu))
+
+
+def test_fit_is_deterministic_and_seeded() -> None:
+    G = _random_gram(25, 2, 1e5)
+    a = gplvm.fit(G, 1e5, q=2, seed=3, max_sweeps=15, init_scale="best", trial_sweeps=3)
+    b = gplvm.fit(G, 1e5, q=2, seed=3, max_sweeps=15, init_scale="best", trial_sweeps=3)
+    c = gplvm.fit(G, 1e5, q=2, seed=4, max_sweeps=15, init_scale="best", trial_sweeps=3)
+    assert np.array_equal(a.X, b.X) and a.trace == b.trace
+    assert not np.array_equal(a.X, c.X)
+    assert set(a.scale_trials) == set(gplvm.INIT_SCALES) and a.init_scale in gplvm.INIT_SCALES
+
+
+@pytest.mark.parametrize("q", [2, 5])
+def test_fit_at_full_database_size(q: int) -> None:
+    """N = 100, d = 4e6 (the MERL sizes) converges, improves on the start and keeps its
+    bookkeeping exact (speed belongs to a benchmark, not to this test)."""
+    G = _random_gram(100, 0, 4e6)
+    r = gplvm.fit(G, 4e6, q=q, seed=0, max_sweeps=400, init_scale="rms")
+    assert r.log_likelihood > r.initial_log_likelihood
+    direct = gplvm.log_likelihood(r.X, G, 4e6, ell=1.0, mu=1e-4)
+    assert abs(direct - r.log_likelihood) <= 1e-8 * abs(direct)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"q": 0}, "latent dimension q"),
+        ({"q": 2, "ell": 0.0}, "length scale ell"),
+        ({"q": 2, "ell": -1.0}, "length scale ell"),
+        ({"q": 2, "mu": -1e-4}, "noise parameter mu"),
+        ({"q": 2, "init_scale": "huge"}, "unknown init_scale"),
+    ],
+)
+def test_fit_bad_parameters(kwargs: dict, message: str) -> None:
+    G = _random_gram(8, 0, 10.0)
+    with pytest.raises(ValueError, match=message):
+        gplvm.fit(G, 10.0, seed=0, max_sweeps=2, **kwargs)
+
+
+def test_kernel_bad_parameters() -> None:
+    X = np.zeros((3, 2))
+    with pytest.raises(ValueError, match="length scale ell"):
+        gplvm.kernel_matrix(X, ell=0)
+    with pytest.raises(ValueError, match="noise parameter mu"):
+        gplvm.kernel_matrix(X, mu=-1)
+
+
+# --------------------------------------------------------------------------
+# Interpolation
+# --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def fitted() -> gplvm.FitResult:
+    G = _random_gram(30, 4, 1e6)
+    return gplvm.fit(G, 1e6, q=3, seed=1, max_sweeps=20, init_scale="nn")
+
+
+def test_weights_reproduce_training_points(fitted: gplvm.FitResult) -> None:
+    n = fitted.X.shape[0]
+    for i in range(n):
+        b = gplvm.weights(fitted, fitted.X[i])
+        e = np.zeros(n)
+        e[i] = 1.0
+        assert np.abs(b - e).max() <= 1e-8
+    # a hair away the δ term is dropped: close to, but not exactly, e_i (the "negligible discontinuity")
+    b = gplvm.weights(fitted, fitted.X[0] + 1e-9)
+    assert abs(b[0] - 1.0) < 0.05 and abs(b[0] - 1.0) > 1e-12
+
+
+def test_weights_far_away_vanish_and_blend_weights_sum_to_one(fitted: gplvm.FitResult) -> None:
+    far = fitted.X.mean(axis=0) + 1e3
+    b = gplvm.weights(fitted, far)
+    assert np.abs(b).max() < 1e-12
+    w = gplvm.blend_weights(b)
+    assert np.allclose(w, 1.0 / b.size)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        w = gplvm.blend_weights(gplvm.weights(fitted, rng.normal(size=3)))
+        assert w.sum() == pytest.approx(1.0, abs=1e-12)
+
+
+def test_blend_weights_equal_mean_plus_centred_combination() -> None:
+    rng = np.random.default_rng(1)
+    Z = rng.normal(size=(7, 20))
+    b = rng.normal(size=7)
+    mean = Z.mean(axis=0)
+    assert np.allclose(gplvm.blend_weights(b) @ Z, mean + b @ (Z - mean))
+
+
+def test_weights_bad_x_star(fitted: gplvm.FitResult) -> None:
+    with pytest.raises(ValueError, match="x_star must be a vector of length q = 3"):
+        gplvm.weights(fitted, np.zeros(2))
+    with pytest.raises(ValueError, match="x_star must be a vector of length q = 3"):
+        gplvm.weights(fitted.X, np.zeros((3, 1)))
+
+
+def test_interpolate_table_reproduces_materials_and_tends_to_mean(small_store: Path, dense: dict) -> None:
+    G, d, info = gplvm.gram_matrix(small_store)
+    r = gplvm.fit(G, d, q=2, seed=0, max_sweeps=20)
+    n = G.shape[0]
+    valid = np.tile(dense["valid"], 3)
+    brdf = dense["brdf"]
+    for i in (0, 3):
+        w = gplvm.blend_weights(gplvm.weights(r, r.X[i]))
+        table, clamped = gplvm.interpolate_table(small_store, w)
+        assert table.shape == merl.SHAPE and clamped == 0
+        flat = table.reshape(-1)
+        assert np.all(flat[~valid] < 0)
+        expected = brdf[i][valid].astype(np.float64)
+        assert np.allclose(flat[valid], expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
+    # far away: the mean BRDF
+    w = gplvm.blend_weights(gplvm.weights(r, r.X.mean(axis=0) + 1e3))
+    table, _ = gplvm.interpolate_table(small_store, w)
+    mean = brdf[:, valid].astype(np.float64).mean(axis=0)
+    assert np.allclose(table.reshape(-1)[valid], mean, rtol=1e-9, atol=1e-9 * mean.max())
+    # extrapolating weights produce negative values, clamped and counted
+    w = np.zeros(n)
+    w[0], w[1] = 3.0, -2.0
+    table, clamped = gplvm.interpolate_table(small_store, w)
+    flat = table.reshape(-1)
+    raw = 3.0 * brdf[0][valid].astype(np.float64) - 2.0 * brdf[1][valid]
+    assert clamped == int((raw < 0).sum()) > 0
+    assert np.all(flat[valid] >= 0)
+    with pytest.raises(ValueError, match="one per material"):
+        gplvm.interpolate_table(small_store, np.ones(n - 1) / (n - 1))
+
+
+def test_model_load_gives_same_weights(fitted: gplvm.FitResult, tmp_path: Path) -> None:
+    path = tmp_path / "m.npz"
+    gplvm.save_model(path, fitted, [f"n{i}" for i in range(30)], space="log")
+    m = gplvm.load_model(path)
+    x = fitted.X[:2].mean(axis=0)
+    assert np.allclose(gplvm.weights(m, x), gplvm.weights(fitted, x), rtol=1e-10, atol=1e-12)
+    assert m.space == "log" and m.trace.shape == (len(fitted.trace), 2)
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, x=np.zeros(2))
+    with pytest.raises(ValueError, match="not a brdfpipe GPLVM model"):
+        gplvm.load_model(bad)
+    with pytest.raises(ValueError, match="names for"):
+        gplvm.save_model(tmp_path / "x.npz", fitted, ["a"])
+
+
+def test_pca_init_is_kernel_pca() -> None:
+    rng = np.random.default_rng(2)
+    Z = rng.normal(size=(10, 30))
+    Zc = Z - Z.mean(axis=0)
+    Y = gplvm.pca_init(Zc @ Zc.T, 3)
+    U, S, _ = np.linalg.svd(Zc, full_matrices=False)
+    assert np.allclose(np.abs(Y), np.abs(U[:, :3] * S[:3]))
+    with pytest.raises(ValueError, match="exceeds the number of materials"):
+        gplvm.pca_init(Zc @ Zc.T, 11)
+
