@@ -15,6 +15,7 @@ validate(config, "workflow/schemas/config.schema.yaml", set_default=True)
 include: "workflow/rules/common.smk"
 include: "workflow/rules/data.smk"
 include: "workflow/rules/acquisition.smk"
+include: "workflow/rules/manifold.smk"
 
 
 rule all:
@@ -26,4 +27,5 @@ rule all:
         evaluation=f"{RESULTS}/evaluation/errors.csv",
         consistency_all=f"{RESULTS}/evaluation/consistency-all.csv",
         figures=ACQUISITION_FIGURES,
+        gplvm=expand(f"{RESULTS}/gplvm/q{{q}}.npz", q=MAN["latent_dims"]),
     default_target: True

@@ -71,3 +71,38 @@ def test_missing_folder_and_store_are_clear_errors(
     assert "does not exist" in capsys.readouterr().err
     assert cli.main(["info", str(tmp_path / "none.zarr")]) == 1
     assert "no such store" in capsys.readouterr().err
+
+
+def test_interpolate_between_and_at(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from brdfpipe import gplvm
+
+    out = tmp_path / "db"
+    assert cli.main(["-q", "synth", "--count", "5", "--seed", "3", "--out", str(out), "--jobs", "2"]) == 0
+    zarr_path = tmp_path / "merl.zarr"
+    assert cli.main(["-q", "ingest", str(out), "--out", str(zarr_path), "--jobs", "2"]) == 0
+    gram_path, model_path = tmp_path / "gram.npz", tmp_path / "q2.npz"
+    gplvm.write_gram(zarr_path, gram_path)
+    gplvm.fit_to_files(gram_path, model_path, tmp_path / "q2-trace.csv", q=2, seed=1, max_sweeps=20)
+    st = store.open_store(zarr_path)
+    a, b = st.materials[0], st.materials[3]
+
+    # t = 0 is material A's latent point exactly: the blend reproduces A
+    res = tmp_path / "a.binary"
+    argv = ["-q", "interpolate", "--model", str(model_path), "--store", str(zarr_path), "--out", str(res)]
+    assert cli.main([*argv, "--between", a, b, "--t", "0"]) == 0
+    got = merl.read_merl(res).reshape(-1)
+    valid = np.tile(np.asarray(st.valid[:]), 3)
+    want = np.asarray(st.brdf[0], dtype=np.float64)
+    assert np.allclose(got[valid], want[valid], rtol=1e-6, atol=1e-9)
+    assert (got[~valid] < 0).all()
+
+    # far away in latent space: the mean of the materials
+    assert cli.main([*argv, "--at", "1000,1000"]) == 0
+    mean = np.mean(np.asarray(st.brdf[:, :], dtype=np.float64), axis=0)
+    assert np.allclose(merl.read_merl(res).reshape(-1)[valid], np.maximum(mean[valid], 0), rtol=1e-6, atol=1e-9)
+
+    capsys.readouterr()
+    assert cli.main([*argv, "--at", "1,2,3"]) == 1
+    assert "length q = 2" in capsys.readouterr().err
+    assert cli.main([*argv, "--between", a, "no-such-material"]) == 1
+    assert "unknown material" in capsys.readouterr().err

@@ -54,7 +54,8 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
     for rule, n in [("synthesize_material", 12), ("ingest_material", 12), ("assemble_store", 1),
                     ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
                     ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
-                    ("evaluate", 1), ("plot_acquisition_figures", 1), ("check_directions", 1)]:
+                    ("evaluate", 1), ("plot_acquisition_figures", 1), ("check_directions", 1),
+                    ("compute_gram", 1), ("fit_gplvm", 2)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 
 
@@ -104,6 +105,14 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
     assert len(figures) == 16 and "fig05-error-vs-images.png" in figures
+    # manifold track: one GPLVM fit per latent dimension, with its likelihood trace
+    from brdfpipe import gplvm
+
+    for q in (2, 5):
+        fit = gplvm.load_model(tmp_path / "results" / "gplvm" / f"q{q}.npz")
+        assert fit.X.shape == (12, q) and list(fit.names) == names
+        trace = (tmp_path / "results" / "gplvm" / f"q{q}-trace.csv").read_text().splitlines()
+        assert trace[0] == "sweep,log_likelihood" and len(trace) > 2
     # a second run has nothing to do
     again = snakemake(tmp_path, "-n")
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
@@ -121,6 +130,9 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         ({"acquisition": {"fovs": [180]}}, "greater than or equal to the maximum of 180"),
         ({"acquisition": {"n_max_images": 0}}, "less than the minimum of 1"),
         ({"acquisition": {"eta": 0}}, "less than or equal to the minimum of 0"),
+        ({"manifold": {"latent_dims": [0]}}, "less than the minimum of 1"),
+        ({"manifold": {"ell": 0}}, "less than or equal to the minimum of 0"),
+        ({"manifold": {"mu": -1e-4}}, "less than the minimum of 0"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:

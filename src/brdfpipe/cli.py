@@ -5,6 +5,7 @@ Subcommands::
     brdfpipe synth  --count N --seed S --out DIR [--noise X] [--jobs J]
     brdfpipe ingest DIR --out results/merl.zarr [--jobs J]
     brdfpipe info   results/merl.zarr
+    brdfpipe interpolate --model results/gplvm/q5.npz (--at x1,…,xq | --between A B [--t 0.5]) --out F.binary
     brdfpipe reconstruct OBSERVATIONS --model results/svd/train.zarr --out FILE.binary [--eta η]
 
 Every subcommand exits non-zero with a one-line message naming the file and
@@ -99,6 +100,24 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     return 0
 
 
+def _latent_point(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
+def _cmd_interpolate(args: argparse.Namespace) -> int:
+    from brdfpipe import gplvm
+
+    gplvm.interpolate_to_file(
+        args.model, args.store, args.out,
+        at=args.at, between=tuple(args.between) if args.between else None, t=args.t,
+    )
+    print(args.out)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``brdfpipe`` command."""
     parser = argparse.ArgumentParser(prog="brdfpipe", description=__doc__.split("\n\n")[0])
@@ -123,6 +142,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=_positive_int, default=os.cpu_count() or 1,
                    help="worker processes (default: all cores)")
     p.set_defaults(func=_cmd_ingest)
+
+    p = sub.add_parser("interpolate", help="write the BRDF at a point of a GPLVM latent space")
+    p.add_argument("--model", required=True, help="a fit written by the workflow (results/gplvm/q5.npz)")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--at", type=_latent_point, help="latent point x1,…,xq")
+    where.add_argument("--between", nargs=2, metavar=("A", "B"), help="two materials of the model")
+    p.add_argument("--t", type=float, default=0.5, help="fraction of the way from A to B (default 0.5)")
+    p.add_argument("--store", default="results/merl.zarr", help="the store the model was fitted to")
+    p.add_argument("--out", required=True, help="MERL file to write")
+    p.set_defaults(func=_cmd_interpolate)
 
     p = sub.add_parser("info", help="validate a store and print a summary")
     p.add_argument("store", help="path of a store written by ingest")

@@ -134,6 +134,9 @@ __all__ = [
     "interpolate_table",
     "save_model",
     "load_model",
+    "write_gram",
+    "fit_to_files",
+    "interpolate_to_file",
 ]
 
 logger = logging.getLogger("brdfpipe.gplvm")
@@ -891,3 +894,92 @@ def load_model(path: str | os.PathLike[str]) -> GplvmModel:
             tuple(str(n) for n in z["names"]), z["X"], float(z["ell"]), float(z["mu"]), str(z["space"]),
             str(z["mean_handling"]), z["chol"], float(z["log_likelihood"]), float(z["d"]), z["trace"],
         )
+
+
+# --------------------------------------------------------------------------
+# Workflow and command-line entry points
+# --------------------------------------------------------------------------
+
+
+def write_gram(store_path: str | os.PathLike[str], out: str | os.PathLike[str], *, space: str = "raw") -> None:
+    """Stream the centred Gram matrix of every material of a store and save it (one pass, float64).
+
+    The workflow's ``compute_gram`` job: every GPLVM fit of that data space
+    shares this one file.
+    """
+    gram, d, info = gram_matrix(store_path, space=space)
+    save_gram(out, gram, d, info)
+    logger.info("Gram matrix of %d materials over %d columns (%s space) -> %s", gram.shape[0], d, space, out)
+
+
+def fit_to_files(
+    gram_path: str | os.PathLike[str],
+    model_out: str | os.PathLike[str],
+    trace_out: str | os.PathLike[str],
+    *,
+    q: int,
+    ell: float = 1.0,
+    mu: float = 1e-4,
+    seed: int = 0,
+    max_sweeps: int = 200,
+) -> FitResult:
+    """Fit a q-dimensional latent space to a saved Gram matrix; write the model and its trace.
+
+    The workflow's ``fit_gplvm`` job.  ``trace_out`` is a CSV ``sweep,log_likelihood``
+    (Soler Fig. 5), written atomically like the model.
+    """
+    gram, d, info = load_gram(gram_path)
+    result = fit(gram, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps)
+    logger.info(
+        "q = %d: L %.6g -> %.6g in %d sweeps, %d accepted moves, %.2f s (start scale %s)",
+        q, result.initial_log_likelihood, result.log_likelihood, result.sweeps,
+        result.accepted_moves, result.seconds, result.init_scale,
+    )
+    save_model(model_out, result, info.materials, space=info.space, mean_handling=info.mean_handling)
+    trace_out = Path(trace_out)
+    tmp = trace_out.with_name(f".{trace_out.name}.tmp")
+    lines = ["sweep,log_likelihood"] + [f"{int(s)},{float(v)!r}" for s, v in result.trace]
+    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    os.replace(tmp, trace_out)
+    return result
+
+
+def interpolate_to_file(
+    model_path: str | os.PathLike[str],
+    store_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    at: Sequence[float] | None = None,
+    between: tuple[str, str] | None = None,
+    t: float = 0.5,
+) -> int:
+    """Write the BRDF at a latent point as a MERL file; returns the number of clamped values.
+
+    The point is ``at`` (q coordinates) or the point a fraction ``t`` of the
+    way from material A to material B of ``between`` (linear in the latent
+    space).  The blend is Σ w_i z_i of the store's materials with the weights
+    of :func:`blend_weights`.  ValueError for a point of the wrong length, an
+    unknown material, both or neither of ``at`` / ``between``, a model whose
+    materials are not in the store, or a log-space model (its blend must be
+    taken in log space; not supported yet).
+    """
+    model = load_model(model_path)
+    if (at is None) == (between is None):
+        raise ValueError("give exactly one of a latent point (at) or two materials (between)")
+    if model.space == "log":
+        raise ValueError(f"{model_path}: interpolating a log-space fit is not supported yet")
+    if between is not None:
+        missing = [m for m in between if m not in model.names]
+        if missing:
+            raise ValueError(f"{model_path}: unknown material(s) {', '.join(missing)}")
+        if not np.isfinite(t):
+            raise ValueError(f"t must be finite, got {t}")
+        a, b = (model.X[model.names.index(m)] for m in between)
+        x_star = (1.0 - t) * a + t * b
+    else:
+        x_star = np.asarray(at, dtype=np.float64)
+    w = blend_weights(weights(model, x_star))
+    table, clamped = interpolate_table(store_path, w, materials=model.names)
+    merl.write_merl(out, table)
+    logger.info("interpolated BRDF at x* = %s -> %s (%d clamped values)", np.round(x_star, 4).tolist(), out, clamped)
+    return clamped

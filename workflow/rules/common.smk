@@ -39,6 +39,7 @@ TRAIN_MATERIALS = [m for m in MATERIALS if m not in TEST_MATERIALS]
 SYNTHETIC = DATABASE.kind == "synthetic"
 PCA_SPLITS = ["all", "train"]
 ACQ = config["acquisition"]
+MAN = config["manifold"]
 
 
 def split_training_materials(split):
@@ -100,6 +101,8 @@ wildcard_constraints:
     setup="point|nearfield|fixed_camera|fixed_light",
     metric="error|condition",
     fov=r"\d+(\.\d+)?",
+    q=r"\d+",
+    space="raw|cosine|log",
 
 
 def source_file(wildcards):

@@ -1,0 +1,16 @@
+"""GPLVM latent space of dimension q (rule fit_gplvm)."""
+
+from brdfpipe import gplvm
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    gplvm.fit_to_files(
+        snakemake.input.gram,
+        snakemake.output.model,
+        snakemake.output.trace,
+        q=int(snakemake.wildcards.q),
+        ell=snakemake.params.ell,
+        mu=snakemake.params.mu,
+        seed=snakemake.params.seed,
+        max_sweeps=snakemake.params.max_sweeps,
+    )
