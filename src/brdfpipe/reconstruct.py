@@ -683,6 +683,39 @@ def _sq_err(yy: F64, qty: F64, qtq: F64, coef: F64) -> F64:
 # ==========================================================================
 
 
+def _gram_pass(
+    mdl: Model,
+    keep: _Gathered,
+    residuals: Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float64]]],
+    m: int,
+    label: str,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """One streamed pass over Q with the residual rows y (m × block) of every column block.
+
+    Returns QᵀQ (k × k, symmetrised), QᵀY (k × m), ‖y‖² per row, and Q and Y
+    at the observed columns ``keep`` — everything the Gram identity
+    ‖y − Qc‖² = ‖y‖² − 2cᵀQᵀy + cᵀQᵀQc needs.  Blocks are produced one ahead
+    in a thread (:func:`brdfpipe.store.read_ahead`).
+    """
+    k = mdl.k
+    qtq = np.zeros((k, k))
+    qty = np.zeros((k, m))
+    yy = np.zeros(m)
+    q_obs = np.empty((keep.cols.size, k))
+    y_obs = np.empty((m, keep.cols.size))
+    prog = _Progress(label, mdl.p)
+    for a, b, q32, y in read_ahead(residuals):
+        q = q32.astype(np.float64)
+        qtq += q.T @ q
+        qty += q.T @ y.T
+        yy += np.einsum("ij,ij->i", y, y)
+        pos, off = keep.take(a, b)
+        q_obs[pos] = q[off]
+        y_obs[:, pos] = y[:, off]
+        prog.step(b)
+    return 0.5 * (qtq + qtq.T), qty, yy, q_obs, y_obs
+
+
 def evaluate(
     store_path: BrdfStore | str | os.PathLike[str],
     model_path: Model | str | os.PathLike[str],
@@ -778,29 +811,13 @@ def _evaluate(
     keep = _Gathered(np.concatenate([c.rows for c in combos]))
 
     # Pass 1: QᵀQ, QᵀY, ‖y‖², and Y, Q at the observed columns.
-    qtq = np.zeros((k, k))
-    qty = np.zeros((k, m_t))
-    yy = np.zeros(m_t)
-    q_obs = np.empty((keep.cols.size, k))
-    y_obs = np.empty((m_t, keep.cols.size))
-
-    def blocks() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float32]]]:
+    def residuals() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float64]]]:
         for a, b in _q_chunks(mdl):
-            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), reader.get(a, b)
+            rho = reader.get(a, b).reshape(m_t, b - a)
+            y = logmap.forward(rho, mdl.reference[a:b], mdl.weight[a:b], mdl.epsilon)
+            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), y - mdl.mean[a:b]
 
-    prog = _Progress("evaluation pass 1 (Gram statistics)", p)
-    for a, b, q32, rho in read_ahead(blocks()):
-        q = q32.astype(np.float64)
-        y = logmap.forward(rho.reshape(m_t, b - a), mdl.reference[a:b], mdl.weight[a:b], mdl.epsilon)
-        y -= mdl.mean[a:b]
-        qtq += q.T @ q
-        qty += q.T @ y.T
-        yy += np.einsum("ij,ij->i", y, y)
-        pos, off = keep.take(a, b)
-        q_obs[pos] = q[off]
-        y_obs[:, pos] = y[:, off]
-        prog.step(b)
-    qtq = 0.5 * (qtq + qtq.T)
+    qtq, qty, yy, q_obs, y_obs = _gram_pass(mdl, keep, residuals(), m_t, "evaluation pass 1 (Gram statistics)")
 
     # Coefficients of every (selection, row); log-space errors by the Gram identity.
     coefs = np.zeros((k, n_combo * m_t))
@@ -924,32 +941,16 @@ def check_consistency(
     combos = _combos(directions_paths, mdl)
     if not combos:
         raise ValueError("no direction sets to check")
-    p, k, m = mdl.p, mdl.k, lm.m
+    k, m = mdl.k, lm.m
     keep = _Gathered(np.concatenate([c.rows for c in combos]))
-    qtq = np.zeros((k, k))
-    qty = np.zeros((k, m))
-    yy = np.zeros(m)
-    q_obs = np.empty((keep.cols.size, k))
-    y_obs = np.empty((m, keep.cols.size))
     logger.info("consistency check of %d direction sets against %d training rows of %s", len(combos), m, lm.path)
 
-    def blocks() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float32]]]:
+    def residuals() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float64]]]:
         for a, b in _q_chunks(mdl):
-            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), np.asarray(lm.X[:, a:b], dtype=np.float32)
+            x = np.asarray(lm.X[:, a:b], dtype=np.float64)
+            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), x - mdl.mean[a:b]
 
-    prog = _Progress("consistency pass", p)
-    for a, b, q32, x32 in read_ahead(blocks()):
-        q = q32.astype(np.float64)
-        y = x32.astype(np.float64)
-        y -= mdl.mean[a:b]
-        qtq += q.T @ q
-        qty += q.T @ y.T
-        yy += np.einsum("ij,ij->i", y, y)
-        pos, off = keep.take(a, b)
-        q_obs[pos] = q[off]
-        y_obs[:, pos] = y[:, off]
-        prog.step(b)
-    qtq = 0.5 * (qtq + qtq.T)
+    qtq, qty, yy, q_obs, y_obs = _gram_pass(mdl, keep, residuals(), m, "consistency pass")
 
     rows: list[dict[str, Any]] = []
     worst: tuple[float, _Combo, float] | None = None
