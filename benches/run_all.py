@@ -36,6 +36,8 @@ def main() -> None:
     run("benches/bench_error_metric.py", *(["--model", str(MODEL)] if MODEL.is_dir() else []))
     run("benches/bench_svd.py", *(["--logmap", str(LOGMAP)] if LOGMAP.is_dir() else []))
     run("benches/bench_optimize.py", *(["--model", str(MODEL)] if MODEL.is_dir() else []))
+    # Manifold track: GPLVM fit vs scipy L-BFGS (and GPy, when a GPy environment is set up).
+    run("benches/bench_gplvm.py")
 
 
 if __name__ == "__main__":
