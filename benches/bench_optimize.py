@@ -38,7 +38,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import shutil
@@ -46,6 +45,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from _common import training_materials  # noqa: E402  (benches/ is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 600.0
@@ -53,16 +53,9 @@ TARGET_S = 600.0
 
 def fit_model(store_path: Path, splits: Path, work: Path) -> Path:
     """Write the train log-map and fit the model in ``work``; returns the model path."""
-    from brdfpipe import logmap, store, svd
+    from brdfpipe import logmap, svd
 
-    st = store.open_store(store_path)
-    if splits.is_file():
-        doc = json.loads(splits.read_text())
-        train = list(doc["train"])
-        if doc.get("database") != st.database or not set(train) <= set(st.materials):
-            raise SystemExit(f"{splits} does not describe {store_path}")
-    else:
-        train = list(st.materials)
+    st, train = training_materials(store_path, splits)
     split = "train" if set(train) != set(st.materials) else "all"
     lm_path, model_path = work / "train-logmap.zarr", work / "model.zarr"
     t0 = time.perf_counter()

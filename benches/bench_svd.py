@@ -51,6 +51,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _common import training_materials  # noqa: E402  (benches/ is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEED_TARGET = 10.0
@@ -118,16 +119,9 @@ def run_child(kind: str, logmap_path: Path, work: Path) -> dict[str, object]:
 
 
 def make_logmap(store_path: Path, splits: Path, n: int | None, out: Path) -> tuple[int, int]:
-    from brdfpipe import logmap, store
+    from brdfpipe import logmap
 
-    st = store.open_store(store_path)
-    if splits.is_file():
-        doc = json.loads(splits.read_text())
-        train = list(doc["train"])
-        if doc.get("database") != st.database or not set(train) <= set(st.materials):
-            raise SystemExit(f"{splits} does not describe {store_path}")
-    else:
-        train = list(st.materials)
+    st, train = training_materials(store_path, splits)
     if n is not None:
         train = train[:n]
     split = "train" if set(train) != set(st.materials) else "all"
