@@ -151,7 +151,7 @@ def test_candidate_trace_update_matches_direct() -> None:
 def test_fit_improves_never_decreases_and_has_not_drifted(tmp_path: Path) -> None:
     d = 4e6
     G = _random_gram(40, 1, d)
-    r = gplvm.fit(G, d, q=2, seed=7, max_sweeps=60, init_scale="nn", refactor_every=50)
+    r = gplvm.fit(G, d, q=2, seed=7, max_sweeps=60, init_scale="nn", refactor_every=50, method="hooke-jeeves")
     Ls = np.array([v for _, v in r.trace])
     assert [s for s, _ in r.trace] == list(range(len(Ls)))
     assert np.all(np.diff(Ls) >= -1e-12 * np.abs(Ls).max())  # non-decreasing (up to refactor rounding)
@@ -167,6 +167,74 @@ def test_fit_improves_never_decreases_and_has_not_drifted(tmp_path: Path) -> Non
     assert m.log_likelihood == r.log_likelihood and m.d == d and m.space == "raw"
     assert m.mean_handling == "mean subtracted" and m.names[3] == "m3"
     assert np.allclose(m.chol @ m.chol.T, gplvm.kernel_matrix(m.X, m.ell, m.mu))
+
+
+def test_gradient_matches_finite_differences() -> None:
+    rng = np.random.default_rng(5)
+    G = _random_gram(9, 3, 50.0)
+    X = 0.8 * rng.normal(size=(9, 3))
+    L, g = gplvm.log_likelihood_grad(X, G, 50.0, ell=1.3, mu=1e-3)
+    assert L == pytest.approx(gplvm.log_likelihood(X, G, 50.0, 1.3, 1e-3), rel=1e-12)
+    fd = np.zeros_like(X)
+    h = 1e-6
+    for i in range(9):
+        for k in range(3):
+            Xp, Xm = X.copy(), X.copy()
+            Xp[i, k] += h
+            Xm[i, k] -= h
+            fd[i, k] = (gplvm.log_likelihood(Xp, G, 50.0, 1.3, 1e-3) - gplvm.log_likelihood(Xm, G, 50.0, 1.3, 1e-3)) / (2 * h)
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+def test_hybrid_polish_reaches_a_stationary_point() -> None:
+    """The L-BFGS stage starts where Hooke–Jeeves stopped, never loses L and ends with a tiny gradient."""
+    d = 4e6
+    G = _random_gram(40, 4, d)
+    G = G / gplvm.gram_scale(G, d)
+    hj = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hooke-jeeves")
+    hy = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hybrid")
+    assert hy.hj_log_likelihood == hj.log_likelihood  # same first stage
+    assert hy.log_likelihood > hj.log_likelihood and hy.polish_iterations > 0
+    assert hy.method == "hybrid" and len(hy.trace) == hy.hj_trace_len + hy.polish_iterations
+    _, g_hj = gplvm.log_likelihood_grad(hj.X, G, d)
+    _, g_hy = gplvm.log_likelihood_grad(hy.X, G, d)
+    assert np.abs(g_hy).max() < 1e-3 * np.abs(g_hj).max()
+    assert gplvm.log_likelihood(hy.X, G, d) == pytest.approx(hy.log_likelihood, rel=1e-12)
+
+
+def test_gram_scale_is_mean_entry_variance_and_leaves_weights_alone() -> None:
+    rng = np.random.default_rng(0)
+    Z = rng.normal(scale=7.0, size=(12, 400))
+    Z -= Z.mean(axis=0)
+    G = Z @ Z.T
+    assert gplvm.gram_scale(G, 400) == pytest.approx((Z**2).mean(), rel=1e-12)
+    with pytest.raises(ValueError, match="non-positive trace"):
+        gplvm.gram_scale(np.zeros((3, 3)), 10)
+    # scaling K and k together (a signal variance) leaves b = K⁻¹k unchanged
+    X = rng.normal(size=(12, 2))
+    K, k = gplvm.kernel_matrix(X), gplvm.kernel_vector(X, X[0] + 0.3)
+    assert np.allclose(np.linalg.solve(5.0 * K, 5.0 * k), gplvm.weights(X, X[0] + 0.3), rtol=1e-10)
+
+
+def test_fit_to_files_normalises_and_records_stages(tmp_path: Path) -> None:
+    d = 4e6
+    G = _random_gram(20, 6, d) * 1e7  # raw units: far above the kernel's amplitude
+    names = tuple(f"m{i}" for i in range(20))
+    info = gplvm.GramInfo(names, "raw", np.zeros(20), G)
+    gplvm.save_gram(tmp_path / "g.npz", G, int(d), info)
+    r = gplvm.fit_to_files(tmp_path / "g.npz", tmp_path / "m.npz", tmp_path / "t.csv", q=2, seed=0, max_sweeps=30)
+    m = gplvm.load_model(tmp_path / "m.npz")
+    assert m.gram_scale == pytest.approx(gplvm.gram_scale(G, d)) and m.method == "hybrid"
+    # the saved L is that of G / gram_scale, recomputed independently from the saved X
+    assert gplvm.log_likelihood(m.X, G / m.gram_scale, d, m.ell, m.mu) == pytest.approx(m.log_likelihood, rel=1e-8)
+    lines = (tmp_path / "t.csv").read_text().splitlines()
+    assert lines[0] == "step,stage,log_likelihood"
+    stages = [ln.split(",")[1] for ln in lines[1:]]
+    assert stages[: r.hj_trace_len] == ["hooke-jeeves"] * r.hj_trace_len
+    assert set(stages[r.hj_trace_len :]) == {"lbfgs"}
+    # the latent points are spread on the kernel's scale, not collapsed
+    D = np.sqrt(((m.X[:, None] - m.X[None]) ** 2).sum(-1))
+    assert np.median(D[np.triu_indices(20, 1)]) > 0.05 * m.ell
 
 
 def test_fit_is_deterministic_and_seeded() -> None:
@@ -185,7 +253,7 @@ def test_fit_at_full_database_size(q: int) -> None:
     bookkeeping exact (speed belongs to a benchmark, not to this test)."""
     G = _random_gram(100, 0, 4e6)
     r = gplvm.fit(G, 4e6, q=q, seed=0, max_sweeps=400, init_scale="rms")
-    assert r.log_likelihood > r.initial_log_likelihood
+    assert r.log_likelihood > r.hj_log_likelihood > r.initial_log_likelihood
     direct = gplvm.log_likelihood(r.X, G, 4e6, ell=1.0, mu=1e-4)
     assert abs(direct - r.log_likelihood) <= 1e-8 * abs(direct)
 
@@ -198,6 +266,7 @@ def test_fit_at_full_database_size(q: int) -> None:
         ({"q": 2, "ell": -1.0}, "length scale ell"),
         ({"q": 2, "mu": -1e-4}, "noise parameter mu"),
         ({"q": 2, "init_scale": "huge"}, "unknown init_scale"),
+        ({"q": 2, "method": "newton"}, "unknown method"),
     ],
 )
 def test_fit_bad_parameters(kwargs: dict, message: str) -> None:
@@ -293,6 +362,34 @@ def test_interpolate_table_reproduces_materials_and_tends_to_mean(small_store: P
     assert np.all(flat[valid] >= 0)
     with pytest.raises(ValueError, match="one per material"):
         gplvm.interpolate_table(small_store, np.ones(n - 1) / (n - 1))
+
+
+def test_interpolate_table_log_space(small_store: Path, dense: dict) -> None:
+    """A log-space blend reproduces the materials at e_i and is the inverse map of the blended log values."""
+    n = 6
+    valid = np.tile(dense["valid"], 3)
+    brdf = dense["brdf"]
+    e = np.zeros(n)
+    e[2] = 1.0
+    table, clamped = gplvm.interpolate_table(small_store, e, space="log")
+    expected = brdf[2][valid].astype(np.float64)
+    got = table.reshape(-1)[valid]
+    assert np.allclose(got, np.maximum(expected, 0), rtol=1e-9, atol=1e-9)
+    # half-half: the per-cell geometric-style mean in log space, not the linear mean
+    w = np.zeros(n)
+    w[0] = w[1] = 0.5
+    table, _ = gplvm.interpolate_table(small_store, w, space="log")
+    st = store.open_store(small_store)
+    cells = dense["cells"]
+    ref = logmap.median_reference(st, list(st.materials), cells)
+    wt = logmap.cell_weights(cells, "product")
+    x = 0.5 * (logmap.forward(dense["data"][0], ref, wt) + logmap.forward(dense["data"][1], ref, wt))
+    direct = np.maximum(logmap.inverse(x, ref, wt), 0.0)
+    assert np.allclose(table.reshape(3, N_CELLS)[:, cells], direct, rtol=1e-9, atol=1e-12)
+    linear = 0.5 * (dense["data"][0] + dense["data"][1])
+    assert not np.allclose(direct, linear, rtol=1e-3)
+    with pytest.raises(ValueError, match="unknown data space"):
+        gplvm.interpolate_table(small_store, w, space="sqrt")
 
 
 def test_model_load_gives_same_weights(fitted: gplvm.FitResult, tmp_path: Path) -> None:

@@ -13,4 +13,6 @@ with log_to(snakemake.log[0]):
         mu=snakemake.params.mu,
         seed=snakemake.params.seed,
         max_sweeps=snakemake.params.max_sweeps,
+        normalise=snakemake.params.normalise,
+        method=snakemake.params.method,
     )
