@@ -28,4 +28,5 @@ rule all:
         consistency_all=f"{RESULTS}/evaluation/consistency-all.csv",
         figures=ACQUISITION_FIGURES,
         gplvm=expand(f"{RESULTS}/gplvm/q{{q}}.npz", q=MAN["latent_dims"]),
+        manifold=MANIFOLD_DATA,
     default_target: True

@@ -112,7 +112,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         fit = gplvm.load_model(tmp_path / "results" / "gplvm" / f"q{q}.npz")
         assert fit.X.shape == (12, q) and list(fit.names) == names
         trace = (tmp_path / "results" / "gplvm" / f"q{q}-trace.csv").read_text().splitlines()
-        assert trace[0] == "sweep,log_likelihood" and len(trace) > 2
+        assert trace[0] == "step,stage,log_likelihood" and len(trace) > 2
     # a second run has nothing to do
     again = snakemake(tmp_path, "-n")
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr

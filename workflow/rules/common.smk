@@ -8,6 +8,7 @@ import re
 from snakemake.exceptions import WorkflowError
 
 from brdfpipe import database as brdf_db
+from brdfpipe import manifold
 from brdfpipe.figures import FIGURE_STEMS
 
 
@@ -40,6 +41,27 @@ SYNTHETIC = DATABASE.kind == "synthetic"
 PCA_SPLITS = ["all", "train"]
 ACQ = config["acquisition"]
 MAN = config["manifold"]
+PATH_Q = max(MAN["latent_dims"]) if MAN["path_q"] is None else MAN["path_q"]
+if PATH_Q not in MAN["latent_dims"]:
+    raise WorkflowError(
+        f"config manifold.path_q = {PATH_Q} is not one of manifold.latent_dims {MAN['latent_dims']}"
+    )
+# Latent paths (Soler Fig. 9): checked against the database at load, so an
+# unknown material fails before any job runs.
+try:
+    MANIFOLD_PATHS = (
+        manifold.check_paths(MAN["paths"], MATERIALS)
+        if MAN["paths"]
+        else manifold.default_paths(MATERIALS, MAN["seed"])
+    )
+except ValueError as err:
+    raise WorkflowError(f"config: {err}") from None
+MANIFOLD_DIR = f"{RESULTS}/manifold"
+MANIFOLD_DATA = [
+    f"{MANIFOLD_DIR}/albedo.csv",
+    f"{MANIFOLD_DIR}/paths.csv",
+    f"{MANIFOLD_DIR}/reproduction.csv",
+] + [f"{MANIFOLD_DIR}/albedo-map-q{q}.npz" for q in MAN["latent_dims"]]
 
 
 def split_training_materials(split):

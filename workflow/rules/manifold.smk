@@ -33,6 +33,8 @@ rule fit_gplvm:
         mu=MAN["mu"],
         seed=MAN["seed"],
         max_sweeps=MAN["max_sweeps"],
+        normalise=MAN["normalise"],
+        method=MAN["method"],
     log:
         "logs/fit_gplvm/q{q}.log",
     benchmark:
@@ -45,3 +47,36 @@ rule fit_gplvm:
         "../../envs/brdfpipe.yaml"
     script:
         "../scripts/fit_gplvm.py"
+
+
+rule analyze_manifold:
+    input:
+        store=STORE,
+        gram=f"{RESULTS}/gplvm/gram-{MAN['space']}.npz",
+        models=expand(f"{RESULTS}/gplvm/q{{q}}.npz", q=MAN["latent_dims"]),
+    output:
+        albedo=f"{MANIFOLD_DIR}/albedo.csv",
+        paths=f"{MANIFOLD_DIR}/paths.csv",
+        reproduction=f"{MANIFOLD_DIR}/reproduction.csv",
+        albedo_maps=expand(f"{MANIFOLD_DIR}/albedo-map-q{{q}}.npz", q=MAN["latent_dims"]),
+    params:
+        latent_dims=MAN["latent_dims"],
+        paths=[list(p) for p in MANIFOLD_PATHS],
+        path_q=PATH_Q,
+        seed=MAN["seed"],
+        steps=MAN["path_steps"],
+        albedo_grid=MAN["albedo_grid"],
+        pca_ks=MAN["pca_components"],
+        out_dir=MANIFOLD_DIR,
+    log:
+        "logs/analyze_manifold.log",
+    benchmark:
+        "benchmarks/analyze_manifold.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    conda:
+        "../../envs/brdfpipe.yaml"
+    script:
+        "../scripts/analyze_manifold.py"

@@ -1,0 +1,409 @@
+"""Analyses of a fitted GPLVM material manifold (Soler et al. 2018 §4, Figs. 7–10).
+
+Everything here starts from the store, the centred Gram matrix of
+:func:`brdfpipe.gplvm.gram_matrix` and the saved fits; the figures are drawn
+by :mod:`brdfpipe.figures` from the files written by :func:`analyze_manifold`.
+
+Albedo (§4.2, Fig. 7)
+---------------------
+The albedo of a BRDF is the ratio of the radiance it reflects under a
+uniform incident distribution to that distribution's irradiance:
+``A = (1/π) ∫∫ f(ωi, ωo) cos θi cos θo dωi dωo`` (the white-sky albedo).
+With the directional albedo ``a(θi) = ∫ f cos θo dωo``
+(:func:`brdfpipe.merl.directional_albedo`) and ``u = sin²θi``,
+``A = ∫₀¹ a(θi(u)) du``; :func:`material_albedo` takes the midpoint rule with
+:data:`ALBEDO_NODES` nodes in ``u``.  A is linear in f, so the albedo of the
+interpolated BRDF at a latent point is ``Σ wᵢ Aᵢ`` with the blend weights of
+:func:`brdfpipe.gplvm.blend_weights` (each material's albedo is computed once,
+over its own measured cells; the clamping of negative interpolated values,
+which makes the map slightly non-linear, is ignored).
+
+Paths (§4.3, Fig. 9) and the bound of eq. 7
+-------------------------------------------
+A path from material A to material B is the straight latent segment
+``x(t) = (1 − t)x_A + t x_B`` at ``t = k/steps``.  At each point the
+interpolated BRDF is formed (:func:`brdfpipe.gplvm.interpolate_tables`) and its
+perceptual distance to both ends is measured with
+:mod:`brdfpipe.perceptual`.  The actual deviation from the nearest training
+material ``j`` (in latent space) is exact from the Gram matrix:
+``z* − z_j = Σ (wᵢ − δᵢⱼ) zᵢ`` with weights summing to 0, so
+``‖z* − z_j‖² = (w − e_j)ᵀ G_c (w − e_j)``.  Eq. 7 bounds it by
+``e^{−1/2} √(2N)/ℓ · κ(K) · ‖Z‖_F · ‖x* − x_j‖`` with ``‖Z‖_F = √tr(G_c)``
+(the centred data the GP interpolates) and κ the 2-norm condition number
+of K.  Both are in the data units of the Gram file (the fit's ``gram_scale``
+cancels: the bound is homogeneous in Z).
+
+Reproduction (Fig. 8)
+---------------------
+The GPLVM reproduces every training material exactly: ``b(xᵢ) = eᵢ``;
+its relative error ``‖ẑᵢ − zᵢ‖/‖zᵢ‖`` is computed the same exact way as the
+deviation above.  A PCA with k components reproduces row i with the
+residual ``Σ_{j>k} λⱼ Vᵢⱼ²`` (eigen-decomposition ``G_c = VΛVᵀ``; the mean is
+kept exactly), relative to ``‖zᵢ‖ = √(ZZᵀ)ᵢᵢ`` of the un-centred data.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+from brdfpipe import gplvm, merl, perceptual
+from brdfpipe.store import BrdfStore, iter_column_blocks, open_store
+
+__all__ = [
+    "ALBEDO_NODES",
+    "SOLER_PATHS",
+    "PATH_COLUMNS",
+    "REPRODUCTION_COLUMNS",
+    "ALBEDO_COLUMNS",
+    "material_albedo",
+    "material_albedos",
+    "default_paths",
+    "check_paths",
+    "path_name",
+    "latent_grid",
+    "albedo_map",
+    "eq7_bound",
+    "deviation",
+    "reproduction_errors",
+    "path_analysis",
+    "analyze_manifold",
+]
+
+logger = logging.getLogger("brdfpipe.manifold")
+
+#: Midpoint nodes in u = sin²θi for the albedo integral.
+ALBEDO_NODES: Final = 16
+#: Soler Fig. 9's three pairs (used by default when the database has them: the real MERL).
+SOLER_PATHS: Final = (
+    ("blue-metallic-paint", "dark-blue-paint"),
+    ("teflon", "silver-paint"),
+    ("black-oxidized-steel", "color-changing-paint3"),
+)
+PATH_COLUMNS: Final = (
+    "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
+    "perceptual_a", "perceptual_b", "perceptual_ab", "nearest", "deviation", "bound",
+)
+REPRODUCTION_COLUMNS: Final = ("database", "space", "material", "method", "k", "relative_error")
+ALBEDO_COLUMNS: Final = ("database", "material", "r", "g", "b", "luminance")
+_LUMA: Final = np.array([0.2126, 0.7152, 0.0722])
+_MAX_TABLES_IN_MEMORY: Final = 24
+
+
+# --------------------------------------------------------------------------
+# Albedo
+# --------------------------------------------------------------------------
+
+
+def material_albedo(table: ArrayLike, nodes: int = ALBEDO_NODES) -> NDArray[np.float64]:
+    """White-sky albedo ``(1/π)∬ f cosθi cosθo`` of a MERL table (physical units), per channel ``(3,)``."""
+    if nodes < 1:
+        raise ValueError(f"nodes must be >= 1, got {nodes}")
+    u = (np.arange(nodes) + 0.5) / nodes
+    theta_i = np.arcsin(np.sqrt(u))
+    return merl.directional_albedo(table, theta_i).mean(axis=0)
+
+
+def _read_tables(st: BrdfStore, rows: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Tables of store rows (ascending), ``(n, 3, 90, 90, 180)`` float64; unmeasured cells negative as stored."""
+    out = np.empty((rows.size, 3 * merl.N_CELLS))
+    for start, stop, block in iter_column_blocks(st, rows=rows):
+        out[:, start:stop] = block
+    return out.reshape((rows.size, *merl.SHAPE))
+
+
+def material_albedos(store: BrdfStore | str | os.PathLike[str], materials: Sequence[str]) -> NDArray[np.float64]:
+    """Albedo ``(N, 3)`` of each named material of the store (read a few materials at a time)."""
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    index = {m: i for i, m in enumerate(st.materials)}
+    unknown = [m for m in materials if m not in index]
+    if unknown:
+        raise ValueError(f"{st.path}: unknown material(s) {', '.join(unknown)}")
+    rows = np.array([index[m] for m in materials], dtype=np.intp)
+    out = np.empty((rows.size, 3))
+    order = np.argsort(rows, kind="stable")
+    batch = 8
+    for b0 in range(0, rows.size, batch):
+        pick = order[b0 : b0 + batch]
+        tables = _read_tables(st, rows[pick])
+        for k, i in enumerate(pick):
+            out[i] = material_albedo(tables[k])
+        logger.info("albedo: %d / %d materials", min(b0 + batch, rows.size), rows.size)
+    return out
+
+
+# --------------------------------------------------------------------------
+# Latent-space helpers
+# --------------------------------------------------------------------------
+
+
+def path_name(a: str, b: str) -> str:
+    """File-name-safe name of the path from ``a`` to ``b``: ``a--b``."""
+    return f"{a}--{b}"
+
+
+def default_paths(materials: Sequence[str], seed: int, count: int = 3) -> list[tuple[str, str]]:
+    """Soler Fig. 9's pairs when all of them are in ``materials``; else ``count`` seeded disjoint pairs."""
+    names = sorted(materials)
+    if all(m in names for pair in SOLER_PATHS for m in pair):
+        return [tuple(p) for p in SOLER_PATHS]  # type: ignore[misc]
+    if len(names) < 2:
+        raise ValueError("a path needs at least two materials")
+    rng = np.random.default_rng(seed)
+    k = min(count, len(names) // 2)
+    pick = rng.choice(len(names), size=2 * k, replace=False)
+    return [(names[pick[2 * i]], names[pick[2 * i + 1]]) for i in range(k)]
+
+
+def check_paths(paths: Sequence[Sequence[str]], materials: Sequence[str], what: str = "manifold.paths") -> list[tuple[str, str]]:
+    """Validate ``[[A, B], …]`` against the material list; ValueError naming the bad entry."""
+    known = set(materials)
+    out: list[tuple[str, str]] = []
+    for k, pair in enumerate(paths):
+        if isinstance(pair, str) or len(pair) != 2:
+            raise ValueError(f"{what}[{k}] must be a pair of material names, got {pair!r}")
+        a, b = (str(m) for m in pair)
+        for m in (a, b):
+            if m not in known:
+                raise ValueError(f"{what}[{k}]: unknown material {m!r} (not in the database)")
+        if a == b:
+            raise ValueError(f"{what}[{k}]: a path needs two different materials, got {a!r} twice")
+        out.append((a, b))
+    return out
+
+
+def latent_grid(
+    X: ArrayLike, dims: tuple[int, int] = (0, 1), n: int = 96, margin: float = 0.15
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Grid coordinates ``(x, y)`` covering the latent points along ``dims`` plus a margin."""
+    x = np.asarray(X, dtype=np.float64)
+    lo, hi = x[:, list(dims)].min(axis=0), x[:, list(dims)].max(axis=0)
+    pad = margin * np.maximum(hi - lo, 1e-12)
+    return np.linspace(lo[0] - pad[0], hi[0] + pad[0], n), np.linspace(lo[1] - pad[1], hi[1] + pad[1], n)
+
+
+def _blend_weights_at(model: gplvm.GplvmModel, points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Blend weights ``w`` (P × N) at many latent points in one triangular solve (δ term dropped)."""
+    d2 = ((points[:, None, :] - model.X[None, :, :]) ** 2).sum(axis=2)
+    k = np.exp(-d2 / (2.0 * model.ell * model.ell))
+    b = scipy.linalg.cho_solve((model.chol, True), k.T).T
+    return b + (1.0 - b.sum(axis=1, keepdims=True)) / model.X.shape[0]
+
+
+def albedo_map(
+    model: gplvm.GplvmModel, albedos: ArrayLike, *, dims: tuple[int, int] = (0, 1), n: int = 96
+) -> dict[str, Any]:
+    """Albedo ``Σ wᵢ(x) Aᵢ`` of the interpolated BRDF over a latent plane (a slice through the mean of X).
+
+    Returns the arrays of an ``albedo-map-q{q}.npz``: ``x``, ``y``, ``albedo``
+    (H, W, 3), ``luminance`` (H, W), ``dims``, ``fixed`` (q,), ``q``.
+    """
+    A = np.asarray(albedos, dtype=np.float64)
+    q = model.X.shape[1]
+    if A.shape != (model.X.shape[0], 3):
+        raise ValueError(f"albedos must have shape ({model.X.shape[0]}, 3), got {A.shape}")
+    if q < 2 or len(set(dims)) != 2 or max(dims) >= q or min(dims) < 0:
+        raise ValueError(f"dims {dims} is not a pair of distinct latent axes of a q = {q} model")
+    xs, ys = latent_grid(model.X, dims, n)
+    fixed = model.X.mean(axis=0)
+    XX, YY = np.meshgrid(xs, ys)  # row j ↔ y[j], column i ↔ x[i]
+    pts = np.tile(fixed, (XX.size, 1))
+    pts[:, dims[0]], pts[:, dims[1]] = XX.ravel(), YY.ravel()
+    alb = (_blend_weights_at(model, pts) @ A).reshape(n, n, 3)
+    return {
+        "x": xs, "y": ys, "albedo": alb, "luminance": alb @ _LUMA,
+        "dims": np.array(dims), "fixed": fixed, "q": np.array(q),
+    }
+
+
+def deviation(gram: ArrayLike, w: ArrayLike, j: int) -> float:
+    """``‖Σ wᵢ zᵢ − z_j‖`` exactly from the centred Gram matrix (Σw = 1), see the module docstring."""
+    g = np.asarray(gram, dtype=np.float64)
+    v = np.asarray(w, dtype=np.float64).copy()
+    v[j] -= 1.0
+    return float(np.sqrt(max(float(v @ g @ v), 0.0)))
+
+
+def eq7_bound(model: gplvm.GplvmModel, gram: ArrayLike, x_star: ArrayLike, j: int) -> float:
+    """Right-hand side of eq. 7: ``e^{−1/2}√(2N)/ℓ · κ(K) · ‖Z‖_F · ‖x* − x_j‖`` (‖Z‖_F = √tr G_c)."""
+    g = np.asarray(gram, dtype=np.float64)
+    n = model.X.shape[0]
+    kappa = float(np.linalg.cond(model.chol @ model.chol.T))
+    znorm = float(np.sqrt(max(np.trace(g), 0.0)))
+    dist = float(np.linalg.norm(np.asarray(x_star, dtype=np.float64) - model.X[j]))
+    return float(np.exp(-0.5) * np.sqrt(2.0 * n) / model.ell * kappa * znorm * dist)
+
+
+# --------------------------------------------------------------------------
+# Reproduction of the training materials (Fig. 8)
+# --------------------------------------------------------------------------
+
+
+def reproduction_errors(
+    gram: ArrayLike, raw_gram: ArrayLike, models: Mapping[int, gplvm.GplvmModel], ks: Sequence[int] = (20, 40)
+) -> list[tuple[str, int, NDArray[np.float64]]]:
+    """Relative reproduction error of every material: ``[(method, k, errors (N,)), …]``.
+
+    ``("pca", k, …)`` for each k in ``ks`` (capped at N − 1) and for each
+    model's q; ``("gplvm", q, …)`` for each model.  See the module docstring.
+    """
+    g = np.asarray(gram, dtype=np.float64)
+    norms = np.sqrt(np.maximum(np.diag(np.asarray(raw_gram, dtype=np.float64)), 0.0))
+    norms[norms == 0] = 1.0
+    n = g.shape[0]
+    lam, V = np.linalg.eigh(0.5 * (g + g.T))
+    lam, V = np.clip(lam[::-1], 0.0, None), V[:, ::-1]
+    contrib = V * V * lam  # (N, N): row i's squared residual per dropped component
+    out: list[tuple[str, int, NDArray[np.float64]]] = []
+    for k in sorted({min(int(k), n - 1) for k in ks} | {int(q) for q in models}):
+        out.append(("pca", k, np.sqrt(contrib[:, k:].sum(axis=1)) / norms))
+    for q, model in sorted(models.items()):
+        errs = np.empty(n)
+        for i in range(n):
+            w = gplvm.blend_weights(gplvm.weights(model, model.X[i]))
+            errs[i] = deviation(g, w, i) / norms[i]
+        out.append(("gplvm", int(q), errs))
+    return out
+
+
+# --------------------------------------------------------------------------
+# Paths (Fig. 9) and eq. 7
+# --------------------------------------------------------------------------
+
+
+def path_analysis(
+    store: BrdfStore | str | os.PathLike[str],
+    model: gplvm.GplvmModel,
+    gram: ArrayLike,
+    a: str,
+    b: str,
+    steps: int = 20,
+) -> list[dict[str, Any]]:
+    """One row per point of the latent path from ``a`` to ``b`` (see the module docstring and PATH_COLUMNS)."""
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got {steps}")
+    names = list(model.names)
+    check_paths([(a, b)], names, what="path")
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    xa, xb = model.X[names.index(a)], model.X[names.index(b)]
+    ts = np.arange(steps + 1) / steps
+    pts = (1.0 - ts)[:, None] * xa + ts[:, None] * xb
+    W = np.stack([gplvm.blend_weights(gplvm.weights(model, x)) for x in pts])
+    feats = []
+    for c0 in range(0, len(ts), _MAX_TABLES_IN_MEMORY):
+        tables, _ = gplvm.interpolate_tables(st, W[c0 : c0 + _MAX_TABLES_IN_MEMORY], materials=names, space=model.space)
+        feats.extend(perceptual.pr12_features(t) for t in tables)
+        del tables
+    d_ab = perceptual.pr12_distance(feats[0], feats[-1])
+    g = np.asarray(gram, dtype=np.float64)
+    rows = []
+    for k, (t, x) in enumerate(zip(ts, pts)):
+        j = int(np.argmin(((model.X - x) ** 2).sum(axis=1)))
+        rows.append({
+            "path": path_name(a, b), "material_a": a, "material_b": b, "step": k, "t": float(t),
+            "latent_distance": float(t * np.linalg.norm(xb - xa)),
+            "perceptual_a": perceptual.pr12_distance(feats[k], feats[0]),
+            "perceptual_b": perceptual.pr12_distance(feats[k], feats[-1]),
+            "perceptual_ab": d_ab,
+            "nearest": names[j],
+            "deviation": deviation(g, W[k], j),
+            "bound": eq7_bound(model, g, x, j),
+        })
+    logger.info("path %s: %d points, perceptual distance A-B %.4g", path_name(a, b), len(rows), d_ab)
+    return rows
+
+
+# --------------------------------------------------------------------------
+# The workflow entry point
+# --------------------------------------------------------------------------
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, (float, np.floating)):
+        return format(float(v), ".10g")
+    return str(v)
+
+
+def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> None:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for r in rows:
+        w.writerow([_fmt(r[c]) for c in columns])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(buf.getvalue(), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _save_npz(path: Path, arrays: Mapping[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def analyze_manifold(
+    *,
+    store: str | os.PathLike[str],
+    gram: str | os.PathLike[str],
+    models: Mapping[int, str | os.PathLike[str]],
+    paths: Sequence[Sequence[str]] | None,
+    path_q: int,
+    seed: int,
+    steps: int = 20,
+    albedo_grid: int = 96,
+    pca_ks: Sequence[int] = (20, 40),
+    out_dir: str | os.PathLike[str],
+) -> None:
+    """The workflow's ``analyze_manifold`` job: albedos, albedo maps, paths, reproduction.
+
+    Writes into ``out_dir``: ``albedo.csv``, ``albedo-map-q{q}.npz`` per
+    model, ``paths.csv`` (paths of the ``path_q`` model; ``paths=None``:
+    :func:`default_paths`) and ``reproduction.csv``.  ValueError for an
+    unknown material in a path or a ``path_q`` without a model.
+    """
+    out = Path(out_dir)
+    st = open_store(store)
+    G, d, info = gplvm.load_gram(gram)
+    fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
+    names = list(info.materials)
+    for q, m in fits.items():
+        if list(m.names) != names:
+            raise ValueError(f"{models[q]}: its materials differ from those of {gram}")
+    if int(path_q) not in fits:
+        raise ValueError(f"path_q = {path_q} has no fitted model (fitted: {sorted(fits)})")
+    pairs = check_paths(paths, names) if paths else default_paths(names, seed)
+    database = st.database
+
+    A = material_albedos(st, names)
+    _write_csv(out / "albedo.csv", ALBEDO_COLUMNS, [
+        {"database": database, "material": m, "r": A[i, 0], "g": A[i, 1], "b": A[i, 2], "luminance": float(A[i] @ _LUMA)}
+        for i, m in enumerate(names)
+    ])
+    for q, m in sorted(fits.items()):
+        amap = albedo_map(m, A, n=albedo_grid)
+        amap["database"] = np.array(database)
+        _save_npz(out / f"albedo-map-q{q}.npz", amap)
+
+    rows = []
+    for a, b in pairs:
+        for r in path_analysis(st, fits[int(path_q)], G, a, b, steps):
+            rows.append({"database": database, "space": info.space, "q": int(path_q), **r})
+    _write_csv(out / "paths.csv", PATH_COLUMNS, rows)
+
+    rep = []
+    for method, k, errs in reproduction_errors(G, info.raw_gram, fits, pca_ks):
+        rep += [{"database": database, "space": info.space, "material": m, "method": method, "k": k,
+                 "relative_error": float(errs[i])} for i, m in enumerate(names)]
+    _write_csv(out / "reproduction.csv", REPRODUCTION_COLUMNS, rep)
+    logger.info("manifold analyses of %d materials (%s database) -> %s", len(names), database, out)

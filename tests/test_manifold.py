@@ -1,0 +1,142 @@
+"""brdfpipe.manifold: albedo, albedo maps, paths, the eq. 7 bound, reproduction errors."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from brdfpipe import gplvm, manifold, merl, store, synth
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    tmp = tmp_path_factory.mktemp("manifold")
+    db = tmp / "db"
+    synth.synthesize(db, count=6, seed=3, jobs=1, progress=False)
+    zarr_path = tmp / "merl.zarr"
+    store.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
+    gram_path = tmp / "gram.npz"
+    gplvm.write_gram(zarr_path, gram_path)
+    models = {}
+    for q in (2, 3):
+        models[q] = tmp / f"q{q}.npz"
+        gplvm.fit_to_files(gram_path, models[q], tmp / f"q{q}-trace.csv", q=q, seed=1, max_sweeps=30)
+    st = store.open_store(zarr_path)
+    brdf = np.asarray(st.brdf[:], dtype=np.float64)
+    return {"tmp": tmp, "store": zarr_path, "gram": gram_path, "models": models, "names": list(st.materials),
+            "brdf": brdf, "valid": np.asarray(st.valid[:], dtype=bool)}
+
+
+def test_lambertian_albedo_is_its_reflectance() -> None:
+    for a in (0.2, 0.75):
+        table = np.full(merl.SHAPE, a / np.pi) * np.array([1.0, 0.5, 0.25])[:, None, None, None]
+        alb = manifold.material_albedo(table)
+        # MERL's θh grid loses a sliver near grazing; 1 % is the discretisation
+        assert np.allclose(alb, a * np.array([1.0, 0.5, 0.25]), rtol=1e-2)
+    with pytest.raises(ValueError, match="shape"):
+        manifold.material_albedo(np.zeros((3, 9, 9, 9)))
+
+
+def test_material_albedos_match_per_table(small: dict) -> None:
+    names = small["names"]
+    A = manifold.material_albedos(small["store"], [names[3], names[0]])
+    for k, i in enumerate((3, 0)):
+        assert np.allclose(A[k], manifold.material_albedo(small["brdf"][i].reshape(merl.SHAPE)), rtol=1e-12)
+    with pytest.raises(ValueError, match="unknown material"):
+        manifold.material_albedos(small["store"], ["nope"])
+
+
+def test_deviation_is_exact_norm_of_the_blend_difference(small: dict) -> None:
+    G, _, _ = gplvm.load_gram(small["gram"])
+    cols = np.flatnonzero(np.tile(small["valid"], 3))
+    Z = small["brdf"][:, cols]
+    w = np.array([0.5, 0.3, -0.1, 0.2, 0.0, 0.1])
+    direct = np.linalg.norm(w @ Z - Z[2])
+    assert manifold.deviation(G, w, 2) == pytest.approx(direct, rel=1e-7)
+
+
+def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
+    model = gplvm.load_model(small["models"][3])
+    G, _, _ = gplvm.load_gram(small["gram"])
+    a, b = small["names"][0], small["names"][4]
+    rows = manifold.path_analysis(small["store"], model, G, a, b, steps=4)
+    assert [r["step"] for r in rows] == list(range(5)) and rows[-1]["t"] == 1.0
+    assert rows[0]["perceptual_a"] == 0.0 and rows[-1]["perceptual_b"] == 0.0
+    assert rows[0]["perceptual_b"] == pytest.approx(rows[0]["perceptual_ab"]) and rows[0]["perceptual_ab"] > 0
+    for r in rows:
+        assert r["deviation"] <= r["bound"] * (1 + 1e-9) + 1e-6 * np.sqrt(np.trace(G))
+    assert rows[0]["nearest"] == a and rows[-1]["nearest"] == b
+    assert rows[0]["bound"] == 0.0
+    with pytest.raises(ValueError, match="unknown material 'zzz'"):
+        manifold.path_analysis(small["store"], model, G, a, "zzz")
+
+
+def test_check_and_default_paths() -> None:
+    names = [f"m{i}" for i in range(10)]
+    p1 = manifold.default_paths(names, seed=4)
+    assert p1 == manifold.default_paths(names, seed=4) and len(p1) == 3
+    assert len({m for pair in p1 for m in pair}) == 6
+    soler = [m for pair in manifold.SOLER_PATHS for m in pair] + ["x"]
+    assert manifold.default_paths(soler, seed=0) == list(manifold.SOLER_PATHS)
+    assert manifold.check_paths([["m1", "m2"]], names) == [("m1", "m2")]
+    for bad, msg in [([["m1", "nope"]], "unknown material 'nope'"), ([["m1", "m1"]], "two different"),
+                     ([["m1"]], "pair of material names")]:
+        with pytest.raises(ValueError, match=msg):
+            manifold.check_paths(bad, names)
+
+
+def test_albedo_map_is_the_weighted_albedo(small: dict) -> None:
+    model = gplvm.load_model(small["models"][3])
+    A = np.random.default_rng(0).uniform(0.1, 0.9, size=(6, 3))
+    amap = manifold.albedo_map(model, A, dims=(0, 2), n=8)
+    j, i = 5, 2
+    x = amap["fixed"].copy()
+    x[0], x[2] = amap["x"][i], amap["y"][j]
+    w = gplvm.blend_weights(gplvm.weights(model, x))
+    assert np.allclose(amap["albedo"][j, i], w @ A, rtol=1e-9)
+    assert amap["albedo"].shape == (8, 8, 3) and int(amap["q"]) == 3
+    with pytest.raises(ValueError, match="dims"):
+        manifold.albedo_map(model, A, dims=(0, 3))
+
+
+def test_reproduction_errors(small: dict) -> None:
+    G, _, info = gplvm.load_gram(small["gram"])
+    models = {q: gplvm.load_model(p) for q, p in small["models"].items()}
+    res = {(m, k): e for m, k, e in manifold.reproduction_errors(G, info.raw_gram, models, ks=(1, 5))}
+    assert set(res) == {("pca", 1), ("pca", 2), ("pca", 3), ("pca", 5), ("gplvm", 2), ("gplvm", 3)}
+    assert np.all(res[("gplvm", 2)] < 1e-6) and np.all(res[("gplvm", 3)] < 1e-6)
+    assert np.all(res[("pca", 5)] < 1e-6)  # N − 1 components of centred data: exact
+    assert np.all(res[("pca", 1)] >= res[("pca", 2)] - 1e-12)
+    # against a dense truncated SVD
+    cols = np.flatnonzero(np.tile(small["valid"], 3))
+    Z = small["brdf"][:, cols]
+    mu = Z.mean(axis=0)
+    U, S, Vt = np.linalg.svd(Z - mu, full_matrices=False)
+    rec = mu + (U[:, :2] * S[:2]) @ Vt[:2]
+    direct = np.linalg.norm(rec - Z, axis=1) / np.linalg.norm(Z, axis=1)
+    assert np.allclose(res[("pca", 2)], direct, rtol=1e-5)
+
+
+def test_analyze_manifold_writes_everything(small: dict) -> None:
+    out = small["tmp"] / "out"
+    names = small["names"]
+    manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
+                              paths=[[names[1], names[2]]], path_q=3, seed=0, steps=2, albedo_grid=6,
+                              pca_ks=(2,), out_dir=out)
+    with open(out / "paths.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 3 and tuple(rows[0]) == manifold.PATH_COLUMNS and rows[0]["database"] == "synthetic"
+    with open(out / "reproduction.csv") as fh:
+        rep = list(csv.DictReader(fh))
+    assert {(r["method"], r["k"]) for r in rep} == {("pca", "2"), ("pca", "3"), ("gplvm", "2"), ("gplvm", "3")}
+    for q in (2, 3):
+        with np.load(out / f"albedo-map-q{q}.npz") as z:
+            assert z["albedo"].shape == (6, 6, 3) and str(z["database"]) == "synthetic"
+    with open(out / "albedo.csv") as fh:
+        assert len(list(csv.DictReader(fh))) == 6
+    with pytest.raises(ValueError, match="no fitted model"):
+        manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"], paths=None,
+                                  path_q=7, seed=0, out_dir=out)

@@ -1,0 +1,18 @@
+"""Albedos, albedo maps, latent paths and reproduction errors of the GPLVM fits (rule analyze_manifold)."""
+
+from brdfpipe import manifold
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    manifold.analyze_manifold(
+        store=snakemake.input.store,
+        gram=snakemake.input.gram,
+        models=dict(zip(snakemake.params.latent_dims, snakemake.input.models)),
+        paths=snakemake.params.paths,
+        path_q=snakemake.params.path_q,
+        seed=snakemake.params.seed,
+        steps=snakemake.params.steps,
+        albedo_grid=snakemake.params.albedo_grid,
+        pca_ks=snakemake.params.pca_ks,
+        out_dir=snakemake.params.out_dir,
+    )
