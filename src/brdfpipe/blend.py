@@ -1,0 +1,472 @@
+"""Blended images and their error maps (Soler et al. 2018 §5.2, Figs. 12, 13).
+
+A material on the manifold is ``z* = Σᵢ wᵢ zᵢ`` with the blend weights of
+:func:`brdfpipe.gplvm.blend_weights` (Σ wᵢ = 1; some wᵢ may be negative).
+Light paths that bounce at most once on the material are linear in it, so the
+image of ``z*`` is approximated by blending the pre-rendered images of the
+``zᵢ`` with the same weights, ``I* ≈ Σᵢ wᵢ Iᵢ`` (eq. 13; the error comes from
+paths with two or more bounces on the material).  Fig. 13 compares such a
+blend with a reference render of ``z*`` and with the noise between two
+references rendered with different seeds.
+
+Conventions
+-----------
+* Blends are accumulated in float64, one image at a time (the pre-renders
+  are never stacked in memory), and weights are used as given: negative
+  weights are not clipped and the blend is not clamped.
+* :func:`rmse` is the root of the mean over **all pixels and channels** of
+  the squared difference; :func:`relative_rmse` divides it by the mean of the
+  reference over all pixels and channels.
+* :func:`error_map` is the per-pixel absolute difference averaged over the
+  three channels, ``mean_c |a − b|``, in the images' radiance units.
+* Output files are written atomically (temporary sibling, then
+  :func:`os.replace`).
+
+Importing this module does not import Mitsuba.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import math
+import os
+import re
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import __version__
+from .exr import ExrError, read_exr, write_exr
+
+__all__ = [
+    "SUMMARY_COLUMNS",
+    "BlendError",
+    "format_t",
+    "blend_exr",
+    "rmse",
+    "relative_rmse",
+    "error_map",
+    "write_error_map_exr",
+    "write_error_map_png",
+    "tonemap",
+    "error_maps",
+    "error_maps_from_files",
+]
+
+logger = logging.getLogger("brdfpipe.blend")
+
+#: Columns of ``summary.csv`` written by :func:`error_maps`, in order.
+SUMMARY_COLUMNS: Final = ("database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "mean_reference")
+
+#: Characters allowed in a path name (it becomes part of file names).
+_NAME_RE: Final = re.compile(r"^[A-Za-z0-9_.+-]+$")
+
+
+class BlendError(ValueError):
+    """Images cannot be blended or compared (shape mismatch, bad weights); the message names the files."""
+
+
+def _say(progress: Callable[[str], None] | None, msg: str) -> None:
+    (progress if progress is not None else logger.info)(msg)
+
+
+def format_t(t: float) -> str:
+    """The text of a path parameter ``t`` in output file names and ``summary.csv``: ``f"{t:g}"``.
+
+    E.g. ``0.25 → "0.25"``, ``0.5 → "0.5"``, ``1.0 → "1"``; ``-0.0`` is
+    written ``"0"``.  ValueError for a non-finite ``t``.
+    """
+    t = float(t)
+    if not math.isfinite(t):
+        raise ValueError(f"t must be finite, got {t}")
+    return f"{t + 0.0:g}"  # + 0.0 turns -0.0 into 0.0
+
+
+# --------------------------------------------------------------------------
+# Blending
+# --------------------------------------------------------------------------
+
+
+def _check_weights(weights: ArrayLike, n: int, what: str = "weights") -> NDArray[np.float64]:
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 1:
+        raise BlendError(f"{what} must be a vector, got shape {w.shape}")
+    if w.size != n:
+        raise BlendError(f"{what} has {w.size} entries but there are {n} images")
+    if not np.isfinite(w).all():
+        raise BlendError(f"{what} has non-finite entries: {w.tolist()}")
+    return w
+
+
+def _blend_many(
+    paths: Sequence[str | os.PathLike[str]],
+    W: NDArray[np.float64],
+    progress: Callable[[str], None] | None = None,
+) -> NDArray[np.float64]:
+    """``(P, H, W, 3)`` blends ``Σᵢ W[p, i] Iᵢ`` for P weight vectors, reading each image once."""
+    if not paths:
+        raise BlendError("no images to blend")
+    for p in paths:  # fail before any work if a file is missing
+        if not Path(p).is_file():
+            raise ExrError(f"{p}: no such file")
+    first_path: Path | None = None
+    out: NDArray[np.float64] | None = None
+    for i, p in enumerate(paths):
+        p = Path(p)
+        img = read_exr(p)
+        if out is None:
+            first_path = p
+            out = np.zeros((W.shape[0],) + img.shape, dtype=np.float64)
+        elif img.shape != out.shape[1:]:
+            raise BlendError(
+                f"{p}: image has shape {img.shape}, but the first image {first_path} has {out.shape[1:]}"
+            )
+        img64 = img.astype(np.float64)
+        for k in range(W.shape[0]):
+            out[k] += W[k, i] * img64
+        del img, img64
+        _say(progress, f"blend: read {i + 1}/{len(paths)} {p}")
+    assert out is not None
+    return out
+
+
+def blend_exr(
+    paths: Sequence[str | os.PathLike[str]],
+    weights: ArrayLike,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> NDArray[np.float64]:
+    """``Σᵢ wᵢ Iᵢ`` of the EXR images at ``paths``, an ``(H, W, 3)`` float64 array.
+
+    Images are read one at a time and accumulated in float64 (never stacked);
+    each file is read exactly once.  ``weights`` are used as given (negative
+    weights are kept, the sum is not renormalised).  Raises
+    :class:`BlendError` if the number of weights differs from the number of
+    paths, a weight is not finite, or an image's shape differs from the first
+    image's (naming the file and both shapes), and
+    :class:`~brdfpipe.exr.ExrError` naming the file for a missing or invalid
+    EXR.  ``progress`` gets one line per image read (default: the log).
+    """
+    paths = list(paths)
+    w = _check_weights(weights, len(paths))
+    return _blend_many(paths, w[None, :], progress)[0]
+
+
+# --------------------------------------------------------------------------
+# Errors
+# --------------------------------------------------------------------------
+
+
+def _pair(a: ArrayLike, b: ArrayLike, what: str = "images") -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    a64 = np.asarray(a, dtype=np.float64)
+    b64 = np.asarray(b, dtype=np.float64)
+    if a64.shape != b64.shape:
+        raise BlendError(f"{what} differ in shape: {a64.shape} vs {b64.shape}")
+    if a64.size == 0:
+        raise BlendError(f"{what} are empty")
+    return a64, b64
+
+
+def rmse(a: ArrayLike, b: ArrayLike) -> float:
+    """Root mean squared difference of two same-shape images over all pixels and channels."""
+    a64, b64 = _pair(a, b)
+    return float(np.sqrt(np.mean(np.square(a64 - b64))))
+
+
+def relative_rmse(a: ArrayLike, b: ArrayLike, reference: ArrayLike) -> float:
+    """``rmse(a, b) / mean(reference)``, the mean taken over all pixels and channels.
+
+    ValueError (:class:`BlendError`) if the reference's mean is not positive.
+    """
+    ref = np.asarray(reference, dtype=np.float64)
+    a64, _ = _pair(a, ref, "image and reference")
+    mean = float(ref.mean())
+    if not mean > 0.0:
+        raise BlendError(f"reference has mean {mean}; relative RMSE needs a positive mean")
+    return rmse(a64, b) / mean
+
+
+def error_map(blended: ArrayLike, reference: ArrayLike) -> NDArray[np.float64]:
+    """Per-pixel ``mean over R, G, B of |blended − reference|``, an ``(H, W)`` float64 array."""
+    a64, b64 = _pair(blended, reference)
+    if a64.ndim != 3 or a64.shape[2] != 3:
+        raise BlendError(f"images must have shape (H, W, 3), got {a64.shape}")
+    return np.abs(a64 - b64).mean(axis=2)
+
+
+def _check_err(err: ArrayLike) -> NDArray[np.float64]:
+    e = np.asarray(err, dtype=np.float64)
+    if e.ndim != 2 or e.size == 0:
+        raise BlendError(f"an error map must be a non-empty (H, W) array, got shape {e.shape}")
+    if not np.isfinite(e).all():
+        raise BlendError("error map has non-finite values")
+    return e
+
+
+def write_error_map_exr(
+    path: str | os.PathLike[str],
+    err: ArrayLike,
+    *,
+    attrs: Mapping[str, str] | None = None,
+) -> None:
+    """Write an ``(H, W)`` error map as a float32 EXR, the value repeated in R, G and B (atomic)."""
+    e = _check_err(err)
+    write_exr(path, np.repeat(e[..., None], 3, axis=2).astype(np.float32), attrs=attrs)
+
+
+def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool = True) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8", "newline": ""})) as fh:
+            write(fh)
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_error_map_png(
+    path: str | os.PathLike[str],
+    err: ArrayLike,
+    *,
+    vmax: float | None = None,
+    title: str = "|blended − reference|",
+    database: str | None = None,
+    units: str = "radiance units (mean over RGB of |Δ|)",
+    cmap: str = "magma",
+) -> None:
+    """A false-colour PNG of an error map with a labelled colour bar (atomic).
+
+    Colours run from 0 (black) to ``vmax`` (default: the map's 99th
+    percentile, or its maximum if that is 0 … or 1 for an all-zero map);
+    larger values saturate.  ``cmap`` is a perceptual matplotlib colormap.
+    The title is ``"{database}: {title}"`` (just ``title`` without a
+    database).  Built on :class:`matplotlib.figure.Figure` with the Agg canvas
+    (pyplot is not used) and written without a timestamp, so the same input
+    gives the same bytes.
+    """
+    import matplotlib as mpl
+    import matplotlib.style
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    path = Path(path)
+    e = _check_err(err)
+    if vmax is None:
+        vmax = float(np.percentile(e, 99.0)) or float(e.max()) or 1.0
+    if not (math.isfinite(vmax) and vmax > 0.0):
+        raise ValueError(f"{path}: vmax must be finite and > 0, got {vmax}")
+    full_title = f"{database}: {title}" if database else title
+    h, w = e.shape
+    with mpl.rc_context():
+        mpl.style.use("default")
+        mpl.rcParams.update({"font.family": "DejaVu Sans", "font.size": 8.0, "svg.hashsalt": "brdfpipe-blend"})
+        width_in = 4.8
+        img_h = width_in * 0.82 * h / w
+        fig = Figure(figsize=(width_in, img_h + 0.6), dpi=150, layout="constrained")
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        im = ax.imshow(e, cmap=cmap, vmin=0.0, vmax=vmax, interpolation="nearest")
+        ax.set_axis_off()
+        ax.set_title(full_title, fontsize=8.5)
+        bar = fig.colorbar(im, ax=ax, fraction=0.05, pad=0.02, extend="max")
+        bar.set_label(units)
+        software = f"brdfpipe {__version__} (matplotlib {mpl.__version__})"
+        _atomic_write(path, lambda fh: fig.savefig(fh, format="png", metadata={"Title": full_title,
+                                                                               "Software": software}))
+
+
+def tonemap(image: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
+    """Display version of a linear RGB image: ``× 2**exposure``, clamp to [0, 1], sRGB OETF, 8 bits."""
+    x = np.asarray(image, dtype=np.float64)
+    if x.ndim != 3 or x.shape[2] != 3:
+        raise ValueError(f"image must have shape (H, W, 3), got {x.shape}")
+    x = np.clip(np.nan_to_num(x * 2.0 ** float(exposure), nan=0.0), 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.round(srgb * 255.0).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------
+# Error maps along manifold paths (the workflow's entry point)
+# --------------------------------------------------------------------------
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.9g}"
+
+
+def error_maps(
+    *,
+    prerenders: Mapping[str, str | os.PathLike[str]],
+    paths: Sequence[Mapping[str, Any]],
+    out_dir: str | os.PathLike[str],
+    database: str,
+    progress: Callable[[str], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Blend the pre-renders at points along manifold paths and compare with references (Fig. 13).
+
+    ``prerenders`` maps each material to its pre-rendered EXR.  Each entry
+    of ``paths`` is one point: ``{"path": name, "t": t, "weights":
+    {material: wᵢ}, "reference": EXR, "reference_seed2": EXR}``, where the
+    references are renders of the interpolated material with two seeds.  The
+    weights are dense GP weights: every material with a weight must have a
+    pre-render and every pre-render must have a weight (BlendError listing
+    the differences otherwise).
+
+    For every point, with ``s = format_t(t)``, writes to ``out_dir``:
+    ``{path}-t{s}-blended.exr`` (the blend, float32),
+    ``{path}-t{s}-error.exr`` (:func:`error_map` of blend vs reference) and
+    ``{path}-t{s}-error.png`` (false colour; one ``vmax`` — the largest 99th
+    percentile over the points — shared by all maps of the call so colours
+    compare), and computes a row
+
+    * ``rmse_blend`` = :func:`relative_rmse` (blend, reference, reference);
+    * ``rmse_noise`` = :func:`relative_rmse` (reference, reference_seed2, reference);
+    * ``ratio`` = rmse_blend / rmse_noise (``inf`` if the noise is 0 and the
+      blend error is not, ``nan`` if both are 0): below 1, the blend is
+      closer to the reference than two references are to each other;
+    * ``mean_reference`` = mean of the reference over pixels and channels.
+
+    Then writes ``summary.csv`` (columns :data:`SUMMARY_COLUMNS`, one line
+    per point in input order, numbers as ``%.9g``, ``t`` as ``format_t``)
+    atomically, and returns the rows (floats unrounded).  Each pre-render is
+    read once for all points.  Any missing or corrupt pre-render or
+    reference raises (:class:`~brdfpipe.exr.ExrError` naming the file) and
+    no ``summary.csv`` is left in ``out_dir`` (a stale one is removed first).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = out_dir / "summary.csv"
+    summary.unlink(missing_ok=True)  # never leave a stale summary next to a failed run's outputs
+
+    materials = list(prerenders)
+    if not materials:
+        raise BlendError("no pre-renders given")
+    if not paths:
+        raise BlendError("no path points given")
+
+    # validate the points and every input file up front, before any work
+    points: list[tuple[str, float, str]] = []
+    W = np.empty((len(paths), len(materials)), dtype=np.float64)
+    seen: dict[tuple[str, str], int] = {}
+    for k, pt in enumerate(paths):
+        missing_keys = [key for key in ("path", "t", "weights", "reference", "reference_seed2") if key not in pt]
+        if missing_keys:
+            raise BlendError(f"path point {k}: missing key(s) {', '.join(missing_keys)}")
+        name = str(pt["path"])
+        if not _NAME_RE.match(name):
+            raise BlendError(f"path point {k}: path name {name!r} must match {_NAME_RE.pattern}")
+        t = float(pt["t"])
+        s = format_t(t)
+        if (name, s) in seen:
+            raise BlendError(f"path points {seen[(name, s)]} and {k} both write {name}-t{s}-*")
+        seen[(name, s)] = k
+        weights = pt["weights"]
+        extra = sorted(set(weights) - set(materials))
+        lacking = sorted(set(materials) - set(weights))
+        if extra or lacking:
+            raise BlendError(
+                f"path {name} t={s}: weights and pre-renders name different materials"
+                + (f"; weights without a pre-render: {', '.join(extra)}" if extra else "")
+                + (f"; pre-renders without a weight: {', '.join(lacking)}" if lacking else "")
+            )
+        W[k] = _check_weights([weights[m] for m in materials], len(materials), f"path {name} t={s} weights")
+        points.append((name, t, s))
+    inputs = [Path(prerenders[m]) for m in materials]
+    inputs += [Path(pt[key]) for pt in paths for key in ("reference", "reference_seed2")]
+    for f in inputs:
+        if not f.is_file():
+            raise ExrError(f"{f}: no such file")
+
+    blends = _blend_many([Path(prerenders[m]) for m in materials], W, progress)
+
+    rows: list[dict[str, Any]] = []
+    errs: list[NDArray[np.float64]] = []
+    for k, ((name, t, s), pt) in enumerate(zip(points, paths)):
+        ref_path, ref2_path = Path(pt["reference"]), Path(pt["reference_seed2"])
+        ref = read_exr(ref_path).astype(np.float64)
+        ref2 = read_exr(ref2_path).astype(np.float64)
+        blend = blends[k]
+        for p, img in ((ref_path, ref), (ref2_path, ref2)):
+            if img.shape != blend.shape:
+                raise BlendError(
+                    f"{p}: image has shape {img.shape}, but the pre-renders have {blend.shape}"
+                )
+        mean_ref = float(ref.mean())
+        rmse_blend = relative_rmse(blend, ref, ref)
+        rmse_noise = relative_rmse(ref, ref2, ref)
+        if rmse_noise > 0.0:
+            ratio = rmse_blend / rmse_noise
+        else:
+            ratio = math.inf if rmse_blend > 0.0 else math.nan
+        attrs = {"database": database, "path": name, "t": s}
+        stem = out_dir / f"{name}-t{s}"
+        write_exr(stem.with_name(stem.name + "-blended.exr"), blend.astype(np.float32),
+                  attrs={**attrs, "image": "blend of pre-renders"})
+        err = error_map(blend, ref)
+        write_error_map_exr(stem.with_name(stem.name + "-error.exr"), err,
+                            attrs={**attrs, "image": "mean over RGB of |blended - reference|",
+                                   "reference": ref_path.name})
+        errs.append(err)
+        rows.append({"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
+                     "ratio": ratio, "mean_reference": mean_ref})
+        _say(progress, f"{name} t={s}: relative RMSE blend {rmse_blend:.4g}, noise {rmse_noise:.4g}, "
+                       f"ratio {ratio:.3g}")
+
+    vmax = max(float(np.percentile(e, 99.0)) for e in errs) or max(float(e.max()) for e in errs) or 1.0
+    for (name, _, s), err, row in zip(points, errs, rows):
+        write_error_map_png(
+            out_dir / f"{name}-t{s}-error.png", err, vmax=vmax, database=database,
+            title=f"path {name}, t = {s}: |blended − reference|\n"
+                  f"relative RMSE {row['rmse_blend']:.3g} (noise between seeds {row['rmse_noise']:.3g})",
+        )
+
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(SUMMARY_COLUMNS)
+    for (_, _, s), row in zip(points, rows):
+        writer.writerow([database, row["path"], s] + [_fmt(row[c]) for c in SUMMARY_COLUMNS[3:]])
+    text = buf.getvalue()
+    _atomic_write(summary, lambda fh: fh.write(text), binary=False)
+    return rows
+
+
+def error_maps_from_files(
+    *,
+    prerenders: Mapping[str, str | os.PathLike[str]],
+    weights: Sequence[str | os.PathLike[str]],
+    references: Sequence[str | os.PathLike[str]],
+    references_noise: Sequence[str | os.PathLike[str]],
+    out_dir: str | os.PathLike[str],
+    database: str,
+) -> list[dict[str, Any]]:
+    """:func:`error_maps` with each path point given by its weights JSON and two reference renders.
+
+    The workflow's ``error_maps`` job.  ``weights[k]`` is the JSON written
+    by :func:`brdfpipe.manifold.path_point_to_files` (``path``, ``t``,
+    ``weights``); ``references[k]`` / ``references_noise[k]`` the renders of
+    that interpolated material with the main and the second seed.
+    BlendError naming the file for an unreadable or malformed JSON.
+    """
+    import json
+
+    if not len(weights) == len(references) == len(references_noise):
+        raise BlendError("weights, references and references_noise must have the same length")
+    points = []
+    for wf, ref, ref2 in zip(weights, references, references_noise):
+        try:
+            doc = json.loads(Path(wf).read_text(encoding="utf-8"))
+            points.append({"path": doc["path"], "t": float(doc["t"]), "weights": dict(doc["weights"]),
+                           "reference": ref, "reference_seed2": ref2})
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            raise BlendError(f"{wf}: not a path-point weights file ({type(err).__name__}: {err})") from None
+    return error_maps(prerenders=prerenders, paths=points, out_dir=out_dir, database=database,
+                      progress=lambda msg: logger.info("%s", msg))

@@ -1,0 +1,218 @@
+"""OpenEXR images that are *data*: renders, blends and error maps.
+
+Images are ``(H, W, 3)`` float32 linear RGB arrays.  Files are single-part
+scanline OpenEXR with ``R``, ``G``, ``B`` channels, ZIP compression, float32
+(or, on request, half) pixels, and optional string attributes in the header
+(``database``, ``material``, ``spp``, ``seed``, …) that record where the
+image came from.
+
+Rules
+-----
+* Writing is atomic: the file is written under a temporary name in the same
+  folder (``.<name>.<random>.tmp``) and renamed into place with
+  :func:`os.replace`, so a crash or an error never leaves a partial file under
+  the final name, and the temporary file is removed on error.
+* Pixels must be finite on both sides: :func:`write_exr` refuses NaN/Inf (and
+  values that overflow half precision when ``half=True``); :func:`read_exr`
+  rejects a file holding them.
+* Every problem with a file raises :class:`ExrError` (a :class:`ValueError`)
+  whose message starts with the file's path and says what is wrong: missing
+  file, not an OpenEXR file, truncated or corrupt data, missing RGB channels,
+  non-finite pixels.
+* The same image and attributes give the same bytes (the OpenEXR writer is
+  deterministic; attributes are written in sorted order).
+
+OpenEXR has no checksum, so bytes corrupted *inside* an uncompressed block
+cannot be detected; truncation and damaged headers or compressed blocks are.
+
+Importing this module does not import Mitsuba.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import OpenEXR
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "ExrError",
+    "RESERVED_ATTRIBUTES",
+    "read_exr",
+    "read_exr_attrs",
+    "write_exr",
+]
+
+#: The four bytes every OpenEXR file starts with.
+_MAGIC: Final = b"\x76\x2f\x31\x01"
+
+#: Header attributes that OpenEXR itself defines; user attributes may not use these names.
+RESERVED_ATTRIBUTES: Final = frozenset(
+    {
+        "channels", "compression", "dataWindow", "displayWindow", "lineOrder",
+        "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type",
+        "tiles", "name", "version", "chunkCount", "view", "multiView", "envmap",
+    }
+)
+
+_HALF_MAX: Final = float(np.finfo(np.float16).max)
+
+
+class ExrError(ValueError):
+    """A file is not a valid RGB OpenEXR data image; the message names the file."""
+
+
+# --------------------------------------------------------------------------
+# Reading
+# --------------------------------------------------------------------------
+
+
+def _open(path: Path, *, header_only: bool) -> Any:
+    """Open ``path`` with the OpenEXR bindings, turning every failure into :class:`ExrError`."""
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise ExrError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise ExrError(f"{path}: is a directory, not an OpenEXR file") from None
+    except OSError as exc:
+        raise ExrError(f"{path}: cannot read file: {exc.strerror or exc}") from exc
+    if len(data) < len(_MAGIC) or data[: len(_MAGIC)] != _MAGIC:
+        what = "empty file" if not data else f"{len(data)} bytes without the OpenEXR magic number"
+        raise ExrError(f"{path}: not an OpenEXR file ({what})")
+    try:
+        exr = OpenEXR.File(io.BytesIO(data), separate_channels=True, header_only=header_only)
+        if not header_only:
+            exr.channels()  # forces the pixel data to be decoded (and checked) now
+    except Exception as exc:  # the bindings raise ValueError/RuntimeError for bad data
+        raise ExrError(f"{path}: truncated or corrupt OpenEXR file ({exc})") from exc
+    return exr
+
+
+def read_exr(path: str | os.PathLike[str]) -> NDArray[np.float32]:
+    """Read the RGB channels of an OpenEXR file as an ``(H, W, 3)`` float32 array.
+
+    Half and float32 channels are accepted (half is widened exactly); an
+    ``A`` channel and any other extra channels are ignored.  Only the first
+    part of a multi-part file is read.  Raises :class:`ExrError` naming the
+    file for a missing file, a file that is not OpenEXR, a truncated or
+    corrupt file, missing ``R``/``G``/``B`` channels, channels of different
+    sizes, or NaN/Inf pixels.
+    """
+    path = Path(path)
+    exr = _open(path, header_only=False)
+    channels = exr.channels()
+    missing = [c for c in "RGB" if c not in channels]
+    if missing:
+        have = ", ".join(sorted(channels)) or "none"
+        raise ExrError(f"{path}: missing channel(s) {', '.join(missing)} (file has: {have})")
+    planes = [np.asarray(channels[c].pixels) for c in "RGB"]
+    if any(p.ndim != 2 or p.shape != planes[0].shape for p in planes):
+        shapes = ", ".join(f"{c}={p.shape}" for c, p in zip("RGB", planes))
+        raise ExrError(f"{path}: R, G, B channels differ in size ({shapes})")
+    if any(p.dtype.kind != "f" for p in planes):
+        kinds = ", ".join(f"{c}={p.dtype}" for c, p in zip("RGB", planes))
+        raise ExrError(f"{path}: RGB channels must be half or float, got {kinds}")
+    image = np.stack([p.astype(np.float32, copy=False) for p in planes], axis=-1)
+    finite = np.isfinite(image)
+    if not finite.all():
+        bad = np.argwhere(~finite)
+        y, x, c = (int(v) for v in bad[0])
+        raise ExrError(
+            f"{path}: {bad.shape[0]} non-finite value(s) (NaN or Inf), first at "
+            f"row {y}, column {x}, channel {'RGB'[c]}"
+        )
+    return np.ascontiguousarray(image)
+
+
+def read_exr_attrs(path: str | os.PathLike[str]) -> dict[str, str]:
+    """The string-valued header attributes of an OpenEXR file (e.g. ``database``, ``spp``).
+
+    Only the header is decoded.  OpenEXR's own structural attributes (which
+    are not strings) are left out.  Raises :class:`ExrError` as :func:`read_exr`.
+    """
+    path = Path(path)
+    header = _open(path, header_only=True).header()
+    return {str(k): v for k, v in sorted(header.items()) if isinstance(v, str)}
+
+
+# --------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------
+
+
+def _check_attrs(path: Path, attrs: Mapping[str, str] | None) -> dict[str, str]:
+    if attrs is None:
+        return {}
+    out: dict[str, str] = {}
+    for key, value in attrs.items():
+        if not isinstance(key, str) or not key:
+            raise ValueError(f"{path}: attribute names must be non-empty strings, got {key!r}")
+        if key in RESERVED_ATTRIBUTES:
+            raise ValueError(f"{path}: attribute name {key!r} is reserved by OpenEXR")
+        if not isinstance(value, str):
+            raise ValueError(f"{path}: attribute {key!r} must be a string, got {type(value).__name__}")
+        out[key] = value
+    return dict(sorted(out.items()))
+
+
+def write_exr(
+    path: str | os.PathLike[str],
+    image: ArrayLike,
+    *,
+    half: bool = False,
+    attrs: Mapping[str, str] | None = None,
+) -> None:
+    """Write an ``(H, W, 3)`` RGB image as a ZIP-compressed OpenEXR file, atomically.
+
+    Pixels are stored as float32 (exact for float32 input), or as half when
+    ``half`` is true.  ``attrs`` are extra string attributes stored in the
+    header (names of OpenEXR's own attributes, :data:`RESERVED_ATTRIBUTES`,
+    are refused).  The file is written under a temporary name in the same
+    folder and renamed into place; on any error the temporary file is removed
+    and nothing appears under ``path``.  Raises :class:`ValueError` naming the
+    file for a wrong shape, non-finite pixels, pixels that overflow half
+    precision, or bad attributes.
+    """
+    path = Path(path)
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise ValueError(f"{path}: image must have shape (H, W, 3), got {arr.shape}")
+    if arr.dtype.kind not in "fiub":
+        raise ValueError(f"{path}: image must be numeric, got dtype {arr.dtype}")
+    arr32 = arr.astype(np.float32)
+    if not np.isfinite(arr32).all():
+        n_bad = int((~np.isfinite(arr32)).sum())
+        raise ExrError(f"{path}: refusing to write {n_bad} non-finite value(s) (NaN or Inf)")
+    header_attrs = _check_attrs(path, attrs)
+    if half:
+        peak = float(np.abs(arr32).max())
+        if peak > _HALF_MAX:
+            raise ValueError(f"{path}: value {peak:g} overflows half precision (max {_HALF_MAX:g})")
+        store: NDArray[Any] = arr32.astype(np.float16)
+    else:
+        store = arr32
+    header: dict[str, Any] = {
+        "compression": OpenEXR.ZIP_COMPRESSION,
+        "type": OpenEXR.scanlineimage,
+        **header_attrs,
+    }
+    channels = {c: np.ascontiguousarray(store[..., i]) for i, c in enumerate("RGB")}
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)  # the OpenEXR writer opens the file by name
+    try:
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
+        with OpenEXR.File(header, channels) as exr:
+            exr.write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -1,0 +1,506 @@
+"""A material-preview scene built from Mitsuba 3's own shapes, and its renders.
+
+The scene is the set-up of Soler et al. 2018 §5.2 (Figs. 12, 13): one
+preview object whose material changes, in a fixed environment, rendered with
+multi-bounce global illumination, so that images of measured materials can be
+pre-rendered once and blended (:mod:`brdfpipe.blend`).
+
+Coordinates
+-----------
+World space is **+Y up**, the ground is the plane ``y = 0`` and the camera
+looks from ``+Z`` towards ``-Z`` (image right is world ``+X``).
+
+Environment map convention (verified)
+-------------------------------------
+Mitsuba's ``envmap`` emitter (``src/emitters/envmap.cpp``, default
+``to_world`` = identity) maps a world direction ``d = (x, y, z)`` to the
+texture coordinate ``u = atan2(x, −z) / 2π (mod 1)``, ``v = acos(y) / π``, i.e.
+``d = (sin φ sin θ, cos θ, −cos φ sin θ)`` with ``φ = 2πu``, ``θ = πv``.  It
+pads the image with a copy of column 0 and interpolates bilinearly with
+
+* column ``c`` exactly at ``u = (c + ½) / W`` (a half-texel shift), and
+* row ``r`` exactly at ``v = r / (H − 1)``: **row 0 is the zenith (+Y)**,
+  row ``H − 1`` the nadir (−Y).
+
+Columns: ``u = 0`` looks along ``−Z`` (away from the camera), ``u = ¼`` along
+``+X``, ``u = ½`` along ``+Z`` (towards the camera), ``u = ¾`` along ``−X``.
+This was checked numerically against Mitsuba 3.9.1 (``Emitter.eval`` of an
+``envmap`` holding single bright pixels peaks exactly at those directions);
+:func:`envmap_pixel_directions` gives the direction of every pixel and is what
+:func:`make_envmap` evaluates the sky at, so "up" in the map is "up" in the
+scene (tests render a diffuse sphere: its top is brighter than its bottom, and
+the side facing the sun is brighter than the other).
+
+Sun direction: elevation ``e`` above the horizon and azimuth ``a`` in the same
+convention as ``u`` (``a = 0`` → ``−Z``, ``a = 90°`` → ``+X``, ``a = 180°`` →
+``+Z``): ``(sin a cos e, sin e, −cos a cos e)`` (:func:`sun_direction`).  The
+default ``a = 135°`` puts the sun to the right of and in front of the object
+(behind the camera's right shoulder), so the lit side faces the camera and
+shadows fall back-left.
+
+Scene layout (:func:`scene_dict`)
+---------------------------------
+* ground: a 50 × 50 ``rectangle`` at ``y = 0`` with a ``diffuse`` bsdf whose
+  reflectance is a ``checkerboard`` (0.5-unit checks, greys 0.7 / 0.3);
+* preview object, every part carrying the material under study (the same
+  bsdf instance, referenced by id ``material``): a unit ``sphere`` resting on
+  the ground at the origin, a small ``cube`` (0.7 wide, turned 30°) in front
+  on the left, and a capped ``cylinder`` (radius 0.32, height 0.9; cap is a
+  ``disk``) in front on the right — concave corners between them give the
+  inter-reflections on the material that a teapot's handle and spout give;
+* light: the ``envmap`` emitter (sky + sun) and, if ``emitters``, a 1.5 × 1.5
+  ``rectangle`` ``area`` light up-left-front of the object;
+* ``path`` integrator (``max_depth``), ``perspective`` camera (40° horizontal
+  field of view), ``hdrfilm`` (rgb, ``box`` filter), ``independent`` sampler.
+
+Rendering (:func:`render_to_exr`) needs a Mitsuba variant set first
+(:func:`set_variant`); Mitsuba is imported lazily inside the functions, so
+importing this module (and :func:`make_envmap`) does not need it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .exr import write_exr
+
+__all__ = [
+    "VARIANTS",
+    "DEFAULT_PASS_SPP",
+    "SUN_AZIMUTH_DEG",
+    "SceneError",
+    "set_variant",
+    "envmap_pixel_directions",
+    "sun_direction",
+    "make_envmap",
+    "scene_dict",
+    "pass_seeds",
+    "render_to_exr",
+    "render_material",
+    "render_material_seeds",
+]
+
+logger = logging.getLogger("brdfpipe.scene")
+
+#: Mitsuba variants this module renders with.
+VARIANTS: Final = ("llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb")
+#: Largest number of samples per pixel rendered in one pass by :func:`render_to_exr`.
+DEFAULT_PASS_SPP: Final = 32
+#: Default sun azimuth (degrees, :func:`sun_direction` convention): right of and in front of the object.
+SUN_AZIMUTH_DEG: Final = 135.0
+#: At most this many passes per render, so pass seeds ``seed*1000 + p`` never collide.
+_MAX_PASSES: Final = 1000
+
+
+class SceneError(RuntimeError):
+    """Mitsuba could not be set up, load a scene or render it; the message says why."""
+
+
+# --------------------------------------------------------------------------
+# Mitsuba variant
+# --------------------------------------------------------------------------
+
+
+def set_variant(variant: str) -> None:
+    """Select the Mitsuba variant used by :func:`scene_dict` and :func:`render_to_exr`.
+
+    ``variant`` must be one of :data:`VARIANTS` (``ValueError`` naming it and
+    the allowed set otherwise).  The backend is exercised with a tiny
+    computation, so an unusable one (no CUDA device or driver, no LLVM
+    library) fails here with a :class:`SceneError` naming the variant and the
+    cause, not later in the middle of a render.
+    """
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown Mitsuba variant {variant!r}; allowed: {', '.join(VARIANTS)}")
+    try:
+        import drjit as dr
+        import mitsuba as mi
+
+        mi.set_variant(variant)
+        probe = mi.Float(1.0) + mi.Float(2.0)
+        dr.eval(probe)
+        if np.asarray(probe, dtype=np.float64).ravel().tolist() != [3.0]:
+            raise RuntimeError("backend returned a wrong result for 1 + 2")
+    except Exception as exc:
+        raise SceneError(f"Mitsuba variant {variant!r} is not usable on this machine: {exc}") from exc
+
+
+def _mitsuba() -> Any:
+    """The mitsuba module, with a variant of :data:`VARIANTS` set (SceneError otherwise)."""
+    import mitsuba as mi
+
+    variant = mi.variant()
+    if variant is None:
+        raise SceneError(
+            "no Mitsuba variant is set; call brdfpipe.scene.set_variant(...) with one of "
+            + ", ".join(VARIANTS)
+        )
+    if variant not in VARIANTS:
+        raise SceneError(f"Mitsuba variant {variant!r} is set; use one of {', '.join(VARIANTS)}")
+    return mi
+
+
+# --------------------------------------------------------------------------
+# Environment map
+# --------------------------------------------------------------------------
+
+
+def envmap_pixel_directions(width: int, height: int) -> NDArray[np.float64]:
+    """World directions ``(H, W, 3)`` at which Mitsuba's ``envmap`` samples each pixel exactly.
+
+    Row ``r`` is at polar angle ``θ = π r / (H − 1)`` from +Y (row 0 =
+    zenith), column ``c`` at ``φ = 2π (c + ½) / W``; the direction is
+    ``(sin φ sin θ, cos θ, −cos φ sin θ)`` (see the module docstring).
+    """
+    if width < 2 or height < 3:
+        raise ValueError(f"an environment map needs at least 2 × 3 pixels, got {width} × {height}")
+    theta = np.pi * np.arange(height) / (height - 1)
+    phi = 2.0 * np.pi * (np.arange(width) + 0.5) / width
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    sp, cp = np.sin(phi)[None, :], np.cos(phi)[None, :]
+    return np.stack(np.broadcast_arrays(sp * st, ct + 0.0 * sp, -cp * st), axis=-1)
+
+
+def sun_direction(elevation_deg: float, azimuth_deg: float) -> NDArray[np.float64]:
+    """Unit vector towards the sun: ``(sin a cos e, sin e, −cos a cos e)`` (+Y up, ``a = 0`` → −Z)."""
+    e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
+    return np.array([math.sin(a) * math.cos(e), math.sin(e), -math.cos(a) * math.cos(e)])
+
+
+def _sky(d: NDArray[np.float64], zenith: NDArray[np.float64], horizon: NDArray[np.float64],
+         ground: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sky radiance for unit directions ``d`` (..., 3): zenith→horizon gradient above, darker ground below."""
+    y = d[..., 1:2]
+    up = np.clip(y, 0.0, 1.0)
+    t = (1.0 - up) ** 3  # 0 at the zenith, 1 at the horizon, horizon colour dominates low down
+    sky = zenith + (horizon - zenith) * t
+    # below the horizon: ground colour, blended with a dimmed horizon over the first ~7°
+    down = np.clip(-y * 8.0, 0.0, 1.0)
+    below = 0.5 * horizon + (ground - 0.5 * horizon) * down
+    return np.where(y >= 0.0, sky, below)
+
+
+def make_envmap(
+    path: str | os.PathLike[str],
+    *,
+    width: int = 256,
+    height: int = 128,
+    sun_elevation_deg: float = 35.0,
+    sun_azimuth_deg: float = SUN_AZIMUTH_DEG,
+    sun_radius_deg: float = 2.5,
+    sun_intensity: float = 800.0,
+    zenith_rgb: tuple[float, float, float] = (0.20, 0.35, 0.80),
+    horizon_rgb: tuple[float, float, float] = (0.80, 0.85, 0.95),
+    ground_rgb: tuple[float, float, float] = (0.12, 0.11, 0.10),
+    sun_rgb: tuple[float, float, float] = (1.0, 0.95, 0.85),
+    attrs: Mapping[str, str] | None = None,
+) -> None:
+    """Write a lat-long sky environment map for Mitsuba's ``envmap`` emitter (EXR, float32).
+
+    Sky: ``zenith_rgb`` at the zenith fading to ``horizon_rgb`` at the horizon
+    (radiance, linear RGB); below the horizon ``ground_rgb`` (darker).  Sun:
+    a disk of angular radius ``sun_radius_deg`` centred on
+    :func:`sun_direction` ``(sun_elevation_deg, sun_azimuth_deg)`` with
+    radiance ``sun_intensity · sun_rgb`` added to the sky; each pixel's sun
+    coverage is the fraction of a 4 × 4 grid of sub-pixel directions inside
+    the disk, so the disk is antialiased and its brightest pixel is the one
+    nearest the sun direction.  Pixel directions follow Mitsuba's convention
+    (:func:`envmap_pixel_directions`), so with the emitter's default
+    ``to_world`` the map's up is the scene's +Y.  Deterministic: the same
+    arguments give the same bytes.  ``attrs`` are extra EXR header strings;
+    the sun parameters are recorded too.
+    """
+    if not (-90.0 <= sun_elevation_deg <= 90.0):
+        raise ValueError(f"sun_elevation_deg must be in [-90, 90], got {sun_elevation_deg}")
+    if not (0.0 < sun_radius_deg < 90.0):
+        raise ValueError(f"sun_radius_deg must be in (0, 90), got {sun_radius_deg}")
+    if not (sun_intensity >= 0.0 and math.isfinite(sun_intensity)):
+        raise ValueError(f"sun_intensity must be finite and >= 0, got {sun_intensity}")
+    zen, hor, gnd, sun_c = (np.asarray(c, dtype=np.float64) for c in
+                            (zenith_rgb, horizon_rgb, ground_rgb, sun_rgb))
+    for name, c in (("zenith_rgb", zen), ("horizon_rgb", hor), ("ground_rgb", gnd), ("sun_rgb", sun_c)):
+        if c.shape != (3,) or not np.isfinite(c).all() or (c < 0).any():
+            raise ValueError(f"{name} must be three finite non-negative numbers, got {c.tolist()}")
+
+    d = envmap_pixel_directions(width, height)
+    image = _sky(d, zen, hor, gnd)
+
+    # sun coverage: 4 × 4 sub-pixel directions over each pixel's footprint
+    # (rows span ±½ row around θ_r, columns ±½ column around φ_c)
+    n_sub = 4
+    offs = (np.arange(n_sub) + 0.5) / n_sub - 0.5
+    s = sun_direction(sun_elevation_deg, sun_azimuth_deg)
+    cos_r = math.cos(math.radians(sun_radius_deg))
+    rows = np.arange(height)[:, None] + offs[None, :]  # (H, n_sub)
+    cols = np.arange(width)[:, None] + 0.5 + offs[None, :]  # (W, n_sub)
+    theta = np.clip(np.pi * rows / (height - 1), 0.0, np.pi)
+    phi = 2.0 * np.pi * cols / width
+    st, ct = np.sin(theta), np.cos(theta)  # (H, n)
+    sp, cp = np.sin(phi), np.cos(phi)  # (W, n)
+    # dot(d, s) for every (row, sub-row, column, sub-column)
+    dot = (sp[None, None, :, :] * st[:, :, None, None] * s[0]
+           + ct[:, :, None, None] * s[1]
+           - cp[None, None, :, :] * st[:, :, None, None] * s[2])
+    coverage = (dot >= cos_r).mean(axis=(1, 3))  # (H, W)
+    image = image + coverage[..., None] * (sun_intensity * sun_c)
+
+    info = {
+        "envmap_kind": "brdfpipe sky (lat-long, Mitsuba envmap convention, +Y up)",
+        "sun_elevation_deg": f"{sun_elevation_deg:g}",
+        "sun_azimuth_deg": f"{sun_azimuth_deg:g}",
+        "sun_radius_deg": f"{sun_radius_deg:g}",
+        "sun_intensity": f"{sun_intensity:g}",
+    }
+    write_exr(path, image.astype(np.float32), attrs={**info, **dict(attrs or {})})
+
+
+# --------------------------------------------------------------------------
+# Scene
+# --------------------------------------------------------------------------
+
+
+def scene_dict(
+    bsdf: Mapping[str, Any],
+    *,
+    envmap: str | os.PathLike[str],
+    resolution: tuple[int, int] = (256, 192),
+    max_depth: int = 6,
+    spp: int = 64,
+    seed: int = 0,
+    emitters: bool = True,
+) -> dict[str, Any]:
+    """The preview scene as a dictionary for ``mi.load_dict`` (layout in the module docstring).
+
+    ``bsdf`` is the material of the preview object (a Mitsuba bsdf
+    dictionary, e.g. ``{"type": "roughplastic"}`` or the ``merl`` plugin's);
+    it is the only thing that differs between materials.  ``resolution`` is
+    ``(width, height)`` in pixels; ``envmap`` the lat-long EXR
+    (:func:`make_envmap`); ``emitters`` adds the area light.  ``spp`` and
+    ``seed`` set the ``independent`` sampler (:func:`render_to_exr`
+    overrides both per pass).  Needs a Mitsuba variant (:func:`set_variant`)
+    because transforms are Mitsuba objects.
+    """
+    width, height = (int(v) for v in resolution)
+    if width < 1 or height < 1:
+        raise ValueError(f"resolution must be two positive integers, got {resolution}")
+    if max_depth < 1 and max_depth != -1:
+        raise ValueError(f"max_depth must be >= 1 (or -1 for unlimited), got {max_depth}")
+    if spp < 1:
+        raise ValueError(f"spp must be >= 1, got {spp}")
+    if seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    if not isinstance(bsdf, Mapping) or "type" not in bsdf:
+        raise ValueError(f"bsdf must be a Mitsuba bsdf dictionary with a 'type', got {bsdf!r}")
+    envmap = Path(envmap)
+    if not envmap.is_file():
+        raise FileNotFoundError(f"{envmap}: environment map not found")
+    mi = _mitsuba()
+    T = mi.ScalarTransform4f
+
+    material = {"type": "ref", "id": "material"}
+    scene: dict[str, Any] = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": int(max_depth)},
+        "sensor": {
+            "type": "perspective",
+            "fov": 40.0,
+            "fov_axis": "x",
+            "near_clip": 0.01,
+            "far_clip": 100.0,
+            "to_world": T().look_at(origin=[0.0, 2.3, 6.0], target=[0.0, 0.75, 0.0], up=[0.0, 1.0, 0.0]),
+            "sampler": {"type": "independent", "sample_count": int(spp), "seed": int(seed)},
+            "film": {
+                "type": "hdrfilm",
+                "width": width,
+                "height": height,
+                "pixel_format": "rgb",
+                "component_format": "float32",
+                "rfilter": {"type": "box"},
+            },
+        },
+        "material": dict(bsdf, id="material"),
+        "ground": {
+            "type": "rectangle",
+            "to_world": T().rotate([1.0, 0.0, 0.0], -90.0).scale([25.0, 25.0, 1.0]),
+            "bsdf": {
+                "type": "diffuse",
+                "reflectance": {
+                    "type": "checkerboard",
+                    "color0": {"type": "rgb", "value": [0.7, 0.7, 0.7]},
+                    "color1": {"type": "rgb", "value": [0.3, 0.3, 0.3]},
+                    "to_uv": T().scale([50.0, 50.0, 1.0]),
+                },
+            },
+        },
+        "object_sphere": {"type": "sphere", "center": [0.0, 1.0, 0.0], "radius": 1.0, "bsdf": material},
+        "object_cube": {
+            "type": "cube",
+            "to_world": T().translate([-1.55, 0.35, 0.75]).rotate([0.0, 1.0, 0.0], 30.0).scale(0.35),
+            "bsdf": material,
+        },
+        "object_cylinder": {
+            "type": "cylinder",
+            "p0": [1.45, 0.0, 0.6],
+            "p1": [1.45, 0.9, 0.6],
+            "radius": 0.32,
+            "bsdf": material,
+        },
+        "object_cylinder_cap": {
+            "type": "disk",
+            "to_world": T().translate([1.45, 0.9, 0.6]).rotate([1.0, 0.0, 0.0], -90.0).scale(0.32),
+            "bsdf": material,
+        },
+        "sky": {"type": "envmap", "filename": str(envmap)},
+    }
+    if emitters:
+        scene["area_light"] = {
+            "type": "rectangle",
+            "to_world": T().look_at(origin=[-3.5, 4.5, 3.0], target=[0.0, 0.8, 0.0], up=[0.0, 1.0, 0.0])
+            .scale([0.75, 0.75, 1.0]),
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [20.0, 19.0, 17.0]}},
+        }
+    return scene
+
+
+# --------------------------------------------------------------------------
+# Rendering
+# --------------------------------------------------------------------------
+
+
+def pass_seeds(spp: int, seed: int, pass_spp: int = DEFAULT_PASS_SPP) -> list[tuple[int, int]]:
+    """``(seed, spp)`` of each pass of a render of ``spp`` samples: pass ``p`` uses seed ``seed·1000 + p``.
+
+    Passes have ``pass_spp`` samples except possibly the last (the
+    remainder).  At most 1000 passes (ValueError otherwise), so two renders
+    with different seeds never share a pass seed.
+    """
+    if spp < 1 or pass_spp < 1:
+        raise ValueError(f"spp and pass_spp must be >= 1, got {spp}, {pass_spp}")
+    if seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    n = -(-spp // pass_spp)
+    if n > _MAX_PASSES:
+        raise ValueError(f"{spp} spp in passes of {pass_spp} is {n} passes; at most {_MAX_PASSES}")
+    return [(seed * _MAX_PASSES + p, min(pass_spp, spp - p * pass_spp)) for p in range(n)]
+
+
+def render_to_exr(
+    scene: Mapping[str, Any],
+    out: str | os.PathLike[str],
+    *,
+    spp: int,
+    seed: int,
+    attrs: Mapping[str, str] | None = None,
+    progress: Callable[[str], None] | None = None,
+    pass_spp: int = DEFAULT_PASS_SPP,
+) -> NDArray[np.float32]:
+    """Render a scene dictionary and write the image to ``out`` as a float32 EXR (atomically).
+
+    The variant must already be set (:func:`set_variant`).  The render is
+    split into passes of at most ``pass_spp`` samples per pixel; pass ``p``
+    uses sampler seed ``seed·1000 + p`` (:func:`pass_seeds`); the image is
+    the sample-weighted mean of the passes (accumulated in float64, stored as
+    float32), so it is an ``spp``-sample estimate.  One line per pass goes to
+    ``progress`` (or the ``brdfpipe.scene`` logger).  The EXR header records
+    ``spp``, ``seed``, ``pass_spp``, ``mitsuba_variant`` and
+    ``mitsuba_version`` plus ``attrs`` (which may not override those).  The
+    same scene, ``spp``, ``seed`` and ``pass_spp`` on the same variant give
+    the same bytes.  Returns the ``(H, W, 3)`` float32 image.  A scene that
+    fails to load or render raises :class:`SceneError`; a render with NaN/Inf
+    pixels raises :class:`SceneError` naming ``out`` (nothing is written).
+    """
+    out = Path(out)
+    mi = _mitsuba()
+    passes = pass_seeds(spp, seed, pass_spp)
+    auto = {
+        "spp": str(spp),
+        "seed": str(seed),
+        "pass_spp": str(pass_spp),
+        "mitsuba_variant": str(mi.variant()),
+        "mitsuba_version": str(mi.__version__),
+    }
+    clash = sorted(set(auto) & set(attrs or {}))
+    if clash:
+        raise ValueError(f"{out}: attrs may not set {', '.join(clash)} (render_to_exr records them)")
+    say = progress if progress is not None else logger.info
+    try:
+        loaded = mi.load_dict(dict(scene))
+    except Exception as exc:
+        raise SceneError(f"{out}: Mitsuba could not load the scene: {exc}") from exc
+
+    total: NDArray[np.float64] | None = None
+    for p, (pass_seed, n) in enumerate(passes):
+        try:
+            img = np.array(mi.render(loaded, seed=pass_seed, spp=n), dtype=np.float64)
+        except Exception as exc:
+            raise SceneError(f"{out}: Mitsuba render pass {p + 1}/{len(passes)} failed: {exc}") from exc
+        if img.ndim != 3 or img.shape[2] < 3:
+            raise SceneError(f"{out}: render returned an image of shape {img.shape}, expected (H, W, 3)")
+        img = img[..., :3]
+        total = img * n if total is None else total + img * n
+        say(f"{out.name}: pass {p + 1}/{len(passes)} done ({n} spp, seed {pass_seed}, "
+            f"{sum(k for _, k in passes[: p + 1])}/{spp} spp)")
+    assert total is not None
+    image = (total / spp).astype(np.float32)
+    bad = ~np.isfinite(image)
+    if bad.any():
+        raise SceneError(f"{out}: render produced {int(bad.sum())} non-finite value(s) (NaN or Inf); not written")
+    write_exr(out, image, attrs={**dict(attrs or {}), **auto})
+    return image
+
+
+def render_material(
+    merl_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    envmap: str | os.PathLike[str],
+    variant: str,
+    resolution: tuple[int, int],
+    spp: int,
+    max_depth: int,
+    seed: int,
+    attrs: Mapping[str, str] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> NDArray[np.float32]:
+    """Render the preview scene with a MERL material (the ``merl`` plugin) to an EXR.
+
+    The workflow's ``prerender_material`` and ``render_path_point`` jobs.
+    ``variant`` is validated by :func:`brdfpipe.render.use_variant`
+    (RenderError for an unknown or unavailable one); a missing or corrupt
+    MERL file raises an error naming it before anything is rendered.
+    """
+    from brdfpipe import render
+
+    render.use_variant(variant)
+    render.register_merl_bsdf()
+    scene = scene_dict(
+        render.merl_bsdf(merl_path), envmap=envmap, resolution=tuple(resolution),  # type: ignore[arg-type]
+        max_depth=max_depth, spp=spp, seed=seed,
+    )
+    meta = {"material_file": Path(merl_path).name, **(attrs or {})}
+    logger.info("rendering %s: %dx%d, %d spp, max_depth %d, seed %d, %s",
+                Path(merl_path).name, resolution[0], resolution[1], spp, max_depth, seed, variant)
+    return render_to_exr(scene, out, spp=spp, seed=seed, attrs=meta, progress=progress)
+
+
+def render_material_seeds(
+    merl_path: str | os.PathLike[str],
+    outs: list[str | os.PathLike[str]],
+    *,
+    seeds: list[int],
+    attrs: Mapping[str, str] | None = None,
+    **kwargs: Any,
+) -> None:
+    """:func:`render_material` once per seed (``outs[k]`` with ``seeds[k]``), in one process (one JIT warm-up)."""
+    if len(outs) != len(seeds) or len(set(seeds)) != len(seeds):
+        raise ValueError(f"need one distinct seed per output, got seeds {seeds} for {len(outs)} outputs")
+    for out, seed in zip(outs, seeds):
+        render_material(merl_path, out, seed=seed, attrs={**(attrs or {}), "seed_role": f"seed {seed}"}, **kwargs)

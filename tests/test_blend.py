@@ -1,0 +1,308 @@
+"""Tests of :mod:`brdfpipe.blend` on tiny synthetic EXR images written with write_exr."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Any
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+from brdfpipe import blend
+from brdfpipe.blend import (
+    SUMMARY_COLUMNS,
+    BlendError,
+    blend_exr,
+    error_map,
+    error_maps,
+    format_t,
+    relative_rmse,
+    rmse,
+    tonemap,
+)
+from brdfpipe.exr import ExrError, read_exr, read_exr_attrs, write_exr
+
+H, W = 6, 8
+MATERIALS = ("alum-bronze", "chrome", "silver-paint")
+
+
+def _images(tmp_path: Path, n: int = 3, seed: int = 0, shape: tuple[int, int] = (H, W)) -> list[Path]:
+    rng = np.random.default_rng(seed)
+    paths = []
+    for i in range(n):
+        p = tmp_path / f"img{i}.exr"
+        write_exr(p, rng.uniform(0.0, 2.0, shape + (3,)).astype(np.float32))
+        paths.append(p)
+    return paths
+
+
+# --------------------------------------------------------------------------
+# blend_exr
+# --------------------------------------------------------------------------
+
+
+def test_blend_of_constant_images_is_the_weighted_sum(tmp_path: Path) -> None:
+    consts = [0.25, 1.5, 3.0]  # exactly representable
+    paths = []
+    for i, c in enumerate(consts):
+        paths.append(tmp_path / f"c{i}.exr")
+        write_exr(paths[-1], np.full((H, W, 3), c, dtype=np.float32))
+    w = [0.7, -0.2, 0.5]  # a negative GP weight is kept, not clipped
+    out = blend_exr(paths, w)
+    assert out.dtype == np.float64 and out.shape == (H, W, 3)
+    expected = 0.7 * 0.25 + (-0.2) * 1.5 + 0.5 * 3.0
+    assert np.all(out == expected)
+
+
+def test_blend_is_linear_in_the_weights(tmp_path: Path) -> None:
+    paths = _images(tmp_path)
+    w = np.array([0.2, 0.5, 0.3])
+    base = blend_exr(paths, w)
+    assert np.allclose(blend_exr(paths, 3.0 * w), 3.0 * base, rtol=1e-14, atol=0)
+    v = np.array([-1.0, 0.25, 2.0])
+    assert np.allclose(blend_exr(paths, w + v), base + blend_exr(paths, v), rtol=1e-13, atol=1e-15)
+    # against a direct float64 computation
+    direct = sum(wi * read_exr(p).astype(np.float64) for wi, p in zip(w, paths))
+    assert np.allclose(base, direct, rtol=1e-15, atol=0)
+
+
+def test_blend_reads_each_file_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    paths = _images(tmp_path, n=4)
+    calls: list[Path] = []
+    real = blend.read_exr
+
+    def counting(p: Any) -> np.ndarray:
+        calls.append(Path(p))
+        return real(p)
+
+    monkeypatch.setattr(blend, "read_exr", counting)
+    lines: list[str] = []
+    blend_exr(paths, [0.25] * 4, progress=lines.append)
+    assert calls == paths
+    assert len(lines) == 4
+
+
+def test_blend_checks_lengths_shapes_and_files(tmp_path: Path) -> None:
+    paths = _images(tmp_path)
+    with pytest.raises(BlendError, match="2 entries but there are 3 images"):
+        blend_exr(paths, [0.5, 0.5])
+    with pytest.raises(BlendError, match="non-finite"):
+        blend_exr(paths, [0.5, np.nan, 0.5])
+    odd = tmp_path / "odd.exr"
+    write_exr(odd, np.zeros((H + 1, W, 3), dtype=np.float32))
+    with pytest.raises(BlendError, match=rf"odd\.exr: image has shape \({H + 1}, {W}, 3\).*img0\.exr has \({H}, {W}, 3\)"):
+        blend_exr(paths + [odd], [0.25] * 4)
+    with pytest.raises(ExrError, match=r"gone\.exr: no such file"):
+        blend_exr(paths + [tmp_path / "gone.exr"], [0.25] * 4)
+    (tmp_path / "junk.exr").write_bytes(b"not an exr at all")
+    with pytest.raises(ExrError, match=r"junk\.exr: not an OpenEXR file"):
+        blend_exr([tmp_path / "junk.exr"] + paths, [0.25] * 4)
+
+
+# --------------------------------------------------------------------------
+# metrics, maps
+# --------------------------------------------------------------------------
+
+
+def test_rmse_and_relative_rmse_analytic() -> None:
+    ref = np.full((4, 5, 3), 2.0)
+    a = ref + 0.5  # every pixel and channel off by 0.5
+    assert rmse(a, ref) == pytest.approx(0.5)
+    assert relative_rmse(a, ref, ref) == pytest.approx(0.25)
+    # half the values off by 1, half exact: RMSE = sqrt(1/2); reference mean (1 + 3)/2 = 2
+    ref2 = np.zeros((2, 2, 3))
+    ref2[0] = 1.0
+    ref2[1] = 3.0
+    b = ref2.copy()
+    b[0] += 1.0
+    assert relative_rmse(b, ref2, ref2) == pytest.approx(np.sqrt(0.5) / 2.0)
+    with pytest.raises(BlendError, match="positive mean"):
+        relative_rmse(a, ref, np.zeros_like(ref))
+    with pytest.raises(BlendError, match="differ in shape"):
+        rmse(a, ref[:, :4])
+
+
+def test_error_map_is_mean_abs_over_rgb() -> None:
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(H, W, 3))
+    assert np.array_equal(error_map(a, a), np.zeros((H, W)))
+    b = a.copy()
+    b[..., 0] += 0.3
+    b[..., 2] -= 0.6
+    assert np.allclose(error_map(b, a), 0.3)
+    assert error_map(b, a).shape == (H, W)
+
+
+def test_tonemap() -> None:
+    img = np.array([[[0.0, 0.5, 1.0], [2.0, -1.0, 0.0031308]]])
+    out = tonemap(img)
+    assert out.dtype == np.uint8 and out.shape == (1, 2, 3)
+    assert out[0, 0].tolist() == [0, 188, 255]
+    assert out[0, 1].tolist() == [255, 0, 10]
+    assert tonemap(img, exposure=1.0)[0, 0, 1] == 255  # 0.5 · 2 = 1
+
+
+def test_error_map_png_and_exr(tmp_path: Path) -> None:
+    err = np.linspace(0.0, 1.0, H * W).reshape(H, W)
+    blend.write_error_map_png(tmp_path / "e.png", err, database="synthetic", title="t")
+    blend.write_error_map_png(tmp_path / "f.png", err, database="synthetic", title="t")
+    assert (tmp_path / "e.png").read_bytes() == (tmp_path / "f.png").read_bytes()
+    png = matplotlib.image.imread(tmp_path / "e.png")
+    assert png.ndim == 3 and png.shape[1] > png.shape[0] > 50
+    blend.write_error_map_exr(tmp_path / "e.exr", err, attrs={"database": "synthetic"})
+    back = read_exr(tmp_path / "e.exr")
+    assert np.allclose(back, err[..., None].astype(np.float32))
+    assert read_exr_attrs(tmp_path / "e.exr") == {"database": "synthetic"}
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_format_t() -> None:
+    assert [format_t(t) for t in (0.25, 0.5, 1.0, 0.0, -0.0, 0.125)] == ["0.25", "0.5", "1", "0", "0", "0.125"]
+    with pytest.raises(ValueError):
+        format_t(float("nan"))
+
+
+# --------------------------------------------------------------------------
+# error_maps (the workflow entry point)
+# --------------------------------------------------------------------------
+
+
+def _setup(tmp_path: Path) -> tuple[dict[str, Path], list[dict[str, Any]], dict[str, np.ndarray]]:
+    rng = np.random.default_rng(7)
+    src = tmp_path / "in"
+    src.mkdir(parents=True)
+    images: dict[str, np.ndarray] = {}
+    prerenders = {}
+    for m in MATERIALS:
+        images[m] = rng.uniform(0.1, 2.0, (H, W, 3)).astype(np.float32)
+        prerenders[m] = src / f"{m}.exr"
+        write_exr(prerenders[m], images[m], attrs={"material": m})
+    points = []
+    for t, w in ((0.25, [0.75, 0.25, 0.0]), (0.5, [0.6, 0.6, -0.2])):
+        exact = sum(wi * images[m].astype(np.float64) for wi, m in zip(w, MATERIALS))
+        ref = (exact + rng.normal(0.0, 0.05, exact.shape)).astype(np.float32)
+        ref2 = (exact + rng.normal(0.0, 0.05, exact.shape)).astype(np.float32)
+        name = f"ref-{t}"
+        write_exr(src / f"{name}.exr", ref)
+        write_exr(src / f"{name}-2.exr", ref2)
+        images[name], images[name + "-2"] = ref, ref2
+        points.append({"path": "chrome-to-silver", "t": t, "weights": dict(zip(MATERIALS, w)),
+                       "reference": str(src / f"{name}.exr"), "reference_seed2": str(src / f"{name}-2.exr")})
+    return prerenders, points, images
+
+
+def test_error_maps_end_to_end(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    prerenders, points, images = _setup(tmp_path)
+    out = tmp_path / "out"
+    calls: list[Path] = []
+    real = blend.read_exr
+    monkeypatch.setattr(blend, "read_exr", lambda p: (calls.append(Path(p)), real(p))[1])
+    rows = error_maps(prerenders=prerenders, paths=points, out_dir=out, database="synthetic")
+    # each pre-render read once for all points; each reference once
+    assert sorted(calls) == sorted([Path(p) for p in prerenders.values()]
+                                   + [Path(pt[k]) for pt in points for k in ("reference", "reference_seed2")])
+    assert len(rows) == 2
+    for row, pt in zip(rows, points):
+        w = pt["weights"]
+        direct = sum(w[m] * images[m].astype(np.float64) for m in MATERIALS)
+        ref = images[f"ref-{pt['t']}"].astype(np.float64)
+        ref2 = images[f"ref-{pt['t']}-2"].astype(np.float64)
+        rb = np.sqrt(np.mean((direct - ref) ** 2)) / ref.mean()
+        rn = np.sqrt(np.mean((ref - ref2) ** 2)) / ref.mean()
+        assert row["path"] == "chrome-to-silver" and row["t"] == pt["t"]
+        assert row["rmse_blend"] == pytest.approx(rb, rel=1e-12)
+        assert row["rmse_noise"] == pytest.approx(rn, rel=1e-12)
+        assert row["ratio"] == pytest.approx(rb / rn, rel=1e-12)
+        assert row["mean_reference"] == pytest.approx(ref.mean(), rel=1e-12)
+        stem = out / f"chrome-to-silver-t{format_t(pt['t'])}"
+        assert np.array_equal(read_exr(f"{stem}-blended.exr"), direct.astype(np.float32))
+        assert np.allclose(read_exr(f"{stem}-error.exr")[..., 0], np.abs(direct - ref).mean(axis=2), rtol=1e-6)
+        assert Path(f"{stem}-error.png").stat().st_size > 0
+        assert read_exr_attrs(f"{stem}-blended.exr")["database"] == "synthetic"
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(["summary.csv"] + [f"chrome-to-silver-t{s}-{k}" for s in ("0.25", "0.5")
+                                              for k in ("blended.exr", "error.exr", "error.png")])
+    with open(out / "summary.csv", newline="") as fh:
+        table = list(csv.reader(fh))
+    assert tuple(table[0]) == SUMMARY_COLUMNS
+    assert [r[:3] for r in table[1:]] == [["synthetic", "chrome-to-silver", "0.25"], ["synthetic", "chrome-to-silver", "0.5"]]
+    assert float(table[2][3]) == pytest.approx(rows[1]["rmse_blend"], rel=1e-8)
+    # reruns give the same bytes
+    first = {p.name: p.read_bytes() for p in out.iterdir()}
+    error_maps(prerenders=prerenders, paths=points, out_dir=out, database="synthetic")
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == first
+
+
+@pytest.mark.parametrize("what", ["missing-prerender", "corrupt-prerender", "missing-reference", "corrupt-seed2"])
+def test_error_maps_bad_input_names_the_file_and_writes_no_summary(tmp_path: Path, what: str) -> None:
+    prerenders, points, _ = _setup(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.csv").write_text("stale\n")  # from an earlier run: must not survive a failed one
+    if what == "missing-prerender":
+        bad = prerenders["chrome"]
+        bad.unlink()
+    elif what == "corrupt-prerender":
+        bad = prerenders["chrome"]
+        bad.write_bytes(bad.read_bytes()[:200])
+    elif what == "missing-reference":
+        bad = Path(points[1]["reference"])
+        bad.unlink()
+    else:
+        bad = Path(points[0]["reference_seed2"])
+        bad.write_bytes(bad.read_bytes()[:-40])
+    with pytest.raises(ExrError, match=str(bad).replace(".", r"\.")):
+        error_maps(prerenders=prerenders, paths=points, out_dir=out, database="synthetic")
+    assert not (out / "summary.csv").exists()
+    assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_error_maps_shape_mismatch_and_weight_mismatch(tmp_path: Path) -> None:
+    prerenders, points, _ = _setup(tmp_path)
+    write_exr(Path(points[0]["reference"]), np.ones((H, W + 2, 3), dtype=np.float32))
+    with pytest.raises(BlendError, match=r"ref-0\.25\.exr: image has shape"):
+        error_maps(prerenders=prerenders, paths=points, out_dir=tmp_path / "out", database="synthetic")
+    assert not (tmp_path / "out" / "summary.csv").exists()
+
+    prerenders, points, _ = _setup(tmp_path / "again")
+    points[1]["weights"] = {"chrome": 1.0, "gold": 0.0}
+    with pytest.raises(BlendError, match="without a pre-render: gold; pre-renders without a weight: alum-bronze"):
+        error_maps(prerenders=prerenders, paths=points, out_dir=tmp_path / "out2", database="synthetic")
+
+
+def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None:
+    """The workflow's entry points: weights JSON files → summary, then the three render figures."""
+    import json
+
+    from brdfpipe import figures
+    from brdfpipe.blend import error_maps_from_files
+
+    prerenders, points, _ = _setup(tmp_path)
+    wfiles = []
+    for k, pt in enumerate(points):
+        wf = tmp_path / f"w{k}.json"
+        wf.write_text(json.dumps({"path": pt["path"], "t": pt["t"], "weights": pt["weights"],
+                                  "material_a": MATERIALS[0], "material_b": MATERIALS[1]}))
+        wfiles.append(wf)
+    out = tmp_path / "maps"
+    rows = error_maps_from_files(prerenders=prerenders, weights=wfiles,
+                                 references=[p["reference"] for p in points],
+                                 references_noise=[p["reference_seed2"] for p in points],
+                                 out_dir=out, database="synthetic")
+    direct = error_maps(prerenders=prerenders, paths=points, out_dir=tmp_path / "direct", database="synthetic")
+    assert [r["rmse_blend"] for r in rows] == [r["rmse_blend"] for r in direct]
+    files = figures.make_render_figures(prerenders=prerenders, weights=wfiles,
+                                        references=[p["reference"] for p in points], errormap_dir=out,
+                                        out_dir=tmp_path / "figs", database="synthetic")
+    assert len(files) == 6 and all(f.stat().st_size > 1000 for f in files)
+    (tmp_path / "bad.json").write_text("{}")
+    with pytest.raises(BlendError, match="bad.json"):
+        error_maps_from_files(prerenders=prerenders, weights=[tmp_path / "bad.json"], references=["x"],
+                              references_noise=["y"], out_dir=out, database="synthetic")
+    (out / "summary.csv").unlink()
+    with pytest.raises(figures.FigureInputError, match="summary.csv"):
+        figures.make_render_figures(prerenders=prerenders, weights=wfiles,
+                                    references=[p["reference"] for p in points], errormap_dir=out,
+                                    out_dir=tmp_path / "figs2", database="synthetic")

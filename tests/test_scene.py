@@ -1,0 +1,260 @@
+"""Tests of :mod:`brdfpipe.scene`: env map convention, preview scene, deterministic renders.
+
+Renders are tiny (32 × 24 pixels, 4–8 spp, max_depth 3) with Mitsuba's own
+``diffuse`` / ``roughplastic`` bsdfs on the ``llvm_ad_rgb`` variant.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from brdfpipe import scene
+from brdfpipe.exr import read_exr, read_exr_attrs
+
+RES = (32, 24)
+PLASTIC = {"type": "roughplastic", "diffuse_reflectance": {"type": "rgb", "value": [0.6, 0.3, 0.1]}}
+DIFFUSE = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.8, 0.8, 0.8]}}
+
+
+@pytest.fixture(scope="module")
+def mi() -> Any:
+    try:
+        scene.set_variant("llvm_ad_rgb")
+    except scene.SceneError as exc:  # no LLVM library on this machine
+        pytest.skip(str(exc))
+    import mitsuba
+
+    return mitsuba
+
+
+@pytest.fixture(scope="module")
+def envmap(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("env") / "sky.exr"
+    scene.make_envmap(path, width=64, height=32)
+    return path
+
+
+# --------------------------------------------------------------------------
+# variant
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("bad", ["llvm_ad_spectral", "scalar_mono", "", "LLVM_AD_RGB"])
+def test_bad_variant_names_it_and_the_allowed_set(bad: str) -> None:
+    with pytest.raises(ValueError) as info:
+        scene.set_variant(bad)
+    msg = str(info.value)
+    assert repr(bad) in msg
+    assert all(v in msg for v in scene.VARIANTS)
+
+
+def test_unusable_backend_is_a_clear_error() -> None:
+    # in a subprocess: a failed CUDA initialisation must not disturb this process's variant
+    code = (
+        "from brdfpipe import scene\n"
+        "try:\n"
+        "    scene.set_variant('cuda_ad_rgb')\n"
+        "    print('OK')\n"
+        "except scene.SceneError as e:\n"
+        "    print('ERR', e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    line = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else out.stderr
+    # OK where a GPU exists; otherwise a SceneError naming the variant
+    assert line == "OK" or line.startswith("ERR Mitsuba variant 'cuda_ad_rgb' is not usable"), out
+
+
+# --------------------------------------------------------------------------
+# environment map
+# --------------------------------------------------------------------------
+
+
+def test_pixel_directions_follow_mitsuba_convention() -> None:
+    d = scene.envmap_pixel_directions(8, 5)
+    assert np.allclose(np.linalg.norm(d, axis=-1), 1.0)
+    assert np.allclose(d[0, :, 1], 1.0) and np.allclose(d[-1, :, 1], -1.0)  # row 0 = +Y (up)
+    mid = d[2]  # horizon row
+    # column c at φ = 2π(c + ½)/W: columns 1|2 straddle +X, 5|6 straddle −X, 0|7 straddle −Z, 3|4 +Z
+    assert np.allclose((mid[1] + mid[2]) / 2 / np.linalg.norm((mid[1] + mid[2]) / 2), [1, 0, 0])
+    assert np.allclose((mid[3] + mid[4]) / 2 / np.linalg.norm((mid[3] + mid[4]) / 2), [0, 0, 1])
+    assert np.allclose((mid[0] + mid[7]) / 2 / np.linalg.norm((mid[0] + mid[7]) / 2), [0, 0, -1])
+    assert np.allclose(scene.sun_direction(90.0, 0.0), [0, 1, 0])
+    assert np.allclose(scene.sun_direction(0.0, 90.0), [1, 0, 0])
+    assert np.allclose(scene.sun_direction(0.0, 180.0), [0, 0, 1])
+
+
+@pytest.mark.parametrize("elev, azim", [(35.0, scene.SUN_AZIMUTH_DEG), (60.0, 250.0), (10.0, 20.0)])
+def test_envmap_sun_is_where_documented(tmp_path: Path, elev: float, azim: float) -> None:
+    w, h = 256, 128
+    path = tmp_path / "sky.exr"
+    scene.make_envmap(path, width=w, height=h, sun_elevation_deg=elev, sun_azimuth_deg=azim, sun_radius_deg=1.0)
+    img = read_exr(path)
+    assert img.shape == (h, w, 3)
+    r, c = np.unravel_index(np.argmax(img.sum(axis=-1)), img.shape[:2])
+    d = scene.envmap_pixel_directions(w, h)[r, c]
+    angle = math.degrees(math.acos(np.clip(d @ scene.sun_direction(elev, azim), -1, 1)))
+    assert angle < 360.0 / w  # within one pixel
+    assert math.degrees(math.asin(d[1])) == pytest.approx(elev, abs=180.0 / (h - 1))
+    attrs = read_exr_attrs(path)
+    assert attrs["sun_elevation_deg"] == f"{elev:g}" and attrs["sun_azimuth_deg"] == f"{azim:g}"
+
+
+def test_envmap_sky_is_up_and_deterministic(tmp_path: Path) -> None:
+    scene.make_envmap(tmp_path / "a.exr", width=64, height=32, sun_intensity=0.0)
+    scene.make_envmap(tmp_path / "b.exr", width=64, height=32, sun_intensity=0.0)
+    assert (tmp_path / "a.exr").read_bytes() == (tmp_path / "b.exr").read_bytes()
+    img = read_exr(tmp_path / "a.exr").astype(np.float64)
+    top, bottom = img[: 16].mean(), img[16:].mean()
+    assert top > 2.0 * bottom  # sky above, darker ground below
+    assert img[0, :, 2].mean() > img[0, :, 0].mean()  # zenith is blue
+
+
+def test_mitsuba_envmap_emitter_agrees_with_the_documented_directions(mi: Any, envmap: Path) -> None:
+    import drjit as dr
+
+    em = mi.load_dict({"type": "envmap", "filename": str(envmap)})
+    dirs = np.array([scene.sun_direction(35.0, scene.SUN_AZIMUTH_DEG), [0, 1, 0], [0, -1, 0],
+                     scene.sun_direction(-35.0, scene.SUN_AZIMUTH_DEG)])
+    si = dr.zeros(mi.SurfaceInteraction3f, len(dirs))
+    si.wi = mi.Vector3f(*(-dirs.T))  # wi points away from the emitter
+    val = np.array(em.eval(si)).T  # (n, 3)
+    lum = val.mean(axis=1)
+    sun, zenith, nadir, mirror = lum
+    assert sun > 50.0 * zenith  # the sun is where sun_direction says
+    assert mirror < 0.5 * zenith  # the sun's mirror image below the horizon is dark ground
+    assert zenith > 2.0 * nadir  # +Y is up
+    assert val[1, 2] > val[1, 0]  # blue zenith
+
+
+# --------------------------------------------------------------------------
+# scene and renders
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("emitters", [True, False])
+def test_scene_loads(mi: Any, envmap: Path, emitters: bool) -> None:
+    d = scene.scene_dict(PLASTIC, envmap=envmap, resolution=RES, max_depth=3, spp=4, seed=1, emitters=emitters)
+    loaded = mi.load_dict(d)
+    assert len(loaded.emitters()) == (2 if emitters else 1)
+    # ground + sphere + cube + cylinder + cap (+ the area light's rectangle)
+    assert len(loaded.shapes()) == (6 if emitters else 5)
+    film = loaded.sensors()[0].film()
+    assert tuple(film.size()) == RES
+    assert d["sensor"]["sampler"] == {"type": "independent", "sample_count": 4, "seed": 1}
+    assert d["integrator"] == {"type": "path", "max_depth": 3}
+    # the material is the only thing that differs between two scenes
+    other = scene.scene_dict(DIFFUSE, envmap=envmap, resolution=RES, max_depth=3, spp=4, seed=1, emitters=emitters)
+    assert [k for k in d if str(d[k]) != str(other[k])] == ["material"]
+
+
+def test_scene_dict_checks_its_inputs(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="missing.exr"):
+        scene.scene_dict(PLASTIC, envmap=tmp_path / "missing.exr")
+    with pytest.raises(ValueError, match="'type'"):
+        scene.scene_dict({"reflectance": 0.5}, envmap=envmap)
+    with pytest.raises(ValueError, match="resolution"):
+        scene.scene_dict(PLASTIC, envmap=envmap, resolution=(0, 10))
+
+
+def test_pass_seeds() -> None:
+    assert scene.pass_seeds(10, 3, 4) == [(3000, 4), (3001, 4), (3002, 2)]
+    assert scene.pass_seeds(4, 0, 32) == [(0, 4)]
+    with pytest.raises(ValueError, match="at most 1000"):
+        scene.pass_seeds(2000, 0, 1)
+
+
+def test_render_is_deterministic_and_records_attrs(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    d = scene.scene_dict(PLASTIC, envmap=envmap, resolution=RES, max_depth=3)
+    lines: list[str] = []
+    a = scene.render_to_exr(d, tmp_path / "a.exr", spp=8, seed=5, pass_spp=4, progress=lines.append,
+                            attrs={"database": "synthetic", "material": "orange-plastic"})
+    scene.render_to_exr(d, tmp_path / "b.exr", spp=8, seed=5, pass_spp=4, progress=lines.append,
+                        attrs={"database": "synthetic", "material": "orange-plastic"})
+    scene.render_to_exr(d, tmp_path / "c.exr", spp=8, seed=6, pass_spp=4,
+                        attrs={"database": "synthetic", "material": "orange-plastic"})
+    assert a.shape == (RES[1], RES[0], 3) and a.dtype == np.float32
+    assert np.isfinite(a).all() and a.mean() > 0.0
+    assert (tmp_path / "a.exr").read_bytes() == (tmp_path / "b.exr").read_bytes()
+    assert (tmp_path / "a.exr").read_bytes() != (tmp_path / "c.exr").read_bytes()
+    assert np.array_equal(read_exr(tmp_path / "a.exr"), a)
+    assert len(lines) == 4 and "pass 1/2" in lines[0] and "8/8 spp" in lines[1]
+    attrs = read_exr_attrs(tmp_path / "a.exr")
+    assert attrs["database"] == "synthetic" and attrs["material"] == "orange-plastic"
+    assert attrs["spp"] == "8" and attrs["seed"] == "5" and attrs["mitsuba_variant"] == "llvm_ad_rgb"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.exr", "b.exr", "c.exr"]  # no temp files
+    with pytest.raises(ValueError, match="may not set spp"):
+        scene.render_to_exr(d, tmp_path / "d.exr", spp=4, seed=0, attrs={"spp": "999"})
+
+
+def test_render_bad_scene_is_a_scene_error(mi: Any, tmp_path: Path) -> None:
+    with pytest.raises(scene.SceneError, match=r"x\.exr: Mitsuba could not load the scene"):
+        scene.render_to_exr({"type": "scene", "shape": {"type": "no-such-plugin"}}, tmp_path / "x.exr",
+                            spp=1, seed=0)
+    assert not (tmp_path / "x.exr").exists()
+
+
+def test_up_is_up_and_the_sun_side_is_lit(mi: Any, tmp_path: Path) -> None:
+    """A diffuse sphere under the sky alone: top brighter than bottom, sun side (+X, image right) brighter."""
+    env = tmp_path / "sky.exr"
+    scene.make_envmap(env, width=64, height=32, sun_azimuth_deg=90.0, sun_elevation_deg=20.0)
+    T = mi.ScalarTransform4f
+    d = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": 3},
+        "sensor": {
+            "type": "perspective",
+            "fov": 40.0,
+            "to_world": T().look_at(origin=[0, 0, 4], target=[0, 0, 0], up=[0, 1, 0]),
+            "film": {"type": "hdrfilm", "width": 24, "height": 24, "rfilter": {"type": "box"}},
+        },
+        "ball": {"type": "sphere", "bsdf": DIFFUSE},
+        "sky": {"type": "envmap", "filename": str(env)},
+    }
+    img = scene.render_to_exr(d, tmp_path / "ball.exr", spp=8, seed=0).mean(axis=-1)
+    # the sphere (radius 1 at distance 4, 40° fov) covers the central ~11 pixels; compare inner patches
+    top, bottom = img[7:10, 10:14].mean(), img[14:17, 10:14].mean()
+    left, right = img[10:14, 7:10].mean(), img[10:14, 14:17].mean()
+    assert top > 1.5 * bottom
+    assert right > 2.0 * left
+
+
+def test_preview_render_has_sky_above_ground(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    d = scene.scene_dict(DIFFUSE, envmap=envmap, resolution=RES, max_depth=3, emitters=False)
+    img = scene.render_to_exr(d, tmp_path / "p.exr", spp=4, seed=0)
+    # the top rows show the blue sky (B > R), the bottom rows the grey checkerboard
+    assert img[0, :, 2].mean() > img[0, :, 0].mean()
+    assert abs(img[-1, :, 2].mean() - img[-1, :, 0].mean()) < 0.5 * img[-1].mean()
+
+
+def test_render_material_uses_the_merl_plugin(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    """A Lambertian MERL table renders like Mitsuba's diffuse bsdf of the same albedo (same seed)."""
+    from brdfpipe import merl, render
+
+    table = render.lambertian_table(0.5)
+    merl.write_merl(tmp_path / "lambert.binary", table)
+    kw = dict(envmap=envmap, resolution=(24, 18), spp=8, max_depth=3)
+    img = scene.render_material(tmp_path / "lambert.binary", tmp_path / "m.exr", variant="llvm_ad_rgb", seed=3,
+                                attrs={"database": "synthetic"}, **kw)
+    ref = scene.render_to_exr(scene.scene_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}},
+                                               seed=3, **kw), tmp_path / "d.exr", spp=8, seed=3)
+    assert read_exr_attrs(tmp_path / "m.exr")["material_file"] == "lambert.binary"
+    assert abs(img.mean() - ref.mean()) < 0.05 * ref.mean()
+    scene.render_material_seeds(tmp_path / "lambert.binary", [tmp_path / "a.exr", tmp_path / "b.exr"],
+                                seeds=[0, 1], variant="llvm_ad_rgb", **kw)
+    assert not np.array_equal(read_exr(tmp_path / "a.exr"), read_exr(tmp_path / "b.exr"))
+    with pytest.raises(render.RenderError, match="scalar_spectral"):
+        scene.render_material(tmp_path / "lambert.binary", tmp_path / "x.exr", variant="scalar_spectral", seed=0, **kw)
+    (tmp_path / "bad.binary").write_bytes(b"\x00" * 100)
+    with pytest.raises(Exception, match="bad.binary"):
+        scene.render_material(tmp_path / "bad.binary", tmp_path / "y.exr", variant="llvm_ad_rgb", seed=0, **kw)
+    assert not (tmp_path / "x.exr").exists() and not (tmp_path / "y.exr").exists()
+    with pytest.raises(ValueError, match="distinct seed"):
+        scene.render_material_seeds(tmp_path / "lambert.binary", [tmp_path / "a.exr"], seeds=[0, 1],
+                                    variant="llvm_ad_rgb", **kw)
