@@ -1,0 +1,334 @@
+"""Tests of the manifold-track figures of :mod:`brdfpipe.figures` (Soler 2018 analogues).
+
+The fixtures are small synthetic files in the formats ``brdfpipe.manifold``
+writes: GPLVM models (q = 2 and 5) fitted to a random Gram matrix of
+N = 24 materials and saved with :func:`brdfpipe.gplvm.save_model`, their
+traces (:func:`brdfpipe.gplvm.write_trace`: Hooke–Jeeves sweeps, then an
+L-BFGS polish), ``albedo.csv``, albedo maps for q = 2 and a q = 5 slice,
+``paths.csv`` (three q = 5 paths and one q = 2 path, 21 points each) and
+``reproduction.csv`` (PCA k = 2, 5, 20, 40; GPLVM q = 2, 5 at ~1e-16).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import math
+from pathlib import Path
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+from brdfpipe import figures, gplvm
+from brdfpipe.figures import (
+    ALBEDO_COLUMNS,
+    MANIFOLD_FIGURE_STEMS,
+    PATHS_COLUMNS,
+    REPRODUCTION_COLUMNS,
+    TRACE_COLUMNS,
+    FigureInputError,
+    make_manifold_figures,
+    manifold_eq7_bound,
+    manifold_fig10_latent_q2,
+    manifold_fig10_latent_q5,
+    read_albedo_map,
+    read_manifold_inputs,
+    read_paths,
+    read_trace,
+)
+
+DB = "synthetic"
+N = 24
+D = 60
+QS = (2, 5)
+STEPS = 20
+BASE_NAMES = ("alum-bronze", "blue-metallic-paint", "dark-blue-paint", "teflon", "silver-paint",
+              "black-oxidized-steel", "color-changing-paint3", "gold-metallic-paint", "chrome-steel",
+              "white-fabric", "red-plastic", "two-layer-silver")
+NAMES = tuple(BASE_NAMES[i % len(BASE_NAMES)] + ("" if i < len(BASE_NAMES) else f"-{i}") for i in range(N))
+# (path id, q, material A, material B)
+PATHS = (("p0", 5, "blue-metallic-paint", "dark-blue-paint"), ("p1", 5, "teflon", "silver-paint"),
+         ("p2", 5, "black-oxidized-steel", "color-changing-paint3"), ("p3", 2, "teflon", "silver-paint"))
+PCA_K = (2, 5, 20, 40)
+
+
+def _write_csv(path: Path, header: tuple[str, ...] | list[str], rows: list[list[object]]) -> Path:
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(header)
+        w.writerows(rows)
+    return path
+
+
+def _directions(n: int) -> np.ndarray:
+    a = 2.0 * np.pi * np.arange(n) / n
+    return np.column_stack([np.cos(a), np.sin(a)])
+
+
+def _albedo(rng: np.random.Generator) -> np.ndarray:
+    return rng.uniform(0.02, 0.8, size=(N, 3))
+
+
+def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
+    """Every input of make_manifold_figures under ``root``; returns its keyword arguments (less out_dir)."""
+    rng = np.random.default_rng(2018)
+    Z = rng.normal(size=(N, D)) * np.linspace(2.0, 0.2, D)
+    Z -= Z.mean(axis=0)
+    G = Z @ Z.T
+    (root / "gplvm").mkdir(parents=True, exist_ok=True)
+    (root / "manifold").mkdir(parents=True, exist_ok=True)
+    models, traces, fits = {}, {}, {}
+    for q in QS:
+        res = gplvm.fit(G, D, q=q, max_sweeps=5, polish_iterations=60)
+        if q == 2:  # crowd 16 of the points into a tight cluster: the latent map must zoom on it
+            res.X = np.concatenate([0.02 * rng.normal(size=(16, 2)),
+                                    rng.uniform(3.0, 6.0, size=(N - 16, 1)) * _directions(N - 16)])
+        models[q] = root / "gplvm" / f"q{q}.npz"
+        traces[q] = root / "gplvm" / f"q{q}-trace.csv"
+        gplvm.save_model(models[q], res, NAMES)
+        gplvm.write_trace(traces[q], res)
+        fits[q] = res
+
+    rgb = _albedo(rng)
+    lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    albedo_csv = _write_csv(root / "manifold" / "albedo.csv", ALBEDO_COLUMNS,
+                            [[database, n, *map(repr, c.tolist()), repr(float(v))] for n, c, v in zip(NAMES, rgb, lum)])
+
+    maps = {}
+    for q in QS:
+        X = fits[q].X
+        dims = np.array([0, 1])
+        fixed = X.mean(axis=0)
+        lo, hi = X[:, :2].min(axis=0) - 0.5, X[:, :2].max(axis=0) + 0.5
+        x = np.linspace(lo[0], hi[0], 23)
+        y = np.linspace(lo[1], hi[1], 19)
+        gx, gy = np.meshgrid(x, y)  # (H, W)
+        w = np.exp(-((gx[..., None] - X[:, 0]) ** 2 + (gy[..., None] - X[:, 1]) ** 2) / 2.0)
+        w = w / (w.sum(-1, keepdims=True) + 1e-3)
+        alb = np.einsum("hwn,nc->hwc", w, rgb) + 1e-3 * rgb.mean(axis=0)
+        maps[q] = root / "manifold" / f"albedo-map-q{q}.npz"
+        np.savez(maps[q], x=x, y=y, dims=dims, albedo=alb, luminance=alb @ np.array([0.2126, 0.7152, 0.0722]),
+                 fixed=fixed, q=np.array(q), database=np.array(database))
+
+    rows = []
+    for pid, q, a, b in PATHS:
+        pab = 0.3 + 0.1 * len(a) / 10
+        dist = float(np.linalg.norm(fits[q].X[NAMES.index(a)] - fits[q].X[NAMES.index(b)]))
+        for s in range(STEPS + 1):
+            t = s / STEPS
+            dev = 0.0 if s in (0, STEPS) else 0.4 * math.sin(math.pi * t) + 0.01 * s
+            bound = 0.0 if s in (0, STEPS) else 30.0 * min(t, 1 - t) + 1.0
+            if s == STEPS:
+                dev = 1e-12  # rounding at the end point: omitted like an exact 0
+            if pid == "p1" and s == 10:
+                dev = 2.0 * bound  # a violation of the bound: marked and warned about
+            nearest = a if t < 0.5 else b
+            rows.append([database, "raw", q, pid, a, b, s, repr(t), repr(t * dist), repr(pab * t ** 0.8),
+                         repr(pab * (1 - t) ** 1.2), repr(pab), nearest, repr(dev), repr(bound)])
+    paths_csv = _write_csv(root / "manifold" / "paths.csv", PATHS_COLUMNS, rows)
+
+    rows = []
+    for i, n in enumerate(NAMES):
+        base = 0.05 + 0.4 * ((i * 7) % N) / N
+        for k in PCA_K:
+            rows.append([database, "raw", n, "pca", k, repr(base * (40.0 / (k + 2)) ** 0.6 / 10)])
+        for q in QS:
+            rows.append([database, "raw", n, "gplvm", q, repr(0.0 if i % 3 == 0 else (i % 5 + 1) * 1e-16)])
+    repro_csv = _write_csv(root / "manifold" / "reproduction.csv", REPRODUCTION_COLUMNS, rows)
+    return dict(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=maps, paths_csv=paths_csv,
+                reproduction_csv=repro_csv)
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    return write_inputs(tmp_path_factory.mktemp("manifold-inputs"))
+
+
+@pytest.fixture(scope="module")
+def outputs(inputs: dict[str, object], tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
+    out = tmp_path_factory.mktemp("manifold-figs")
+    return out, make_manifold_figures(**inputs, out_dir=out)
+
+
+def test_writes_every_figure(outputs: tuple[Path, list[Path]]) -> None:
+    out, files = outputs
+    expected = [out / f"{stem}.{ext}" for stem in MANIFOLD_FIGURE_STEMS.values() for ext in ("png", "pdf")]
+    assert files == expected and len(files) == 14
+    for p in files:
+        assert p.is_file() and p.stat().st_size > 1000, p
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in files)  # no temporary files left
+    for stem in MANIFOLD_FIGURE_STEMS.values():
+        img = matplotlib.image.imread(out / f"{stem}.png")
+        assert img.ndim == 3 and img.shape[2] in (3, 4) and min(img.shape[:2]) > 400, stem
+        assert float(img[..., :3].std()) > 0.02, f"{stem}.png looks blank"
+        assert (out / f"{stem}.pdf").read_bytes().startswith(b"%PDF-")
+
+
+def test_database_named_in_every_figure(outputs: tuple[Path, list[Path]]) -> None:
+    out, _ = outputs
+    for stem in MANIFOLD_FIGURE_STEMS.values():
+        for ext in ("png", "pdf"):  # the title (naming the database) is the PNG's and the PDF's Title
+            assert b"synthetic database" in (out / f"{stem}.{ext}").read_bytes(), f"{stem}.{ext}"
+
+
+def test_deterministic(inputs: dict[str, object], outputs: tuple[Path, list[Path]], tmp_path: Path) -> None:
+    _, files_a = outputs
+    files_b = make_manifold_figures(**inputs, out_dir=tmp_path)
+    assert [p.name for p in files_a] == [p.name for p in files_b]
+    for a, b in zip(files_a, files_b):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def test_database_argument_must_match(inputs: dict[str, object], tmp_path: Path) -> None:
+    assert read_manifold_inputs(**inputs, database=DB).database == DB
+    _expect_error(inputs, tmp_path, r"albedo\.csv.*'synthetic'.*'other'", database="other")
+
+
+def test_readers(inputs: dict[str, object]) -> None:
+    inp = read_manifold_inputs(**inputs)
+    assert inp.database == DB and sorted(inp.models) == list(QS)
+    tr = read_trace(inputs["traces"][2])  # type: ignore[index]
+    assert tr.switch is not None and 0 < tr.switch < len(tr.step)
+    assert not tr.lbfgs[: tr.switch].any() and tr.lbfgs[tr.switch:].all()
+    m = read_albedo_map(inputs["albedo_maps"][5])  # type: ignore[index]
+    assert m.q == 5 and m.dims == (0, 1) and m.luminance.shape == (19, 23) and m.fixed.shape == (5,)
+    pt = read_paths(inputs["paths_csv"])  # type: ignore[arg-type]
+    assert [(p.name, p.q, p.material_a, p.material_b) for p in pt.paths] == list(PATHS)
+    assert all(list(p.step) == list(range(STEPS + 1)) for p in pt.paths)
+    colours = inp.albedo.display_colours(NAMES)
+    assert colours.shape == (N, 3) and colours.max() == pytest.approx(1.0) and colours.min() >= 0.0
+
+
+def _expect_error(inputs: dict[str, object], tmp_path: Path, pattern: str, **override: object) -> None:
+    out = tmp_path / "out"
+    with pytest.raises(FigureInputError, match=pattern):
+        make_manifold_figures(**{**inputs, **override}, out_dir=out)
+    assert not out.exists()  # every input is checked before anything is written
+
+
+def test_missing_files(inputs: dict[str, object], tmp_path: Path) -> None:
+    _expect_error(inputs, tmp_path, r"absent-albedo\.csv.*not found", albedo_csv=tmp_path / "absent-albedo.csv")
+    _expect_error(inputs, tmp_path, r"q9\.npz.*not found", models={**inputs["models"], 5: tmp_path / "q9.npz"})  # type: ignore[dict-item]
+    _expect_error(inputs, tmp_path, r"nomap\.npz.*not found", albedo_maps={2: tmp_path / "nomap.npz"})
+    _expect_error(inputs, tmp_path, r"notrace\.csv.*not found", traces={2: tmp_path / "notrace.csv"})
+
+
+def test_bad_headers(inputs: dict[str, object], tmp_path: Path) -> None:
+    src = Path(inputs["paths_csv"]).read_text(encoding="utf-8")  # type: ignore[arg-type]
+    bad = tmp_path / "bad-paths.csv"
+    bad.write_text(src.replace("perceptual_ab", "perceptual_AB", 1), encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"bad-paths\.csv.*perceptual_ab", paths_csv=bad)
+    trace = tmp_path / "bad-trace.csv"
+    trace.write_text("step,log_likelihood\n0,-3.0\n", encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"bad-trace\.csv.*stage", traces={2: trace})
+    repro = tmp_path / "bad-repro.csv"
+    repro.write_text("database,space,material,method,relative_error\nsynthetic,raw,a,pca,0.1\n", encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"bad-repro\.csv.*'?k'?", reproduction_csv=repro)
+    empty = tmp_path / "empty-albedo.csv"
+    empty.write_text("", encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"empty-albedo\.csv.*empty", albedo_csv=empty)
+    assert TRACE_COLUMNS == ("step", "stage", "log_likelihood")
+
+
+def test_nan_and_bad_values(inputs: dict[str, object], tmp_path: Path) -> None:
+    rows = Path(inputs["reproduction_csv"]).read_text(encoding="utf-8").splitlines()  # type: ignore[arg-type]
+    rows[3] = ",".join(rows[3].split(",")[:-1] + ["nan"])
+    nan_repro = tmp_path / "nan-repro.csv"
+    nan_repro.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"nan-repro\.csv: line 4.*relative_error", reproduction_csv=nan_repro)
+
+    with Path(inputs["paths_csv"]).open(encoding="utf-8", newline="") as fh:  # type: ignore[arg-type]
+        recs = list(csv.DictReader(fh))
+    recs[5]["perceptual_a"] = "NaN"
+    nan_paths = _write_csv(tmp_path / "nan-paths.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
+    _expect_error(inputs, tmp_path, r"nan-paths\.csv: line 7.*perceptual_a", paths_csv=nan_paths)
+
+    with np.load(inputs["albedo_maps"][2]) as z:  # type: ignore[index]
+        arrays = {k: z[k] for k in z.files}
+    arrays["luminance"] = arrays["luminance"].copy()
+    arrays["luminance"][3, 4] = np.nan
+    nan_map = tmp_path / "nan-map.npz"
+    np.savez(nan_map, **arrays)
+    _expect_error(inputs, tmp_path, r"nan-map\.npz.*luminance.*NaN", albedo_maps={2: nan_map})
+
+    lines = Path(inputs["traces"][5]).read_text(encoding="utf-8").splitlines()  # type: ignore[index]
+    lines[2] = lines[2].rsplit(",", 1)[0] + ",nan"
+    nan_trace = tmp_path / "nan-trace.csv"
+    nan_trace.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"nan-trace\.csv: line 3.*log_likelihood", traces={5: nan_trace})
+
+    text = Path(inputs["albedo_csv"]).read_text(encoding="utf-8")  # type: ignore[arg-type]
+    bad_alb = tmp_path / "short-albedo.csv"
+    bad_alb.write_text("\n".join(text.splitlines()[:-2]) + "\n", encoding="utf-8")  # two materials missing
+    _expect_error(inputs, tmp_path, r"short-albedo\.csv.*no albedo row", albedo_csv=bad_alb)
+
+
+def test_inconsistent_inputs(inputs: dict[str, object], tmp_path: Path) -> None:
+    # a path whose q has no model
+    _expect_error(inputs, tmp_path, r"paths\.csv.*q = 5.*no GPLVM model", models={2: inputs["models"][2]},  # type: ignore[index]
+                  traces={}, albedo_maps={2: inputs["albedo_maps"][2]})  # type: ignore[index]
+    # a map given under the wrong q, a model under the wrong q
+    _expect_error(inputs, tmp_path, r"albedo-map-q5\.npz.*q = 5 map.*q = 2", albedo_maps={2: inputs["albedo_maps"][5]})  # type: ignore[index]
+    _expect_error(inputs, tmp_path, r"q2\.npz.*latent dimension 2.*q = 5",
+                  models={2: inputs["models"][2], 5: inputs["models"][2]})  # type: ignore[index]
+    # a model file that is not one
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"not a zip file")
+    _expect_error(inputs, tmp_path, r"junk\.npz", models={**inputs["models"], 2: junk})  # type: ignore[dict-item]
+    # files from different databases
+    rows = Path(inputs["reproduction_csv"]).read_text(encoding="utf-8").replace("synthetic,", "merl,")  # type: ignore[arg-type]
+    other = tmp_path / "other-db.csv"
+    other.write_text(rows, encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"different databases.*other-db\.csv", reproduction_csv=other)
+    # a trace whose stages go back from lbfgs to hooke-jeeves
+    back = tmp_path / "back-trace.csv"
+    back.write_text("step,stage,log_likelihood\n0,hooke-jeeves,-5\n1,lbfgs,-4\n2,hooke-jeeves,-3\n", encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"back-trace\.csv: line 4", traces={2: back})
+
+
+def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """Database from the inputs (merl → "MERL database"); no traces, no maps, only the q = 2 model: still
+    14 files (the empty panels say so; warnings logged)."""
+    kw = write_inputs(tmp_path / "in", database="merl")
+    with Path(kw["paths_csv"]).open(encoding="utf-8", newline="") as fh:  # type: ignore[arg-type]
+        recs = [r for r in csv.DictReader(fh) if r["q"] == "2"]
+    paths = _write_csv(tmp_path / "paths-q2.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.figures"):
+        files = make_manifold_figures(**{**kw, "models": {2: kw["models"][2]}, "traces": {}, "albedo_maps": {},  # type: ignore[index]
+                                         "paths_csv": paths}, out_dir=tmp_path / "out")
+    assert len(files) == 14 and all(p.is_file() for p in files)
+    for p in files:
+        assert b"MERL database" in p.read_bytes(), p.name
+    assert "no trace files" in caplog.text and "no albedo maps" in caplog.text and "no q = 5 model" in caplog.text
+    assert "no gplvm rows for q = 5" not in caplog.text
+
+
+def test_latent_maps_zoom_on_crowded_points(inputs: dict[str, object], tmp_path: Path) -> None:
+    inp = read_manifold_inputs(**inputs)
+    res = manifold_fig10_latent_q2(inp, tmp_path / "q2")
+    # the 16 clustered points get a zoomed panel; the 8 spread ones do not need one
+    assert len(res.panel_titles) == 2 and "zoom" in res.panel_titles[1] and "zoom" not in res.panel_titles[0]
+    img = matplotlib.image.imread(res.files[0])
+    assert img.shape[:2] == res.size_px
+    res5 = manifold_fig10_latent_q5(inp, tmp_path / "q5")  # spread points: one panel per pair, no zoom
+    assert res5.panel_titles == ("dims 0, 1", "dims 1, 2", "dims 2, 3", "dims 3, 4")
+    assert "synthetic database" in res.title and "synthetic database" in res5.title
+
+
+def test_zoom_chain() -> None:
+    rng = np.random.default_rng(1)
+    spread = rng.uniform(-5, 5, size=(30, 2))
+    assert len(figures._zoom_chain(spread, (5.0, 5.0))) == 1
+    cluster = np.concatenate([spread, 1e-3 * rng.normal(size=(20, 2))])
+    views = figures._zoom_chain(cluster, (5.0, 5.0))
+    assert len(views) >= 2
+    x0, x1, y0, y1 = views[1]
+    inside = (cluster[:, 0] >= x0) & (cluster[:, 0] <= x1) & (cluster[:, 1] >= y0) & (cluster[:, 1] <= y1)
+    assert inside[30:].all() and (x1 - x0) < 0.1
+
+
+def test_eq7_bound_end_points_and_violations(inputs: dict[str, object], tmp_path: Path) -> None:
+    res = manifold_eq7_bound(read_manifold_inputs(**inputs), tmp_path / "eq7")
+    assert res.panel_titles == tuple(f"{a} → {b} (q = {q})" for _, q, a, b in PATHS)
+    assert len(res.warnings) == 1 and "'p1'" in res.warnings[0] and "exceeds the eq. 7 bound at 1 point" in res.warnings[0]

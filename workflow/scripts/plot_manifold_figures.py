@@ -1,0 +1,16 @@
+"""Soler 2018 figure analogues of the manifold track (rule plot_manifold_figures)."""
+
+from brdfpipe import figures
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    q = snakemake.params.latent_dims
+    figures.make_manifold_figures(
+        models=dict(zip(q, snakemake.input.models)),
+        traces=dict(zip(q, snakemake.input.traces)),
+        albedo_csv=snakemake.input.albedo,
+        albedo_maps=dict(zip(q, snakemake.input.albedo_maps)),
+        paths_csv=snakemake.input.paths,
+        reproduction_csv=snakemake.input.reproduction,
+        out_dir=snakemake.params.out_dir,
+    )
