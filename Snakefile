@@ -16,6 +16,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/data.smk"
 include: "workflow/rules/acquisition.smk"
 include: "workflow/rules/manifold.smk"
+include: "workflow/rules/render.smk"
 
 
 rule all:
@@ -29,4 +30,8 @@ rule all:
         figures=ACQUISITION_FIGURES,
         gplvm=expand(f"{RESULTS}/gplvm/q{{q}}.npz", q=MAN["latent_dims"]),
         manifold=MANIFOLD_DATA,
+        manifold_figures=MANIFOLD_FIGURES,
+        prerenders=expand(f"{RENDER_DIR}/materials/{{material}}.exr", material=MATERIALS),
+        error_maps=f"{ERRORMAP_DIR}/summary.csv",
+        render_figures=RENDER_FIGURES,
     default_target: True

@@ -6,6 +6,7 @@ directory (``--directory``), so the repository's own ``results/`` is untouched.
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 import subprocess
@@ -55,7 +56,9 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
                     ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
                     ("evaluate", 1), ("plot_acquisition_figures", 1), ("check_directions", 1),
-                    ("compute_gram", 1), ("fit_gplvm", 2)]:
+                    ("compute_gram", 1), ("fit_gplvm", 2), ("analyze_manifold", 1),
+                    ("make_envmap", 1), ("prerender_material", 12), ("interpolate_path_point", 3),
+                    ("render_path_point", 3), ("error_maps", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 
 
@@ -92,7 +95,6 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         assert [s.n for s in d.sets] == list(range(1, len(d.sets) + 1))
     assert (tmp_path / "results" / "directions" / "all" / "nearfield-fov25-error.json").is_file()
     # evaluation: every predicted E(S) matched its direct recomputation (else the rule fails)
-    import csv
 
     with open(tmp_path / "results" / "evaluation" / "consistency.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -104,7 +106,8 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 and "fig05-error-vs-images.png" in figures
+    assert len(figures) == 16 + 14 + 6 and "fig05-error-vs-images.png" in figures
+    assert "manifold-fig09-paths.pdf" in figures and "render-fig13-errors.png" in figures
     # manifold track: one GPLVM fit per latent dimension, with its likelihood trace
     from brdfpipe import gplvm
 
@@ -113,6 +116,19 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         assert fit.X.shape == (12, q) and list(fit.names) == names
         trace = (tmp_path / "results" / "gplvm" / f"q{q}-trace.csv").read_text().splitlines()
         assert trace[0] == "step,stage,log_likelihood" and len(trace) > 2
+    # manifold analyses: three seeded paths of path_steps + 1 points, exact ends
+    with open(tmp_path / "results" / "manifold" / "paths.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 3 * 5 and {r["database"] for r in rows} == {"synthetic"}
+    ends = [r for r in rows if r["step"] in ("0", "4")]
+    assert all(float(r["deviation"]) <= 1e-6 * max(float(x["deviation"]) for x in rows) for r in ends)
+    # rendering track: every material pre-rendered, every path point rendered twice, error maps
+    renders = tmp_path / "results" / "renders" / "preview"
+    assert sorted(p.stem for p in (renders / "materials").glob("*.exr")) == sorted(names)
+    assert len(list((renders / "paths").glob("*-t0.5-noise.exr"))) == 3
+    with open(tmp_path / "results" / "errormaps" / "preview" / "summary.csv") as fh:
+        summary = list(csv.DictReader(fh))
+    assert len(summary) == 3 and all(float(r["rmse_noise"]) > 0 for r in summary)
     # a second run has nothing to do
     again = snakemake(tmp_path, "-n")
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
@@ -133,6 +149,10 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         ({"manifold": {"latent_dims": [0]}}, "less than the minimum of 1"),
         ({"manifold": {"ell": 0}}, "less than or equal to the minimum of 0"),
         ({"manifold": {"mu": -1e-4}}, "less than the minimum of 0"),
+        ({"manifold": {"paths": [["no-such-material", "other"]]}}, "unknown material 'no-such-material'"),
+        ({"manifold": {"path_q": 3}}, "is not one of manifold.latent_dims"),
+        ({"render": {"variant": "scalar_spectral"}}, "is not one of"),
+        ({"render": {"noise_seed": 0}}, "must differ from render.seed"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:

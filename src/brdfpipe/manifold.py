@@ -77,6 +77,7 @@ __all__ = [
     "reproduction_errors",
     "path_analysis",
     "analyze_manifold",
+    "path_point_to_files",
 ]
 
 logger = logging.getLogger("brdfpipe.manifold")
@@ -407,3 +408,42 @@ def analyze_manifold(
                  "relative_error": float(errs[i])} for i, m in enumerate(names)]
     _write_csv(out / "reproduction.csv", REPRODUCTION_COLUMNS, rep)
     logger.info("manifold analyses of %d materials (%s database) -> %s", len(names), database, out)
+
+
+def path_point_to_files(
+    *,
+    model: str | os.PathLike[str],
+    store: str | os.PathLike[str],
+    a: str,
+    b: str,
+    t: float,
+    merl_out: str | os.PathLike[str],
+    weights_out: str | os.PathLike[str],
+) -> NDArray[np.float64]:
+    """The interpolated material at fraction ``t`` of the latent path ``a → b``: MERL file and weights JSON.
+
+    The workflow's ``interpolate_path_point`` job (the rendering track blends
+    pre-rendered images with the same weights).  The JSON holds ``path``,
+    ``t``, ``q``, the latent point ``x`` and ``weights`` {material: wᵢ}
+    (blend weights, Σw = 1), written atomically.  Returns the weights.
+    """
+    import json
+
+    m = gplvm.load_model(model)
+    check_paths([(a, b)], m.names, what=f"path of {model}")
+    if not np.isfinite(t):
+        raise ValueError(f"t must be finite, got {t}")
+    names = list(m.names)
+    x = (1.0 - t) * m.X[names.index(a)] + t * m.X[names.index(b)]
+    w = gplvm.blend_weights(gplvm.weights(m, x))
+    table, clamped = gplvm.interpolate_table(store, w, materials=names, space=m.space)
+    merl.write_merl(merl_out, table)
+    doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
+           "x": [float(v) for v in x], "clamped": int(clamped),
+           "weights": {n: float(v) for n, v in zip(names, w)}}
+    out = Path(weights_out)
+    tmp = out.with_name(f".{out.name}.tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    os.replace(tmp, out)
+    logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped, merl_out)
+    return w

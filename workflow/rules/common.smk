@@ -8,8 +8,8 @@ import re
 from snakemake.exceptions import WorkflowError
 
 from brdfpipe import database as brdf_db
-from brdfpipe import manifold
-from brdfpipe.figures import FIGURE_STEMS
+from brdfpipe import blend, manifold
+from brdfpipe.figures import FIGURE_STEMS, MANIFOLD_FIGURE_STEMS, RENDER_FIGURE_STEMS
 
 
 RESULTS = "results"
@@ -56,12 +56,26 @@ try:
     )
 except ValueError as err:
     raise WorkflowError(f"config: {err}") from None
+# Rendering track: the scene's outputs and the rendered path points.
+RENDER = config["render"]
+if RENDER["noise_seed"] == RENDER["seed"]:
+    raise WorkflowError("config render.noise_seed must differ from render.seed (it measures the noise floor)")
+RENDER_DIR = f"{RESULTS}/renders/{RENDER['scene']}"
+ERRORMAP_DIR = f"{RESULTS}/errormaps/{RENDER['scene']}"
+PATH_ENDS = {manifold.path_name(a, b): (a, b) for a, b in MANIFOLD_PATHS}
+PATH_POINTS = [(p, blend.format_t(t)) for p in PATH_ENDS for t in RENDER["path_points"]]
+RENDER_FIGURES = [
+    f"{FIGURES}/{stem}.{ext}" for stem in RENDER_FIGURE_STEMS.values() for ext in ("png", "pdf")
+]
 MANIFOLD_DIR = f"{RESULTS}/manifold"
 MANIFOLD_DATA = [
     f"{MANIFOLD_DIR}/albedo.csv",
     f"{MANIFOLD_DIR}/paths.csv",
     f"{MANIFOLD_DIR}/reproduction.csv",
 ] + [f"{MANIFOLD_DIR}/albedo-map-q{q}.npz" for q in MAN["latent_dims"]]
+MANIFOLD_FIGURES = [
+    f"{FIGURES}/{stem}.{ext}" for stem in MANIFOLD_FIGURE_STEMS.values() for ext in ("png", "pdf")
+]
 
 
 def split_training_materials(split):
@@ -125,6 +139,8 @@ wildcard_constraints:
     fov=r"\d+(\.\d+)?",
     q=r"\d+",
     space="raw|cosine|log",
+    path="|".join(re.escape(p) for p in PATH_ENDS),
+    t=r"\d+(\.\d+)?",
 
 
 def source_file(wildcards):

@@ -67,7 +67,7 @@ rule analyze_manifold:
         steps=MAN["path_steps"],
         albedo_grid=MAN["albedo_grid"],
         pca_ks=MAN["pca_components"],
-        out_dir=MANIFOLD_DIR,
+        out_dir=lambda wildcards, output: os.path.dirname(output.paths),
     log:
         "logs/analyze_manifold.log",
     benchmark:
@@ -80,3 +80,28 @@ rule analyze_manifold:
         "../../envs/brdfpipe.yaml"
     script:
         "../scripts/analyze_manifold.py"
+
+
+rule plot_manifold_figures:
+    input:
+        models=expand(f"{RESULTS}/gplvm/q{{q}}.npz", q=MAN["latent_dims"]),
+        traces=expand(f"{RESULTS}/gplvm/q{{q}}-trace.csv", q=MAN["latent_dims"]),
+        albedo=f"{MANIFOLD_DIR}/albedo.csv",
+        albedo_maps=expand(f"{MANIFOLD_DIR}/albedo-map-q{{q}}.npz", q=MAN["latent_dims"]),
+        paths=f"{MANIFOLD_DIR}/paths.csv",
+        reproduction=f"{MANIFOLD_DIR}/reproduction.csv",
+    output:
+        figures=MANIFOLD_FIGURES,
+    params:
+        latent_dims=MAN["latent_dims"],
+        out_dir=lambda wildcards, output: os.path.dirname(output.figures[0]),
+    log:
+        "logs/plot_manifold_figures.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        "../../envs/brdfpipe.yaml"
+    script:
+        "../scripts/plot_manifold_figures.py"

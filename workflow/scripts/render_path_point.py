@@ -1,0 +1,17 @@
+"""Reference renders of an interpolated material with two seeds (rule render_path_point)."""
+
+from brdfpipe import scene
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    scene.render_material_seeds(
+        snakemake.input.merl,
+        [snakemake.output.image, snakemake.output.noise],
+        seeds=snakemake.params.seeds,
+        envmap=snakemake.input.envmap,
+        variant=snakemake.params.variant,
+        resolution=snakemake.params.resolution,
+        spp=snakemake.params.spp,
+        max_depth=snakemake.params.max_depth,
+        attrs={"database": snakemake.params.database, "path_point": snakemake.wildcards.path + "-t" + snakemake.wildcards.t},
+    )
