@@ -189,8 +189,9 @@ def test_readers(inputs: dict[str, object]) -> None:
     inp = read_manifold_inputs(**inputs)
     assert inp.database == DB and sorted(inp.models) == list(QS)
     tr = read_trace(inputs["traces"][2])  # type: ignore[index]
-    assert tr.switch is not None and 0 < tr.switch < len(tr.step)
-    assert not tr.lbfgs[: tr.switch].any() and tr.lbfgs[tr.switch:].all()
+    st = list(tr.stage)
+    assert st[0] == "start" and "lbfgs" in st
+    assert tr.switches == [k for k in range(1, len(st)) if st[k] != st[k - 1] and st[k - 1] != "start"]
     m = read_albedo_map(inputs["albedo_maps"][5])  # type: ignore[index]
     assert m.q == 5 and m.dims == (0, 1) and m.luminance.shape == (19, 23) and m.fixed.shape == (5,)
     pt = read_paths(inputs["paths_csv"])  # type: ignore[arg-type]
@@ -281,10 +282,13 @@ def test_inconsistent_inputs(inputs: dict[str, object], tmp_path: Path) -> None:
     other = tmp_path / "other-db.csv"
     other.write_text(rows, encoding="utf-8")
     _expect_error(inputs, tmp_path, r"different databases.*other-db\.csv", reproduction_csv=other)
-    # a trace whose stages go back from lbfgs to hooke-jeeves
+    # a trace with a second start row, and one with an unknown stage
     back = tmp_path / "back-trace.csv"
-    back.write_text("step,stage,log_likelihood\n0,hooke-jeeves,-5\n1,lbfgs,-4\n2,hooke-jeeves,-3\n", encoding="utf-8")
+    back.write_text("step,stage,log_likelihood\n0,start,-5\n1,lbfgs,-4\n2,start,-3\n", encoding="utf-8")
     _expect_error(inputs, tmp_path, r"back-trace\.csv: line 4", traces={2: back})
+    odd = tmp_path / "odd-trace.csv"
+    odd.write_text("step,stage,log_likelihood\n0,start,-5\n1,newton,-4\n", encoding="utf-8")
+    _expect_error(inputs, tmp_path, r"odd-trace\.csv: line 3.*unknown stage", traces={2: odd})
 
 
 def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:

@@ -1113,8 +1113,8 @@ def make_acquisition_figures(errors_csv: str | os.PathLike[str], training_csv: s
 
 #: Columns of a GPLVM trace CSV (gplvm.write_trace).
 TRACE_COLUMNS: tuple[str, ...] = ("step", "stage", "log_likelihood")
-#: Trace stages, in the order they must appear.
-TRACE_STAGES: tuple[str, ...] = ("hooke-jeeves", "lbfgs")
+#: Trace stages: the start point, Hooke–Jeeves sweeps, L-BFGS iterations (in any order).
+TRACE_STAGES: tuple[str, ...] = ("start", "hooke-jeeves", "lbfgs")
 #: Columns of ``albedo.csv``.
 ALBEDO_COLUMNS: tuple[str, ...] = ("database", "material", "r", "g", "b", "luminance")
 #: Columns of ``paths.csv``.
@@ -1177,18 +1177,18 @@ def _nonempty(path: Path, line: int, column: str, text: str) -> str:
 
 @dataclass(frozen=True)
 class TraceTable:
-    """A GPLVM fit's log-likelihood trace: ``step``, ``lbfgs`` (polish stage?), ``log_likelihood``."""
+    """A GPLVM fit's log-likelihood trace: ``step``, ``stage`` of each row, ``log_likelihood``."""
 
     path: Path
     step: np.ndarray
-    lbfgs: np.ndarray
+    stage: np.ndarray
     log_likelihood: np.ndarray
 
     @property
-    def switch(self) -> int | None:
-        """Index of the first L-BFGS row (None: Hooke–Jeeves only)."""
-        idx = np.flatnonzero(self.lbfgs)
-        return int(idx[0]) if idx.size else None
+    def switches(self) -> list[int]:
+        """Indices of the rows where the stage changes (the first row excluded; a ``start`` row never counts)."""
+        return [i for i in range(1, len(self.stage))
+                if self.stage[i] != self.stage[i - 1] and self.stage[i - 1] != "start"]
 
 
 def read_trace(path: str | os.PathLike[str]) -> TraceTable:
@@ -1201,13 +1201,13 @@ def read_trace(path: str | os.PathLike[str]) -> TraceTable:
         if r["stage"] not in TRACE_STAGES:
             raise FigureInputError(f"{p}: line {i}: unknown stage {r['stage']!r} "
                                    f"(expected {' or '.join(TRACE_STAGES)})")
-        if stages and stages[-1] == "lbfgs" and r["stage"] == "hooke-jeeves":
-            raise FigureInputError(f"{p}: line {i}: a hooke-jeeves row after the lbfgs rows")
+        if stages and r["stage"] == "start":
+            raise FigureInputError(f"{p}: line {i}: a start row after the first row")
         if len(steps) > 1 and steps[-1] <= steps[-2]:
             raise FigureInputError(f"{p}: line {i}: steps not increasing ({steps[-2]} then {steps[-1]})")
         stages.append(r["stage"])
         values.append(_finite(p, i, "log_likelihood", r["log_likelihood"]))
-    return TraceTable(p, np.array(steps, dtype=np.int64), np.array([s == "lbfgs" for s in stages]),
+    return TraceTable(p, np.array(steps, dtype=np.int64), np.array(stages, dtype=str),
                       np.array(values, dtype=np.float64))
 
 
@@ -1838,13 +1838,14 @@ def manifold_fig05_likelihood(inp: ManifoldInputs, stem: str | os.PathLike[str])
                 g = best - tr.log_likelihood
                 ok = g > 0
                 gap.plot(tr.step[ok], g[ok], color=colour, linewidth=1.3, label=f"q = {q}")
-                s = tr.switch
-                if s is not None:
+                for s in tr.switches:
                     for a, v in ((ax, tr.log_likelihood[s]), (gap, g[s] if g[s] > 0 else np.nan)):
                         a.axvline(tr.step[s], color=colour, linestyle=":", linewidth=1.0)
                         if math.isfinite(v):
                             a.plot([tr.step[s]], [v], marker="o", markersize=4.5, color=colour,
                                    markerfacecolor="white", linestyle="none")
+                    ax.annotate(str(tr.stage[s]), (tr.step[s], tr.log_likelihood[s]), fontsize=6, color=colour,
+                                xytext=(3, -10), textcoords="offset points")
                     switch_drawn = True
                 model = inp.models.get(q)
                 if model is not None:
@@ -1854,7 +1855,7 @@ def manifold_fig05_likelihood(inp: ManifoldInputs, stem: str | os.PathLike[str])
                              f"({inp.model_paths[q]}) has L = {L_model:.10g}")
             if switch_drawn:
                 ax.plot([], [], color="#444444", linestyle=":", marker="o", markerfacecolor="white",
-                        label="L-BFGS polish starts")
+                        label="stage changes (label: the new stage)")
             # One sign and a wide range: |L| on a log scale (symlog, linear part below every value);
             # values of both signs: linear (the right panel shows the convergence on a log scale).
             a = np.abs(allL)
