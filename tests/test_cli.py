@@ -106,3 +106,22 @@ def test_interpolate_between_and_at(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert "length q = 2" in capsys.readouterr().err
     assert cli.main([*argv, "--between", a, "no-such-material"]) == 1
     assert "unknown material" in capsys.readouterr().err
+
+
+def test_render_writes_an_exr_and_rejects_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("mitsuba")
+    from brdfpipe import exr, merl, render
+
+    merl.write_merl(tmp_path / "grey.binary", render.lambertian_table(0.4))
+    out = tmp_path / "grey.exr"
+    assert cli.main(["-q", "render", str(tmp_path / "grey.binary"), "--out", str(out),
+                 "--resolution", "16", "12", "--spp", "4", "--max-depth", "2"]) == 0
+    img = exr.read_exr(out)
+    assert img.shape == (12, 16, 3) and img.mean() > 0
+    assert cli.main(["-q", "render", str(tmp_path / "grey.binary"), "--out", str(tmp_path / "x.exr"),
+                 "--variant", "scalar_mono"]) == 1
+    assert "scalar_mono" in capsys.readouterr().err
+    (tmp_path / "bad.binary").write_bytes(b"junk")
+    assert cli.main(["-q", "render", str(tmp_path / "bad.binary"), "--out", str(tmp_path / "y.exr")]) == 1
+    assert "bad.binary" in capsys.readouterr().err
+    assert not (tmp_path / "x.exr").exists() and not (tmp_path / "y.exr").exists()

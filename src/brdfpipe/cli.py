@@ -7,6 +7,7 @@ Subcommands::
     brdfpipe info   results/merl.zarr
     brdfpipe interpolate --model results/gplvm/q5.npz (--at x1,…,xq | --between A B [--t 0.5]) --out F.binary
     brdfpipe reconstruct OBSERVATIONS --model results/svd/train.zarr --out FILE.binary [--eta η]
+    brdfpipe render MATERIAL.binary --out IMAGE.exr [--spp N] [--resolution W H] [--variant V]
 
 Every subcommand exits non-zero with a one-line message naming the file and
 the problem on bad input.
@@ -118,6 +119,24 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_render(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from brdfpipe import scene
+
+    with tempfile.TemporaryDirectory(prefix="brdfpipe-render-") as tmp:
+        envmap = args.envmap
+        if envmap is None:
+            envmap = os.path.join(tmp, "envmap.exr")
+            scene.make_envmap(envmap)
+        scene.render_material(
+            args.material, args.out, envmap=envmap, variant=args.variant, resolution=tuple(args.resolution),
+            spp=args.spp, max_depth=args.max_depth, seed=args.seed,
+        )
+    print(args.out)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``brdfpipe`` command."""
     parser = argparse.ArgumentParser(prog="brdfpipe", description=__doc__.split("\n\n")[0])
@@ -167,7 +186,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--eta", type=_positive_float, default=40.0,
                    help="Tikhonov weight of the coefficient fit (default 40, Xu et al. 2016)")
     p.set_defaults(func=_cmd_reconstruct)
+
+    p = sub.add_parser("render", help="render a MERL material in the preview scene with Mitsuba 3 (EXR)")
+    p.add_argument("material", help="a MERL .binary file")
+    p.add_argument("--out", required=True, help="the EXR image to write")
+    p.add_argument("--envmap", default=None, help="lat-long EXR environment (default: the generated sky + sun)")
+    p.add_argument("--resolution", type=_positive_int, nargs=2, default=[256, 192], metavar=("W", "H"))
+    p.add_argument("--spp", type=_positive_int, default=64, help="samples per pixel (default 64)")
+    p.add_argument("--max-depth", type=_positive_int, default=6, help="longest light path (default 6)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--variant", default="llvm_ad_rgb", help="llvm_ad_rgb (CPU, default) or cuda_ad_rgb (GPU)")
+    p.set_defaults(func=_cmd_render)
     return parser
+
+
+def _render_errors() -> tuple[type[Exception], ...]:
+    """The rendering track's error classes (their modules import Mitsuba lazily)."""
+    from brdfpipe.render import RenderError
+    from brdfpipe.scene import SceneError
+
+    return (RenderError, SceneError)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -176,7 +214,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     setup_console_logging(logging.WARNING if args.quiet else logging.INFO)
     try:
         return int(args.func(args))
-    except (ValueError, FileNotFoundError, NotADirectoryError, PermissionError) as err:
+    except (ValueError, FileNotFoundError, NotADirectoryError, PermissionError, *_render_errors()) as err:
         # MerlFormatError, DatabaseError and store errors are ValueErrors whose
         # message names the file and the problem.
         print(f"brdfpipe {args.command}: error: {err}", file=sys.stderr)
