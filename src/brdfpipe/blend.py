@@ -33,7 +33,6 @@ import logging
 import math
 import os
 import re
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
@@ -42,6 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import __version__
+from .atomic import atomic_write as _atomic_write
 from .exr import ExrError, read_exr, write_exr
 
 __all__ = [
@@ -218,19 +218,6 @@ def write_error_map_exr(
     """Write an ``(H, W)`` error map as a float32 EXR, the value repeated in R, G and B (atomic)."""
     e = _check_err(err)
     write_exr(path, np.repeat(e[..., None], 3, axis=2).astype(np.float32), attrs=attrs)
-
-
-def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool = True) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8", "newline": ""})) as fh:
-            write(fh)
-        os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_error_map_png(

@@ -68,10 +68,9 @@ import csv
 import logging
 import math
 import os
-import tempfile
 import textwrap
 import zipfile
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -88,6 +87,7 @@ from matplotlib.patches import Rectangle
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
 from . import __version__
+from .atomic import atomic_write as _atomic_write
 
 __all__ = [
     "ERRORS_COLUMNS",
@@ -454,19 +454,6 @@ def _no_data(ax: Any, what: str) -> None:
     ax.grid(False)
     for spine in ax.spines.values():
         spine.set_visible(False)
-
-
-def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool = True) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8", "newline": ""})) as fh:
-            write(fh)
-        os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _save(fig: Figure, stem: str | os.PathLike[str], title: str) -> tuple[tuple[Path, Path], tuple[int, int]]:
