@@ -62,7 +62,9 @@ __all__ = [
 logger = logging.getLogger("brdfpipe.blend")
 
 #: Columns of ``summary.csv`` written by :func:`error_maps`, in order.
-SUMMARY_COLUMNS: Final = ("database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "mean_reference")
+SUMMARY_COLUMNS: Final = (
+    "database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "rmse_blend_seed2", "ratio_seed2", "mean_reference",
+)
 
 #: Characters allowed in a path name (it becomes part of file names).
 _NAME_RE: Final = re.compile(r"^[A-Za-z0-9_.+-]+$")
@@ -290,6 +292,12 @@ def _fmt(x: float) -> str:
     return f"{x:.9g}"
 
 
+def _ratio(err: float, noise: float) -> float:
+    if noise > 0.0:
+        return err / noise
+    return math.inf if err > 0.0 else math.nan
+
+
 def error_maps(
     *,
     prerenders: Mapping[str, str | os.PathLike[str]],
@@ -320,6 +328,14 @@ def error_maps(
     * ``ratio`` = rmse_blend / rmse_noise (``inf`` if the noise is 0 and the
       blend error is not, ``nan`` if both are 0): below 1, the blend is
       closer to the reference than two references are to each other;
+    * ``rmse_blend_seed2`` = :func:`relative_rmse` (blend, reference_seed2,
+      reference) and ``ratio_seed2`` = rmse_blend_seed2 / rmse_noise: the
+      same against the second-seed render.  When the pre-renders and the
+      first reference share a sampler seed their Monte Carlo noise is
+      correlated (same camera rays and light samples), which makes
+      ``rmse_blend`` optimistic; against the independent second seed, a
+      blend without bias gives ``ratio_seed2`` ≈ 1 (both sides noisy) and
+      a visible blending bias gives more;
     * ``mean_reference`` = mean of the reference over pixels and channels.
 
     Then writes ``summary.csv`` (columns :data:`SUMMARY_COLUMNS`, one line
@@ -390,10 +406,8 @@ def error_maps(
         mean_ref = float(ref.mean())
         rmse_blend = relative_rmse(blend, ref, ref)
         rmse_noise = relative_rmse(ref, ref2, ref)
-        if rmse_noise > 0.0:
-            ratio = rmse_blend / rmse_noise
-        else:
-            ratio = math.inf if rmse_blend > 0.0 else math.nan
+        rmse_blend2 = relative_rmse(blend, ref2, ref)
+        ratio, ratio2 = (_ratio(e, rmse_noise) for e in (rmse_blend, rmse_blend2))
         attrs = {"database": database, "path": name, "t": s}
         stem = out_dir / f"{name}-t{s}"
         write_exr(stem.with_name(stem.name + "-blended.exr"), blend.astype(np.float32),
@@ -404,7 +418,8 @@ def error_maps(
                                    "reference": ref_path.name})
         errs.append(err)
         rows.append({"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
-                     "ratio": ratio, "mean_reference": mean_ref})
+                     "ratio": ratio, "rmse_blend_seed2": rmse_blend2, "ratio_seed2": ratio2,
+                     "mean_reference": mean_ref})
         _say(progress, f"{name} t={s}: relative RMSE blend {rmse_blend:.4g}, noise {rmse_noise:.4g}, "
                        f"ratio {ratio:.3g}")
 

@@ -2291,7 +2291,7 @@ def _read_exr_checked(path: Path) -> NDArray[np.float64]:
 
 
 def _read_summary(path: Path) -> dict[tuple[str, str], dict[str, str]]:
-    rows = _read_csv_rows(path, ("database", "path", "t", "rmse_blend", "rmse_noise", "ratio"))
+    rows = _read_csv_rows(path, ("database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "rmse_blend_seed2"))
     return {(r["path"], r["t"]): r for r in rows}
 
 
@@ -2398,7 +2398,8 @@ def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[st
             warn(f"no summary row for {q.path} t = {format_t(q.t)}")
             note = ""
         else:
-            note = f"RMSE {float(row['rmse_blend']):.3g} (noise {float(row['rmse_noise']):.3g})"
+            note = (f"RMSE {float(row['rmse_blend']):.3g}, vs 2nd seed {float(row['rmse_blend_seed2']):.3g} "
+                    f"(noise {float(row['rmse_noise']):.3g})")
         _image_axes(fig.add_subplot(gs[r, 0]), tonemap(ref, ev), f"{q.path}\nreference t = {q.t:g}", 5.0)
         _image_axes(fig.add_subplot(gs[r, 1]), tonemap(bl, ev), "blended pre-renders", 5.5)
         ax = fig.add_subplot(gs[r, 2])
