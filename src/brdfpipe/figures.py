@@ -2075,16 +2075,21 @@ def manifold_fig09_paths(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> F
             ax.set_xlabel("latent distance from A / distance A–B")
             ax.set_ylabel("perceptual distance / d(A, B)")
             ax.legend(loc="best", fontsize=6.5)
-        for ax in axes[len(paths):]:
-            if not paths and ax is axes[0]:
-                _no_data(ax, "no paths")
-            else:
-                ax.set_visible(False)
+        _hide_unused_path_panels(axes, len(paths))
         title = f"Perceptual distances along latent paths ({database_label(inp.database)})"
         subtitle = ("Soler 2018 Fig. 9 analogue; blue: distance of the interpolated BRDF to A, red: to B, "
                     "both divided by the distance between A and B; dashed: perceptually uniform; "
                     f"{_space_note(p.space for p in paths)}")
         return _finish(fig, stem, title, subtitle, inp.database, warn)
+
+
+def _hide_unused_path_panels(axes: Sequence[Any], n_paths: int) -> None:
+    """Hide the panels after the last path; with no path at all, say so in the first."""
+    for ax in axes[n_paths:]:
+        if not n_paths and ax is axes[0]:
+            _no_data(ax, "no paths")
+        else:
+            ax.set_visible(False)
 
 
 def manifold_fig08_reproduction(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> FigureOutput:
@@ -2195,11 +2200,7 @@ def manifold_eq7_bound(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> Fig
                 warn(f"path {lp.name!r}: deviation and bound are zero at every point")
                 _no_data(ax, "deviation and bound are 0")
                 ax.set_title(lp.title, fontsize=8.0)
-        for ax in axes[len(paths):]:
-            if not paths and ax is axes[0]:
-                _no_data(ax, "no paths")
-            else:
-                ax.set_visible(False)
+        _hide_unused_path_panels(axes, len(paths))
         title = f"Deviation from the nearest training material vs the eq. 7 bound ({database_label(inp.database)})"
         subtitle = ("Soler 2018 eq. 7: ‖z* − z_j‖ ≤ e^(−1/2)·√(2N)/ℓ·κ(K)·‖Z‖·‖x* − x_j‖, j the nearest "
                     "training point in latent space; the path ends (bound 0, deviation 0 up to rounding) omitted; "
