@@ -18,7 +18,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from brdfpipe import __version__, logmap, merl, store, synth
+from brdfpipe import logmap, merl, store, synth
+from brdfpipe.version import full_version
 from brdfpipe.database import folder_database
 from brdfpipe.logmap import EPS, LogmapError
 
@@ -241,7 +242,7 @@ def test_written_logmap_equals_dense(synth_store: Path, tmp_path: Path, weightin
     assert attrs["materials"] == rows_out
     assert attrs["rows"] == [[m, c] for m in rows_out for c in range(3)]
     assert attrs["train_materials"] == [m for m in mats if m in train]
-    assert attrs["database"] == "synthetic" and attrs["brdfpipe_version"] == __version__
+    assert attrs["database"] == "synthetic" and attrs["brdfpipe_version"] == full_version()
     assert attrs[logmap.COMPLETE_ATTR]["rows"] == 9 and attrs[logmap.COMPLETE_ATTR]["columns"] == cells.size
     # The streamed median equals median_reference.
     assert np.array_equal(logmap.median_reference(st, train, cells), ref)

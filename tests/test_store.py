@@ -19,7 +19,8 @@ import pytest
 import zarr
 from numpy.typing import NDArray
 
-from brdfpipe import __version__, merl, store
+from brdfpipe import merl, store
+from brdfpipe.version import full_version
 from brdfpipe.merl import N_CELLS, MerlFormatError
 from brdfpipe.store import N_COLS, StoreError
 
@@ -123,7 +124,7 @@ def test_attributes(built: Path, sources: dict[str, Path]) -> None:
         assert attrs["sources"][name] == hashlib.sha256(path.read_bytes()).hexdigest()
         assert attrs["source_files"][name] == path.name
     assert attrs["channel_scales"] == list(merl.SCALES)
-    assert "column k" in attrs["layout"] and attrs["brdfpipe_version"] == __version__
+    assert "column k" in attrs["layout"] and attrs["brdfpipe_version"] == full_version()
     assert attrs[store.COMPLETE_ATTR]["n_materials"] == N_MATERIALS
     assert st.brdf.chunks == (1, store.CHUNK_COLS)
 

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from brdfpipe import __version__, logmap, store, svd, synth
+from brdfpipe import logmap, store, svd, synth
+from brdfpipe.version import full_version
 from brdfpipe.database import folder_database
 from brdfpipe.svd import ModelError
 
@@ -108,7 +109,7 @@ def test_model_format(model: svd.Model, data: dict[str, Path]) -> None:
     assert attrs["rows"] == [list(r) for r in lm.rows] and attrs["materials"] == list(lm.materials)
     assert attrs["split"] == "all" and attrs["weighting"] == "product" and attrs["epsilon"] == 1e-3
     assert attrs["database"] == "synthetic" and attrs["k"] == model.k and attrs["tolerance"] == svd.TOL
-    assert attrs["brdfpipe_version"] == __version__
+    assert attrs["brdfpipe_version"] == full_version()
     assert attrs[logmap.COMPLETE_ATTR]["logmap_id"] == lm.id
 
 

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe import __version__, merl, synth
+from brdfpipe import merl, synth
+from brdfpipe.version import full_version
 
 SEED = 11
 NOISE = 0.01
@@ -316,7 +317,7 @@ def test_synthesize_writes_files_and_manifest(
         assert sum(spec.name in m for m in lines) == 1, lines
     doc = json.loads(manifest.read_text())
     assert doc["kind"] == "synthetic" and doc["generator"] == "brdfpipe.synth"
-    assert doc["version"] == __version__
+    assert doc["version"] == full_version()
     assert (doc["seed"], doc["count"], doc["noise"]) == (SEED, 5, NOISE)
     assert [m["name"] for m in doc["materials"]] == [s.name for s in specs5]
     assert len(doc["test_materials"]) == 1

@@ -40,7 +40,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import __version__
+from .version import full_version
 from .atomic import atomic_write as _atomic_write
 from .exr import ExrError, read_exr, write_exr
 
@@ -268,7 +268,7 @@ def write_error_map_png(
         ax.set_title(full_title, fontsize=8.5)
         bar = fig.colorbar(im, ax=ax, fraction=0.05, pad=0.02, extend="max")
         bar.set_label(units)
-        software = f"brdfpipe {__version__} (matplotlib {mpl.__version__})"
+        software = f"brdfpipe {full_version()} (matplotlib {mpl.__version__})"
         _atomic_write(path, lambda fh: fig.savefig(fh, format="png", metadata={"Title": full_title,
                                                                                "Software": software}))
 

@@ -22,7 +22,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from brdfpipe import __version__
+from brdfpipe.version import full_version
 from brdfpipe.logutil import setup_console_logging
 
 __all__ = ["main", "build_parser"]
@@ -140,7 +140,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``brdfpipe`` command."""
     parser = argparse.ArgumentParser(prog="brdfpipe", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--version", action="version", version=f"brdfpipe {__version__}")
+    parser.add_argument("--version", action="version", version=f"brdfpipe {full_version()}")
     parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
     sub = parser.add_subparsers(dest="command", required=True)
 

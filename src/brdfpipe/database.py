@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from brdfpipe import __version__, synth
+from brdfpipe import synth
+from brdfpipe.version import full_version
 from brdfpipe.synth import default_test_count
 
 __all__ = [
@@ -169,7 +170,7 @@ def write_splits(
         "materials": materials,
         "test": [m for m in materials if m in test_set],
         "train": [m for m in materials if m not in test_set],
-        "brdfpipe_version": __version__,
+        "brdfpipe_version": full_version(),
     }
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp")

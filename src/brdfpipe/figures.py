@@ -86,7 +86,7 @@ from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
-from . import __version__
+from .version import full_version
 from .atomic import atomic_write as _atomic_write
 
 __all__ = [
@@ -460,7 +460,7 @@ def _save(fig: Figure, stem: str | os.PathLike[str], title: str) -> tuple[tuple[
     stem = Path(stem)
     png = stem.with_name(stem.name + ".png")
     pdf = stem.with_name(stem.name + ".pdf")
-    software = f"brdfpipe {__version__} (matplotlib {mpl.__version__})"
+    software = f"brdfpipe {full_version()} (matplotlib {mpl.__version__})"
     _atomic_write(png, lambda fh: fig.savefig(fh, format="png", dpi=DPI,
                                               metadata={"Title": title, "Software": software}))
     _atomic_write(pdf, lambda fh: fig.savefig(fh, format="pdf", dpi=DPI,

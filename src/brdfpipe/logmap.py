@@ -90,7 +90,8 @@ import zarr
 from numpy.typing import ArrayLike, NDArray
 from zarr.codecs import BloscCodec
 
-from brdfpipe import __version__, merl
+from brdfpipe import merl
+from brdfpipe.version import full_version
 from brdfpipe.merl import N_CELLS
 from brdfpipe.store import (
     CHUNK_COLS as STORE_CHUNK_COLS,
@@ -489,7 +490,7 @@ def write_logmap(
             "rows": [[name, c] for name in out_names for c in range(3)],
             "train_materials": train_names,
             "database": st.database,
-            "brdfpipe_version": __version__,
+            "brdfpipe_version": full_version(),
         }
         group.attrs.update(attrs)
         digest = hashlib.sha256(json.dumps([attrs, st.sources], sort_keys=True).encode())

@@ -80,7 +80,8 @@ import scipy.linalg
 import scipy.linalg.blas
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import __version__, merl
+from brdfpipe import merl
+from brdfpipe.version import full_version
 
 __all__ = [
     "DEFAULT_ETA",
@@ -1840,7 +1841,7 @@ def write_directions(
         "seed": None if seed is None else int(seed),
         "database": str(database),
         "model": str(model_path),
-        "brdfpipe_version": __version__,
+        "brdfpipe_version": full_version(),
         "sets": out_sets,
     }
     path = Path(path)

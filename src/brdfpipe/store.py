@@ -147,7 +147,8 @@ from zarr.codecs import BloscCodec
 from zarr.core.buffer import default_buffer_prototype
 from zarr.core.group import GroupMetadata
 
-from brdfpipe import __version__, merl
+from brdfpipe import merl
+from brdfpipe.version import full_version
 from brdfpipe.merl import DIMS, FILE_SIZE, HEADER_BYTES, N_CELLS, SCALES, MerlFormatError
 
 __all__ = [
@@ -507,7 +508,7 @@ def ingest_material(src: str | os.PathLike[str], out: str | os.PathLike[str], *,
             "shard_crc32c": row.shard_crc32c,
             "shard_nbytes": row.shard_nbytes,
             "channel_scales": [float(s) for s in SCALES],
-            "brdfpipe_version": __version__,
+            "brdfpipe_version": full_version(),
             COMPLETE_ATTR: {"format": ROW_FORMAT},
         }
         _write_file(tmp / "zarr.json", [_group_doc(attrs)])  # last: carries the marker
@@ -706,7 +707,7 @@ def assemble_store(
                 "source_files": {info.name: info.source_file for info in infos},
                 "channel_scales": [float(s) for s in SCALES],
                 "layout": LAYOUT,
-                "brdfpipe_version": __version__,
+                "brdfpipe_version": full_version(),
             }
         )
         _validate_store(

@@ -108,7 +108,7 @@ import numpy as np
 import zarr
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import __version__
+from brdfpipe.version import full_version
 from brdfpipe.logmap import (
     COMPLETE_ATTR,
     Logmap,
@@ -497,7 +497,7 @@ def _write_model(
                 "database": lm.database,
                 "k": k,
                 "tolerance": float(tol),
-                "brdfpipe_version": __version__,
+                "brdfpipe_version": full_version(),
             }
         )
         digest = hashlib.sha256(f"{lm.id}:{float(tol)!r}:{k}".encode())

@@ -141,7 +141,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import erfc
 
-from brdfpipe import __version__, merl
+from brdfpipe import merl
+from brdfpipe.version import full_version
 
 __all__ = [
     "FAMILIES",
@@ -1024,7 +1025,7 @@ def write_manifest(
     doc = {
         "kind": "synthetic",
         "generator": "brdfpipe.synth",
-        "version": __version__,
+        "version": full_version(),
         "seed": seed,
         "count": len(specs),
         "noise": noise,

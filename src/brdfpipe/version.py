@@ -1,0 +1,109 @@
+"""Which code made an output: a content digest of the library's source.
+
+``brdfpipe.__version__`` (0.1.0) names a release and says nothing about the
+commit a result came from.  :func:`full_version` appends a digest of every
+module of the package (``0.1.0+src.1a2b3c4d5e6f``), so two checkouts whose
+library code differs write different versions, and the same code always
+writes the same one (no clock, no git needed: an installed wheel gives the
+same digest as the checkout it was built from).
+
+:func:`code_digest` is the digest of the modules one piece of code actually
+runs: the named modules and, transitively, every ``brdfpipe`` module they
+import (found by reading the source, never by importing it).  The workflow
+passes it to each rule as a parameter, so Snakemake's ``params`` rerun
+trigger reruns exactly the jobs whose library code changed, and what depends
+on them.  Standard library only: the Snakefile calls it at parse time.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+from collections.abc import Iterable
+from functools import lru_cache
+from pathlib import Path
+
+from brdfpipe import __version__
+
+__all__ = ["PACKAGE_DIR", "module_closure", "code_digest", "full_version"]
+
+#: The folder of the installed package (its ``*.py`` files are what is hashed).
+PACKAGE_DIR = Path(__file__).resolve().parent
+_PKG = "brdfpipe"
+
+
+def _module_file(name: str) -> Path | None:
+    """Source file of ``brdfpipe`` or ``brdfpipe.x`` (module or package), or None."""
+    parts = name.split(".")
+    if parts[0] != _PKG:
+        return None
+    rel = Path(*parts[1:]) if len(parts) > 1 else Path()
+    for cand in (PACKAGE_DIR / rel.with_suffix(".py") if parts[1:] else None, PACKAGE_DIR / rel / "__init__.py"):
+        if cand is not None and cand.is_file():
+            return cand
+    return None
+
+
+@lru_cache(maxsize=None)
+def _imports(name: str) -> frozenset[str]:
+    """``brdfpipe`` modules imported anywhere in module ``name`` (including function bodies)."""
+    path = _module_file(name)
+    if path is None:
+        return frozenset()
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    is_pkg = path.name == "__init__.py"
+    base = name.split(".") if is_pkg else name.split(".")[:-1]
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                anchor = base[: len(base) - (node.level - 1)] if node.level > 1 else base
+                mod = ".".join([*anchor, node.module] if node.module else anchor)
+            else:
+                mod = node.module or ""
+            found.add(mod)
+            found.update(f"{mod}.{a.name}" for a in node.names)
+    return frozenset(m for m in found if m.split(".")[0] == _PKG and _module_file(m) is not None)
+
+
+def module_closure(modules: Iterable[str]) -> list[str]:
+    """The named modules and every ``brdfpipe`` module they import, transitively (sorted).
+
+    Names may be given with or without the ``brdfpipe.`` prefix.  The
+    package's ``__init__`` is always included (it is imported first).
+    """
+    todo = [m if m.startswith(f"{_PKG}.") or m == _PKG else f"{_PKG}.{m}" for m in modules]
+    todo.append(_PKG)
+    seen: set[str] = set()
+    while todo:
+        m = todo.pop()
+        if m in seen:
+            continue
+        if _module_file(m) is None:
+            raise ValueError(f"no module {m} in {PACKAGE_DIR}")
+        seen.add(m)
+        todo.extend(_imports(m) - seen)
+    return sorted(seen)
+
+
+def _digest(files: Iterable[tuple[str, Path]]) -> str:
+    h = hashlib.sha256()
+    for name, path in sorted(files):
+        data = path.read_bytes()
+        h.update(f"{name}\0{len(data)}\0".encode())
+        h.update(data)
+    return h.hexdigest()
+
+
+def code_digest(modules: Iterable[str]) -> str:
+    """sha256 (hex) of the source of :func:`module_closure` ``(modules)``."""
+    return _digest((m, _module_file(m)) for m in module_closure(modules))  # type: ignore[misc]
+
+
+@lru_cache(maxsize=1)
+def full_version() -> str:
+    """``__version__`` plus a digest of every module of the package, e.g. ``0.1.0+src.1a2b3c4d5e6f``."""
+    files = [(p.relative_to(PACKAGE_DIR).as_posix(), p) for p in PACKAGE_DIR.rglob("*.py")]
+    return f"{__version__}+src.{_digest(files)[:12]}"
