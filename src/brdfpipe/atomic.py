@@ -289,7 +289,13 @@ def _same_file(a: Path, b: Path) -> bool:
 def check_not_input(
     out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str] | None], *, what: str = "--out"
 ) -> None:
-    """Raise :class:`OutputError` if ``out`` is (or is inside, or contains) one of ``inputs``."""
+    """Raise :class:`OutputError` if writing ``out`` would replace one of ``inputs``.
+
+    That is: ``out`` names the same file or folder as an input (also through
+    a link or another spelling), or ``out`` is a folder that contains an
+    input (replacing it would delete the input).  Writing a new file inside
+    an input folder is allowed.
+    """
     out_p = Path(out)
     out_r = out_p.resolve()
     for inp in inputs:
@@ -297,7 +303,7 @@ def check_not_input(
             continue
         in_p = Path(inp)
         in_r = in_p.resolve()
-        if out_r == in_r or _same_file(out_p, in_p) or in_r in out_r.parents or out_r in in_r.parents:
+        if out_r == in_r or _same_file(out_p, in_p) or out_r in in_r.parents:
             raise OutputError(f"{what} {out}: would write over the input {inp}; choose another output path")
 
 
