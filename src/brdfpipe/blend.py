@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .version import full_version
 from .atomic import atomic_write as _atomic_write
+from .filenames import format_t
 from .exr import ExrError, read_exr, write_exr
 
 __all__ = [
@@ -76,18 +77,6 @@ class BlendError(ValueError):
 
 def _say(progress: Callable[[str], None] | None, msg: str) -> None:
     (progress if progress is not None else logger.info)(msg)
-
-
-def format_t(t: float) -> str:
-    """The text of a path parameter ``t`` in output file names and ``summary.csv``: ``f"{t:g}"``.
-
-    E.g. ``0.25 → "0.25"``, ``0.5 → "0.5"``, ``1.0 → "1"``; ``-0.0`` is
-    written ``"0"``.  ValueError for a non-finite ``t``.
-    """
-    t = float(t)
-    if not math.isfinite(t):
-        raise ValueError(f"t must be finite, got {t}")
-    return f"{t + 0.0:g}"  # + 0.0 turns -0.0 into 0.0
 
 
 # --------------------------------------------------------------------------
@@ -302,7 +291,7 @@ def error_maps(
     *,
     prerenders: Mapping[str, str | os.PathLike[str]],
     paths: Sequence[Mapping[str, Any]],
-    out_dir: str | os.PathLike[str],
+    summary: str | os.PathLike[str],
     database: str,
     progress: Callable[[str], None] | None = None,
 ) -> list[dict[str, Any]]:
@@ -310,16 +299,17 @@ def error_maps(
 
     ``prerenders`` maps each material to its pre-rendered EXR.  Each entry
     of ``paths`` is one point: ``{"path": name, "t": t, "weights":
-    {material: wᵢ}, "reference": EXR, "reference_seed2": EXR}``, where the
-    references are renders of the interpolated material with two seeds.  The
+    {material: wᵢ}, "reference": EXR, "reference_seed2": EXR, "blended": EXR,
+    "error_exr": EXR, "error_png": PNG}``, where the references are renders
+    of the interpolated material with two seeds and the last three are the
+    point's output files.  The
     weights are dense GP weights: every material with a weight must have a
     pre-render and every pre-render must have a weight (BlendError listing
     the differences otherwise).
 
-    For every point, with ``s = format_t(t)``, writes to ``out_dir``:
-    ``{path}-t{s}-blended.exr`` (the blend, float32),
-    ``{path}-t{s}-error.exr`` (:func:`error_map` of blend vs reference) and
-    ``{path}-t{s}-error.png`` (false colour; one ``vmax`` — the largest 99th
+    For every point writes ``blended`` (the blend, float32), ``error_exr``
+    (:func:`error_map` of blend vs reference) and ``error_png`` (false
+    colour; one ``vmax`` — the largest 99th
     percentile over the points — shared by all maps of the call so colours
     compare), and computes a row
 
@@ -338,16 +328,15 @@ def error_maps(
       a visible blending bias gives more;
     * ``mean_reference`` = mean of the reference over pixels and channels.
 
-    Then writes ``summary.csv`` (columns :data:`SUMMARY_COLUMNS`, one line
+    Then writes ``summary`` (CSV, columns :data:`SUMMARY_COLUMNS`, one line
     per point in input order, numbers as ``%.9g``, ``t`` as ``format_t``)
     atomically, and returns the rows (floats unrounded).  Each pre-render is
     read once for all points.  Any missing or corrupt pre-render or
     reference raises (:class:`~brdfpipe.exr.ExrError` naming the file) and
-    no ``summary.csv`` is left in ``out_dir`` (a stale one is removed first).
+    no ``summary`` is left (a stale one is removed first).
     """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    summary = out_dir / "summary.csv"
+    summary = Path(summary)
+    summary.parent.mkdir(parents=True, exist_ok=True)
     summary.unlink(missing_ok=True)  # never leave a stale summary next to a failed run's outputs
 
     materials = list(prerenders)
@@ -361,7 +350,8 @@ def error_maps(
     W = np.empty((len(paths), len(materials)), dtype=np.float64)
     seen: dict[tuple[str, str], int] = {}
     for k, pt in enumerate(paths):
-        missing_keys = [key for key in ("path", "t", "weights", "reference", "reference_seed2") if key not in pt]
+        missing_keys = [key for key in ("path", "t", "weights", "reference", "reference_seed2", "blended",
+                                        "error_exr", "error_png") if key not in pt]
         if missing_keys:
             raise BlendError(f"path point {k}: missing key(s) {', '.join(missing_keys)}")
         name = str(pt["path"])
@@ -409,11 +399,10 @@ def error_maps(
         rmse_blend2 = relative_rmse(blend, ref2, ref)
         ratio, ratio2 = (_ratio(e, rmse_noise) for e in (rmse_blend, rmse_blend2))
         attrs = {"database": database, "path": name, "t": s}
-        stem = out_dir / f"{name}-t{s}"
-        write_exr(stem.with_name(stem.name + "-blended.exr"), blend.astype(np.float32),
+        write_exr(Path(pt["blended"]), blend.astype(np.float32),
                   attrs={**attrs, "image": "blend of pre-renders"})
         err = error_map(blend, ref)
-        write_error_map_exr(stem.with_name(stem.name + "-error.exr"), err,
+        write_error_map_exr(Path(pt["error_exr"]), err,
                             attrs={**attrs, "image": "mean over RGB of |blended - reference|",
                                    "reference": ref_path.name})
         errs.append(err)
@@ -424,9 +413,9 @@ def error_maps(
                        f"ratio {ratio:.3g}")
 
     vmax = max(float(np.percentile(e, 99.0)) for e in errs) or max(float(e.max()) for e in errs) or 1.0
-    for (name, _, s), err, row in zip(points, errs, rows):
+    for (name, _, s), err, row, pt in zip(points, errs, rows, paths):
         write_error_map_png(
-            out_dir / f"{name}-t{s}-error.png", err, vmax=vmax, database=database,
+            Path(pt["error_png"]), err, vmax=vmax, database=database,
             title=f"path {name}, t = {s}: |blended − reference|\n"
                   f"relative RMSE {row['rmse_blend']:.3g} (noise between seeds {row['rmse_noise']:.3g})",
         )
@@ -447,7 +436,10 @@ def error_maps_from_files(
     weights: Sequence[str | os.PathLike[str]],
     references: Sequence[str | os.PathLike[str]],
     references_noise: Sequence[str | os.PathLike[str]],
-    out_dir: str | os.PathLike[str],
+    blended: Sequence[str | os.PathLike[str]],
+    error_exrs: Sequence[str | os.PathLike[str]],
+    error_pngs: Sequence[str | os.PathLike[str]],
+    summary: str | os.PathLike[str],
     database: str,
 ) -> list[dict[str, Any]]:
     """:func:`error_maps` with each path point given by its weights JSON and two reference renders.
@@ -455,20 +447,23 @@ def error_maps_from_files(
     The workflow's ``error_maps`` job.  ``weights[k]`` is the JSON written
     by :func:`brdfpipe.manifold.path_point_to_files` (``path``, ``t``,
     ``weights``); ``references[k]`` / ``references_noise[k]`` the renders of
-    that interpolated material with the main and the second seed.
+    that interpolated material with the main and the second seed;
+    ``blended[k]``, ``error_exrs[k]``, ``error_pngs[k]`` its output files.
     BlendError naming the file for an unreadable or malformed JSON.
     """
     import json
 
-    if not len(weights) == len(references) == len(references_noise):
-        raise BlendError("weights, references and references_noise must have the same length")
+    lists = (weights, references, references_noise, blended, error_exrs, error_pngs)
+    if len({len(x) for x in lists}) != 1:
+        raise BlendError("weights, references, references_noise and the output lists must have the same length")
     points = []
-    for wf, ref, ref2 in zip(weights, references, references_noise):
+    for wf, ref, ref2, bl, ee, ep in zip(*lists):
         try:
             doc = json.loads(Path(wf).read_text(encoding="utf-8"))
             points.append({"path": doc["path"], "t": float(doc["t"]), "weights": dict(doc["weights"]),
-                           "reference": ref, "reference_seed2": ref2})
+                           "reference": ref, "reference_seed2": ref2, "blended": bl, "error_exr": ee,
+                           "error_png": ep})
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise BlendError(f"{wf}: not a path-point weights file ({type(err).__name__}: {err})") from None
-    return error_maps(prerenders=prerenders, paths=points, out_dir=out_dir, database=database,
+    return error_maps(prerenders=prerenders, paths=points, summary=summary, database=database,
                       progress=lambda msg: logger.info("%s", msg))

@@ -86,6 +86,7 @@ from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
+from .filenames import FIGURE_STEMS, MANIFOLD_FIGURE_STEMS, RENDER_FIGURE_STEMS, format_t
 from .version import full_version
 from .atomic import atomic_write as _atomic_write
 
@@ -95,6 +96,7 @@ __all__ = [
     "RC_PARAMS",
     "DPI",
     "FIGURE_STEMS",
+    "figure_stem",
     "FigureInputError",
     "FigureOutput",
     "ErrorTable",
@@ -152,17 +154,6 @@ RC_PARAMS: dict[str, Any] = {
     "path.simplify": False,
     "text.usetex": False,
     "axes.unicode_minus": True,
-}
-
-#: Output stems (file names without extension) written by make_acquisition_figures.
-FIGURE_STEMS: dict[str, str] = {
-    "fig05": "fig05-error-vs-images",
-    "fig06": "fig06-fov-vs-point",
-    "fig07": "fig07-training-size",
-    "fig08": "fig08-optimal-configurations",
-    "fig13": "fig13-fixed-camera-light",
-    "fig18": "fig18-per-material",
-    "fig19": "fig19-error-vs-n",
 }
 
 # A fixed colour cycle (matplotlib's tab10), so colours never depend on rcParams.
@@ -855,27 +846,31 @@ class _ConfigRow:
                 f"{self.expected_error:.10g}", self.split, self.database]
 
 
-def _load_configurations(directions_dir: Path, fovs: Sequence[float], n_images: Sequence[int], setup: str,
-                         metric: str, splits: Sequence[str], warn: _Warnings) -> tuple[list[_ConfigRow], str]:
+def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Sequence[float],
+                         n_images: Sequence[int], setup: str, metric: str, splits: Sequence[str],
+                         warn: _Warnings) -> tuple[list[_ConfigRow], str]:
     from .sampling import read_directions  # noqa: PLC0415 (heavy import, only needed here)
 
+    loaded = []
+    for p in directions:
+        path = Path(p)
+        if not path.is_file():
+            raise FigureInputError(f"{path}: directions file not found")
+        loaded.append((path, read_directions(path)))  # ValueError naming the file if malformed
     rows: list[_ConfigRow] = []
     databases: dict[str, Path] = {}
     for fov in fovs:
-        path = None
+        found = None
         for split in splits:
-            p = directions_dir / split / f"{setup}-fov{float(fov):g}-{metric}.json"
-            if p.is_file():
-                path = p
+            found = next(((p, d) for p, d in loaded if d.split == split and d.setup.kind == setup
+                          and d.metric == metric and abs(d.setup.fov_deg - float(fov)) <= _FOV_TOL), None)
+            if found is not None:
                 break
-        if path is None:
-            warn(f"no {setup} {metric} directions file for FOV {_fov_text(fov)} under {directions_dir} "
+        if found is None:
+            warn(f"no {setup} {metric} directions file for FOV {_fov_text(fov)} among the inputs "
                  f"(splits tried: {', '.join(splits)}); skipped")
             continue
-        d = read_directions(path)  # ValueError naming the file if malformed
-        if d.setup.kind != setup or d.metric != metric or abs(d.setup.fov_deg - float(fov)) > _FOV_TOL:
-            raise FigureInputError(f"{path}: holds {d.setup.kind} FOV {d.setup.fov_deg:g} metric {d.metric}, "
-                                   f"expected {setup} FOV {float(fov):g} metric {metric}")
+        path, d = found
         if not d.database:
             raise FigureInputError(f"{path}: empty 'database'")
         databases.setdefault(d.database, path)
@@ -967,25 +962,22 @@ def _draw_configuration(ax: Any, rows: Sequence[_ConfigRow], fov: float) -> None
     ax.set_axis_off()
 
 
-def fig08_optimal_configurations(directions_dir: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], stem: str | os.PathLike[str], *,
                                  fovs: Sequence[float], n_images: Sequence[int] = (1, 2),
                                  setup: str = "nearfield", metric: str = "error",
                                  splits: Sequence[str] = ("all", "train")) -> FigureOutput:
     """Xu Figs. 8 and 9: table and sketch of the optimal 1- and 2-image configurations per FOV.
 
-    For each FOV the first of ``splits`` whose file
-    ``{directions_dir}/{split}/{setup}-fov{fov}-{metric}.json`` exists is used
+    ``directions``: the direction files to choose from; for each FOV the
+    first of ``splits`` with a ``setup``/``metric`` file at that FOV is used
     (``all``, the full database, as Xu's Fig. 8; else ``train``).  Writes
     ``<stem>.csv`` (columns :data:`FIG08_COLUMNS`, one row per image),
     ``<stem>.md`` and the sketch ``<stem>.png``/``.pdf`` (one 3-D panel per
     FOV and set size: the hemisphere, the sample disk, light arrows L and
     camera positions C with their viewing cones).
     """
-    directions_dir = Path(directions_dir)
     warn = _Warnings("fig08")
-    if not directions_dir.is_dir():
-        raise FileNotFoundError(f"{directions_dir}: directions folder not found")
-    rows, database = _load_configurations(directions_dir, [float(f) for f in fovs], list(n_images), setup,
+    rows, database = _load_configurations(directions, [float(f) for f in fovs], list(n_images), setup,
                                           metric, list(splits), warn)
     stem = Path(stem)
     csv_path = stem.with_name(stem.name + ".csv")
@@ -1043,34 +1035,68 @@ def fig08_optimal_configurations(directions_dir: str | os.PathLike[str], stem: s
 # ---------------------------------------------------------------------------
 
 
-def make_acquisition_figures(errors_csv: str | os.PathLike[str], training_csv: str | os.PathLike[str],
-                             directions_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
+def figure_stem(files: Sequence[str | os.PathLike[str]], *, table: bool = False) -> Path:
+    """The common stem of one figure's output files, checked: ``[X.png, X.pdf]`` (``+ [X.csv, X.md]`` for a table).
+
+    The workflow passes every output path explicitly; this only checks that
+    the list names the files a figure function writes, so none is missing or
+    written under a name the caller did not declare.
+    """
+    paths = [Path(f) for f in files]
+    exts = [".png", ".pdf", ".csv", ".md"] if table else [".png", ".pdf"]
+    if len(paths) != len(exts) or [p.suffix for p in paths] != exts:
+        raise ValueError(f"figure outputs {[str(p) for p in paths]}: expected files ending in {exts}, in that order")
+    stems = {p.with_suffix("") for p in paths}
+    if len(stems) != 1:
+        raise ValueError(f"figure outputs {[str(p) for p in paths]}: must share one stem")
+    stem = stems.pop()
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    return stem
+
+
+def _check_keys(figures: Mapping[str, Any], known: Mapping[str, str], what: str) -> None:
+    unknown = sorted(set(figures) - set(known))
+    if unknown:
+        raise ValueError(f"{what}: unknown figure key(s) {unknown}; known: {sorted(known)}")
+
+
+def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
+                             training_csv: str | os.PathLike[str] | None,
+                             directions: Sequence[str | os.PathLike[str]],
+                             figures: Mapping[str, Sequence[str | os.PathLike[str]]],
                              fovs: Sequence[float], n_point: int, fov_fixed: float = 25.0,
                              split: str = "train", kind: str = "rms_log") -> list[Path]:
-    """Write every Xu 2016 figure analogue into ``out_dir`` (stems :data:`FIGURE_STEMS`); return the files.
+    """Write the requested Xu 2016 figure analogues; return the files written.
 
-    ``fovs``: near-field FOVs of Figs. 5, 6 and 8; ``n_point``: number of
-    point samples of Fig. 18; ``fov_fixed``: the FOV of Figs. 7 (label) and
-    13; ``split``: the errors.csv split whose rows are plotted (``train``:
-    directions from the training split, evaluated on the held-out materials).
+    ``figures``: figure key (of :data:`FIGURE_STEMS`) → its output files
+    (PNG, PDF; Fig. 8 also CSV and Markdown), exactly as the workflow
+    declares them; only these figures are drawn.  ``training_csv`` is needed
+    for ``fig07``, ``directions`` (the direction files to tabulate) for
+    ``fig08``.  ``fovs``: near-field FOVs of Figs. 5, 6 and 8; ``n_point``:
+    number of point samples of Fig. 18; ``fov_fixed``: the FOV of Figs. 7
+    (label) and 13; ``split``: the errors.csv split whose rows are plotted
+    (``train``: directions from the training split, evaluated on the
+    held-out materials).
     """
+    _check_keys(figures, FIGURE_STEMS, "make_acquisition_figures")
+    stems = {k: figure_stem(v, table=(k == "fig08")) for k, v in figures.items()}
     # Check every input before writing anything: a bad file stops the run with no partial output.
     read_errors(errors_csv)
-    read_training_size(training_csv)
-    if not Path(directions_dir).is_dir():
-        raise FileNotFoundError(f"{directions_dir}: directions folder not found")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    if "fig07" in stems:
+        if training_csv is None:
+            raise ValueError("fig07 needs the training-size table (training_csv)")
+        read_training_size(training_csv)
     fovs = [float(f) for f in fovs]
-    results = [
-        fig05_error_vs_images(errors_csv, out / FIGURE_STEMS["fig05"], fovs=fovs, split=split, kind=kind),
-        fig06_fov_vs_point(errors_csv, out / FIGURE_STEMS["fig06"], fovs=fovs, split=split, kind=kind),
-        fig07_training_size(training_csv, out / FIGURE_STEMS["fig07"], kind=kind, fov=fov_fixed),
-        fig08_optimal_configurations(directions_dir, out / FIGURE_STEMS["fig08"], fovs=fovs),
-        fig13_fixed_camera_light(errors_csv, out / FIGURE_STEMS["fig13"], fov=fov_fixed, split=split, kind=kind),
-        fig18_per_material(errors_csv, out / FIGURE_STEMS["fig18"], n=n_point, split=split, kind=kind),
-        fig19_error_vs_n(errors_csv, out / FIGURE_STEMS["fig19"], split=split, kind=kind),
-    ]
+    draw = {
+        "fig05": lambda st: fig05_error_vs_images(errors_csv, st, fovs=fovs, split=split, kind=kind),
+        "fig06": lambda st: fig06_fov_vs_point(errors_csv, st, fovs=fovs, split=split, kind=kind),
+        "fig07": lambda st: fig07_training_size(training_csv, st, kind=kind, fov=fov_fixed),  # type: ignore[arg-type]
+        "fig08": lambda st: fig08_optimal_configurations(directions, st, fovs=fovs),
+        "fig13": lambda st: fig13_fixed_camera_light(errors_csv, st, fov=fov_fixed, split=split, kind=kind),
+        "fig18": lambda st: fig18_per_material(errors_csv, st, n=n_point, split=split, kind=kind),
+        "fig19": lambda st: fig19_error_vs_n(errors_csv, st, split=split, kind=kind),
+    }
+    results = [draw[k](stems[k]) for k in FIGURE_STEMS if k in stems]
     dbs = {r.database for r in results if r.database}
     if len(dbs) > 1:
         logger.warning("figures: inputs name different databases: %s", ", ".join(sorted(dbs)))
@@ -1113,17 +1139,6 @@ PATHS_COLUMNS: tuple[str, ...] = (
 REPRODUCTION_COLUMNS: tuple[str, ...] = ("database", "space", "material", "method", "k", "relative_error")
 #: Arrays of an albedo map npz.
 ALBEDO_MAP_KEYS: tuple[str, ...] = ("x", "y", "dims", "albedo", "luminance", "fixed", "q", "database")
-
-#: Output stems written by make_manifold_figures.
-MANIFOLD_FIGURE_STEMS: dict[str, str] = {
-    "fig05": "manifold-fig05-likelihood",
-    "fig10_q2": "manifold-fig10-latent-q2",
-    "fig10_q5": "manifold-fig10-latent-q5",
-    "fig07": "manifold-fig07-albedo",
-    "fig09": "manifold-fig09-paths",
-    "fig08": "manifold-fig08-reproduction",
-    "eq7": "manifold-eq7-bound",
-}
 
 #: Most path panels drawn in Figs. 9 and eq. 7 (the first paths of paths.csv, in file order).
 MAX_PATH_PANELS: int = 6
@@ -2211,40 +2226,43 @@ def manifold_eq7_bound(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> Fig
 def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
                           traces: Mapping[int, str | os.PathLike[str]], albedo_csv: str | os.PathLike[str],
                           albedo_maps: Mapping[int, str | os.PathLike[str]], paths_csv: str | os.PathLike[str],
-                          reproduction_csv: str | os.PathLike[str], out_dir: str | os.PathLike[str],
+                          reproduction_csv: str | os.PathLike[str],
+                          figures: Mapping[str, Sequence[str | os.PathLike[str]]],
                           database: str | None = None) -> list[Path]:
-    """Write the Soler 2018 figure analogues into ``out_dir`` (stems :data:`MANIFOLD_FIGURE_STEMS`).
+    """Write the requested Soler 2018 figure analogues (keys of :data:`MANIFOLD_FIGURE_STEMS`).
 
-    ``models``, ``traces``, ``albedo_maps``: q → path.  Every input is read
-    and checked first (:func:`read_manifold_inputs`): a missing or malformed
-    file raises :class:`FigureInputError` naming it and nothing is written.
-    Returns the 14 files (PNG then PDF of each figure, in stem order).
+    ``models``, ``traces``, ``albedo_maps``: q → path.  ``figures``: key →
+    its PNG and PDF paths, as the workflow declares them; only these are
+    drawn.  Every input is read and checked first
+    (:func:`read_manifold_inputs`): a missing or malformed file raises
+    :class:`FigureInputError` naming it and nothing is written.  Returns the
+    files written (PNG then PDF of each figure, in key order).
 
     ==============================  ===========================================
-    ``manifold-fig05-likelihood``    L vs step per q, L-BFGS switch marked;
+    ``fig05`` likelihood             L vs step per q, L-BFGS switch marked;
                                      gap to the best L on a log axis
-    ``manifold-fig10-latent-q2``     q = 2 latent points, named, albedo colours
-    ``manifold-fig10-latent-q5``     q = 5 projections on dims (0,1)…(3,4)
-    ``manifold-fig07-albedo``        luminance albedo maps with iso-lines
-    ``manifold-fig09-paths``         perceptual distance to A / B along paths
-    ``manifold-fig08-reproduction``  per-material reproduction error, PCA vs GPLVM
-    ``manifold-eq7-bound``           deviation vs eq. 7 bound along paths
+    ``fig10_q2`` latent q = 2        q = 2 latent points, named, albedo colours
+    ``fig10_q5`` latent q = 5        q = 5 projections on dims (0,1)…(3,4)
+    ``fig07`` albedo                 luminance albedo maps with iso-lines
+    ``fig09`` paths                  perceptual distance to A / B along paths
+    ``fig08`` reproduction           per-material reproduction error, PCA vs GPLVM
+    ``eq7`` bound                    deviation vs eq. 7 bound along paths
     ==============================  ===========================================
     """
+    _check_keys(figures, MANIFOLD_FIGURE_STEMS, "make_manifold_figures")
+    stems = {k: figure_stem(v) for k, v in figures.items()}
     inp = read_manifold_inputs(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=albedo_maps,
                                paths_csv=paths_csv, reproduction_csv=reproduction_csv, database=database)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    S = MANIFOLD_FIGURE_STEMS
-    results = [
-        manifold_fig05_likelihood(inp, out / S["fig05"]),
-        manifold_fig10_latent_q2(inp, out / S["fig10_q2"]),
-        manifold_fig10_latent_q5(inp, out / S["fig10_q5"]),
-        manifold_fig07_albedo(inp, out / S["fig07"]),
-        manifold_fig09_paths(inp, out / S["fig09"]),
-        manifold_fig08_reproduction(inp, out / S["fig08"]),
-        manifold_eq7_bound(inp, out / S["eq7"]),
-    ]
+    draw = {
+        "fig05": manifold_fig05_likelihood,
+        "fig10_q2": manifold_fig10_latent_q2,
+        "fig10_q5": manifold_fig10_latent_q5,
+        "fig07": manifold_fig07_albedo,
+        "fig09": manifold_fig09_paths,
+        "fig08": manifold_fig08_reproduction,
+        "eq7": manifold_eq7_bound,
+    }
+    results = [draw[k](inp, stems[k]) for k in MANIFOLD_FIGURE_STEMS if k in stems]
     return [p for r in results for p in r.files]
 
 
@@ -2261,13 +2279,6 @@ __all__ += [
 # ==========================================================================
 # Rendering track (Soler 2018 §5.2): pre-render grid, interpolation strip, error panel
 # ==========================================================================
-
-RENDER_FIGURE_STEMS: dict[str, str] = {
-    "fig01": "render-fig01-prerenders",
-    "fig12": "render-fig12-interpolation",
-    "fig13": "render-fig13-errors",
-}
-
 
 @dataclass(frozen=True)
 class RenderPoint:
@@ -2380,7 +2391,7 @@ def render_fig12_interpolation(prerenders: Mapping[str, Path], points: Sequence[
 def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[str, str], Mapping[str, str]],
                         stem: Path, database: str) -> FigureOutput:
     """Per path point: reference, blend and |blend − reference| with the relative RMSEs (Soler Fig. 13)."""
-    from brdfpipe.blend import format_t, tonemap
+    from brdfpipe.blend import tonemap
 
     warn = _Warnings(stem.name)
     refs = [_read_exr_checked(q.reference) for q in points]
@@ -2419,46 +2430,52 @@ def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[st
 
 def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
                         weights: Sequence[str | os.PathLike[str]], references: Sequence[str | os.PathLike[str]],
-                        errormap_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str],
+                        blended: Sequence[str | os.PathLike[str]], errors: Sequence[str | os.PathLike[str]],
+                        summary: str | os.PathLike[str] | None,
+                        figures: Mapping[str, Sequence[str | os.PathLike[str]]],
                         database: str) -> list[Path]:
-    """Write the rendering-track figures (stems :data:`RENDER_FIGURE_STEMS`), PNG + PDF each.
+    """Write the requested rendering-track figures (keys of :data:`RENDER_FIGURE_STEMS`), PNG + PDF each.
 
-    ``weights[k]`` / ``references[k]``: a path point's weights JSON
-    (:func:`brdfpipe.manifold.path_point_to_files`) and reference render;
-    ``errormap_dir`` holds ``{path}-t{t}-blended.exr``, ``-error.exr`` and
-    ``summary.csv`` (:func:`brdfpipe.blend.error_maps`).  A missing or
-    corrupt input raises :class:`FigureInputError` naming it.
+    Per path point ``k``: ``weights[k]`` (its weights JSON,
+    :func:`brdfpipe.manifold.path_point_to_files`), ``references[k]`` (its
+    reference render), ``blended[k]`` and ``errors[k]`` (the blend and the
+    error EXR of :func:`brdfpipe.blend.error_maps`); ``summary``: the error
+    maps' ``summary.csv`` (needed for ``fig13``).  ``figures``: key → its PNG
+    and PDF paths.  A missing or corrupt input raises
+    :class:`FigureInputError` naming it.
     """
     import json
 
-    from brdfpipe.blend import format_t
-
-    edir = Path(errormap_dir)
+    _check_keys(figures, RENDER_FIGURE_STEMS, "make_render_figures")
+    stems = {k: figure_stem(v) for k, v in figures.items()}
+    if not (len(weights) == len(references) == len(blended) == len(errors)):
+        raise ValueError("weights, references, blended and errors must list the same path points")
     points = []
-    for wf, ref in zip(weights, references):
+    for wf, ref, bl, er in zip(weights, references, blended, errors):
         try:
             doc = json.loads(Path(wf).read_text(encoding="utf-8"))
             name, t = str(doc["path"]), float(doc["t"])
             a, b = str(doc["material_a"]), str(doc["material_b"])
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise FigureInputError(f"{wf}: not a path-point weights file ({type(err).__name__}: {err})") from None
-        s = format_t(t)
-        points.append(RenderPoint(name, a, b, t, Path(ref), edir / f"{name}-t{s}-blended.exr",
-                                  edir / f"{name}-t{s}-error.exr"))
+        points.append(RenderPoint(name, a, b, t, Path(ref), Path(bl), Path(er)))
     pre = {m: Path(p) for m, p in prerenders.items()}
     for q in points:
         for m in (q.material_a, q.material_b):
             if m not in pre:
                 raise FigureInputError(f"path {q.path}: no pre-render of {m}")
-    summary = _read_summary(edir / "summary.csv")
-    out = Path(out_dir)
-    S = RENDER_FIGURE_STEMS
+    if ("fig12" in stems or "fig13" in stems) and not points:
+        raise ValueError("figures fig12 and fig13 need at least one path point")
+    summary_rows = _read_summary(Path(summary)) if "fig13" in stems and summary is not None else {}
+    if "fig13" in stems and summary is None:
+        raise ValueError("fig13 needs the error maps' summary.csv")
+    draw = {
+        "fig01": lambda st: render_fig01_prerenders(pre, st, database),
+        "fig12": lambda st: render_fig12_interpolation(pre, points, st, database),
+        "fig13": lambda st: render_fig13_errors(points, summary_rows, st, database),
+    }
     with _style():
-        results = [
-            render_fig01_prerenders(pre, out / S["fig01"], database),
-            render_fig12_interpolation(pre, points, out / S["fig12"], database),
-            render_fig13_errors(points, summary, out / S["fig13"], database),
-        ]
+        results = [draw[k](stems[k]) for k in RENDER_FIGURE_STEMS if k in stems]
     return [p for r in results for p in r.files]
 
 

@@ -56,7 +56,9 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import gplvm, merl, perceptual
+from brdfpipe import atomic, gplvm, merl, perceptual
+from brdfpipe.filenames import path_name
+from brdfpipe.plan import SOLER_PATHS, check_paths, default_paths
 from brdfpipe.store import BrdfStore, iter_column_blocks, open_store
 
 __all__ = [
@@ -85,11 +87,6 @@ logger = logging.getLogger("brdfpipe.manifold")
 #: Midpoint nodes in u = sin²θi for the albedo integral.
 ALBEDO_NODES: Final = 16
 #: Soler Fig. 9's three pairs (used by default when the database has them: the real MERL).
-SOLER_PATHS: Final = (
-    ("blue-metallic-paint", "dark-blue-paint"),
-    ("teflon", "silver-paint"),
-    ("black-oxidized-steel", "color-changing-paint3"),
-)
 PATH_COLUMNS: Final = (
     "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
     "perceptual_a", "perceptual_b", "perceptual_ab", "nearest", "deviation", "bound",
@@ -145,41 +142,6 @@ def material_albedos(store: BrdfStore | str | os.PathLike[str], materials: Seque
 # --------------------------------------------------------------------------
 # Latent-space helpers
 # --------------------------------------------------------------------------
-
-
-def path_name(a: str, b: str) -> str:
-    """File-name-safe name of the path from ``a`` to ``b``: ``a--b``."""
-    return f"{a}--{b}"
-
-
-def default_paths(materials: Sequence[str], seed: int, count: int = 3) -> list[tuple[str, str]]:
-    """Soler Fig. 9's pairs when all of them are in ``materials``; else ``count`` seeded disjoint pairs."""
-    names = sorted(materials)
-    if all(m in names for pair in SOLER_PATHS for m in pair):
-        return [tuple(p) for p in SOLER_PATHS]  # type: ignore[misc]
-    if len(names) < 2:
-        raise ValueError("a path needs at least two materials")
-    rng = np.random.default_rng(seed)
-    k = min(count, len(names) // 2)
-    pick = rng.choice(len(names), size=2 * k, replace=False)
-    return [(names[pick[2 * i]], names[pick[2 * i + 1]]) for i in range(k)]
-
-
-def check_paths(paths: Sequence[Sequence[str]], materials: Sequence[str], what: str = "manifold.paths") -> list[tuple[str, str]]:
-    """Validate ``[[A, B], …]`` against the material list; ValueError naming the bad entry."""
-    known = set(materials)
-    out: list[tuple[str, str]] = []
-    for k, pair in enumerate(paths):
-        if isinstance(pair, str) or len(pair) != 2:
-            raise ValueError(f"{what}[{k}] must be a pair of material names, got {pair!r}")
-        a, b = (str(m) for m in pair)
-        for m in (a, b):
-            if m not in known:
-                raise ValueError(f"{what}[{k}]: unknown material {m!r} (not in the database)")
-        if a == b:
-            raise ValueError(f"{what}[{k}]: a path needs two different materials, got {a!r} twice")
-        out.append((a, b))
-    return out
 
 
 def latent_grid(
@@ -340,17 +302,7 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, A
     w.writerow(columns)
     for r in rows:
         w.writerow([_fmt(r[c]) for c in columns])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(buf.getvalue(), encoding="utf-8")
-    os.replace(tmp, path)
-
-
-def _save_npz(path: Path, arrays: Mapping[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.npz")
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
+    atomic.write_text(path, buf.getvalue())
 
 
 def analyze_manifold(
@@ -364,16 +316,19 @@ def analyze_manifold(
     steps: int = 20,
     albedo_grid: int = 96,
     pca_ks: Sequence[int] = (20, 40),
-    out_dir: str | os.PathLike[str],
+    albedo_out: str | os.PathLike[str],
+    albedo_maps_out: Mapping[int, str | os.PathLike[str]],
+    paths_out: str | os.PathLike[str],
+    reproduction_out: str | os.PathLike[str],
 ) -> None:
     """The workflow's ``analyze_manifold`` job: albedos, albedo maps, paths, reproduction.
 
-    Writes into ``out_dir``: ``albedo.csv``, ``albedo-map-q{q}.npz`` per
-    model, ``paths.csv`` (paths of the ``path_q`` model; ``paths=None``:
-    :func:`default_paths`) and ``reproduction.csv``.  ValueError for an
+    Writes ``albedo_out`` (CSV), one albedo map per entry of
+    ``albedo_maps_out`` (q → npz; q must have a model and be ≥ 2),
+    ``paths_out`` (CSV: paths of the ``path_q`` model; ``paths=None``:
+    :func:`default_paths`) and ``reproduction_out`` (CSV).  ValueError for an
     unknown material in a path or a ``path_q`` without a model.
     """
-    out = Path(out_dir)
     st = open_store(store)
     G, d, info = gplvm.load_gram(gram)
     fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
@@ -387,27 +342,30 @@ def analyze_manifold(
     database = st.database
 
     A = material_albedos(st, names)
-    _write_csv(out / "albedo.csv", ALBEDO_COLUMNS, [
+    for q in albedo_maps_out:
+        if int(q) not in fits:
+            raise ValueError(f"albedo map for q = {q} requested, but there is no q = {q} model")
+    _write_csv(Path(albedo_out), ALBEDO_COLUMNS, [
         {"database": database, "material": m, "r": A[i, 0], "g": A[i, 1], "b": A[i, 2], "luminance": float(A[i] @ _LUMA)}
         for i, m in enumerate(names)
     ])
-    for q, m in sorted(fits.items()):
-        amap = albedo_map(m, A, n=albedo_grid)
+    for q, target in sorted(albedo_maps_out.items()):
+        amap = albedo_map(fits[int(q)], A, n=albedo_grid)
         amap["database"] = np.array(database)
-        _save_npz(out / f"albedo-map-q{q}.npz", amap)
+        atomic.save_npz(target, amap)
 
     rows = []
     for a, b in pairs:
         for r in path_analysis(st, fits[int(path_q)], G, a, b, steps):
             rows.append({"database": database, "space": info.space, "q": int(path_q), **r})
-    _write_csv(out / "paths.csv", PATH_COLUMNS, rows)
+    _write_csv(Path(paths_out), PATH_COLUMNS, rows)
 
     rep = []
     for method, k, errs in reproduction_errors(G, info.raw_gram, fits, pca_ks):
         rep += [{"database": database, "space": info.space, "material": m, "method": method, "k": k,
                  "relative_error": float(errs[i])} for i, m in enumerate(names)]
-    _write_csv(out / "reproduction.csv", REPRODUCTION_COLUMNS, rep)
-    logger.info("manifold analyses of %d materials (%s database) -> %s", len(names), database, out)
+    _write_csv(Path(reproduction_out), REPRODUCTION_COLUMNS, rep)
+    logger.info("manifold analyses of %d materials (%s database) -> %s", len(names), database, reproduction_out)
 
 
 def path_point_to_files(
@@ -441,9 +399,6 @@ def path_point_to_files(
     doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
            "x": [float(v) for v in x], "clamped": int(clamped),
            "weights": {n: float(v) for n, v in zip(names, w)}}
-    out = Path(weights_out)
-    tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    os.replace(tmp, out)
+    atomic.write_text(weights_out, json.dumps(doc, indent=1) + "\n")
     logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped, merl_out)
     return w

@@ -79,7 +79,7 @@ rows, 100 direction sets; shared, loaded 2-core AMD EPYC,
 ``OPENBLAS_NUM_THREADS=1``): :func:`check_consistency` ≈ 11 s (270 training
 rows), :func:`evaluate` ≈ 40 s (pass 1 ≈ 4 s; pass 2 ≈ 35 s, about half of
 it the p × k × 3,000 sgemm, half the exp / max / square-sum over 3.3·10⁹
-values), :func:`training_size_curve` ≈ 6 s; :func:`run_evaluation` ≈ 1 min
+values), :func:`training_size_curve` ≈ 6 s; the whole evaluation stage ≈ 1 min
 in all, peak RSS 0.87 GB.
 
 Consistency check (:func:`check_consistency`): for every directions set the
@@ -106,11 +106,14 @@ p-space pass per N.  Two documented approximations: every N uses the
 first N), and the directions optimised for the full ``train`` model (not
 re-optimised per N).
 
-Output files (tidy CSV, written atomically; :func:`run_evaluation` writes all three)
-----------------------------------------------------------------------------------
+Output files (tidy CSV, written atomically; one workflow job each)
+------------------------------------------------------------------
+:func:`write_evaluation`, :func:`check_consistency` and
+:func:`write_training_size` each write one file, at the path the caller gives:
+
 * ``errors.csv``: ``database,split,setup,fov,metric,n,material,channel,kind,value``
   (channel R, G, B; ``mean`` / ``all`` rows average the material-channels);
-* ``consistency.csv``: ``setup,fov,metric,n,predicted,direct,rel_diff``;
+* ``consistency-{split}.csv``: ``setup,fov,metric,n,predicted,direct,rel_diff``;
 * ``training_size.csv``: ``database,n_train,order_seed,material,channel,kind,value``
   (kind ``rms_log``, plus ``mean`` / ``all`` rows).
 
@@ -124,7 +127,7 @@ import io
 import logging
 import math
 import os
-import tempfile
+
 import time
 import warnings
 from collections.abc import Iterable, Iterator, Sequence
@@ -136,7 +139,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import logmap, merl, sampling, svd
+from brdfpipe import atomic, logmap, merl, sampling, svd
 from brdfpipe.logmap import Logmap, open_logmap
 from brdfpipe.merl import N_CELLS
 from brdfpipe.sampling import DEFAULT_ETA, Directions, read_directions, reconstruct_coefficients
@@ -162,7 +165,8 @@ __all__ = [
     "check_consistency",
     "training_size_curve",
     "write_errors",
-    "run_evaluation",
+    "write_evaluation",
+    "write_training_size",
 ]
 
 logger = logging.getLogger("brdfpipe.reconstruct")
@@ -794,7 +798,7 @@ def _evaluate(
     eta: float,
     linear: bool,
 ) -> list[dict[str, Any]]:
-    eta = sampling._check_eta(eta)
+    eta = sampling.check_eta(eta)
     t0 = time.perf_counter()
     st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
     if st.database != mdl.database:
@@ -1019,7 +1023,7 @@ def training_size_curve(
     Returns rows with keys :data:`TRAINING_SIZE_COLUMNS` (kind ``rms_log``,
     per material-channel and ``mean``/``all``).
     """
-    eta = sampling._check_eta(eta)
+    eta = sampling.check_eta(eta)
     t0 = time.perf_counter()
     st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
     lm = logmap_path if isinstance(logmap_path, Logmap) else open_logmap(logmap_path)
@@ -1143,56 +1147,36 @@ def write_errors(
         if missing:
             raise ValueError(f"row {i} lacks column(s) {', '.join(missing)}")
         w.writerow([_fmt(r[c]) for c in columns])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(buf.getvalue())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic.write_text(path, buf.getvalue())
     return path
 
 
-def run_evaluation(
+def write_evaluation(
     store_path: str | os.PathLike[str],
     model_path: str | os.PathLike[str],
-    logmap_path: str | os.PathLike[str],
     directions_paths: Sequence[str | os.PathLike[str]],
-    out_dir: str | os.PathLike[str],
+    out: str | os.PathLike[str],
     *,
     test_materials: Sequence[str] | None = None,
     eta: float = DEFAULT_ETA,
+) -> Path:
+    """Leave-out evaluation of every direction set (:func:`evaluate`), written to ``out`` (errors CSV)."""
+    rows = evaluate(store_path, model_path, directions_paths, test_materials=test_materials, eta=eta)
+    return write_errors(out, rows)
+
+
+def write_training_size(
+    store_path: str | os.PathLike[str],
+    logmap_path: str | os.PathLike[str],
+    directions_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    test_materials: Sequence[str] | None = None,
     sizes: Sequence[int] = DEFAULT_SIZES,
     order_seed: int = 0,
-    curve_directions: str | os.PathLike[str] | None = None,
-) -> dict[str, Path]:
-    """The whole evaluation stage: ``errors.csv``, ``consistency.csv`` and ``training_size.csv`` in ``out_dir``.
-
-    The consistency check runs first (and raises :class:`ConsistencyError`
-    after writing ``consistency.csv`` if it fails).  The training-size curve
-    uses ``curve_directions``, by default the file among ``directions_paths``
-    with setup ``nearfield``, fov 25 and metric ``error`` (skipped, with a
-    warning, when there is none).  Returns the paths written.
-    """
-    out = Path(out_dir)
-    written: dict[str, Path] = {}
-    check_consistency(logmap_path, model_path, directions_paths, out=out / "consistency.csv")
-    written["consistency"] = out / "consistency.csv"
-    rows = evaluate(store_path, model_path, directions_paths, test_materials=test_materials, eta=eta)
-    written["errors"] = write_errors(out / "errors.csv", rows)
-    if curve_directions is None:
-        for pth in directions_paths:
-            d = read_directions(pth)
-            if d.setup.kind == "nearfield" and d.setup.fov_deg == 25.0 and d.metric == "error":
-                curve_directions = pth
-                break
-    if curve_directions is None:
-        logger.warning("no near-field 25° error-metric directions file: training-size curve skipped")
-    else:
-        curve = training_size_curve(store_path, logmap_path, curve_directions, test_materials=test_materials,
-                                    sizes=sizes, order_seed=order_seed, eta=eta)
-        written["training_size"] = write_errors(out / "training_size.csv", curve, TRAINING_SIZE_COLUMNS)
-    return written
+    eta: float = DEFAULT_ETA,
+) -> Path:
+    """Error vs number of training materials (Xu Fig. 7, :func:`training_size_curve`), written to ``out``."""
+    curve = training_size_curve(store_path, logmap_path, directions_path, test_materials=test_materials,
+                                sizes=sizes, order_seed=order_seed, eta=eta)
+    return write_errors(out, curve, TRAINING_SIZE_COLUMNS)

@@ -111,7 +111,6 @@ __all__ = [
     "DirectionSet",
     "Directions",
     "optimize",
-    "directions_path",
     "write_directions",
     "read_directions",
     "optimize_to_file",
@@ -231,7 +230,7 @@ class ErrorModel:
             raise ValueError("sigma must be finite and non-negative")
         if not np.all(np.isfinite(U)):
             raise ValueError("U must be finite")
-        eta = _check_eta(self.eta)
+        eta = check_eta(self.eta)
         beta = float(self.beta)
         if not np.isfinite(beta) or beta < 0:
             raise ValueError(f"beta must be finite and ≥ 0, got {self.beta!r}")
@@ -278,7 +277,7 @@ class ErrorModel:
         return np.linalg.norm(scipy.linalg.blas.dgemm(1.0, self._r, w), axis=0)
 
 
-def _check_eta(eta: float) -> float:
+def check_eta(eta: float) -> float:
     eta = float(eta)
     if not np.isfinite(eta) or eta <= 0:
         raise ValueError(f"eta must be finite and > 0, got {eta!r}")
@@ -455,7 +454,7 @@ def reconstruct_coefficients(Qrows: ArrayLike, y_obs: ArrayLike, eta: float = DE
     -------
     (k,) or (k, r) float64 coefficients; the reconstruction is ``Q c̄ + μ``.
     """
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     B = _as_rows(Qrows)
     y = np.asarray(y_obs, dtype=np.float64)
     if y.ndim not in (1, 2) or y.shape[0] != B.shape[0]:
@@ -657,7 +656,7 @@ def expected_error_literal(
     training matrix); for a truncated ``k`` the out-of-subspace part of
     ``y_i`` enters ``S y_i`` and the two differ.
     """
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     beta = float(beta)
     if not np.isfinite(beta) or beta < 0:
         raise ValueError(f"beta must be finite and ≥ 0, got {beta!r}")
@@ -785,7 +784,7 @@ def direct_training_error(
 
     Cost O(m·p·k); memory O(block·(m + k)) beyond the inputs.
     """
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     Qa = _as_q(Q)
     p, k = Qa.shape
     Ua = np.asarray(U)
@@ -1776,17 +1775,6 @@ def optimize(
 #              infinite), "n_observations": rows}, …]}
 
 
-def _fov_tag(fov: float) -> str:
-    return f"{fov:g}"
-
-
-def directions_path(results_dir: str | os.PathLike[str], split: str, setup: Setup, metric: str) -> Path:
-    """``{results_dir}/directions/{split}/{kind}-fov{fov}-{metric}.json`` (fov 0 for point)."""
-    if metric not in _METRICS:
-        raise ValueError(f"metric must be one of {_METRICS}, got {metric!r}")
-    return Path(results_dir) / "directions" / split / f"{setup.kind}-fov{_fov_tag(setup.fov_deg)}-{metric}.json"
-
-
 def _json_number(x: float) -> float | int:
     return int(x) if float(x).is_integer() else float(x)
 
@@ -1813,7 +1801,7 @@ def write_directions(
         raise ValueError(f"setup must be a Setup, got {type(setup).__name__}")
     if metric not in _METRICS:
         raise ValueError(f"metric must be one of {_METRICS}, got {metric!r}")
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     beta = float(beta)
     if not np.isfinite(beta) or beta < 0:
         raise ValueError(f"beta must be finite and ≥ 0, got {beta!r}")

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from brdfpipe import __version__
 
-__all__ = ["PACKAGE_DIR", "module_closure", "code_digest", "full_version"]
+__all__ = ["PACKAGE_DIR", "module_closure", "code_digest", "script_digest", "full_version"]
 
 #: The folder of the installed package (its ``*.py`` files are what is hashed).
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -107,3 +107,25 @@ def full_version() -> str:
     """``__version__`` plus a digest of every module of the package, e.g. ``0.1.0+src.1a2b3c4d5e6f``."""
     files = [(p.relative_to(PACKAGE_DIR).as_posix(), p) for p in PACKAGE_DIR.rglob("*.py")]
     return f"{__version__}+src.{_digest(files)[:12]}"
+
+
+def script_digest(script: str | Path) -> str:
+    """sha256 of a workflow script and of every ``brdfpipe`` module it runs (its imports, transitively).
+
+    The workflow gives each rule this digest as a parameter: editing a
+    library module changes the digest of exactly the rules whose scripts
+    import it, directly or not, so Snakemake reruns those jobs (and what
+    depends on them) and nothing else.
+    """
+    path = Path(script)
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    mods: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            mods.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            mods.add(node.module)
+            mods.update(f"{node.module}.{a.name}" for a in node.names)
+    mods = {m for m in mods if m.split(".")[0] == _PKG and _module_file(m) is not None}
+    files = [(m, _module_file(m)) for m in module_closure(mods)] + [("<script>", path)]
+    return _digest(files)  # type: ignore[arg-type]

@@ -1,18 +1,21 @@
 # Acquisition track (Xu 2016): log-relative mapping of the store, then the
 # PCA/SVD of the mapped rows, streamed as scatter (one Gram block of columns
 # per job; `--set-scatter gram=N` spreads it over N jobs) and gather
-# (eigendecomposition, Q written block by block).
+# (eigendecomposition, Q written block by block); direction sets per setup,
+# FOV and metric; their leave-out evaluation, E(S) check and training-size
+# curve (three jobs), and the figures.
 
 
 rule map_logrelative:
     input:
-        store=STORE,
-        splits=SPLITS,
+        store=fn.store(),
+        splits=fn.splits(),
     output:
-        logmap=directory(f"{RESULTS}/logmap/{{split}}.zarr"),
+        logmap=directory(fn.logmap("{split}")),
     params:
         train=lambda wildcards: split_training_materials(wildcards.split),
-        weighting=config["acquisition"]["weighting"],
+        weighting=ACQ["weighting"],
+        code=code("map_logrelative.py"),
     log:
         "logs/map_logrelative/{split}.log",
     benchmark:
@@ -29,9 +32,11 @@ rule map_logrelative:
 
 rule accumulate_gram:
     input:
-        logmap=f"{RESULTS}/logmap/{{split}}.zarr",
+        logmap=fn.logmap("{split}"),
     output:
-        partial=temp(f"{RESULTS}/svd/{{split}}/gram-{{scatteritem}}.npz"),
+        partial=temp(fn.gram_partial("{split}", "{scatteritem}")),
+    params:
+        code=code("accumulate_gram.py"),
     log:
         "logs/accumulate_gram/{split}-{scatteritem}.log",
     benchmark:
@@ -48,10 +53,12 @@ rule accumulate_gram:
 
 rule decompose_svd:
     input:
-        logmap=f"{RESULTS}/logmap/{{split}}.zarr",
-        partials=gather.gram(f"{RESULTS}/svd/{{{{split}}}}/gram-{{scatteritem}}.npz"),
+        logmap=fn.logmap("{split}"),
+        partials=gather.gram(fn.gram_partial("{{split}}", "{scatteritem}")),
     output:
-        model=directory(f"{RESULTS}/svd/{{split}}.zarr"),
+        model=directory(fn.svd_model("{split}")),
+    params:
+        code=code("decompose_svd.py"),
     log:
         "logs/decompose_svd/{split}.log",
     benchmark:
@@ -68,9 +75,9 @@ rule decompose_svd:
 
 rule optimize_directions:
     input:
-        model=f"{RESULTS}/svd/{{split}}.zarr",
+        model=fn.svd_model("{split}"),
     output:
-        directions=f"{RESULTS}/directions/{{split}}/{{setup}}-fov{{fov}}-{{metric}}.json",
+        directions=fn.directions("{split}", "{setup}", "{fov}", "{metric}"),
     params:
         n_max=lambda wildcards: ACQ["n_max_point" if wildcards.setup == "point" else "n_max_images"],
         candidates=ACQ["candidates"],
@@ -78,6 +85,7 @@ rule optimize_directions:
         eta=ACQ["eta"],
         beta=ACQ["beta"],
         seed=ACQ["seed"],
+        code=code("optimize_directions.py"),
     log:
         "logs/optimize_directions/{split}/{setup}-fov{fov}-{metric}.log",
     benchmark:
@@ -92,26 +100,21 @@ rule optimize_directions:
         "../scripts/optimize_directions.py"
 
 
-rule evaluate:
+rule evaluate_directions:
     input:
-        store=STORE,
-        model=f"{RESULTS}/svd/train.zarr",
-        logmap=f"{RESULTS}/logmap/train.zarr",
-        directions=direction_files("train"),
-        curve=CURVE_DIRECTIONS or [],
+        store=fn.store(),
+        model=fn.svd_model("train"),
+        directions=DIRECTIONS["train"],
     output:
-        errors=f"{RESULTS}/evaluation/errors.csv",
-        consistency=f"{RESULTS}/evaluation/consistency.csv",
-        training_size=f"{RESULTS}/evaluation/training_size.csv",
+        errors=fn.errors(),
     params:
         test_materials=TEST_MATERIALS,
         eta=ACQ["eta"],
-        sizes=TRAINING_SIZES,
-        order_seed=ACQ["seed"],
+        code=code("evaluate_directions.py"),
     log:
-        "logs/evaluate.log",
+        "logs/evaluate_directions.log",
     benchmark:
-        "benchmarks/evaluate.tsv"
+        "benchmarks/evaluate_directions.tsv"
     threads: 2
     resources:
         mem_mb=6000,
@@ -119,22 +122,74 @@ rule evaluate:
     conda:
         "../../envs/brdfpipe.yaml"
     script:
-        "../scripts/evaluate.py"
+        "../scripts/evaluate_directions.py"
+
+
+rule check_directions:
+    input:
+        logmap=fn.logmap("{split}"),
+        model=fn.svd_model("{split}"),
+        directions=lambda wildcards: DIRECTIONS[wildcards.split],
+    output:
+        consistency=fn.consistency("{split}"),
+    params:
+        code=code("check_directions.py"),
+    log:
+        "logs/check_directions/{split}.log",
+    benchmark:
+        "benchmarks/check_directions/{split}.tsv"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    conda:
+        "../../envs/brdfpipe.yaml"
+    script:
+        "../scripts/check_directions.py"
+
+
+if CURVE_DIRECTIONS:
+
+    rule evaluate_training_size:
+        input:
+            store=fn.store(),
+            logmap=fn.logmap("train"),
+            directions=CURVE_DIRECTIONS,
+        output:
+            training_size=fn.training_size(),
+        params:
+            test_materials=TEST_MATERIALS,
+            eta=ACQ["eta"],
+            sizes=TRAINING_SIZES,
+            order_seed=ACQ["seed"],
+            code=code("evaluate_training_size.py"),
+        log:
+            "logs/evaluate_training_size.log",
+        benchmark:
+            "benchmarks/evaluate_training_size.tsv"
+        threads: 2
+        resources:
+            mem_mb=6000,
+            runtime=60,
+        conda:
+            "../../envs/brdfpipe.yaml"
+        script:
+            "../scripts/evaluate_training_size.py"
 
 
 rule plot_acquisition_figures:
     input:
-        errors=f"{RESULTS}/evaluation/errors.csv",
-        training_size=f"{RESULTS}/evaluation/training_size.csv",
-        directions=direction_files("train") + direction_files("all"),
+        errors=fn.errors(),
+        training_size=fn.training_size() if "fig07" in ACQUISITION_FIGURES else [],
+        directions=DIRECTIONS["all"] + DIRECTIONS["train"],
     output:
-        figures=ACQUISITION_FIGURES,
+        **ACQUISITION_FIGURES,
     params:
-        directions_dir=lambda wildcards, input: os.path.dirname(os.path.dirname(input.directions[0])),
-        out_dir=lambda wildcards, output: os.path.dirname(output.figures[0]),
+        figure_keys=list(ACQUISITION_FIGURES),
         fovs=ACQ["fovs"],
         fixed_fov=ACQ["fixed_fov"],
         n_point=min(5, ACQ["n_max_point"]),
+        code=code("plot_acquisition_figures.py"),
     log:
         "logs/plot_acquisition_figures.log",
     threads: 1
@@ -145,22 +200,3 @@ rule plot_acquisition_figures:
         "../../envs/brdfpipe.yaml"
     script:
         "../scripts/plot_acquisition_figures.py"
-
-
-rule check_directions:
-    input:
-        logmap=f"{RESULTS}/logmap/all.zarr",
-        model=f"{RESULTS}/svd/all.zarr",
-        directions=direction_files("all"),
-    output:
-        consistency=f"{RESULTS}/evaluation/consistency-all.csv",
-    log:
-        "logs/check_directions.log",
-    threads: 1
-    resources:
-        mem_mb=4000,
-        runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
-    script:
-        "../scripts/check_directions.py"

@@ -6,12 +6,13 @@ if SYNTHETIC:
 
     rule synthesize_material:
         output:
-            binary=f"{SYNTH_DIR}/{{material}}.binary",
-            record=f"{SYNTH_DIR}/records/{{material}}.json",
+            binary=fn.synthetic_binary("{material}"),
+            record=fn.synthetic_record("{material}"),
         params:
             n_materials=config["synthetic"]["count"],
             seed=config["synthetic"]["seed"],
             noise=config["synthetic"]["noise"],
+            code=code("synthesize_material.py"),
         log:
             "logs/synthesize_material/{material}.log",
         benchmark:
@@ -27,14 +28,15 @@ if SYNTHETIC:
 
     rule write_manifest:
         input:
-            records=expand(f"{SYNTH_DIR}/records/{{material}}.json", material=MATERIALS),
+            records=expand(fn.synthetic_record("{material}"), material=MATERIALS),
         output:
-            manifest=MANIFEST,
+            manifest=fn.manifest(),
         params:
             n_materials=config["synthetic"]["count"],
             seed=config["synthetic"]["seed"],
             noise=config["synthetic"]["noise"],
             test_materials=TEST_MATERIALS,
+            code=code("write_manifest.py"),
         log:
             "logs/write_manifest.log",
         threads: 1
@@ -51,7 +53,9 @@ rule ingest_material:
     input:
         binary=source_file,
     output:
-        row=temp(directory(f"{INGEST_DIR}/{{material}}.zarr")),
+        row=temp(directory(fn.ingest_row("{material}"))),
+    params:
+        code=code("ingest_material.py"),
     log:
         "logs/ingest_material/{material}.log",
     benchmark:
@@ -68,11 +72,12 @@ rule ingest_material:
 
 rule assemble_store:
     input:
-        rows=expand(f"{INGEST_DIR}/{{material}}.zarr", material=MATERIALS),
+        rows=expand(fn.ingest_row("{material}"), material=MATERIALS),
     output:
-        store=directory(STORE),
+        store=directory(fn.store()),
     params:
         database=DATABASE.kind,
+        code=code("assemble_store.py"),
     log:
         "logs/assemble_store.log",
     benchmark:
@@ -89,12 +94,13 @@ rule assemble_store:
 
 rule write_splits:
     input:
-        store=STORE,
-        manifest=MANIFEST if SYNTHETIC else [],
+        store=fn.store(),
+        manifest=fn.manifest() if SYNTHETIC else [],
     output:
-        splits=SPLITS,
+        splits=fn.splits(),
     params:
         test_materials=TEST_MATERIALS,
+        code=code("write_splits.py"),
     log:
         "logs/write_splits.log",
     threads: 1

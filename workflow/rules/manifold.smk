@@ -1,13 +1,15 @@
 # Manifold track (Soler 2018): the N x N Gram matrix of the mean-subtracted
 # materials, streamed once from the store, then one GPLVM fit per latent
-# dimension q.
+# dimension q, the analyses of the fits and their figures.
 
 
 rule compute_gram:
     input:
-        store=STORE,
+        store=fn.store(),
     output:
-        gram=f"{RESULTS}/gplvm/gram-{{space}}.npz",
+        gram=fn.gram("{space}"),
+    params:
+        code=code("compute_gram.py"),
     log:
         "logs/compute_gram/{space}.log",
     benchmark:
@@ -24,10 +26,10 @@ rule compute_gram:
 
 rule fit_gplvm:
     input:
-        gram=f"{RESULTS}/gplvm/gram-{MAN['space']}.npz",
+        gram=fn.gram(MAN["space"]),
     output:
-        model=f"{RESULTS}/gplvm/q{{q}}.npz",
-        trace=f"{RESULTS}/gplvm/q{{q}}-trace.csv",
+        model=fn.gplvm_model("{q}"),
+        trace=fn.gplvm_trace("{q}"),
     params:
         ell=MAN["ell"],
         mu=MAN["mu"],
@@ -35,6 +37,7 @@ rule fit_gplvm:
         max_sweeps=MAN["max_sweeps"],
         normalise=MAN["normalise"],
         method=MAN["method"],
+        code=code("fit_gplvm.py"),
     log:
         "logs/fit_gplvm/q{q}.log",
     benchmark:
@@ -51,23 +54,24 @@ rule fit_gplvm:
 
 rule analyze_manifold:
     input:
-        store=STORE,
-        gram=f"{RESULTS}/gplvm/gram-{MAN['space']}.npz",
-        models=expand(f"{RESULTS}/gplvm/q{{q}}.npz", q=MAN["latent_dims"]),
+        store=fn.store(),
+        gram=fn.gram(MAN["space"]),
+        models=expand(fn.gplvm_model("{q}"), q=MAN["latent_dims"]),
     output:
-        albedo=f"{MANIFOLD_DIR}/albedo.csv",
-        paths=f"{MANIFOLD_DIR}/paths.csv",
-        reproduction=f"{MANIFOLD_DIR}/reproduction.csv",
-        albedo_maps=expand(f"{MANIFOLD_DIR}/albedo-map-q{{q}}.npz", q=MAN["latent_dims"]),
+        albedo=fn.albedo(),
+        paths=fn.paths_csv(),
+        reproduction=fn.reproduction(),
+        albedo_maps=[fn.albedo_map(q) for q in ALBEDO_MAP_DIMS],
     params:
         latent_dims=MAN["latent_dims"],
+        albedo_map_dims=ALBEDO_MAP_DIMS,
         paths=[list(p) for p in MANIFOLD_PATHS],
         path_q=PATH_Q,
         seed=MAN["seed"],
         steps=MAN["path_steps"],
         albedo_grid=MAN["albedo_grid"],
         pca_ks=MAN["pca_components"],
-        out_dir=lambda wildcards, output: os.path.dirname(output.paths),
+        code=code("analyze_manifold.py"),
     log:
         "logs/analyze_manifold.log",
     benchmark:
@@ -84,17 +88,19 @@ rule analyze_manifold:
 
 rule plot_manifold_figures:
     input:
-        models=expand(f"{RESULTS}/gplvm/q{{q}}.npz", q=MAN["latent_dims"]),
-        traces=expand(f"{RESULTS}/gplvm/q{{q}}-trace.csv", q=MAN["latent_dims"]),
-        albedo=f"{MANIFOLD_DIR}/albedo.csv",
-        albedo_maps=expand(f"{MANIFOLD_DIR}/albedo-map-q{{q}}.npz", q=MAN["latent_dims"]),
-        paths=f"{MANIFOLD_DIR}/paths.csv",
-        reproduction=f"{MANIFOLD_DIR}/reproduction.csv",
+        models=expand(fn.gplvm_model("{q}"), q=MAN["latent_dims"]),
+        traces=expand(fn.gplvm_trace("{q}"), q=MAN["latent_dims"]),
+        albedo=fn.albedo(),
+        albedo_maps=[fn.albedo_map(q) for q in ALBEDO_MAP_DIMS],
+        paths=fn.paths_csv(),
+        reproduction=fn.reproduction(),
     output:
-        figures=MANIFOLD_FIGURES,
+        **MANIFOLD_FIGURES,
     params:
+        figure_keys=list(MANIFOLD_FIGURES),
         latent_dims=MAN["latent_dims"],
-        out_dir=lambda wildcards, output: os.path.dirname(output.figures[0]),
+        albedo_map_dims=ALBEDO_MAP_DIMS,
+        code=code("plot_manifold_figures.py"),
     log:
         "logs/plot_manifold_figures.log",
     threads: 1

@@ -6,14 +6,15 @@
 
 rule make_envmap:
     output:
-        envmap=f"{RENDER_DIR}/envmap.exr",
+        envmap=fn.envmap(SCENE),
     params:
         width=RENDER["envmap"]["width"],
         height=RENDER["envmap"]["height"],
         sun_elevation=RENDER["envmap"]["sun_elevation"],
         sun_azimuth=RENDER["envmap"]["sun_azimuth"],
+        code=code("make_envmap.py"),
     log:
-        f"logs/make_envmap/{RENDER['scene']}.log",
+        f"logs/make_envmap/{SCENE}.log",
     threads: 1
     resources:
         mem_mb=500,
@@ -27,9 +28,9 @@ rule make_envmap:
 rule prerender_material:
     input:
         merl=source_file,
-        envmap=rules.make_envmap.output.envmap,
+        envmap=fn.envmap(SCENE),
     output:
-        image=f"{RENDER_DIR}/materials/{{material}}.exr",
+        image=fn.prerender(SCENE, "{material}"),
     params:
         variant=RENDER["variant"],
         resolution=RENDER["resolution"],
@@ -37,10 +38,11 @@ rule prerender_material:
         max_depth=RENDER["max_depth"],
         seed=RENDER["seed"],
         database=DATABASE.kind,
+        code=code("prerender_material.py"),
     log:
-        f"logs/prerender_material/{RENDER['scene']}/{{material}}.log",
+        f"logs/prerender_material/{SCENE}/{{material}}.log",
     benchmark:
-        f"benchmarks/prerender_material/{RENDER['scene']}/{{material}}.tsv"
+        f"benchmarks/prerender_material/{SCENE}/{{material}}.tsv"
     threads: 2
     resources:
         mem_mb=3000,
@@ -53,15 +55,16 @@ rule prerender_material:
 
 rule interpolate_path_point:
     input:
-        model=f"{RESULTS}/gplvm/q{PATH_Q}.npz",
-        store=STORE,
+        model=fn.gplvm_model(PATH_Q),
+        store=fn.store(),
     output:
-        merl=f"{RENDER_DIR}/paths/{{path}}-t{{t}}.binary",
-        weights=f"{RENDER_DIR}/paths/{{path}}-t{{t}}-weights.json",
+        merl=fn.path_point(SCENE, "{path}", "{t}", "binary"),
+        weights=fn.path_point(SCENE, "{path}", "{t}", "weights"),
     params:
         ends=lambda wildcards: PATH_ENDS[wildcards.path],
+        code=code("interpolate_path_point.py"),
     log:
-        f"logs/interpolate_path_point/{RENDER['scene']}/{{path}}-t{{t}}.log",
+        f"logs/interpolate_path_point/{SCENE}/{{path}}-t{{t}}.log",
     threads: 1
     resources:
         mem_mb=2000,
@@ -74,11 +77,11 @@ rule interpolate_path_point:
 
 rule render_path_point:
     input:
-        merl=rules.interpolate_path_point.output.merl,
-        envmap=rules.make_envmap.output.envmap,
+        merl=fn.path_point(SCENE, "{path}", "{t}", "binary"),
+        envmap=fn.envmap(SCENE),
     output:
-        image=f"{RENDER_DIR}/paths/{{path}}-t{{t}}.exr",
-        noise=f"{RENDER_DIR}/paths/{{path}}-t{{t}}-noise.exr",
+        image=fn.path_point(SCENE, "{path}", "{t}", "image"),
+        noise=fn.path_point(SCENE, "{path}", "{t}", "noise"),
     params:
         variant=RENDER["variant"],
         resolution=RENDER["resolution"],
@@ -86,10 +89,11 @@ rule render_path_point:
         max_depth=RENDER["max_depth"],
         seeds=[RENDER["seed"], RENDER["noise_seed"]],
         database=DATABASE.kind,
+        code=code("render_path_point.py"),
     log:
-        f"logs/render_path_point/{RENDER['scene']}/{{path}}-t{{t}}.log",
+        f"logs/render_path_point/{SCENE}/{{path}}-t{{t}}.log",
     benchmark:
-        f"benchmarks/render_path_point/{RENDER['scene']}/{{path}}-t{{t}}.tsv"
+        f"benchmarks/render_path_point/{SCENE}/{{path}}-t{{t}}.tsv"
     threads: 2
     resources:
         mem_mb=3000,
@@ -100,49 +104,54 @@ rule render_path_point:
         "../scripts/render_path_point.py"
 
 
-rule error_maps:
-    input:
-        prerenders=expand(f"{RENDER_DIR}/materials/{{material}}.exr", material=MATERIALS),
-        weights=[f"{RENDER_DIR}/paths/{p}-t{t}-weights.json" for p, t in PATH_POINTS],
-        references=[f"{RENDER_DIR}/paths/{p}-t{t}.exr" for p, t in PATH_POINTS],
-        references_noise=[f"{RENDER_DIR}/paths/{p}-t{t}-noise.exr" for p, t in PATH_POINTS],
-    output:
-        summary=f"{ERRORMAP_DIR}/summary.csv",
-        maps=[f"{ERRORMAP_DIR}/{p}-t{t}-{kind}" for p, t in PATH_POINTS
-              for kind in ("blended.exr", "error.exr", "error.png")],
-    params:
-        materials=MATERIALS,
-        out_dir=lambda wildcards, output: os.path.dirname(output.summary),
-        database=DATABASE.kind,
-    log:
-        f"logs/error_maps/{RENDER['scene']}.log",
-    benchmark:
-        f"benchmarks/error_maps/{RENDER['scene']}.tsv"
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=10,
-    conda:
-        "../../envs/brdfpipe.yaml"
-    script:
-        "../scripts/error_maps.py"
+if PATH_POINTS:
+
+    rule error_maps:
+        input:
+            prerenders=expand(fn.prerender(SCENE, "{material}"), material=MATERIALS),
+            weights=path_point_files("weights"),
+            references=path_point_files("image"),
+            references_noise=path_point_files("noise"),
+        output:
+            summary=fn.errormap_summary(SCENE),
+            blended=errormap_files("blended.exr"),
+            error_exrs=errormap_files("error.exr"),
+            error_pngs=errormap_files("error.png"),
+        params:
+            materials=MATERIALS,
+            database=DATABASE.kind,
+            code=code("error_maps.py"),
+        log:
+            f"logs/error_maps/{SCENE}.log",
+        benchmark:
+            f"benchmarks/error_maps/{SCENE}.tsv"
+        threads: 1
+        resources:
+            mem_mb=2000,
+            runtime=10,
+        conda:
+            "../../envs/brdfpipe.yaml"
+        script:
+            "../scripts/error_maps.py"
 
 
 rule plot_render_figures:
     input:
-        prerenders=expand(f"{RENDER_DIR}/materials/{{material}}.exr", material=MATERIALS),
-        weights=[f"{RENDER_DIR}/paths/{p}-t{t}-weights.json" for p, t in PATH_POINTS],
-        references=[f"{RENDER_DIR}/paths/{p}-t{t}.exr" for p, t in PATH_POINTS],
-        summary=f"{ERRORMAP_DIR}/summary.csv",
+        prerenders=expand(fn.prerender(SCENE, "{material}"), material=MATERIALS),
+        weights=path_point_files("weights"),
+        references=path_point_files("image"),
+        blended=errormap_files("blended.exr"),
+        errors=errormap_files("error.exr"),
+        summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
     output:
-        figures=RENDER_FIGURES,
+        **RENDER_FIGURES,
     params:
+        figure_keys=list(RENDER_FIGURES),
         materials=MATERIALS,
-        errormap_dir=lambda wildcards, input: os.path.dirname(input.summary),
-        out_dir=lambda wildcards, output: os.path.dirname(output.figures[0]),
         database=DATABASE.kind,
+        code=code("plot_render_figures.py"),
     log:
-        f"logs/plot_render_figures/{RENDER['scene']}.log",
+        f"logs/plot_render_figures/{SCENE}.log",
     threads: 1
     resources:
         mem_mb=3000,

@@ -1,7 +1,4 @@
-"""Predicted E(S) of the `all` split's direction sets vs a direct recomputation (rule check_directions).
-
-(The `train` split's sets are checked by rule evaluate.)
-"""
+"""Predicted E(S) of a split's direction sets vs a direct recomputation (rule check_directions)."""
 
 from brdfpipe import reconstruct
 from brdfpipe.logutil import log_to

@@ -6,9 +6,12 @@ from brdfpipe.logutil import log_to
 with log_to(snakemake.log[0]):
     blend.error_maps_from_files(
         prerenders=dict(zip(snakemake.params.materials, snakemake.input.prerenders)),
-        weights=snakemake.input.weights,
-        references=snakemake.input.references,
-        references_noise=snakemake.input.references_noise,
-        out_dir=snakemake.params.out_dir,
+        weights=list(snakemake.input.weights),
+        references=list(snakemake.input.references),
+        references_noise=list(snakemake.input.references_noise),
+        blended=list(snakemake.output.blended),
+        error_exrs=list(snakemake.output.error_exrs),
+        error_pngs=list(snakemake.output.error_pngs),
+        summary=snakemake.output.summary,
         database=snakemake.params.database,
     )

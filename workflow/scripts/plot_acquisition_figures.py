@@ -5,10 +5,10 @@ from brdfpipe.logutil import log_to
 
 with log_to(snakemake.log[0]):
     figures.make_acquisition_figures(
-        snakemake.input.errors,
-        snakemake.input.training_size,
-        snakemake.params.directions_dir,
-        snakemake.params.out_dir,
+        errors_csv=snakemake.input.errors,
+        training_csv=snakemake.input.training_size or None,
+        directions=list(snakemake.input.directions),
+        figures={key: list(snakemake.output[key]) for key in snakemake.params.figure_keys},
         fovs=snakemake.params.fovs,
         n_point=snakemake.params.n_point,
         fov_fixed=snakemake.params.fixed_fov,

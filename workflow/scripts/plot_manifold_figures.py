@@ -9,8 +9,8 @@ with log_to(snakemake.log[0]):
         models=dict(zip(q, snakemake.input.models)),
         traces=dict(zip(q, snakemake.input.traces)),
         albedo_csv=snakemake.input.albedo,
-        albedo_maps=dict(zip(q, snakemake.input.albedo_maps)),
+        albedo_maps=dict(zip(snakemake.params.albedo_map_dims, snakemake.input.albedo_maps)),
         paths_csv=snakemake.input.paths,
         reproduction_csv=snakemake.input.reproduction,
-        out_dir=snakemake.params.out_dir,
+        figures={key: list(snakemake.output[key]) for key in snakemake.params.figure_keys},
     )

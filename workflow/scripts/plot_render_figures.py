@@ -6,9 +6,11 @@ from brdfpipe.logutil import log_to
 with log_to(snakemake.log[0]):
     figures.make_render_figures(
         prerenders=dict(zip(snakemake.params.materials, snakemake.input.prerenders)),
-        weights=snakemake.input.weights,
-        references=snakemake.input.references,
-        errormap_dir=snakemake.params.errormap_dir,
-        out_dir=snakemake.params.out_dir,
+        weights=list(snakemake.input.weights),
+        references=list(snakemake.input.references),
+        blended=list(snakemake.input.blended),
+        errors=list(snakemake.input.errors),
+        summary=snakemake.input.summary or None,
+        figures={key: list(snakemake.output[key]) for key in snakemake.params.figure_keys},
         database=snakemake.params.database,
     )

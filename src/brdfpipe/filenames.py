@@ -1,0 +1,236 @@
+"""Every file name of the workflow's DAG, in one small dependency-free module.
+
+The Snakemake rules build their ``input:`` and ``output:`` paths from these
+functions and hand the paths to the library explicitly; the library never
+derives an output name on its own.  Standard library only, so parsing the
+workflow does not import NumPy, SciPy, Zarr or matplotlib.
+
+Arguments may be Snakemake wildcard patterns (``"{material}"``): every
+function only formats strings.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = [
+    "RESULTS",
+    "FIGURES",
+    "FIGURE_STEMS",
+    "MANIFOLD_FIGURE_STEMS",
+    "RENDER_FIGURE_STEMS",
+    "fov_tag",
+    "format_t",
+    "path_name",
+    "synthetic_binary",
+    "synthetic_record",
+    "manifest",
+    "ingest_row",
+    "store",
+    "splits",
+    "logmap",
+    "svd_model",
+    "gram_partial",
+    "directions",
+    "errors",
+    "consistency",
+    "training_size",
+    "gram",
+    "gplvm_model",
+    "gplvm_trace",
+    "albedo",
+    "albedo_map",
+    "paths_csv",
+    "reproduction",
+    "figure_files",
+    "envmap",
+    "prerender",
+    "path_point",
+    "errormap_summary",
+    "errormap",
+]
+
+#: Root folder of every output.
+RESULTS = "results"
+#: Folder of the figures (PNG + PDF, and Fig. 8's table).
+FIGURES = f"{RESULTS}/figures"
+
+#: Xu 2016 figure analogues: key → file stem.
+FIGURE_STEMS: dict[str, str] = {
+    "fig05": "fig05-error-vs-images",
+    "fig06": "fig06-fov-vs-point",
+    "fig07": "fig07-training-size",
+    "fig08": "fig08-optimal-configurations",
+    "fig13": "fig13-fixed-camera-light",
+    "fig18": "fig18-per-material",
+    "fig19": "fig19-error-vs-n",
+}
+#: Soler 2018 figure analogues of the manifold track: key → file stem.
+MANIFOLD_FIGURE_STEMS: dict[str, str] = {
+    "fig05": "manifold-fig05-likelihood",
+    "fig10_q2": "manifold-fig10-latent-q2",
+    "fig10_q5": "manifold-fig10-latent-q5",
+    "fig07": "manifold-fig07-albedo",
+    "fig09": "manifold-fig09-paths",
+    "fig08": "manifold-fig08-reproduction",
+    "eq7": "manifold-eq7-bound",
+}
+#: Rendering-track figures: key → file stem.
+RENDER_FIGURE_STEMS: dict[str, str] = {
+    "fig01": "render-fig01-prerenders",
+    "fig12": "render-fig12-interpolation",
+    "fig13": "render-fig13-errors",
+}
+
+
+def fov_tag(fov: float | str) -> str:
+    """File-name form of a field of view in degrees: ``25`` → ``"25"``, ``22.5`` → ``"22.5"``."""
+    if isinstance(fov, str) and fov.startswith("{"):
+        return fov
+    return f"{float(fov):g}"
+
+
+def format_t(t: float | str) -> str:
+    """The text of a path parameter ``t`` in file names and ``summary.csv``: ``f"{t:g}"``.
+
+    E.g. ``0.25 → "0.25"``, ``1.0 → "1"``; ``-0.0`` is written ``"0"``.
+    ValueError for a non-finite ``t``.
+    """
+    if isinstance(t, str) and t.startswith("{"):
+        return t
+    t = float(t)
+    if not math.isfinite(t):
+        raise ValueError(f"t must be finite, got {t}")
+    return f"{t + 0.0:g}"  # + 0.0 turns -0.0 into 0.0
+
+
+def path_name(a: str, b: str) -> str:
+    """File-name-safe name of the latent path from material ``a`` to ``b``: ``a--b``."""
+    return f"{a}--{b}"
+
+
+# -- data stage -------------------------------------------------------------
+
+
+def synthetic_binary(material: str) -> str:
+    return f"{RESULTS}/synthetic/{material}.binary"
+
+
+def synthetic_record(material: str) -> str:
+    return f"{RESULTS}/synthetic/records/{material}.json"
+
+
+def manifest() -> str:
+    return f"{RESULTS}/synthetic/manifest.json"
+
+
+def ingest_row(material: str) -> str:
+    return f"{RESULTS}/ingest/{material}.zarr"
+
+
+def store() -> str:
+    return f"{RESULTS}/merl.zarr"
+
+
+def splits() -> str:
+    return f"{RESULTS}/splits.json"
+
+
+# -- acquisition track ------------------------------------------------------
+
+
+def logmap(split: str) -> str:
+    return f"{RESULTS}/logmap/{split}.zarr"
+
+
+def svd_model(split: str) -> str:
+    return f"{RESULTS}/svd/{split}.zarr"
+
+
+def gram_partial(split: str, scatteritem: str) -> str:
+    return f"{RESULTS}/svd/{split}/gram-{scatteritem}.npz"
+
+
+def directions(split: str, setup: str, fov: float | str, metric: str) -> str:
+    """Direction sets of one setup (fov 0 for point samples)."""
+    return f"{RESULTS}/directions/{split}/{setup}-fov{fov_tag(fov)}-{metric}.json"
+
+
+def errors() -> str:
+    return f"{RESULTS}/evaluation/errors.csv"
+
+
+def consistency(split: str) -> str:
+    return f"{RESULTS}/evaluation/consistency-{split}.csv"
+
+
+def training_size() -> str:
+    return f"{RESULTS}/evaluation/training_size.csv"
+
+
+# -- manifold track ---------------------------------------------------------
+
+
+def gram(space: str) -> str:
+    return f"{RESULTS}/gplvm/gram-{space}.npz"
+
+
+def gplvm_model(q: int | str) -> str:
+    return f"{RESULTS}/gplvm/q{q}.npz"
+
+
+def gplvm_trace(q: int | str) -> str:
+    return f"{RESULTS}/gplvm/q{q}-trace.csv"
+
+
+def albedo() -> str:
+    return f"{RESULTS}/manifold/albedo.csv"
+
+
+def albedo_map(q: int | str) -> str:
+    return f"{RESULTS}/manifold/albedo-map-q{q}.npz"
+
+
+def paths_csv() -> str:
+    return f"{RESULTS}/manifold/paths.csv"
+
+
+def reproduction() -> str:
+    return f"{RESULTS}/manifold/reproduction.csv"
+
+
+def figure_files(stem: str, *, table: bool = False) -> list[str]:
+    """The files of one figure: PNG and PDF (plus CSV and Markdown for a table figure)."""
+    exts = ("png", "pdf", "csv", "md") if table else ("png", "pdf")
+    return [f"{FIGURES}/{stem}.{ext}" for ext in exts]
+
+
+# -- rendering track --------------------------------------------------------
+
+
+def envmap(scene: str) -> str:
+    return f"{RESULTS}/renders/{scene}/envmap.exr"
+
+
+def prerender(scene: str, material: str) -> str:
+    return f"{RESULTS}/renders/{scene}/materials/{material}.exr"
+
+
+def path_point(scene: str, path: str, t: float | str, kind: str) -> str:
+    """A latent-path point's file: kind ``binary`` (material), ``image``, ``noise`` (second seed) or ``weights``."""
+    base = f"{RESULTS}/renders/{scene}/paths/{path}-t{format_t(t)}"
+    suffix = {"binary": ".binary", "image": ".exr", "noise": "-noise.exr", "weights": "-weights.json"}
+    if kind not in suffix:
+        raise ValueError(f"kind must be one of {sorted(suffix)}, got {kind!r}")
+    return base + suffix[kind]
+
+
+def errormap_summary(scene: str) -> str:
+    return f"{RESULTS}/errormaps/{scene}/summary.csv"
+
+
+def errormap(scene: str, path: str, t: float | str, kind: str) -> str:
+    """An error-map file of a path point: kind ``blended.exr``, ``error.exr`` or ``error.png``."""
+    if kind not in ("blended.exr", "error.exr", "error.png"):
+        raise ValueError(f"kind must be blended.exr, error.exr or error.png, got {kind!r}")
+    return f"{RESULTS}/errormaps/{scene}/{path}-t{format_t(t)}-{kind}"

@@ -1,0 +1,240 @@
+"""What the workflow plans from its configuration, decided before any job runs.
+
+Everything a Snakefile needs to know at parse time and that could otherwise
+fail in the middle of a run lives here, as plain functions that the tests
+call directly: checks of the values a JSON schema cannot express (finite
+numbers, sizes that fit the data, latent dimensions below the number of
+materials), the latent paths, and which direction sets, evaluation outputs
+and figures a configuration produces.  A configuration that passes
+:func:`check_config` builds a DAG whose every declared output some job
+writes.
+
+Light: the standard library only (NumPy is imported inside
+:func:`default_paths`, the one seeded choice).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from brdfpipe import filenames
+
+__all__ = [
+    "ConfigError",
+    "SOLER_PATHS",
+    "check_finite",
+    "check_config",
+    "default_paths",
+    "check_paths",
+    "latent_paths",
+    "path_q",
+    "direction_files",
+    "curve_directions",
+    "training_sizes",
+    "albedo_map_dims",
+    "acquisition_figures",
+    "manifold_figures",
+    "render_figures",
+]
+
+#: The latent paths of Soler et al. 2018, Fig. 9 (used when all six materials exist).
+SOLER_PATHS: tuple[tuple[str, str], ...] = (
+    ("blue-metallic-paint", "dark-blue-paint"),
+    ("teflon", "silver-paint"),
+    ("black-oxidized-steel", "color-changing-paint3"),
+)
+
+
+class ConfigError(ValueError):
+    """A configuration value is unusable; the message names the key."""
+
+
+def check_finite(value: Any, key: str = "") -> None:
+    """Raise :class:`ConfigError` naming the first non-finite number (NaN, ±inf) anywhere in ``value``."""
+    if isinstance(value, bool):
+        return
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ConfigError(f"config {key or 'value'} = {value}: must be a finite number")
+    elif isinstance(value, Mapping):
+        for k, v in value.items():
+            check_finite(v, f"{key}.{k}" if key else str(k))
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            check_finite(v, f"{key}[{i}]")
+
+
+def path_q(manifold: Mapping[str, Any]) -> int:
+    """The latent dimension whose model the paths and the rendering track use."""
+    dims = [int(q) for q in manifold["latent_dims"]]
+    q = max(dims) if manifold.get("path_q") is None else int(manifold["path_q"])
+    if q not in dims:
+        raise ConfigError(f"config manifold.path_q = {q} is not one of manifold.latent_dims {dims}")
+    return q
+
+
+def training_sizes(acquisition: Mapping[str, Any], n_train: int) -> list[int]:
+    """``acquisition.training_sizes``, checked against the number of training materials."""
+    sizes = [int(n) for n in acquisition["training_sizes"]]
+    too_big = [n for n in sizes if n > n_train]
+    if too_big:
+        raise ConfigError(
+            f"config acquisition.training_sizes: {too_big} exceed the {n_train} training materials "
+            "(all materials minus test_materials); use sizes up to that number"
+        )
+    return sizes
+
+
+def check_config(config: Mapping[str, Any], *, materials: Sequence[str], train: Sequence[str]) -> None:
+    """Every parse-time check of a schema-valid config against its database.
+
+    Raises :class:`ConfigError` naming the key: non-finite numbers,
+    ``training_sizes`` larger than the training set, latent dimensions not
+    below the number of materials, a ``path_q`` without a model, equal render
+    seeds, and bad latent paths.
+    """
+    check_finite(dict(config))
+    n = len(materials)
+    dims = [int(q) for q in config["manifold"]["latent_dims"]]
+    bad = [q for q in dims if q >= n]
+    if bad:
+        raise ConfigError(
+            f"config manifold.latent_dims: q = {bad} must be below the number of materials ({n})"
+        )
+    path_q(config["manifold"])
+    training_sizes(config["acquisition"], len(train))
+    render = config["render"]
+    if render["noise_seed"] == render["seed"]:
+        raise ConfigError("config render.noise_seed must differ from render.seed (it measures the noise floor)")
+    latent_paths(config["manifold"], materials)
+    tags = [filenames.format_t(t) for t in render["path_points"]]
+    dup = sorted({t for t in tags if tags.count(t) > 1})
+    if dup:
+        raise ConfigError(
+            f"config render.path_points: values that differ only past 6 significant digits share a file name "
+            f"(t = {', '.join(dup)}); give distinct values"
+        )
+
+
+def default_paths(materials: Sequence[str], seed: int, count: int = 3) -> list[tuple[str, str]]:
+    """Soler Fig. 9's pairs when all of them are in ``materials``; else ``count`` seeded disjoint pairs."""
+    names = sorted(materials)
+    if all(m in names for pair in SOLER_PATHS for m in pair):
+        return [tuple(p) for p in SOLER_PATHS]  # type: ignore[misc]
+    if len(names) < 2:
+        raise ConfigError("a latent path needs at least two materials")
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    k = min(count, len(names) // 2)
+    pick = rng.choice(len(names), size=2 * k, replace=False)
+    return [(names[pick[2 * i]], names[pick[2 * i + 1]]) for i in range(k)]
+
+
+def check_paths(
+    paths: Sequence[Sequence[str]], materials: Sequence[str], what: str = "manifold.paths"
+) -> list[tuple[str, str]]:
+    """Validate ``[[A, B], …]`` against the material list; :class:`ConfigError` naming the bad entry."""
+    known = set(materials)
+    out: list[tuple[str, str]] = []
+    for k, pair in enumerate(paths):
+        if isinstance(pair, str) or len(pair) != 2:
+            raise ConfigError(f"{what}[{k}] must be a pair of material names, got {pair!r}")
+        a, b = (str(m) for m in pair)
+        for m in (a, b):
+            if m not in known:
+                raise ConfigError(f"{what}[{k}]: unknown material {m!r} (not in the database)")
+        if a == b:
+            raise ConfigError(f"{what}[{k}]: a path needs two different materials, got {a!r} twice")
+        out.append((a, b))
+    names = [filenames.path_name(a, b) for a, b in out]
+    dup = sorted({p for p in names if names.count(p) > 1})
+    if dup:
+        raise ConfigError(f"{what}: listed more than once: {', '.join(dup)}")
+    return out
+
+
+def latent_paths(manifold: Mapping[str, Any], materials: Sequence[str]) -> list[tuple[str, str]]:
+    """The configured latent paths (``manifold.paths``), else :func:`default_paths` (seeded)."""
+    if manifold.get("paths"):
+        return check_paths(manifold["paths"], materials)
+    return default_paths(materials, int(manifold["seed"]))
+
+
+def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
+    """Direction sets optimised on a split.
+
+    ``train``: every setup × FOV × metric (they are evaluated); ``all``: only
+    the near-field sets of the error metric (the paper's table of optimal
+    configurations, Xu Fig. 8).
+    """
+    files = []
+    for setup in acquisition["setups"]:
+        if split == "all" and setup != "nearfield":
+            continue
+        if setup == "point":
+            fovs: Sequence[float] = [0]
+        elif setup == "nearfield":
+            fovs = acquisition["fovs"]
+        else:
+            fovs = [acquisition["fixed_fov"]]
+        metrics = acquisition["metrics"] if split == "train" else ["error"]
+        files += [filenames.directions(split, setup, fov, metric) for fov in fovs for metric in metrics]
+    return files
+
+
+def curve_fov(acquisition: Mapping[str, Any]) -> float:
+    """FOV of the error-vs-training-size curve (Xu Fig. 7): 25° when configured, else the first."""
+    fovs = [float(f) for f in acquisition["fovs"]]
+    return 25.0 if 25.0 in fovs else fovs[0]
+
+
+def curve_directions(acquisition: Mapping[str, Any]) -> str | None:
+    """The direction set of the training-size curve, or None when the config has none (no curve)."""
+    if "nearfield" in acquisition["setups"] and "error" in acquisition["metrics"] and acquisition["training_sizes"]:
+        return filenames.directions("train", "nearfield", curve_fov(acquisition), "error")
+    return None
+
+
+def albedo_map_dims(manifold: Mapping[str, Any]) -> list[int]:
+    """Latent dimensions with an albedo map (a latent plane needs q ≥ 2)."""
+    return [int(q) for q in manifold["latent_dims"] if int(q) >= 2]
+
+
+def acquisition_figures(acquisition: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Xu 2016 figure analogues this config produces: key → files (PNG, PDF[, CSV, MD])."""
+    setups = set(acquisition["setups"])
+    keys = ["fig05", "fig06", "fig19"]
+    if curve_directions(acquisition) is not None:
+        keys.append("fig07")
+    if "nearfield" in setups:
+        keys.append("fig08")
+    if setups & {"fixed_camera", "fixed_light"}:
+        keys.append("fig13")
+    if "point" in setups:
+        keys.append("fig18")
+    order = list(filenames.FIGURE_STEMS)
+    return {
+        k: filenames.figure_files(filenames.FIGURE_STEMS[k], table=(k == "fig08"))
+        for k in sorted(keys, key=order.index)
+    }
+
+
+def manifold_figures(manifold: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Soler 2018 figure analogues this config produces: key → files (PNG, PDF)."""
+    dims = [int(q) for q in manifold["latent_dims"]]
+    keys = ["fig05", "fig10_q2", "fig09", "fig08", "eq7"]
+    if max(dims) >= 3:
+        keys.append("fig10_q5")
+    if albedo_map_dims(manifold):
+        keys.append("fig07")
+    order = list(filenames.MANIFOLD_FIGURE_STEMS)
+    return {k: filenames.figure_files(filenames.MANIFOLD_FIGURE_STEMS[k]) for k in sorted(keys, key=order.index)}
+
+
+def render_figures(n_path_points: int) -> dict[str, list[str]]:
+    """Rendering-track figures: the pre-render grid always; the path figures when there are path points."""
+    keys = ["fig01"] + (["fig12", "fig13"] if n_path_points else [])
+    return {k: filenames.figure_files(filenames.RENDER_FIGURE_STEMS[k]) for k in keys}

@@ -1,0 +1,16 @@
+"""Error vs number of training materials, Xu Fig. 7 (rule evaluate_training_size)."""
+
+from brdfpipe import reconstruct
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    reconstruct.write_training_size(
+        snakemake.input.store,
+        snakemake.input.logmap,
+        snakemake.input.directions,
+        snakemake.output.training_size,
+        test_materials=snakemake.params.test_materials,
+        sizes=snakemake.params.sizes,
+        order_seed=snakemake.params.order_seed,
+        eta=snakemake.params.eta,
+    )
