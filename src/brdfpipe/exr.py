@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import io
 import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Final
@@ -40,6 +39,8 @@ from typing import Any, Final
 import numpy as np
 import OpenEXR
 from numpy.typing import ArrayLike, NDArray
+
+from brdfpipe.atomic import atomic_path
 
 __all__ = [
     "ExrError",
@@ -205,14 +206,5 @@ def write_exr(
     }
     channels = {c: np.ascontiguousarray(store[..., i]) for i, c in enumerate("RGB")}
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)  # the OpenEXR writer opens the file by name
-    try:
-        os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
-        with OpenEXR.File(header, channels) as exr:
-            exr.write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, OpenEXR.File(header, channels) as exr:
+        exr.write(str(tmp))  # the OpenEXR writer opens the file by name

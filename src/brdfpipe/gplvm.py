@@ -145,7 +145,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import logmap, merl
+from brdfpipe import atomic, logmap, merl
 from brdfpipe.merl import N_CELLS
 from brdfpipe.store import BrdfStore, iter_column_blocks, open_store
 
@@ -364,18 +364,7 @@ def gram_scale(gram: ArrayLike, d: float) -> float:
 
 
 def _atomic_savez(path: Path, **arrays: Any) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    atomic.save_npz(path, arrays)
 
 
 def save_gram(path: str | os.PathLike[str], gram: ArrayLike, d: int, info: GramInfo) -> None:
@@ -1172,9 +1161,7 @@ def write_trace(path: str | os.PathLike[str], result: FitResult) -> None:
     stages = result.stages or ["hooke-jeeves"] * len(result.trace)
     for (step, value), stage in zip(result.trace, stages):
         lines.append(f"{int(step)},{stage},{float(value)!r}")
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    atomic.write_text(path, "\n".join(lines) + "\n")
 
 
 def interpolate_to_file(

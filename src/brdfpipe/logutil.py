@@ -8,14 +8,24 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["log_to", "setup_console_logging"]
+__all__ = ["QUIET_LOGGERS", "log_to", "quiet_third_party", "setup_console_logging"]
 
 _FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+#: Third-party loggers that chatter at INFO (fontTools writes one line per PDF
+#: font subset: half of a run's console output); they log warnings only.
+QUIET_LOGGERS: tuple[str, ...] = ("fontTools", "matplotlib", "PIL", "numcodecs", "zarr", "asyncio", "urllib3")
+
+
+def quiet_third_party(level: int = logging.WARNING) -> None:
+    """Raise the threshold of :data:`QUIET_LOGGERS` to ``level``."""
+    for name in QUIET_LOGGERS:
+        logging.getLogger(name).setLevel(level)
 
 
 def setup_console_logging(level: int = logging.INFO) -> None:
     """Send brdfpipe's log records to stderr (used by the ``brdfpipe`` CLI)."""
     logging.basicConfig(level=level, format=_FORMAT, stream=sys.stderr, force=True)
+    quiet_third_party()
 
 
 @contextmanager
@@ -37,6 +47,7 @@ def log_to(path: str | Path, level: int = logging.INFO) -> Iterator[logging.Logg
         root.addHandler(h)
     old_level = root.level
     root.setLevel(level)
+    quiet_third_party()
     logger = logging.getLogger("brdfpipe.workflow")
     try:
         yield logger

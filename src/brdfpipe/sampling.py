@@ -68,7 +68,6 @@ import json
 import logging
 import math
 import os
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -80,7 +79,7 @@ import scipy.linalg
 import scipy.linalg.blas
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import merl
+from brdfpipe import atomic, merl
 from brdfpipe.version import full_version
 
 __all__ = [
@@ -1833,17 +1832,7 @@ def write_directions(
         "sets": out_sets,
     }
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=1, allow_nan=False)
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic.write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
     return path
 
 
