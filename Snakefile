@@ -26,7 +26,7 @@ rule all:
         pca=expand(fn.svd_model("{split}"), split=PCA_SPLITS),
         directions=DIRECTIONS["train"] + DIRECTIONS["all"],
         evaluation=fn.errors(),
-        consistency=expand(fn.consistency("{split}"), split=PCA_SPLITS),
+        consistency=expand(fn.consistency("{split}"), split=CHECKED_SPLITS),
         training_size=fn.training_size() if CURVE_DIRECTIONS else [],
         figures=flat(ACQUISITION_FIGURES),
         gplvm=expand(fn.gplvm_model("{q}"), q=MAN["latent_dims"]),

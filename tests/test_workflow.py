@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -37,7 +38,11 @@ def snakemake(workdir: Path, *args: str, configfile: Path = TINY) -> subprocess.
 
 def write_config(path: Path, **overrides: object) -> Path:
     cfg = yaml.safe_load(TINY.read_text())
-    cfg.update(overrides)
+    for key, value in overrides.items():
+        if isinstance(value, dict) and isinstance(cfg.get(key), dict):
+            cfg[key] = {**cfg[key], **value}
+        else:
+            cfg[key] = value
     path.write_text(yaml.safe_dump(cfg))
     return path
 
@@ -55,7 +60,8 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
     for rule, n in [("synthesize_material", 12), ("ingest_material", 12), ("assemble_store", 1),
                     ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
                     ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
-                    ("evaluate", 1), ("plot_acquisition_figures", 1), ("check_directions", 1),
+                    ("evaluate_directions", 1), ("evaluate_training_size", 1), ("check_directions", 2),
+                    ("plot_acquisition_figures", 1),
                     ("compute_gram", 1), ("fit_gplvm", 2), ("analyze_manifold", 1),
                     ("make_envmap", 1), ("prerender_material", 12), ("interpolate_path_point", 3),
                     ("render_path_point", 3), ("error_maps", 1)]:
@@ -96,7 +102,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert (tmp_path / "results" / "directions" / "all" / "nearfield-fov25-error.json").is_file()
     # evaluation: every predicted E(S) matched its direct recomputation (else the rule fails)
 
-    with open(tmp_path / "results" / "evaluation" / "consistency.csv") as fh:
+    with open(tmp_path / "results" / "evaluation" / "consistency-train.csv") as fh:
         rows = list(csv.DictReader(fh))
     # one row per (file, n): point 3 + three image setups x 2, for both metrics
     assert len(rows) == 2 * (3 + 3 * 2)
@@ -153,6 +159,13 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         ({"manifold": {"path_q": 3}}, "is not one of manifold.latent_dims"),
         ({"render": {"variant": "scalar_spectral"}}, "is not one of"),
         ({"render": {"noise_seed": 0}}, "must differ from render.seed"),
+        ({"manifold": {"ell": float("nan")}}, "manifold.ell"),
+        ({"manifold": {"mu": float("inf")}}, "manifold.mu"),
+        ({"acquisition": {"eta": float("nan")}}, "acquisition.eta"),
+        ({"manifold": {"latent_dims": [2, 12]}}, "below the number of materials"),
+        ({"acquisition": {"training_sizes": [3, 50]}}, "acquisition.training_sizes"),
+        ({"render": {"path_points": [0.1234561, 0.1234562]}}, "render.path_points"),
+        ({"merl_dir": ""}, "merl_dir"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:
@@ -186,3 +199,66 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
     g = store.open_store(tmp_path / "results" / "merl.zarr")
     assert g.database == "merl" and list(g.materials) == ["alpha", "beta", "gamma"]
     shutil.rmtree(tmp_path / "results")
+
+
+def declared_outputs(configfile: Path) -> set[str]:
+    """The files rule all asks for under ``configfile``, from brdfpipe.plan (as the Snakefile does)."""
+    from brdfpipe import plan
+
+    cfg = yaml.safe_load(configfile.read_text())
+    files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
+             for fs in figs.values() for f in fs}
+    return files
+
+
+@pytest.mark.parametrize("shape", ["tiny-point", "tiny-nearfield"])
+def test_other_dag_shapes_run_end_to_end(tmp_path: Path, shape: str) -> None:
+    """Schema-valid configs of other DAG shapes build every output they declare (no MissingOutputException).
+
+    tiny-point: point samples and the error metric only, log space with q = 1, no
+    rendered path point; tiny-nearfield: near-field and the condition metric only,
+    cosine space with q = 3. On tiny-point, an edit of one library module then
+    plans exactly the jobs that run it and what depends on them.
+    """
+    from brdfpipe import plan
+
+    config = ROOT / "tests" / "config" / f"{shape}.yaml"
+    cfg = yaml.safe_load(config.read_text())
+    # the library under test is a private copy, so that it can be edited below
+    pkg = tmp_path / "pkg"
+    shutil.copytree(ROOT / "src" / "brdfpipe", pkg / "brdfpipe", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONPATH": str(pkg)}
+    work = tmp_path / "work"
+    work.mkdir()
+    cmd = [str(SNAKEMAKE), "--snakefile", str(SNAKEFILE), "--directory", str(work), "--configfile", str(config),
+           "--cores", "2"]
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=work, env=env, timeout=900)
+    assert r.returncode == 0, r.stderr[-4000:]
+    figures = {p.relative_to(work).as_posix() for p in (work / "results" / "figures").iterdir()}
+    render = {f for fs in plan.render_figures(len(cfg["render"]["path_points"])).values() for f in fs}
+    assert figures == declared_outputs(config) | render
+    assert store.open_store(work / "results" / "merl.zarr").database == "synthetic"
+    assert (work / "results" / "evaluation" / "errors.csv").is_file()
+    assert not (work / "results" / "evaluation" / "training_size.csv").exists()  # neither shape has the curve
+    if shape == "tiny-point":
+        assert not (work / "results" / "errormaps").exists()
+        assert not list((work / "results" / "manifold").glob("albedo-map-*.npz"))
+    else:
+        with open(work / "results" / "errormaps" / "preview" / "summary.csv") as fh:
+            assert len(list(csv.DictReader(fh))) == 1
+    again = subprocess.run([*cmd, "-n"], capture_output=True, text=True, cwd=work, env=env, timeout=300)
+    assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
+    if shape != "tiny-point":
+        return
+    # Stale results: an edit of svd.py replans the jobs that run it and their dependents, nothing else.
+    svd_py = pkg / "brdfpipe" / "svd.py"
+    svd_py.write_text(svd_py.read_text() + "\n# an edit\n")
+    plan_run = subprocess.run([*cmd, "-n", "--quiet", "rules"], capture_output=True, text=True, cwd=work, env=env,
+                              timeout=300)
+    assert plan_run.returncode == 0, plan_run.stderr[-3000:]
+    planned = {line.split()[0] for line in (plan_run.stdout + plan_run.stderr).splitlines()
+               if len(line.split()) == 2 and line.split()[1].isdigit()}
+    assert {"accumulate_gram", "decompose_svd", "optimize_directions", "evaluate_directions"} <= planned
+    untouched = {"synthesize_material", "write_manifest", "ingest_material", "assemble_store", "write_splits",
+                 "map_logrelative", "make_envmap", "prerender_material", "compute_gram", "fit_gplvm"}
+    assert not planned & untouched, planned & untouched

@@ -58,6 +58,8 @@ except plan.ConfigError as err:
 
 PCA_SPLITS = ["all", "train"]
 DIRECTIONS = {split: plan.direction_files(ACQ, split) for split in PCA_SPLITS}
+# E(S) consistency checks: one per split that has direction sets.
+CHECKED_SPLITS = [split for split in PCA_SPLITS if DIRECTIONS[split]]
 CURVE_DIRECTIONS = plan.curve_directions(ACQ)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
