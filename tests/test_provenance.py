@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe import atomic, database as db, merl, synth
+from brdfpipe import atomic, merl, synth
+from brdfpipe import database as db
 
 COUNT, SEED = 3, 5
 

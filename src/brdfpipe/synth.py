@@ -154,6 +154,7 @@ from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from brdfpipe import atomic, merl
 from brdfpipe.version import full_version
 
