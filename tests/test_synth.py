@@ -203,8 +203,15 @@ def test_tables_have_merl_layout(generated, mask) -> None:
         assert np.isfinite(measured).all() and (measured >= 0.0).all(), name
         # (sharp Beckmann lobes underflow to exact zeros far from the peak)
         assert (measured > 0.0).mean() > 0.5, name
-        unmeasured = table[:, ~mask]
+        # unmeasured cells hold raw -1, except the watermark cells (also negative,
+        # raw -(1 + b/2**20)); the exact value is not the data, only its sign is
+        mark = np.zeros(merl.N_CELLS, dtype=bool)
+        mark[synth.WATERMARK_CELLS] = True
+        plain = ~mask.reshape(-1) & ~mark
+        unmeasured = table.reshape(3, -1)[:, plain]
         assert np.array_equal(unmeasured, np.broadcast_to(-merl.SCALES[:, None], unmeasured.shape))
+        watermark = table.reshape(3, -1)[:, synth.WATERMARK_CELLS] / merl.SCALES[:, None]
+        assert np.array_equal(watermark, np.broadcast_to(synth.WATERMARK_RAW, watermark.shape))
 
 
 def test_albedo_at_most_one(generated, specs5) -> None:
@@ -286,7 +293,9 @@ def test_write_material_round_trips(tmp_path: Path, generated, specs5, mask) -> 
     assert path.stat().st_size == merl.FILE_SIZE
     raw = merl.read_merl_raw(path)
     np.testing.assert_array_equal(raw, table / merl.SCALES[:, None, None, None])
-    assert (raw[:, ~mask] == -1.0).all()
+    assert (raw[:, ~mask] < 0.0).all()
+    assert (raw.reshape(3, -1)[:, synth.WATERMARK_CELLS] == synth.WATERMARK_RAW).all()
+    assert synth.is_synthetic_file(path)
     np.testing.assert_allclose(merl.read_merl(path), table, rtol=1e-15)
     assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary left
 

@@ -9,8 +9,12 @@ Subcommands::
     brdfpipe reconstruct OBSERVATIONS --model results/svd/train.zarr --out FILE.binary [--eta η]
     brdfpipe render MATERIAL.binary --out IMAGE.exr [--spp N] [--resolution W H] [--variant V]
 
-Every subcommand exits non-zero with a one-line message naming the file and
-the problem on bad input.
+Every subcommand exits non-zero with one line ``brdfpipe CMD: error: ...``
+naming the file and the problem on bad input or a failing environment (full
+disk, unreadable file, out of memory), never a traceback; an interrupt
+(Ctrl-C) exits 130.  No subcommand writes over one of its inputs
+(:func:`brdfpipe.atomic.check_not_input`), and every output is written
+atomically, so an error or interrupt leaves an earlier output as it was.
 """
 
 from __future__ import annotations
@@ -22,8 +26,9 @@ import os
 import sys
 from collections.abc import Sequence
 
-from brdfpipe.version import full_version
+from brdfpipe.atomic import check_not_input, is_out_of_space
 from brdfpipe.logutil import setup_console_logging
+from brdfpipe.version import full_version
 
 __all__ = ["main", "build_parser"]
 
@@ -47,6 +52,8 @@ def _non_negative_float(text: str) -> float:
 def _cmd_synth(args: argparse.Namespace) -> int:
     from brdfpipe import synth
 
+    # synthesize() refuses an --out that holds anything it did not write itself
+    # (synth.check_output_folder) before it writes a byte.
     manifest = synth.synthesize(
         args.out, count=args.count, seed=args.seed, noise=args.noise, jobs=args.jobs
     )
@@ -57,7 +64,8 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 def _cmd_ingest(args: argparse.Namespace) -> int:
     from brdfpipe import database, store
 
-    db = database.folder_database(args.folder)
+    db = database.database_from_folder(args.folder, key="folder")
+    check_not_input(args.out, [args.folder, *db.sources.values()])
     store.ingest(
         {name: db.sources[name] for name in db.materials},
         args.out,
@@ -96,6 +104,7 @@ def _positive_float(text: str) -> float:
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from brdfpipe import reconstruct
 
+    check_not_input(args.out, [args.observations, args.model])
     reconstruct.write_reconstruction(args.model, args.observations, args.out, eta=args.eta)
     print(args.out)
     return 0
@@ -111,6 +120,7 @@ def _latent_point(text: str) -> list[float]:
 def _cmd_interpolate(args: argparse.Namespace) -> int:
     from brdfpipe import gplvm
 
+    check_not_input(args.out, [args.model, args.store])
     gplvm.interpolate_to_file(
         args.model, args.store, args.out,
         at=args.at, between=tuple(args.between) if args.between else None, t=args.t,
@@ -124,6 +134,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
     from brdfpipe import scene
 
+    check_not_input(args.out, [args.material, args.envmap])
     with tempfile.TemporaryDirectory(prefix="brdfpipe-render-") as tmp:
         envmap = args.envmap
         if envmap is None:
@@ -147,7 +158,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("synth", help="generate a synthetic MERL-format database")
     p.add_argument("--count", type=_positive_int, required=True, help="number of materials")
     p.add_argument("--seed", type=int, required=True, help="seed of every random choice")
-    p.add_argument("--out", required=True, help="output folder (<name>.binary + manifest.json)")
+    p.add_argument("--out", required=True, help="output folder (<name>.binary + manifest.json): new, "
+                   "empty, or an earlier output of the same synth command")
     p.add_argument("--noise", type=_non_negative_float, default=0.01,
                    help="relative measurement noise (default 0.01)")
     p.add_argument("--jobs", type=_positive_int, default=os.cpu_count() or 1,
@@ -156,7 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("ingest", help="ingest MERL files into the chunked Zarr store")
     p.add_argument("folder", help="folder of .binary files: real MERL, or written by "
-                   "`brdfpipe synth` (recognised by its manifest.json)")
+                   "`brdfpipe synth` (recognised by the files' synthetic watermark)")
     p.add_argument("--out", required=True, help="the store to write (e.g. results/merl.zarr)")
     p.add_argument("--jobs", type=_positive_int, default=os.cpu_count() or 1,
                    help="worker processes (default: all cores)")
@@ -208,16 +220,57 @@ def _render_errors() -> tuple[type[Exception], ...]:
     return (RenderError, SceneError)
 
 
+def _os_error_message(err: OSError, out: str | None) -> str:
+    """One line for an OS error: the path involved and what went wrong."""
+    if is_out_of_space(err):
+        where = err.filename or out
+        return f"no space left on device writing {where}" if where else "no space left on device"
+    what = err.strerror or str(err) or type(err).__name__
+    if err.filename is not None and err.filename2 is not None:
+        return f"{err.filename} -> {err.filename2}: {what}"
+    if err.filename is not None:
+        return f"{err.filename}: {what}"
+    return f"{what} (output {out})" if out else what
+
+
+def _memory_error_message(args: argparse.Namespace) -> str:
+    if args.command == "render":
+        w, h = args.resolution
+        return (
+            f"the render is too large for memory ({w}×{h} pixels × {args.spp} samples per pixel); "
+            "lower --resolution or --spp"
+        )
+    return "out of memory; nothing was written (an earlier output is kept)"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status.
+
+    0 on success; 1 with one line ``brdfpipe CMD: error: ...`` on stderr for
+    bad input, a refused output path, an OS error (the path is named; a full
+    disk says "no space left on device writing PATH") or a MemoryError; 130
+    after an interrupt.  Argument errors exit 2 (argparse).
+    """
     args = build_parser().parse_args(argv)
     setup_console_logging(logging.WARNING if args.quiet else logging.INFO)
+    prefix = f"brdfpipe {args.command}: error:"
+    out = getattr(args, "out", None)
     try:
         return int(args.func(args))
-    except (ValueError, FileNotFoundError, NotADirectoryError, PermissionError, *_render_errors()) as err:
-        # MerlFormatError, DatabaseError and store errors are ValueErrors whose
-        # message names the file and the problem.
-        print(f"brdfpipe {args.command}: error: {err}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print(f"{prefix} interrupted; nothing was written / earlier output kept "
+              "(outputs are replaced only when complete)", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print(f"{prefix} {_memory_error_message(args)}", file=sys.stderr)
+        return 1
+    except OSError as err:
+        print(f"{prefix} {_os_error_message(err, out)}", file=sys.stderr)
+        return 1
+    except (ValueError, *_render_errors()) as err:
+        # MerlFormatError, DatabaseError, OutputError and store errors are
+        # ValueErrors whose message names the file and the problem.
+        print(f"{prefix} {err}", file=sys.stderr)
         return 1
 
 

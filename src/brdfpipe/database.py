@@ -6,18 +6,24 @@ database (:mod:`brdfpipe.synth`).  This module resolves either into a
 :class:`Database` (material names → source files) and resolves the held-out
 ``test_materials`` against it, with clear errors for a missing folder or an
 unknown name.
+
+A folder's label (``merl`` or ``synthetic``) is decided in one place,
+:func:`database_from_folder`, from the files' own bytes (the synthetic
+watermark of :mod:`brdfpipe.synth`), never from a manifest alone; material
+names are checked by :func:`check_material_name`.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from brdfpipe import synth
+from brdfpipe import atomic, synth
 from brdfpipe.version import full_version
 from brdfpipe.synth import default_test_count
 
@@ -26,6 +32,9 @@ __all__ = [
     "EXTRA_TEST_MATERIAL",
     "Database",
     "DatabaseError",
+    "MAX_NAME_LENGTH",
+    "check_material_name",
+    "database_from_folder",
     "merl_database",
     "synthetic_database",
     "folder_database",
@@ -51,6 +60,14 @@ XU2016_TEST_MATERIALS: tuple[str, ...] = (
 EXTRA_TEST_MATERIAL = "alum-bronze"
 
 MERL_SUFFIX = ".binary"
+#: Longest material name: ``.NAME.zarr.tmp-PID-RANDOM`` siblings must fit in 255 bytes.
+MAX_NAME_LENGTH = 100
+_NAME_CHARS = re.compile(r"[A-Za-z0-9._+-]*")
+_NAME_RULE = (
+    "material names use only ASCII letters, digits, '.', '_', '+' and '-', start with a "
+    f"letter or digit and have at most {MAX_NAME_LENGTH} characters"
+)
+_SHOWN = 8  # files named in one error message
 
 
 class DatabaseError(ValueError):
@@ -75,41 +92,166 @@ class Database:
         return sorted(self.sources)
 
 
-def merl_database(folder: str | os.PathLike[str]) -> Database:
-    """The real MERL database in ``folder`` (every ``*.binary`` file in it).
+def check_material_name(name: str, source: str) -> str:
+    """Return ``name`` if it is a safe material name, else raise :class:`DatabaseError`.
 
-    Raises :class:`DatabaseError` if the folder is missing, is not a folder,
-    or holds no ``.binary`` file.  The files themselves are validated at
-    ingest (:func:`brdfpipe.store.ingest_material`).
+    A material name becomes file and folder names and Snakemake wildcards:
+    it must consist of ASCII letters, digits, ``.``, ``_``, ``+`` and ``-``,
+    start with a letter or digit and be at most :data:`MAX_NAME_LENGTH`
+    characters long.  ``source`` says where the name comes from (a file, or a
+    config key such as ``test_materials``) and starts the one-line message,
+    which also names the broken rule.
     """
-    path = Path(folder).expanduser()
+    if not isinstance(name, str):
+        raise DatabaseError(f"{source}: material name {name!r} is not a string; {_NAME_RULE}")
+    if not name:
+        problem = "is empty"
+    elif len(name) > MAX_NAME_LENGTH:
+        problem = f"is too long ({len(name)} characters)"
+    elif not _NAME_CHARS.fullmatch(name):
+        bad = sorted({c for c in name if not _NAME_CHARS.fullmatch(c)})
+        problem = "contains " + ", ".join(repr(c) for c in bad)
+    elif not name[0].isascii() or not name[0].isalnum():
+        problem = f"starts with {name[0]!r}"
+    else:
+        return name
+    raise DatabaseError(f"{source}: material name {name!r} {problem}; {_NAME_RULE}")
+
+
+def _listing(paths: Sequence[Path] | Sequence[str]) -> str:
+    names = [p.name if isinstance(p, Path) else p for p in paths]
+    more = f" and {len(names) - _SHOWN} more" if len(names) > _SHOWN else ""
+    return ", ".join(names[:_SHOWN]) + more
+
+
+def _read_manifest(path: Path) -> dict | None:
+    """The folder's ``manifest.json`` as a dict, or ``None`` if there is none."""
+    if not (path.is_file() or path.is_symlink()):
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as err:
+        raise DatabaseError(f"{path}: not valid JSON ({err})") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise DatabaseError(f"{path}: cannot be read ({err})") from None
+    if not isinstance(doc, dict):
+        raise DatabaseError(f"{path}: not a JSON object")
+    return doc
+
+
+def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir") -> Database:
+    """The database in a folder of MERL-format files, labelled from the files themselves.
+
+    This is the one place that decides whether a folder is the real MERL
+    database or a synthetic one (the workflow's ``merl_dir`` and ``brdfpipe
+    ingest`` both use it).  Every ``*.binary`` file is a material named by
+    its stem (:func:`check_material_name`).  A file written by
+    :mod:`brdfpipe.synth` carries a watermark in cells no measurement can
+    fill (:func:`brdfpipe.synth.is_synthetic_file`, 64 bytes read per file):
+
+    * all files watermarked → ``kind == "synthetic"`` (with or without
+      ``manifest.json``; the manifest only supplies the default held-out
+      materials, and must then agree with the files);
+    * none watermarked → ``kind == "merl"``, default held-out materials
+      :data:`XU2016_TEST_MATERIALS` + :data:`EXTRA_TEST_MATERIAL`;
+    * some of each → :class:`DatabaseError` listing which files are which.
+
+    ``key`` names the setting in messages (``merl_dir`` for the workflow).
+    Raises :class:`DatabaseError` (one line naming ``key``, the folder or the
+    file) for an empty or blank path, a missing folder, a folder without
+    ``*.binary`` files, a file whose suffix is ``.binary`` in another case
+    (``.BINARY``), an entry that is not a file, an unsafe material name, a
+    file that cannot be read, a mixed folder, or a ``manifest.json`` that
+    disagrees with the files.  The files' contents are validated at ingest
+    (:func:`brdfpipe.store.ingest_material`).
+    """
+    text = os.fspath(folder)
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    if not text.strip():
+        raise DatabaseError(f"{key}: empty path; use null for the synthetic database")
+    path = Path(text).expanduser()
     if not path.exists():
-        raise DatabaseError(f"merl_dir {path}: folder does not exist")
+        raise DatabaseError(f"{key} {path}: folder does not exist")
     if not path.is_dir():
-        raise DatabaseError(f"merl_dir {path}: not a folder")
-    sources = {p.name[: -len(MERL_SUFFIX)]: p.resolve() for p in path.glob(f"*{MERL_SUFFIX}")}
-    if not sources:
-        raise DatabaseError(f"merl_dir {path}: no MERL files (*{MERL_SUFFIX}) in the folder")
-    default = tuple(sorted((*XU2016_TEST_MATERIALS, EXTRA_TEST_MATERIAL)))
-    return Database("merl", sources, default)
-
-
-def folder_database(folder: str | os.PathLike[str]) -> Database:
-    """The database in a folder: synthetic if it holds a synthetic ``manifest.json``.
-
-    Otherwise the folder is taken as (a subset of) the real MERL database.
-    """
-    db = merl_database(folder)
-    manifest = Path(folder) / "manifest.json"
-    if manifest.is_file():
+        raise DatabaseError(f"{key} {path}: not a folder")
+    try:
+        entries = sorted(path.iterdir())
+    except OSError as err:
+        raise DatabaseError(f"{key} {path}: cannot list the folder ({err.strerror or err})") from None
+    other_case = [e for e in entries if e.name.lower().endswith(MERL_SUFFIX) and not e.name.endswith(MERL_SUFFIX)]
+    if other_case:
+        raise DatabaseError(
+            f"{key} {path}: {_listing(other_case)}: suffix is not exactly '{MERL_SUFFIX}' "
+            f"(lower case); rename the file(s) to end in {MERL_SUFFIX} or move them away"
+        )
+    files = [e for e in entries if e.name.endswith(MERL_SUFFIX)]
+    if not files:
+        raise DatabaseError(f"{key} {path}: no MERL files (*{MERL_SUFFIX}) in the folder")
+    not_files = [e for e in files if not e.is_file()]
+    if not_files:
+        raise DatabaseError(f"{key} {path}: {_listing(not_files)}: not a file (a folder or a broken link)")
+    synthetic: list[Path] = []
+    measured: list[Path] = []
+    for f in files:
+        check_material_name(f.name[: -len(MERL_SUFFIX)], f"{key} {f}")
         try:
-            doc = json.loads(manifest.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as err:
-            raise DatabaseError(f"{manifest}: not valid JSON ({err})") from None
-        if doc.get("kind") == "synthetic":
-            test = tuple(n for n in doc.get("test_materials", []) if n in db.sources)
-            return Database("synthetic", db.sources, test)
-    return db
+            (synthetic if synth.is_synthetic_file(f) else measured).append(f)
+        except OSError as err:
+            raise DatabaseError(f"{key} {f}: cannot be read ({err.strerror or err})") from None
+    if synthetic and measured:
+        raise DatabaseError(
+            f"{key} {path}: mixes synthetic files written by `brdfpipe synth` ({_listing(synthetic)}) "
+            f"with other MERL files ({_listing(measured)}); keep one kind per folder"
+        )
+    sources = {f.name[: -len(MERL_SUFFIX)]: f.resolve() for f in files}
+    manifest_path = path / "manifest.json"
+    manifest = _read_manifest(manifest_path)
+    says_synthetic = manifest is not None and manifest.get("kind") == "synthetic"
+    if measured:
+        if says_synthetic:
+            raise DatabaseError(
+                f"{key} {manifest_path}: says the folder is synthetic but no file carries the synthetic "
+                f"watermark ({_listing(measured)}); remove the stray manifest.json, or regenerate the "
+                "database with `brdfpipe synth` (files from before the watermark are not recognised)"
+            )
+        default = tuple(sorted((*XU2016_TEST_MATERIALS, EXTRA_TEST_MATERIAL)))
+        return Database("merl", sources, default)
+    if not says_synthetic:
+        return Database("synthetic", sources, ())
+    assert manifest is not None
+    listed_raw = manifest.get("materials")
+    if not isinstance(listed_raw, list) or not all(
+        isinstance(m, dict) and isinstance(m.get("name"), str) for m in listed_raw
+    ):
+        raise DatabaseError(f"{key} {manifest_path}: 'materials' is not a list of named materials")
+    listed = {m["name"] for m in listed_raw}
+    unlisted = sorted(n for n in sources if n not in listed)
+    if unlisted:
+        raise DatabaseError(
+            f"{key} {manifest_path}: does not list the synthetic file(s) "
+            f"{_listing([n + MERL_SUFFIX for n in unlisted])} of this folder; the manifest belongs "
+            "to another database"
+        )
+    test_raw = manifest.get("test_materials", [])
+    if not isinstance(test_raw, list):
+        raise DatabaseError(f"{key} {manifest_path}: 'test_materials' is not a list")
+    test = tuple(n for n in test_raw if n in sources)
+    return Database("synthetic", sources, test)
+
+
+def merl_database(folder: str | os.PathLike[str]) -> Database:
+    """Same as :func:`database_from_folder` (kept for callers of the old name).
+
+    The label comes from the files: a synthetic folder is ``"synthetic"``
+    even when it is configured as ``merl_dir``.
+    """
+    return database_from_folder(folder)
+
+
+def folder_database(folder: str | os.PathLike[str], *, key: str = "folder") -> Database:
+    """Same as :func:`database_from_folder` with ``key="folder"`` (kept for callers of the old name)."""
+    return database_from_folder(folder, key=key)
 
 
 def synthetic_database(out_dir: str | os.PathLike[str], count: int, seed: int) -> Database:
@@ -128,6 +270,11 @@ def resolve_test_materials(requested: Sequence[str] | None, db: Database) -> lis
     """
     names = list(db.default_test if requested is None else requested)
     what = "default test_materials" if requested is None else "test_materials"
+    if requested is None and not names:
+        raise DatabaseError(
+            f"test_materials: the {db.kind} database has no default held-out materials (a synthetic "
+            "folder without its manifest.json); list them in test_materials"
+        )
     unknown = [n for n in names if n not in db.sources]
     if unknown:
         avail = ", ".join(db.materials[:12]) + (" …" if len(db.sources) > 12 else "")
@@ -155,7 +302,7 @@ def write_splits(
     The material names and the database kind are read from the validated
     store, so the split always describes the data downstream stages see.
     Raises :class:`DatabaseError` if a test material is not in the store.
-    Written atomically (temporary name, then rename).
+    Written atomically (:func:`brdfpipe.atomic.write_text`).
     """
     from brdfpipe.store import open_store
 
@@ -172,7 +319,4 @@ def write_splits(
         "train": [m for m in materials if m not in test_set],
         "brdfpipe_version": full_version(),
     }
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    atomic.write_text(path, json.dumps(doc, indent=2) + "\n")

@@ -22,12 +22,13 @@ The public API of this module is stable: other tools call it.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 from typing import Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from brdfpipe import atomic
 
 __all__ = [
     "N_THETA_H",
@@ -144,22 +145,13 @@ def write_merl(path: str | os.PathLike[str], table: ArrayLike) -> None:
     The table must have shape ``(3, 90, 90, 180)`` and be finite; negative
     (unmeasured) cells are written negative.  The file is written under a
     temporary name in the same folder and renamed into place, so a crash never
-    leaves a partial file under ``path``.
+    leaves a partial file under ``path`` (:func:`brdfpipe.atomic.write_bytes`:
+    fsync'ed, mode 0644, stale temporaries of killed writers removed).
     """
-    path = Path(path)
     arr = _check_table(table)
-    raw = (arr / SCALES[:, None, None, None]).astype("<f8", copy=False)
+    raw = np.ascontiguousarray(arr / SCALES[:, None, None, None], dtype="<f8")
     header = np.asarray(DIMS, dtype="<i4").tobytes()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(header)
-            fh.write(np.ascontiguousarray(raw).tobytes())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic.write_bytes(path, (header, memoryview(raw).cast("B")))
 
 
 # --------------------------------------------------------------------------

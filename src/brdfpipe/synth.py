@@ -21,7 +21,23 @@ behaviour.  Every material is
    mean 1);
 
 and every cell outside :func:`brdfpipe.merl.measured_mask` holds
-``-SCALES[c]`` (raw value −1 in the file), like MERL's unmeasured cells.
+``-SCALES[c]`` (raw value −1 in the file), like MERL's unmeasured cells, except
+the eight watermark cells (:data:`WATERMARK_CELLS`), which hold other negative
+values that mark the file as synthetic (:func:`is_synthetic_file`).
+
+Watermark
+---------
+A synthetic file must never be mistaken for a measured one, even when it is
+copied without its ``manifest.json``.  Cells ``iθh = 89, iθd = 89, iφd = 0 … 7``
+(the first eight cells of the last θh/θd row, in every channel) are
+geometrically unmeasurable: every direction pair that maps to them has its
+light or its view direction below the horizon (at least 80° below, z ≤ −0.98,
+when the half vector is above it; a half vector below the horizon already
+means a direction below it).  Every
+reader treats their negative values as unmeasured, as for any other negative
+cell, so the data's meaning is unchanged.  They hold the raw values
+``−(1 + b/2²⁰)`` for the bytes ``b`` of :data:`WATERMARK_MAGIC` (``b"brdfsyn1"``);
+:func:`is_synthetic_file` reads just those 64 bytes of the red channel.
 
 Families and counts
 -------------------
@@ -128,7 +144,6 @@ import math
 import numbers
 import os
 import re
-import tempfile
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -139,9 +154,8 @@ from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import erfc
 
-from brdfpipe import merl
+from brdfpipe import atomic, merl
 from brdfpipe.version import full_version
 
 __all__ = [
@@ -152,6 +166,9 @@ __all__ = [
     "ALBEDO_BOUND",
     "ALBEDO_THETA_I",
     "NAME_RE",
+    "WATERMARK_MAGIC",
+    "WATERMARK_CELLS",
+    "WATERMARK_RAW",
     "MaterialSpec",
     "plan_database",
     "family_counts",
@@ -165,6 +182,8 @@ __all__ = [
     "write_manifest",
     "write_database_manifest",
     "read_manifest",
+    "is_synthetic_file",
+    "check_output_folder",
     "synthesize",
 ]
 
@@ -188,6 +207,19 @@ ALBEDO_BOUND: Final = 0.97
 ALBEDO_THETA_I: Final = np.radians(np.linspace(0.0, 89.5, 46))
 #: Material names: lower-case words joined by hyphens, ending in the running number.
 NAME_RE: Final = re.compile(r"^[a-z0-9]+(?:-[a-z0-9]+)*-[0-9]{3,}$")
+
+#: The watermark of synthetic files, one byte per watermark cell.
+WATERMARK_MAGIC: Final = b"brdfsyn1"
+#: Flat cell indices (inside a channel) of the watermark: iθh = 89, iθd = 89, iφd = 0 … 7.
+#: Light or view direction lies below the horizon for every pair in these cells.
+WATERMARK_CELLS: Final = np.arange(len(WATERMARK_MAGIC)) + (
+    (merl.N_THETA_H - 1) * merl.N_THETA_D + (merl.N_THETA_D - 1)
+) * merl.N_PHI_D
+#: Raw (file) values of the watermark cells, negative (unmeasured): −(1 + b/2²⁰).  (Chosen so
+#: that in every channel some float64 divides by the channel scale to exactly this value.)
+WATERMARK_RAW: Final = np.array([-(1.0 + b / 2.0**20) for b in WATERMARK_MAGIC], dtype="<f8")
+_WATERMARK_BYTES: Final = WATERMARK_RAW.tobytes()
+_WATERMARK_OFFSET: Final = merl.HEADER_BYTES + int(WATERMARK_CELLS[0]) * 8
 
 #: Complex refractive index (n, k) of metals at R, G, B ≈ 650, 550, 450 nm.
 METALS: Final[Mapping[str, tuple[tuple[float, float, float], tuple[float, float, float]]]] = {
@@ -648,6 +680,13 @@ def _ndf(dist: str, alpha: float, c: NDArray[np.float64]) -> NDArray[np.float64]
     raise ValueError(f"unknown microfacet distribution {dist!r}")
 
 
+def _erfc(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``scipy.special.erfc``, imported on first use (the workflow parses without scipy)."""
+    from scipy.special import erfc
+
+    return erfc(x)
+
+
 def _smith_lambda(dist: str, alpha: float, mu: NDArray[np.float64]) -> NDArray[np.float64]:
     tan2 = (1.0 - mu * mu) / (mu * mu)
     if dist == "ggx":
@@ -655,7 +694,7 @@ def _smith_lambda(dist: str, alpha: float, mu: NDArray[np.float64]) -> NDArray[n
     if dist == "beckmann":
         with np.errstate(divide="ignore", invalid="ignore"):
             a = 1.0 / (alpha * np.sqrt(tan2))
-            lam = 0.5 * (np.exp(-a * a) / (a * math.sqrt(math.pi)) - erfc(a))
+            lam = 0.5 * (np.exp(-a * a) / (a * math.sqrt(math.pi)) - _erfc(a))
         return np.where(tan2 > 0.0, np.maximum(lam, 0.0), 0.0)
     raise ValueError(f"unknown microfacet distribution {dist!r}")
 
@@ -881,11 +920,51 @@ def _clean_values(spec: MaterialSpec) -> NDArray[np.float64]:
     return values
 
 
+@lru_cache(maxsize=1)
+def _watermark_table_values() -> NDArray[np.float64]:
+    """Physical values ``(3, 8)`` of the watermark cells that write back as exactly :data:`WATERMARK_RAW`.
+
+    :func:`brdfpipe.merl.write_merl` divides by the channel scale; ``raw ·
+    scale`` does not always divide back to ``raw`` exactly, so the nearest
+    float that does is taken (one exists for every value of
+    :data:`WATERMARK_RAW` in every channel; not for every float).
+    """
+    out = np.empty((3, WATERMARK_RAW.size))
+    for c, scale in enumerate(merl.SCALES):
+        for k, raw in enumerate(WATERMARK_RAW):
+            t = raw * scale
+            for _ in range(64):
+                back = t / scale
+                if back == raw:
+                    break
+                t = np.nextafter(t, -np.inf if back > raw else np.inf)
+            else:  # pragma: no cover - checked for these values and scales
+                raise AssertionError(f"no float64 maps to the watermark value {raw} in channel {c}")
+            out[c, k] = t
+    return out
+
+
 def _table(values: NDArray[np.float64], grid: _Grid) -> NDArray[np.float64]:
     table = np.empty(merl.SHAPE)
     table[...] = -merl.SCALES[:, None, None, None]
-    table.reshape(3, -1)[:, grid.cells] = values
+    flat = table.reshape(3, -1)
+    flat[:, grid.cells] = values
+    flat[:, WATERMARK_CELLS] = _watermark_table_values()
     return table
+
+
+def is_synthetic_file(path: str | os.PathLike[str]) -> bool:
+    """True if ``path`` carries the synthetic watermark (was written by this generator).
+
+    Reads only the 64 watermark bytes of the red channel (a few microseconds;
+    no validation of the rest of the file).  A file too short to hold them is
+    not synthetic.  Raises :class:`OSError` if the file cannot be opened.
+    """
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        return os.pread(fd, len(_WATERMARK_BYTES), _WATERMARK_OFFSET) == _WATERMARK_BYTES
+    finally:
+        os.close(fd)
 
 
 def generate_material(
@@ -916,7 +995,9 @@ def generate_table(spec: MaterialSpec, noise: float = DEFAULT_NOISE) -> NDArray[
     """The material's MERL table, ``(3, 90, 90, 180)`` in physical units.
 
     Measured cells (:func:`brdfpipe.merl.measured_mask`) hold model ×
-    deviation × energy scale × noise (finite, ≥ 0); the others ``-SCALES[c]``.
+    deviation × energy scale × noise (finite, ≥ 0); the others ``-SCALES[c]``,
+    except the watermark cells (:data:`WATERMARK_CELLS`, raw values
+    :data:`WATERMARK_RAW`, also negative).
     Deterministic: the same spec and noise give identical arrays.
     """
     return generate_material(spec, noise)[0]
@@ -970,25 +1051,13 @@ def write_named_material(
         record["max_albedo"], path,
     )
     if record_path is not None:
-        _atomic_write_text(Path(record_path), json.dumps({"name": spec.name, **record}) + "\n")
+        atomic.write_text(record_path, json.dumps({"name": spec.name, **record}) + "\n")
     return record
 
 
 # --------------------------------------------------------------------------
 # Manifest and database
 # --------------------------------------------------------------------------
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the output private
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_manifest(
@@ -1032,8 +1101,7 @@ def write_manifest(
         "materials": materials,
         "test_materials": list(test_materials),
     }
-    path = Path(path)
-    _atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    atomic.write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
 
 
 def write_database_manifest(
@@ -1089,6 +1157,62 @@ def default_test_count(count: int) -> int:
     return 10 if count >= 40 else max(1, count // 4)
 
 
+def _is_synthetic_manifest(path: Path) -> bool:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return False
+    return isinstance(doc, dict) and doc.get("kind") == "synthetic"
+
+
+def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpec]) -> None:
+    """Refuse an output folder where :func:`synthesize` would touch files it did not write.
+
+    ``out`` may be absent, empty (hidden entries aside) or a folder that this
+    generator wrote before (a synthetic ``manifest.json``), whose ``*.binary``
+    files are all watermarked materials of ``specs`` (regenerated in place).
+    Anything else — a file, a folder of other data, a real MERL file or a
+    material of another plan — raises :class:`brdfpipe.atomic.OutputError`
+    naming the path, before anything is written.  Nothing is ever deleted.
+    """
+    out = Path(out)
+    if out.is_symlink() and not out.exists():
+        raise atomic.OutputError(f"--out {out}: a broken link; refusing to write through it")
+    if out.exists() and not out.is_dir():
+        raise atomic.OutputError(f"--out {out}: exists and is not a folder")
+    if not out.exists():
+        return
+    entries = sorted(e for e in out.iterdir() if not e.name.startswith("."))
+    if not entries:
+        return
+    if not _is_synthetic_manifest(out / "manifest.json"):
+        raise atomic.OutputError(
+            f"--out {out}: folder is not empty and holds no synthetic manifest.json (not written by "
+            "`brdfpipe synth`); refusing to write into it: choose a new or empty folder"
+        )
+    planned = {f"{s.name}.binary" for s in specs}
+    foreign: list[str] = []
+    other_plan: list[str] = []
+    for e in entries:
+        if not e.name.lower().endswith(".binary"):
+            continue
+        if e.name not in planned:
+            other_plan.append(e.name)
+        elif e.is_symlink() or not e.is_file() or not is_synthetic_file(e):
+            foreign.append(e.name)
+    if foreign:
+        raise atomic.OutputError(
+            f"--out {out}: {', '.join(foreign)} not written by `brdfpipe synth` (no synthetic "
+            "watermark, or not a plain file); refusing to overwrite: choose a new or empty folder"
+        )
+    if other_plan:
+        shown = ", ".join(other_plan[:5]) + (f" and {len(other_plan) - 5} more" if len(other_plan) > 5 else "")
+        raise atomic.OutputError(
+            f"--out {out}: holds {len(other_plan)} file(s) that are not materials of this "
+            f"database ({shown}); the folder would mix two databases: choose a new or empty folder"
+        )
+
+
 def _synth_one(args: tuple[MaterialSpec, str, float]) -> tuple[dict[str, float], float]:
     spec, path, noise = args
     t0 = time.perf_counter()
@@ -1109,7 +1233,9 @@ def synthesize(
     Writes ``<name>.binary`` for every material of ``plan_database(count,
     seed)`` and then ``manifest.json`` (with each material's generation
     record and the default test materials); returns the manifest's path.
-    ``jobs > 1`` generates in a process pool.  One log line per material
+    ``jobs > 1`` generates in a process pool.  An existing ``out_dir`` is
+    checked first (:func:`check_output_folder`): only an empty folder or an
+    earlier output of this generator for the same plan is written into.  One log line per material
     (logger ``brdfpipe.synth``; INFO if ``progress`` else DEBUG).
     """
     count = _check_int(count, "count", 1)
@@ -1117,8 +1243,9 @@ def synthesize(
     noise = _check_noise(noise)
     jobs = _check_int(jobs, "jobs", 1)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     specs = plan_database(count, seed)
+    check_output_folder(out, specs)
+    out.mkdir(parents=True, exist_ok=True)
     tasks = [(s, str(out / f"{s.name}{'.binary'}"), noise) for s in specs]
     level = logging.INFO if progress else logging.DEBUG
     records: dict[str, dict[str, float]] = {}
