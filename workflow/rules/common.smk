@@ -19,10 +19,10 @@ SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
 
 
 def code(script):
-    """Digest of a rule's script and of the library modules it runs.
+    """Digest of a script and of the library modules it runs.
 
-    Given to every rule as ``params.code``: Snakemake's params trigger then
-    reruns exactly the jobs whose library code changed (and their dependents).
+    Every rule passes it as params.code, so Snakemake's params trigger reruns
+    exactly the jobs whose library code changed (and their dependents).
     """
     return script_digest(SCRIPTS / script)
 
