@@ -10,7 +10,7 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe import blend
+from brdfpipe import blend, filenames
 from brdfpipe.blend import (
     SUMMARY_COLUMNS,
     BlendError,
@@ -162,6 +162,7 @@ def test_format_t() -> None:
     assert [format_t(t) for t in (0.25, 0.5, 1.0, 0.0, -0.0, 0.125)] == ["0.25", "0.5", "1", "0", "0", "0.125"]
     with pytest.raises(ValueError):
         format_t(float("nan"))
+    assert format_t is filenames.format_t  # one definition, shared by the workflow's file names
 
 
 # --------------------------------------------------------------------------
@@ -193,13 +194,25 @@ def _setup(tmp_path: Path) -> tuple[dict[str, Path], list[dict[str, Any]], dict[
     return prerenders, points, images
 
 
+def _outputs(points: list[dict[str, Any]], out: Path) -> list[dict[str, Any]]:
+    """The points with their output files under ``out`` (names the library never chose itself)."""
+    return [{**pt, "blended": out / f"point{k}-blend.exr", "error_exr": out / f"point{k}-err.exr",
+             "error_png": out / f"point{k}-err.png"} for k, pt in enumerate(points)]
+
+
+def _output_files(points: list[dict[str, Any]]) -> list[Path]:
+    return [Path(pt[k]) for pt in points for k in ("blended", "error_exr", "error_png")]
+
+
 def test_error_maps_end_to_end(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     prerenders, points, images = _setup(tmp_path)
     out = tmp_path / "out"
     calls: list[Path] = []
     real = blend.read_exr
     monkeypatch.setattr(blend, "read_exr", lambda p: (calls.append(Path(p)), real(p))[1])
-    rows = error_maps(prerenders=prerenders, paths=points, out_dir=out, database="synthetic")
+    points = _outputs(points, out)
+    summary = out / "my-summary.csv"
+    rows = error_maps(prerenders=prerenders, paths=points, summary=summary, database="synthetic")
     # each pre-render read once for all points; each reference once
     assert sorted(calls) == sorted([Path(p) for p in prerenders.values()]
                                    + [Path(pt[k]) for pt in points for k in ("reference", "reference_seed2")])
@@ -219,23 +232,28 @@ def test_error_maps_end_to_end(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
         assert row["rmse_blend_seed2"] == pytest.approx(rb2, rel=1e-12)
         assert row["ratio_seed2"] == pytest.approx(rb2 / rn, rel=1e-12)
         assert row["mean_reference"] == pytest.approx(ref.mean(), rel=1e-12)
-        stem = out / f"chrome-to-silver-t{format_t(pt['t'])}"
-        assert np.array_equal(read_exr(f"{stem}-blended.exr"), direct.astype(np.float32))
-        assert np.allclose(read_exr(f"{stem}-error.exr")[..., 0], np.abs(direct - ref).mean(axis=2), rtol=1e-6)
-        assert Path(f"{stem}-error.png").stat().st_size > 0
-        assert read_exr_attrs(f"{stem}-blended.exr")["database"] == "synthetic"
-    names = sorted(p.name for p in out.iterdir())
-    assert names == sorted(["summary.csv"] + [f"chrome-to-silver-t{s}-{k}" for s in ("0.25", "0.5")
-                                              for k in ("blended.exr", "error.exr", "error.png")])
-    with open(out / "summary.csv", newline="") as fh:
+        assert np.array_equal(read_exr(pt["blended"]), direct.astype(np.float32))
+        assert np.allclose(read_exr(pt["error_exr"])[..., 0], np.abs(direct - ref).mean(axis=2), rtol=1e-6)
+        assert Path(pt["error_png"]).stat().st_size > 0
+        attrs = read_exr_attrs(pt["blended"])
+        assert attrs["database"] == "synthetic" and attrs["t"] == format_t(pt["t"])
+    # exactly the files passed in, nothing else (no temporary, no name of the library's own)
+    assert sorted(out.iterdir()) == sorted([summary, *_output_files(points)])
+    with open(summary, newline="") as fh:
         table = list(csv.reader(fh))
     assert tuple(table[0]) == SUMMARY_COLUMNS
     assert [r[:3] for r in table[1:]] == [["synthetic", "chrome-to-silver", "0.25"], ["synthetic", "chrome-to-silver", "0.5"]]
     assert float(table[2][3]) == pytest.approx(rows[1]["rmse_blend"], rel=1e-8)
     # reruns give the same bytes
     first = {p.name: p.read_bytes() for p in out.iterdir()}
-    error_maps(prerenders=prerenders, paths=points, out_dir=out, database="synthetic")
+    error_maps(prerenders=prerenders, paths=points, summary=summary, database="synthetic")
     assert {p.name: p.read_bytes() for p in out.iterdir()} == first
+    # a point without its output files is refused before anything is read
+    with pytest.raises(BlendError, match="path point 1: missing key.*blended, error_exr, error_png"):
+        error_maps(prerenders=prerenders, paths=[points[0], {k: v for k, v in points[1].items()
+                                                              if k not in ("blended", "error_exr", "error_png")}],
+                   summary=summary, database="synthetic")
+    assert not summary.exists()
 
 
 @pytest.mark.parametrize("what", ["missing-prerender", "corrupt-prerender", "missing-reference", "corrupt-seed2"])
@@ -243,7 +261,9 @@ def test_error_maps_bad_input_names_the_file_and_writes_no_summary(tmp_path: Pat
     prerenders, points, _ = _setup(tmp_path)
     out = tmp_path / "out"
     out.mkdir()
-    (out / "summary.csv").write_text("stale\n")  # from an earlier run: must not survive a failed one
+    points = _outputs(points, out)
+    summary = out / "summary.csv"
+    summary.write_text("stale\n")  # from an earlier run: must not survive a failed one
     if what == "missing-prerender":
         bad = prerenders["chrome"]
         bad.unlink()
@@ -257,8 +277,8 @@ def test_error_maps_bad_input_names_the_file_and_writes_no_summary(tmp_path: Pat
         bad = Path(points[0]["reference_seed2"])
         bad.write_bytes(bad.read_bytes()[:-40])
     with pytest.raises(ExrError, match=str(bad).replace(".", r"\.")):
-        error_maps(prerenders=prerenders, paths=points, out_dir=out, database="synthetic")
-    assert not (out / "summary.csv").exists()
+        error_maps(prerenders=prerenders, paths=points, summary=summary, database="synthetic")
+    assert not summary.exists()
     assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
 
 
@@ -266,13 +286,31 @@ def test_error_maps_shape_mismatch_and_weight_mismatch(tmp_path: Path) -> None:
     prerenders, points, _ = _setup(tmp_path)
     write_exr(Path(points[0]["reference"]), np.ones((H, W + 2, 3), dtype=np.float32))
     with pytest.raises(BlendError, match=r"ref-0\.25\.exr: image has shape"):
-        error_maps(prerenders=prerenders, paths=points, out_dir=tmp_path / "out", database="synthetic")
+        error_maps(prerenders=prerenders, paths=_outputs(points, tmp_path / "out"),
+                   summary=tmp_path / "out" / "summary.csv", database="synthetic")
     assert not (tmp_path / "out" / "summary.csv").exists()
 
     prerenders, points, _ = _setup(tmp_path / "again")
     points[1]["weights"] = {"chrome": 1.0, "gold": 0.0}
     with pytest.raises(BlendError, match="without a pre-render: gold; pre-renders without a weight: alum-bronze"):
-        error_maps(prerenders=prerenders, paths=points, out_dir=tmp_path / "out2", database="synthetic")
+        error_maps(prerenders=prerenders, paths=_outputs(points, tmp_path / "out2"),
+                   summary=tmp_path / "out2" / "summary.csv", database="synthetic")
+
+
+def test_error_maps_refuses_clashing_outputs_before_writing(tmp_path: Path) -> None:
+    prerenders, points, _ = _setup(tmp_path)
+    ref_bytes = Path(points[0]["reference"]).read_bytes()
+    out = tmp_path / "out"
+    clash = _outputs(points, out)
+    clash[1]["blended"] = clash[0]["blended"]  # two points, one file
+    with pytest.raises(BlendError, match="more than once"):
+        error_maps(prerenders=prerenders, paths=clash, summary=out / "summary.csv", database="synthetic")
+    over = _outputs(points, out)
+    over[0]["error_exr"] = points[0]["reference"]  # an output naming an input
+    with pytest.raises(ValueError, match="would write over the input"):
+        error_maps(prerenders=prerenders, paths=over, summary=out / "summary.csv", database="synthetic")
+    assert Path(points[0]["reference"]).read_bytes() == ref_bytes
+    assert not out.exists() or not any(out.iterdir())
 
 
 def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None:
@@ -290,22 +328,45 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
                                   "material_a": MATERIALS[0], "material_b": MATERIALS[1]}))
         wfiles.append(wf)
     out = tmp_path / "maps"
+    mapped = _outputs(points, out)
+    summary = out / "table.csv"
     rows = error_maps_from_files(prerenders=prerenders, weights=wfiles,
                                  references=[p["reference"] for p in points],
                                  references_noise=[p["reference_seed2"] for p in points],
-                                 out_dir=out, database="synthetic")
-    direct = error_maps(prerenders=prerenders, paths=points, out_dir=tmp_path / "direct", database="synthetic")
+                                 blended=[p["blended"] for p in mapped], error_exrs=[p["error_exr"] for p in mapped],
+                                 error_pngs=[p["error_png"] for p in mapped], summary=summary, database="synthetic")
+    assert sorted(out.iterdir()) == sorted([summary, *_output_files(mapped)])
+    direct_dir = tmp_path / "direct"
+    direct = error_maps(prerenders=prerenders, paths=_outputs(points, direct_dir),
+                        summary=direct_dir / "summary.csv", database="synthetic")
     assert [r["rmse_blend"] for r in rows] == [r["rmse_blend"] for r in direct]
+    assert summary.read_bytes() == (direct_dir / "summary.csv").read_bytes()
+    figs = tmp_path / "figs"
+    figure_files = {k: [figs / f"my-{k}.png", figs / f"my-{k}.pdf"] for k in figures.RENDER_FIGURE_STEMS}
     files = figures.make_render_figures(prerenders=prerenders, weights=wfiles,
-                                        references=[p["reference"] for p in points], errormap_dir=out,
-                                        out_dir=tmp_path / "figs", database="synthetic")
+                                        references=[p["reference"] for p in points],
+                                        blended=[p["blended"] for p in mapped],
+                                        errors=[p["error_exr"] for p in mapped], summary=summary,
+                                        figures=figure_files, database="synthetic")
     assert len(files) == 6 and all(f.stat().st_size > 1000 for f in files)
+    assert sorted(files) == sorted(p for v in figure_files.values() for p in v) == sorted(figs.iterdir())
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(BlendError, match="bad.json"):
         error_maps_from_files(prerenders=prerenders, weights=[tmp_path / "bad.json"], references=["x"],
-                              references_noise=["y"], out_dir=out, database="synthetic")
-    (out / "summary.csv").unlink()
-    with pytest.raises(figures.FigureInputError, match="summary.csv"):
+                              references_noise=["y"], blended=["b"], error_exrs=["e"], error_pngs=["p"],
+                              summary=summary, database="synthetic")
+    with pytest.raises(BlendError, match="same length"):
+        error_maps_from_files(prerenders=prerenders, weights=wfiles,
+                              references=[p["reference"] for p in points],
+                              references_noise=[p["reference_seed2"] for p in points],
+                              blended=[p["blended"] for p in mapped], error_exrs=[p["error_exr"] for p in mapped],
+                              error_pngs=[mapped[0]["error_png"]], summary=summary, database="synthetic")
+    summary.unlink(missing_ok=True)
+    with pytest.raises(figures.FigureInputError, match="table.csv"):
         figures.make_render_figures(prerenders=prerenders, weights=wfiles,
-                                    references=[p["reference"] for p in points], errormap_dir=out,
-                                    out_dir=tmp_path / "figs2", database="synthetic")
+                                    references=[p["reference"] for p in points],
+                                    blended=[p["blended"] for p in mapped],
+                                    errors=[p["error_exr"] for p in mapped], summary=summary,
+                                    figures={k: [tmp_path / "figs2" / f"{k}.png", tmp_path / "figs2" / f"{k}.pdf"]
+                                             for k in figures.RENDER_FIGURE_STEMS}, database="synthetic")
+    assert not (tmp_path / "figs2").exists() or not list((tmp_path / "figs2").iterdir())

@@ -18,10 +18,9 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe import figures
+from brdfpipe import figures, filenames
 from brdfpipe.figures import (
     FIG08_COLUMNS,
-    FIGURE_STEMS,
     FigureInputError,
     database_label,
     fig05_error_vs_images,
@@ -30,6 +29,7 @@ from brdfpipe.figures import (
     make_acquisition_figures,
     read_errors,
 )
+from brdfpipe.filenames import FIGURE_STEMS
 from brdfpipe.sampling import DirectionSet, Setup, config_to_dict, read_directions, write_directions
 
 DB = "synthetic"
@@ -97,9 +97,14 @@ def write_training(path: Path, database: str = DB) -> Path:
     return path
 
 
-def write_dirs(root: Path, database: str = DB) -> dict[float, Path]:
-    """Directions for FOV 15 (split train only) and FOV 25 (train and all: 'all' must win)."""
+def write_dirs(root: Path, database: str = DB) -> tuple[dict[float, Path], list[Path]]:
+    """Directions for FOV 15 (split train only) and FOV 25 (train and all: 'all' must win).
+
+    Returns the file each FOV's table must use and every file written (in
+    writing order: FOV 25's 'train' file before its 'all' file).
+    """
     used = {}
+    written = []
     for fov, configs in CONFIGS.items():
         setup = Setup("nearfield", fov)
         sets = [DirectionSet(n=k, configurations=tuple(configs[:k]),
@@ -113,22 +118,33 @@ def write_dirs(root: Path, database: str = DB) -> dict[float, Path]:
             ss = sets if split == "all" or fov == 15.0 else [
                 DirectionSet(s.n, s.configurations, s.records, 9.0, s.condition_number, s.n_observations)
                 for s in sets]
-            p = write_directions(root / split / f"nearfield-fov{fov:g}-error.json", ss, setup=setup,
+            p = write_directions(root / filenames.directions(split, "nearfield", fov, "error"), ss, setup=setup,
                                  metric="error", split=split, model_path="model.zarr", seed=0,
                                  eta=40.0, beta=0.0, database=database)
             used[fov] = p  # the last one written: 'all' for 25, 'train' for 15
-    return used
+            written.append(p)
+    return used, written
+
+
+def figure_map(out: Path, keys: "tuple[str, ...] | None" = None) -> dict[str, list[Path]]:
+    """The workflow's figure files (:func:`brdfpipe.filenames.figure_files`), under ``out`` instead of results/."""
+    return {k: [out / Path(f).name for f in filenames.figure_files(stem, table=(k == "fig08"))]
+            for k, stem in FIGURE_STEMS.items() if keys is None or k in keys}
+
+
+def files_under(folder: Path) -> list[Path]:
+    """Every file under ``folder`` (none when it does not exist)."""
+    return sorted(p for p in folder.rglob("*") if p.is_file()) if folder.exists() else []
 
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("fig-inputs")
-    dirs = root / "directions"
-    used = write_dirs(dirs)
+    used, written = write_dirs(root)
     return {
         "errors": write_errors(root / "errors.csv"),
         "training": write_training(root / "training_size.csv"),
-        "dirs": dirs,
+        "dirs": written,
         "dir15": used[15.0],
         "dir25": used[25.0],
     }
@@ -137,8 +153,8 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 @pytest.fixture(scope="module")
 def outputs(inputs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
     out = tmp_path_factory.mktemp("figs-a")
-    files = make_acquisition_figures(inputs["errors"], inputs["training"], inputs["dirs"], out,
-                                     fovs=FOVS, n_point=N_MAX)
+    files = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"],
+                                     directions=inputs["dirs"], figures=figure_map(out), fovs=FOVS, n_point=N_MAX)
     return out, files
 
 
@@ -146,12 +162,13 @@ def test_wrapper_writes_every_file(outputs: tuple[Path, list[Path]]) -> None:
     out, files = outputs
     expected = {out / f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in ("png", "pdf")}
     expected |= {out / "fig08-optimal-configurations.csv", out / "fig08-optimal-configurations.md"}
+    assert expected == {p for v in figure_map(out).values() for p in v}
     assert set(files) == expected
     assert len(files) == len(expected)
     for p in files:
         assert p.is_file() and p.stat().st_size > 200, p
-    for p in out.iterdir():  # no temporary files left behind
-        assert not p.name.startswith("."), p
+    # exactly the files passed in: no temporary or other file left behind
+    assert files_under(out) == sorted(expected)
     for stem in FIGURE_STEMS.values():
         img = matplotlib.image.imread(out / f"{stem}.png")
         assert img.ndim == 3 and img.shape[2] in (3, 4) and min(img.shape[:2]) > 300
@@ -218,19 +235,30 @@ def test_fig08_table_matches_directions(inputs: dict[str, Path], outputs: tuple[
 
 def test_deterministic(inputs: dict[str, Path], outputs: tuple[Path, list[Path]], tmp_path: Path) -> None:
     out_a, files_a = outputs
-    files_b = make_acquisition_figures(inputs["errors"], inputs["training"], inputs["dirs"], tmp_path,
-                                       fovs=FOVS, n_point=N_MAX)
+    files_b = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"],
+                                       directions=inputs["dirs"], figures=figure_map(tmp_path), fovs=FOVS,
+                                       n_point=N_MAX)
     assert [p.name for p in files_a] == [p.name for p in files_b]
     for a, b in zip(files_a, files_b):
         assert a.read_bytes() == b.read_bytes(), a.name
+    # The order of the direction files does not matter: 'all' wins by split, not by position.
+    rev = tmp_path / "reversed"
+    files_c = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=None,
+                                       directions=inputs["dirs"][::-1], figures=figure_map(rev, ("fig08",)),
+                                       fovs=FOVS, n_point=N_MAX)
+    assert sorted(files_c) == sorted(figure_map(rev)["fig08"])
+    for c in files_c:
+        assert c.read_bytes() == (out_a / c.name).read_bytes(), c.name
 
 
 def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: Path,
                                             caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.WARNING, logger="brdfpipe.figures"):
-        files = make_acquisition_figures(inputs["errors"], inputs["training"], inputs["dirs"], tmp_path,
+        files = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"],
+                                         directions=inputs["dirs"], figures=figure_map(tmp_path),
                                          fovs=(15, 25, 35), n_point=7, fov_fixed=30)
     assert len(files) == 2 * len(FIGURE_STEMS) + 2
+    assert sorted(files) == files_under(tmp_path)
     text = caplog.text
     assert "FOV 35°" in text  # fig05/06/08
     assert "n = 7" in text  # fig18
@@ -240,11 +268,22 @@ def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: P
 
 
 def test_no_directions_at_all(inputs: dict[str, Path], tmp_path: Path) -> None:
-    empty = tmp_path / "nodirs"
-    empty.mkdir()
-    res = fig08_optimal_configurations(empty, tmp_path / "f8", fovs=(25,))
+    res = fig08_optimal_configurations([], tmp_path / "f8", fovs=(25,))
     assert len(res.files) == 4 and all(p.is_file() for p in res.files)
+    assert sorted(res.files) == sorted(tmp_path / f"f8.{ext}" for ext in ("png", "pdf", "csv", "md"))
     assert res.warnings and "FOV 25°" in res.warnings[0]
+    # Files for other FOVs only: the same no-data figure, with a warning per FOV.
+    res = fig08_optimal_configurations([inputs["dir15"]], tmp_path / "g8", fovs=(25,))
+    assert res.warnings and "FOV 25°" in res.warnings[0]
+    with (tmp_path / "g8.csv").open(encoding="utf-8") as fh:
+        assert sum(1 for _ in fh) == 1  # header only
+
+
+def test_missing_directions_file_is_an_error(inputs: dict[str, Path], tmp_path: Path) -> None:
+    absent = tmp_path / filenames.directions("all", "nearfield", 15, "error")
+    with pytest.raises(FigureInputError, match=r"nearfield-fov15-error\.json"):
+        fig08_optimal_configurations([inputs["dir25"], absent], tmp_path / "out" / "f8", fovs=(15, 25))
+    assert files_under(tmp_path / "out") == []
 
 
 def test_missing_column_names_file(tmp_path: Path) -> None:
@@ -252,7 +291,9 @@ def test_missing_column_names_file(tmp_path: Path) -> None:
     with pytest.raises(FigureInputError, match=r"bad-errors\.csv.*kind"):
         read_errors(bad)
     with pytest.raises(FigureInputError, match=r"bad-errors\.csv"):
-        make_acquisition_figures(bad, tmp_path / "t.csv", tmp_path, tmp_path / "out", fovs=FOVS, n_point=3)
+        make_acquisition_figures(errors_csv=bad, training_csv=tmp_path / "t.csv", directions=[],
+                                 figures=figure_map(tmp_path / "out"), fovs=FOVS, n_point=3)
+    assert files_under(tmp_path / "out") == []
     tr = tmp_path / "bad-training.csv"
     tr.write_text("database,n_train,material,channel,kind,value\nsynthetic,5,mean,all,rms_log,0.3\n")
     with pytest.raises(FigureInputError, match=r"bad-training\.csv.*order_seed"):
@@ -260,8 +301,18 @@ def test_missing_column_names_file(tmp_path: Path) -> None:
     # The wrapper checks every input first: nothing is written when one is bad.
     good = write_errors(tmp_path / "good-errors.csv")
     with pytest.raises(FigureInputError, match=r"bad-training\.csv"):
-        make_acquisition_figures(good, tr, tmp_path, tmp_path / "out2", fovs=FOVS, n_point=3)
-    assert not (tmp_path / "out2").exists()
+        make_acquisition_figures(errors_csv=good, training_csv=tr, directions=[], figures=figure_map(tmp_path / "out2"),
+                                 fovs=FOVS, n_point=3)
+    assert files_under(tmp_path / "out2") == []  # nor the folder itself: below
+
+
+def test_bad_input_creates_no_output_folder(tmp_path: Path) -> None:
+    bad = write_errors(tmp_path / "bad-errors.csv", drop="kind")
+    out = tmp_path / "out"
+    with pytest.raises(FigureInputError, match=r"bad-errors\.csv"):
+        make_acquisition_figures(errors_csv=bad, training_csv=None, directions=[],
+                                 figures=figure_map(out, POINT_ONLY), fovs=FOVS, n_point=3)
+    assert not out.exists()
 
 
 def test_empty_missing_and_malformed_inputs(inputs: dict[str, Path], tmp_path: Path) -> None:
@@ -285,8 +336,80 @@ def test_empty_missing_and_malformed_inputs(inputs: dict[str, Path], tmp_path: P
     with pytest.raises(FigureInputError, match=r"twodb\.csv.*more than one database"):
         read_errors(two_db)
     # A malformed directions file is an error naming it, not a skipped FOV.
-    dirs = tmp_path / "dirs"
-    (dirs / "all").mkdir(parents=True)
-    (dirs / "all" / "nearfield-fov25-error.json").write_text("{not json")
+    malformed = tmp_path / filenames.directions("all", "nearfield", 25, "error")
+    malformed.parent.mkdir(parents=True)
+    malformed.write_text("{not json")
     with pytest.raises(ValueError, match=r"nearfield-fov25-error\.json"):
-        fig08_optimal_configurations(dirs, tmp_path / "f8", fovs=(25,))
+        fig08_optimal_configurations([inputs["dir15"], malformed], tmp_path / "f8", fovs=(25,))
+    # ... also when the FOV it would serve is not asked for
+    with pytest.raises(ValueError, match=r"nearfield-fov25-error\.json"):
+        fig08_optimal_configurations([inputs["dir15"], malformed], tmp_path / "f8", fovs=(15,))
+    assert not list(tmp_path.glob("f8.*"))
+
+
+POINT_ONLY = ("fig05", "fig06", "fig18", "fig19")
+
+
+def test_subset_of_figures_writes_exactly_those_files(inputs: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "figs"
+    # Names the library never chose: it writes where it is told.
+    wanted = {k: [out / f"my-{k}.png", out / f"my-{k}.pdf"] for k in POINT_ONLY}
+    files = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=None, directions=[],
+                                     figures=wanted, fovs=FOVS, n_point=N_MAX)
+    expected = sorted(p for v in wanted.values() for p in v)
+    assert sorted(files) == expected and len(files) == len(expected)
+    assert files_under(out) == expected  # nothing else in the folder: no other figure, no temporary
+    for k in POINT_ONLY:
+        png, pdf = wanted[k]
+        assert float(matplotlib.image.imread(png)[..., :3].std()) > 0.02, f"{png.name} looks blank"
+        assert pdf.read_bytes().startswith(b"%PDF-")
+    # Same bytes as the same figures drawn with the full set.
+    full = tmp_path / "full"
+    make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"], directions=inputs["dirs"],
+                             figures=figure_map(full), fovs=FOVS, n_point=N_MAX)
+    for k in POINT_ONLY:
+        for ours, theirs in zip(wanted[k], figure_map(full)[k]):
+            assert ours.read_bytes() == theirs.read_bytes(), ours.name
+    # fig07 needs the training-size table.
+    with pytest.raises(ValueError, match="fig07"):
+        make_acquisition_figures(errors_csv=inputs["errors"], training_csv=None, directions=[],
+                                 figures=figure_map(tmp_path / "f7", ("fig07",)), fovs=FOVS, n_point=N_MAX)
+    assert files_under(tmp_path / "f7") == []
+    # No figure asked for: nothing drawn.
+    assert make_acquisition_figures(errors_csv=inputs["errors"], training_csv=None, directions=[], figures={},
+                                    fovs=FOVS, n_point=N_MAX) == []
+
+
+@pytest.mark.parametrize("bad", ["unknown-key", "suffix-order", "fig08-without-table", "table-on-plain-figure",
+                                 "two-stems", "missing-pdf"])
+def test_bad_figures_mapping_is_refused_before_writing(inputs: dict[str, Path], tmp_path: Path, bad: str) -> None:
+    out = tmp_path / "figs"
+    mapping: dict[str, list[Path]] = figure_map(out)
+    if bad == "unknown-key":
+        mapping["fig99"] = [out / "fig99.png", out / "fig99.pdf"]
+    elif bad == "suffix-order":
+        mapping["fig06"] = mapping["fig06"][::-1]
+    elif bad == "fig08-without-table":
+        mapping["fig08"] = mapping["fig08"][:2]
+    elif bad == "table-on-plain-figure":
+        mapping["fig19"] = [*mapping["fig19"], out / "fig19-error-vs-n.csv", out / "fig19-error-vs-n.md"]
+    elif bad == "two-stems":
+        mapping["fig13"] = [out / "fig13-a.png", out / "fig13-b.pdf"]
+    else:
+        mapping["fig18"] = mapping["fig18"][:1]
+    with pytest.raises(ValueError, match="fig99" if bad == "unknown-key" else "figure outputs"):
+        make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"],
+                                 directions=inputs["dirs"], figures=mapping, fovs=FOVS, n_point=N_MAX)
+    assert files_under(out) == []
+    assert files_under(tmp_path) == []
+
+
+def test_figure_stem(tmp_path: Path) -> None:
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert figures.figure_stem([a / "x.png", a / "x.pdf"]) == a / "x"
+    assert figures.figure_stem([str(b / f"y.{e}") for e in ("png", "pdf", "csv", "md")], table=True) == b / "y"
+    for files, table in ((["x.pdf", "x.png"], False), (["x.png", "x.pdf"], True), (["x.png"], False),
+                         (["x.png", "y.pdf"], False), (["x.png", "x.pdf", "x.md", "x.csv"], True)):
+        with pytest.raises(ValueError):
+            figures.figure_stem([tmp_path / "c" / f for f in files], table=table)
+    assert files_under(tmp_path) == [] and not (tmp_path / "c").exists()

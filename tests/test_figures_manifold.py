@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 
 from brdfpipe import figures, gplvm
+from brdfpipe.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.figures import (
     ALBEDO_COLUMNS,
-    MANIFOLD_FIGURE_STEMS,
     PATHS_COLUMNS,
     REPRODUCTION_COLUMNS,
     TRACE_COLUMNS,
@@ -71,7 +71,7 @@ def _albedo(rng: np.random.Generator) -> np.ndarray:
 
 
 def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
-    """Every input of make_manifold_figures under ``root``; returns its keyword arguments (less out_dir)."""
+    """Every input of make_manifold_figures under ``root``; returns its keyword arguments (less figures)."""
     rng = np.random.default_rng(2018)
     Z = rng.normal(size=(N, D)) * np.linspace(2.0, 0.2, D)
     Z -= Z.mean(axis=0)
@@ -145,19 +145,31 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     return write_inputs(tmp_path_factory.mktemp("manifold-inputs"))
 
 
+def figure_map(out: Path, keys: tuple[str, ...] | None = None) -> dict[str, list[Path]]:
+    """The workflow's figure files (stems :data:`MANIFOLD_FIGURE_STEMS`, PNG + PDF) under ``out``."""
+    return {k: [out / f"{stem}.png", out / f"{stem}.pdf"] for k, stem in MANIFOLD_FIGURE_STEMS.items()
+            if keys is None or k in keys}
+
+
+def files_under(folder: Path) -> list[Path]:
+    """Every file under ``folder`` (none when it does not exist)."""
+    return sorted(p for p in folder.rglob("*") if p.is_file()) if folder.exists() else []
+
+
 @pytest.fixture(scope="module")
 def outputs(inputs: dict[str, object], tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
     out = tmp_path_factory.mktemp("manifold-figs")
-    return out, make_manifold_figures(**inputs, out_dir=out)
+    return out, make_manifold_figures(**inputs, figures=figure_map(out))
 
 
 def test_writes_every_figure(outputs: tuple[Path, list[Path]]) -> None:
     out, files = outputs
     expected = [out / f"{stem}.{ext}" for stem in MANIFOLD_FIGURE_STEMS.values() for ext in ("png", "pdf")]
     assert files == expected and len(files) == 14
+    assert files == [p for v in figure_map(out).values() for p in v]
     for p in files:
         assert p.is_file() and p.stat().st_size > 1000, p
-    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in files)  # no temporary files left
+    assert files_under(out) == sorted(files)  # exactly the files passed in: no temporary files left
     for stem in MANIFOLD_FIGURE_STEMS.values():
         img = matplotlib.image.imread(out / f"{stem}.png")
         assert img.ndim == 3 and img.shape[2] in (3, 4) and min(img.shape[:2]) > 400, stem
@@ -174,10 +186,43 @@ def test_database_named_in_every_figure(outputs: tuple[Path, list[Path]]) -> Non
 
 def test_deterministic(inputs: dict[str, object], outputs: tuple[Path, list[Path]], tmp_path: Path) -> None:
     _, files_a = outputs
-    files_b = make_manifold_figures(**inputs, out_dir=tmp_path)
+    files_b = make_manifold_figures(**inputs, figures=figure_map(tmp_path))
     assert [p.name for p in files_a] == [p.name for p in files_b]
     for a, b in zip(files_a, files_b):
         assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def test_subset_of_figures_writes_exactly_those_files(inputs: dict[str, object], outputs: tuple[Path, list[Path]],
+                                                      tmp_path: Path) -> None:
+    out_a, _ = outputs
+    out = tmp_path / "some"
+    # Names the library never chose; only the keys given are drawn, in MANIFOLD_FIGURE_STEMS order.
+    wanted = {"eq7": [out / "bound.png", out / "bound.pdf"], "fig05": [out / "sub" / "lik.png", out / "sub" / "lik.pdf"]}
+    files = make_manifold_figures(**inputs, figures=wanted)
+    assert files == [*wanted["fig05"], *wanted["eq7"]]
+    assert files_under(out) == sorted(files)
+    for key, (png, pdf) in wanted.items():
+        stem = MANIFOLD_FIGURE_STEMS[key]
+        assert png.read_bytes() == (out_a / f"{stem}.png").read_bytes(), png.name
+        assert pdf.read_bytes() == (out_a / f"{stem}.pdf").read_bytes(), pdf.name
+    assert make_manifold_figures(**inputs, figures={}) == []
+
+
+@pytest.mark.parametrize("bad", ["unknown-key", "suffix-order", "with-table", "two-stems"])
+def test_bad_figures_mapping_is_refused_before_writing(inputs: dict[str, object], tmp_path: Path, bad: str) -> None:
+    out = tmp_path / "figs"
+    mapping: dict[str, list[Path]] = figure_map(out)
+    if bad == "unknown-key":
+        mapping["fig99"] = [out / "fig99.png", out / "fig99.pdf"]
+    elif bad == "suffix-order":
+        mapping["fig09"] = mapping["fig09"][::-1]
+    elif bad == "with-table":
+        mapping["fig08"] = [*mapping["fig08"], out / "x.csv", out / "x.md"]
+    else:
+        mapping["eq7"] = [out / "eq7-a.png", out / "eq7-b.pdf"]
+    with pytest.raises(ValueError, match="fig99" if bad == "unknown-key" else "figure outputs"):
+        make_manifold_figures(**inputs, figures=mapping)
+    assert files_under(tmp_path) == []
 
 
 def test_database_argument_must_match(inputs: dict[str, object], tmp_path: Path) -> None:
@@ -204,8 +249,16 @@ def test_readers(inputs: dict[str, object]) -> None:
 def _expect_error(inputs: dict[str, object], tmp_path: Path, pattern: str, **override: object) -> None:
     out = tmp_path / "out"
     with pytest.raises(FigureInputError, match=pattern):
-        make_manifold_figures(**{**inputs, **override}, out_dir=out)
-    assert not out.exists()  # every input is checked before anything is written
+        make_manifold_figures(**{**inputs, **override}, figures=figure_map(out))
+    # every input is checked before anything is written (nor the folder itself: below)
+    assert files_under(out) == []
+
+
+def test_bad_input_creates_no_output_folder(inputs: dict[str, object], tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    with pytest.raises(FigureInputError, match=r"absent-albedo\.csv"):
+        make_manifold_figures(**{**inputs, "albedo_csv": tmp_path / "absent-albedo.csv"}, figures=figure_map(out))
+    assert not out.exists()
 
 
 def test_missing_files(inputs: dict[str, object], tmp_path: Path) -> None:
@@ -300,8 +353,9 @@ def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     paths = _write_csv(tmp_path / "paths-q2.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
     with caplog.at_level(logging.WARNING, logger="brdfpipe.figures"):
         files = make_manifold_figures(**{**kw, "models": {2: kw["models"][2]}, "traces": {}, "albedo_maps": {},  # type: ignore[index]
-                                         "paths_csv": paths}, out_dir=tmp_path / "out")
+                                         "paths_csv": paths}, figures=figure_map(tmp_path / "out"))
     assert len(files) == 14 and all(p.is_file() for p in files)
+    assert files_under(tmp_path / "out") == sorted(files)
     for p in files:
         assert b"MERL database" in p.read_bytes(), p.name
     assert "no trace files" in caplog.text and "no albedo maps" in caplog.text and "no q = 5 model" in caplog.text

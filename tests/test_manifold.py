@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from brdfpipe import gplvm, manifold, merl, store, synth
+from brdfpipe.plan import ConfigError
 
 
 @pytest.fixture(scope="module")
@@ -81,10 +82,15 @@ def test_check_and_default_paths() -> None:
     soler = [m for pair in manifold.SOLER_PATHS for m in pair] + ["x"]
     assert manifold.default_paths(soler, seed=0) == list(manifold.SOLER_PATHS)
     assert manifold.check_paths([["m1", "m2"]], names) == [("m1", "m2")]
+    # A path and its reverse are two paths.
+    assert manifold.check_paths([["m1", "m2"], ["m2", "m1"]], names) == [("m1", "m2"), ("m2", "m1")]
     for bad, msg in [([["m1", "nope"]], "unknown material 'nope'"), ([["m1", "m1"]], "two different"),
-                     ([["m1"]], "pair of material names")]:
-        with pytest.raises(ValueError, match=msg):
+                     ([["m1"]], "pair of material names"),
+                     ([["m1", "m2"], ["m3", "m4"], ["m1", "m2"]], "listed more than once: m1--m2")]:
+        with pytest.raises(ConfigError, match=msg):
             manifold.check_paths(bad, names)
+    assert issubclass(ConfigError, ValueError)
+    assert manifold.path_name("m1", "m2") == "m1--m2"
 
 
 def test_albedo_map_is_the_weighted_albedo(small: dict) -> None:
@@ -122,20 +128,42 @@ def test_reproduction_errors(small: dict) -> None:
 def test_analyze_manifold_writes_everything(small: dict) -> None:
     out = small["tmp"] / "out"
     names = small["names"]
+    # Names the library never chose: it writes exactly the paths given.
+    outputs = {"albedo_out": out / "a" / "my-albedo.csv",
+               "albedo_maps_out": {2: out / "maps" / "two.npz", 3: out / "maps" / "three.npz"},
+               "paths_out": out / "my-paths.csv", "reproduction_out": out / "b" / "my-reproduction.csv"}
     manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
                               paths=[[names[1], names[2]]], path_q=3, seed=0, steps=2, albedo_grid=6,
-                              pca_ks=(2,), out_dir=out)
-    with open(out / "paths.csv") as fh:
+                              pca_ks=(2,), **outputs)
+    written = sorted(p for p in out.rglob("*") if p.is_file())
+    assert written == sorted([outputs["albedo_out"], *outputs["albedo_maps_out"].values(), outputs["paths_out"],
+                              outputs["reproduction_out"]])
+    with open(outputs["paths_out"]) as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 3 and tuple(rows[0]) == manifold.PATH_COLUMNS and rows[0]["database"] == "synthetic"
-    with open(out / "reproduction.csv") as fh:
+    with open(outputs["reproduction_out"]) as fh:
         rep = list(csv.DictReader(fh))
     assert {(r["method"], r["k"]) for r in rep} == {("pca", "2"), ("pca", "3"), ("gplvm", "2"), ("gplvm", "3")}
-    for q in (2, 3):
-        with np.load(out / f"albedo-map-q{q}.npz") as z:
-            assert z["albedo"].shape == (6, 6, 3) and str(z["database"]) == "synthetic"
-    with open(out / "albedo.csv") as fh:
+    for q, target in outputs["albedo_maps_out"].items():
+        with np.load(target) as z:
+            assert z["albedo"].shape == (6, 6, 3) and str(z["database"]) == "synthetic" and int(z["q"]) == q
+    with open(outputs["albedo_out"]) as fh:
         assert len(list(csv.DictReader(fh))) == 6
+    # Only the albedo maps asked for are written.
+    only = small["tmp"] / "only-q3"
+    manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
+                              paths=[[names[1], names[2]]], path_q=3, seed=0, steps=2, albedo_grid=6,
+                              pca_ks=(2,), albedo_out=only / "albedo.csv", albedo_maps_out={3: only / "q3.npz"},
+                              paths_out=only / "paths.csv", reproduction_out=only / "reproduction.csv")
+    assert sorted(p.name for p in only.iterdir()) == ["albedo.csv", "paths.csv", "q3.npz", "reproduction.csv"]
+    fresh = small["tmp"] / "fresh"
     with pytest.raises(ValueError, match="no fitted model"):
         manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"], paths=None,
-                                  path_q=7, seed=0, out_dir=out)
+                                  path_q=7, seed=0, albedo_out=fresh / "albedo.csv", albedo_maps_out={},
+                                  paths_out=fresh / "paths.csv", reproduction_out=fresh / "reproduction.csv")
+    with pytest.raises(ValueError, match="no q = 5 model"):
+        manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"], paths=None,
+                                  path_q=3, seed=0, albedo_out=fresh / "albedo.csv",
+                                  albedo_maps_out={5: fresh / "q5.npz"}, paths_out=fresh / "paths.csv",
+                                  reproduction_out=fresh / "reproduction.csv")
+    assert not fresh.exists()  # nothing written by a failed call

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from brdfpipe import merl
+from brdfpipe import filenames, merl
 from brdfpipe.sampling import (
     DIRECTIONS_FORMAT,
     DirectionSet,
@@ -30,7 +30,6 @@ from brdfpipe.sampling import (
     condition_number,
     config_to_dict,
     direct_training_error,
-    directions_path,
     expected_error,
     observation_cells,
     optimize,
@@ -307,7 +306,7 @@ def test_log_lines(caplog: pytest.LogCaptureFixture) -> None:
 def test_write_read_directions(tmp_path, kind: str) -> None:  # type: ignore[no-untyped-def]
     setup = setup_of(kind)
     sets = run(kind)
-    path = directions_path(tmp_path / "results", "train", setup, "error")
+    path = tmp_path / filenames.directions("train", kind, setup.fov_deg, "error")
     fov = "0" if kind == "point" else "25"
     assert path == tmp_path / "results" / "directions" / "train" / f"{kind}-fov{fov}-error.json"
     out = write_directions(path, sets, setup=setup, metric="error", split="train", model_path="/tmp/m.zarr",

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from brdfpipe import logmap, merl, reconstruct, sampling, store, svd, synth
+from brdfpipe import filenames, logmap, merl, reconstruct, sampling, store, svd, synth
 from brdfpipe.cli import main as cli_main
 from brdfpipe.database import folder_database
 from brdfpipe.reconstruct import (
@@ -69,7 +69,7 @@ class Data:
             sets = sampling.optimize(m, setup, metric="error", n_max=n_max, candidates=6, steps=(1,), seed=3,
                                      log=lambda line: None)
             self.dirs[kind] = sampling.write_directions(
-                sampling.directions_path(d, "train", setup, "error"), sets, setup=setup, metric="error",
+                d / filenames.directions("train", kind, fov, "error"), sets, setup=setup, metric="error",
                 split="train", model_path=self.model_path, seed=3, eta=40.0, beta=0.0, database=m.database)
 
     def rows_of(self, path: Path, n: int) -> NDArray[np.intp]:
@@ -477,14 +477,34 @@ def test_training_size_curve(data: Data, evaluation: list[dict[str, Any]], tmp_p
     assert {r[2] for r in back[1:]} == {"5"} and {r[5] for r in back[1:]} == {"rms_log"}
 
 
-def test_run_evaluation_writes_three_files(data: Data, tmp_path: Path) -> None:
+def test_evaluation_functions_write_one_file_each(data: Data, evaluation: list[dict[str, Any]],
+                                                 tmp_path: Path) -> None:
+    """write_evaluation, check_consistency and write_training_size each write exactly the path given."""
     out = tmp_path / "evaluation"
-    written = reconstruct.run_evaluation(data.store, data.model_path, data.logmap, list(data.dirs.values()), out,
-                                         test_materials=data.test, sizes=(2, 6))
-    assert set(written) == {"errors", "consistency", "training_size"}
-    for key, cols in (("errors", ERROR_COLUMNS), ("consistency", CONSISTENCY_COLUMNS),
-                      ("training_size", TRAINING_SIZE_COLUMNS)):
-        assert written[key] == out / f"{key}.csv"
-        with open(written[key], newline="") as fh:
-            assert tuple(next(csv.reader(fh))) == cols
-    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]
+    # Names the library never chose, to show it writes where it is told.
+    errors_out = out / "my-errors.csv"
+    consistency_out = out / "check" / "my-consistency.csv"
+    curve_out = out / "my-curve.csv"
+    dirs = [data.dirs["point"], data.dirs["nearfield"]]
+    assert reconstruct.write_evaluation(data.store, data.model_path, dirs, errors_out,
+                                        test_materials=data.test) == errors_out
+    consistency = reconstruct.check_consistency(data.logmap, data.model_path, dirs, out=consistency_out)
+    assert reconstruct.write_training_size(data.store, data.logmap, data.dirs["nearfield"], curve_out,
+                                           test_materials=data.test, sizes=(2, 6)) == curve_out
+    # Exactly the three files given, no temporary or other file left anywhere under out.
+    assert sorted(p for p in out.rglob("*") if p.is_file()) == sorted([errors_out, consistency_out, curve_out])
+    tables = {}
+    for path, cols in ((errors_out, ERROR_COLUMNS), (consistency_out, CONSISTENCY_COLUMNS),
+                       (curve_out, TRAINING_SIZE_COLUMNS)):
+        with open(path, newline="") as fh:
+            tables[path] = list(csv.reader(fh))
+        assert tuple(tables[path][0]) == cols
+    # The errors CSV is the evaluation, written by write_errors.
+    ref = reconstruct.write_errors(tmp_path / "ref" / "errors.csv", evaluation)
+    assert errors_out.read_text() == ref.read_text()
+    assert len(tables[consistency_out]) == 1 + len(consistency)
+    # The curve uses the given directions file and sizes: N = 2 and N = 6 (all training materials).
+    curve = tables[curve_out]
+    n_col = TRAINING_SIZE_COLUMNS.index("n_train")
+    assert sorted({int(r[n_col]) for r in curve[1:]}) == [2, 6]
+    assert len(curve) == 1 + 2 * (3 * len(data.test) + 1)

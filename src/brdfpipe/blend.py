@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .version import full_version
 from .atomic import atomic_write as _atomic_write
+from .atomic import check_not_input
 from .filenames import format_t
 from .exr import ExrError, read_exr, write_exr
 
@@ -360,7 +361,7 @@ def error_maps(
         t = float(pt["t"])
         s = format_t(t)
         if (name, s) in seen:
-            raise BlendError(f"path points {seen[(name, s)]} and {k} both write {name}-t{s}-*")
+            raise BlendError(f"path points {seen[(name, s)]} and {k} are both {name} at t = {s}")
         seen[(name, s)] = k
         weights = pt["weights"]
         extra = sorted(set(weights) - set(materials))
@@ -378,6 +379,13 @@ def error_maps(
     for f in inputs:
         if not f.is_file():
             raise ExrError(f"{f}: no such file")
+    outputs = [Path(pt[key]) for pt in paths for key in ("blended", "error_exr", "error_png")] + [summary]
+    resolved = [o.resolve() for o in outputs]
+    clash = sorted({str(o) for o, r in zip(outputs, resolved) if resolved.count(r) > 1})
+    if clash:
+        raise BlendError(f"output paths given more than once: {', '.join(clash)}")
+    for o in outputs:
+        check_not_input(o, inputs, what="output")
 
     blends = _blend_many([Path(prerenders[m]) for m in materials], W, progress)
 

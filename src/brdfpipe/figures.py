@@ -1049,9 +1049,7 @@ def figure_stem(files: Sequence[str | os.PathLike[str]], *, table: bool = False)
     stems = {p.with_suffix("") for p in paths}
     if len(stems) != 1:
         raise ValueError(f"figure outputs {[str(p) for p in paths]}: must share one stem")
-    stem = stems.pop()
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    return stem
+    return stems.pop()
 
 
 def _check_keys(figures: Mapping[str, Any], known: Mapping[str, str], what: str) -> None:

@@ -345,6 +345,8 @@ def analyze_manifold(
     for q in albedo_maps_out:
         if int(q) not in fits:
             raise ValueError(f"albedo map for q = {q} requested, but there is no q = {q} model")
+        if int(q) < 2:
+            raise ValueError(f"albedo map for q = {q} requested: a latent plane needs q ≥ 2")
     _write_csv(Path(albedo_out), ALBEDO_COLUMNS, [
         {"database": database, "material": m, "r": A[i, 0], "g": A[i, 1], "b": A[i, 2], "luminance": float(A[i] @ _LUMA)}
         for i, m in enumerate(names)
