@@ -22,9 +22,9 @@ from hypothesis import strategies as hs
 
 from brdfpipe import logmap, merl, store, synth
 from brdfpipe.atomic import OutputError
-from brdfpipe.version import full_version
 from brdfpipe.database import folder_database
 from brdfpipe.logmap import EPS, LogmapError
+from brdfpipe.version import full_version
 
 # --------------------------------------------------------------------------
 # Fixtures

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import logging
+import os
 import re
 import shutil
 import subprocess
@@ -23,9 +23,9 @@ from numpy.typing import NDArray
 
 from brdfpipe import gplvm, merl, store
 from brdfpipe.atomic import OutputError
-from brdfpipe.version import full_version
 from brdfpipe.merl import N_CELLS, MerlFormatError
 from brdfpipe.store import N_COLS, StoreError
+from brdfpipe.version import full_version
 
 N_MATERIALS = 3
 

@@ -20,9 +20,9 @@ import zarr
 
 from brdfpipe import logmap, store, svd, synth
 from brdfpipe.atomic import OutputError
-from brdfpipe.version import full_version
 from brdfpipe.database import folder_database
 from brdfpipe.svd import ModelError
+from brdfpipe.version import full_version
 
 # --------------------------------------------------------------------------
 # Fixtures
