@@ -10,18 +10,21 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+import zarr
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from brdfpipe import logmap, merl, store, synth
-from brdfpipe.version import full_version
+from brdfpipe.atomic import OutputError
 from brdfpipe.database import folder_database
 from brdfpipe.logmap import EPS, LogmapError
+from brdfpipe.version import full_version
 
 # --------------------------------------------------------------------------
 # Fixtures
@@ -306,6 +309,7 @@ def test_failure_leaves_nothing(const_store: Path, tmp_path: Path, monkeypatch: 
     out = tmp_path / "lm.zarr"
     kwargs = {"split": "train", "materials_train": ["mat-a", "mat-b", "mat-c"], "weighting": "product"}
     logmap.write_logmap(const_store, out, **kwargs)  # an earlier, good log-map
+    before = _tree(out)
     calls = {"n": 0}
     real = logmap.forward
 
@@ -319,8 +323,47 @@ def test_failure_leaves_nothing(const_store: Path, tmp_path: Path, monkeypatch: 
     with pytest.raises(RuntimeError, match="disk on fire"):
         logmap.write_logmap(const_store, out, **kwargs)
     assert calls["n"] == 20
-    assert not out.exists()  # the earlier one is gone too: a failed job leaves no stale output
+    assert _tree(out) == before  # the earlier one is kept exactly as it was: no data lost
     assert _leftovers(tmp_path) == []
+    logmap.open_logmap(out)
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_refuses_a_foreign_zarr_group_before_reading_the_store(
+    const_store: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "lm.zarr"
+    group = zarr.open_group(out, mode="w", zarr_format=3)
+    group.create_array("data", shape=(3,), dtype="float32", fill_value=0.0)[:] = 1.0
+    before = _tree(out)
+
+    def no_work(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise AssertionError("the store was opened before the output was checked")
+
+    monkeypatch.setattr(logmap, "open_store", no_work)
+    with pytest.raises(OutputError, match=re.escape(str(out)) + ".*refusing to replace"):
+        logmap.write_logmap(const_store, out, split="train", materials_train=["mat-a", "mat-b"])
+    assert _tree(out) == before and _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("damage", ["flipped bit", "deleted shard"])
+def test_damaged_store_is_refused_and_nothing_written(damage: str, const_store: Path, tmp_path: Path) -> None:
+    """map_logrelative: a damaged shard is a StoreError naming store and material, never NaN in X."""
+    bad = Path(shutil.copytree(const_store, tmp_path / "merl.zarr"))
+    shard = bad / "brdf" / "c" / "1" / "0"  # mat-b
+    if damage == "flipped bit":
+        data = bytearray(shard.read_bytes())
+        data[4000] ^= 0x01
+        shard.write_bytes(bytes(data))
+    else:
+        shard.unlink()
+    out = tmp_path / "lm.zarr"
+    with pytest.raises(store.StoreError, match=re.escape(str(bad)) + ".*'mat-b'"):
+        logmap.write_logmap(bad, out, split="train", materials_train=["mat-a", "mat-b", "mat-c"])
+    assert not out.exists() and _leftovers(tmp_path) == []
 
 
 def test_refuses_to_replace_a_store_or_other_folder(const_store: Path, tmp_path: Path) -> None:

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 import re
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -19,10 +21,11 @@ import pytest
 import zarr
 from numpy.typing import NDArray
 
-from brdfpipe import merl, store
-from brdfpipe.version import full_version
+from brdfpipe import gplvm, merl, store
+from brdfpipe.atomic import OutputError
 from brdfpipe.merl import N_CELLS, MerlFormatError
 from brdfpipe.store import N_COLS, StoreError
+from brdfpipe.version import full_version
 
 N_MATERIALS = 3
 
@@ -86,6 +89,11 @@ def _leftovers(folder: Path) -> list[str]:
     if not folder.exists():
         return []
     return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    """Every file under ``root`` by relative path, with its bytes."""
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
 def _bits(a: NDArray[np.float32]) -> NDArray[np.uint32]:
@@ -240,11 +248,12 @@ def test_bad_file_fails_and_leaves_nothing(
     with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
         store.ingest_material(bad, out, name="bad")
     assert not out.exists() and _leftovers(out.parent) == []
-    # An earlier row store at `out` is removed too: it must not stand in for the failed one.
+    # An earlier row store at `out` is kept exactly as it was (no data lost).
     shutil.copytree(rows[0], out)
+    before = _tree(out)
     with pytest.raises(MerlFormatError):
         store.ingest_material(bad, out, name="bad")
-    assert not out.exists() and _leftovers(out.parent) == []
+    assert _tree(out) == before and _leftovers(out.parent) == []
 
 
 def test_missing_file_fails(tmp_path: Path) -> None:
@@ -334,14 +343,18 @@ def test_assemble_copies_and_verifies(rows: list[Path], expected: NDArray[np.flo
         shard = out / "brdf" / "c" / str(i) / "0"
         assert shard.read_bytes() == (row / "brdf" / "c" / "0" / "0").read_bytes()
         assert shard.stat().st_nlink == 1  # a copy, not a link
-    # A damaged shard passes the cheap checks but not verify=True.
+    # A damaged shard passes the cheap checks (verify=False) but not the default open.
     shard = out / "brdf" / "c" / "1" / "0"
     data = bytearray(shard.read_bytes())
     data[-100] ^= 1
     shard.write_bytes(bytes(data))
-    store.open_store(out)
-    with pytest.raises(StoreError, match="corrupt"):
-        store.open_store(out, verify=True)
+    unverified = store.open_store(out, verify=False)
+    with pytest.raises(StoreError, match=re.escape(str(out)) + ".*'mat-1'.*corrupt"):
+        store.open_store(out)
+    # ... and the readers verify the rows they read, even on an unverified handle.
+    next(store.iter_column_blocks(unverified, rows=["mat-0"]))
+    with pytest.raises(StoreError, match="'mat-1'.*corrupt"):
+        next(store.iter_column_blocks(unverified))
 
 
 def test_assemble_rejects_unknown_database(rows: list[Path], tmp_path: Path) -> None:
@@ -403,13 +416,84 @@ def test_ingest_keeps_rows_in_workdir(sources: dict[str, Path], tmp_path: Path) 
     assert store.open_store(out, verify=True).materials == tuple(sources)
 
 
-def test_replace_refuses_non_store(sources: dict[str, Path], tmp_path: Path) -> None:
+def _foreign_group(path: Path) -> Path:
+    """A Zarr group that is not a brdfpipe store (no brdfpipe format attribute)."""
+    group = zarr.open_group(path, mode="w", zarr_format=3)
+    group.attrs["format"] = "someone-else/1"
+    group.create_array("data", shape=(4,), dtype="int32", fill_value=0)[:] = np.arange(4)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["folder", "zarr group", "row store"])
+def test_writers_refuse_a_foreign_output_before_any_work(
+    kind: str, sources: dict[str, Path], rows: list[Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     out = tmp_path / "results"
-    out.mkdir()
-    (out / "precious.txt").write_text("keep me")
-    with pytest.raises(StoreError, match="refusing to replace"):
-        store.ingest_material(sources["mat-0"], out, name="x")
-    assert (out / "precious.txt").read_text() == "keep me"
+    if kind == "folder":
+        out.mkdir()
+        (out / "precious.txt").write_text("keep me")
+    elif kind == "zarr group":
+        _foreign_group(out)
+    else:
+        shutil.copytree(rows[0], out)  # a row store is not a store (and a store is not a row store)
+    before = _tree(out)
+
+    def no_work(path: Path) -> None:
+        raise AssertionError("a source was read before the output was checked")
+
+    monkeypatch.setattr(store, "_encode_source", no_work)
+    monkeypatch.setattr(store, "_open_row", no_work)
+    calls = [
+        lambda: store.ingest(sources, out, database="synthetic", jobs=1),
+        lambda: store.assemble_store(rows, out, database="synthetic"),
+    ]
+    if kind != "row store":
+        calls.append(lambda: store.ingest_material(sources["mat-0"], out, name="x"))
+    for call in calls:
+        with pytest.raises(OutputError, match=re.escape(str(out)) + ".*refusing to replace"):
+            call()
+        assert _tree(out) == before
+    assert sorted(os.listdir(tmp_path)) == ["results"]
+
+
+def test_failed_reingest_keeps_the_old_store(
+    sources: dict[str, Path], built: Path, rows: list[Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
+    before = _tree(out)
+    bad = _with_nan(sources["mat-1"], tmp_path / "bad.binary")
+    with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
+        store.ingest({"a": sources["mat-0"], "bad": bad}, out, database="synthetic", jobs=2)
+    assert _tree(out) == before and _leftovers(tmp_path) == []
+    copies = _copy_rows(rows, tmp_path / "rows")
+    (copies[2] / "brdf" / "c" / "0" / "0").unlink()
+    with pytest.raises(StoreError, match="missing"):
+        store.assemble_store(copies, out, database="synthetic")
+    assert _tree(out) == before and _leftovers(tmp_path) == []
+
+    # An interrupt (Ctrl-C) in the middle of the assembly.
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(store, "_warn_removals", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        store.ingest(sources, out, database="merl", jobs=1)
+    assert _tree(out) == before and _leftovers(tmp_path) == []
+    store.open_store(out)
+
+
+def test_stale_siblings_of_dead_runs_are_removed(sources: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "merl.zarr"
+    proc = subprocess.run(["sh", "-c", "echo $$"], capture_output=True, text=True, check=True)
+    dead = int(proc.stdout)  # that shell has exited
+    stale = [tmp_path / f".merl.zarr.tmp-{dead}-0badc0de", tmp_path / f".merl.zarr.rows-{dead}-deadbeef"]
+    for d in stale:
+        (d / "sub").mkdir(parents=True)
+        (d / "sub" / "junk").write_bytes(b"x" * 100)
+    alive = tmp_path / f".merl.zarr.tmp-{os.getpid()}-00000001"  # a live writer's: left alone
+    alive.mkdir()
+    store.ingest({"only": sources["mat-0"]}, out, database="synthetic", jobs=1)
+    assert sorted(os.listdir(tmp_path)) == sorted([alive.name, "merl.zarr"])
 
 
 def test_same_sources_give_the_same_bytes(sources: dict[str, Path], tmp_path: Path) -> None:
@@ -422,5 +506,114 @@ def test_same_sources_give_the_same_bytes(sources: dict[str, Path], tmp_path: Pa
         return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
     ta, tb = tree(a), tree(b)
+    assert json.loads(ta["zarr.json"])["attributes"]["format"] == "brdfpipe.merl-store/2"
     assert ta.keys() == tb.keys() and len(ta) > 4
     assert all(ta[k] == tb[k] for k in ta)
+
+
+# --------------------------------------------------------------------------
+# Integrity: consumers verify what they read
+# --------------------------------------------------------------------------
+
+
+def _flip_bit(path: Path, pos: int = 5000) -> None:
+    data = bytearray(path.read_bytes())
+    data[pos] ^= 0x10
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("damage", ["flipped bit", "deleted shard", "truncated shard"])
+def test_damaged_shard_stops_the_gram_job(damage: str, built: Path, tmp_path: Path) -> None:
+    """gplvm.write_gram (the compute_gram job) fails naming store and material, and writes nothing."""
+    bad = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
+    shard = bad / "brdf" / "c" / "2" / "0"
+    if damage == "flipped bit":
+        _flip_bit(shard)
+    elif damage == "deleted shard":
+        shard.unlink()
+    else:
+        shard.write_bytes(shard.read_bytes()[:-10])
+    out = tmp_path / "gram.npz"
+    with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*'mat-2'") as err:
+        gplvm.write_gram(bad, out)
+    assert "\n" not in str(err.value)
+    assert not out.exists() and _leftovers(tmp_path) == []
+    with pytest.raises(StoreError, match="'mat-2'"):
+        gplvm.gram_matrix(bad)
+
+
+def test_swapped_names_fail_verification(built: Path, tmp_path: Path) -> None:
+    bad = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
+
+    def swap(doc: dict) -> None:
+        names = doc["attributes"]["materials"]
+        names[0], names[1] = names[1], names[0]
+        doc["attributes"]["sources"] = dict(doc["attributes"]["sources"])  # same keys: still consistent
+
+    _edit_json(bad / "zarr.json", swap)
+    store.open_store(bad, verify=False)  # the metadata alone is consistent
+    with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*'mat-1'.*corrupt"):
+        store.open_store(bad)
+    # Swapping the shard files (names kept) fails too.
+    bad2 = Path(shutil.copytree(built, tmp_path / "swapped.zarr"))
+    a, b = bad2 / "brdf" / "c" / "0" / "0", bad2 / "brdf" / "c" / "1" / "0"
+    da, db = a.read_bytes(), b.read_bytes()
+    a.write_bytes(db)
+    b.write_bytes(da)
+    with pytest.raises(StoreError, match="'mat-0'"):
+        store.open_store(bad2)
+
+
+@pytest.mark.parametrize("damage", ["deleted", "flipped bit", "garbage"])
+def test_damaged_valid_chunk_is_a_store_error(damage: str, built: Path, tmp_path: Path) -> None:
+    bad = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
+    chunk = bad / "valid" / "c" / "0"
+    if damage == "deleted":
+        chunk.unlink()
+    elif damage == "flipped bit":
+        _flip_bit(chunk, 100)
+    else:
+        chunk.write_bytes(b"not blosc at all")
+    for verify in (False, True):
+        with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*'valid' mask"):
+            store.open_store(bad, verify=verify)
+
+
+def test_old_format_is_refused_with_a_reingest_hint(built: Path, tmp_path: Path) -> None:
+    old = Path(shutil.copytree(built, tmp_path / "old.zarr"))
+    _edit_json(old / "zarr.json", lambda d: d["attributes"].update(format="brdfpipe.merl-store/1"))
+    with pytest.raises(StoreError, match=re.escape(str(old)) + ".*no longer supported.*re-ingest"):
+        store.open_store(old)
+    assert store.is_store(old)  # an ingest may replace it
+
+
+# --------------------------------------------------------------------------
+# Ingest checks
+# --------------------------------------------------------------------------
+
+
+def test_file_without_measured_cells_is_refused(tmp_path: Path) -> None:
+    src = tmp_path / "empty.binary"
+    merl.write_merl(src, np.full(merl.SHAPE, -1.0))
+    with pytest.raises(MerlFormatError, match=re.escape(str(src)) + ".*no measured cell"):
+        store.ingest_material(src, tmp_path / "row.zarr", name="empty")
+    assert sorted(os.listdir(tmp_path)) == ["empty.binary"]
+
+
+def test_file_removing_many_cells_is_warned(
+    sources: dict[str, Path], tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    table = merl.read_merl(sources["mat-1"]).reshape(3, N_CELLS)
+    measured = np.flatnonzero((table >= 0).all(axis=0))
+    table[2, measured[: measured.size // 20]] = -1.0  # 5 % of the measured cells
+    holey = tmp_path / "holey.binary"
+    merl.write_merl(holey, table.reshape(merl.SHAPE))
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.store"):
+        store.ingest({"a": sources["mat-0"], "holey": holey, "c": sources["mat-2"]},
+                     tmp_path / "merl.zarr", database="synthetic", jobs=1)
+    warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warned) == 1 and re.match(r"holey\.binary: material 'holey' leaves .* \(5\.\d%\)", warned[0])
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.store"):
+        store.ingest(sources, tmp_path / "fine.zarr", database="synthetic", jobs=1)
+    assert not [r for r in caplog.records if r.levelno == logging.WARNING]  # 2000 of ~1 M cells: 0.2 %

@@ -8,17 +8,21 @@ p ≈ 1.1 M, 80 MB float32) are built once; the dense reference is
 from __future__ import annotations
 
 import json
+import re
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.linalg
+import zarr
 
 from brdfpipe import logmap, store, svd, synth
-from brdfpipe.version import full_version
+from brdfpipe.atomic import OutputError
 from brdfpipe.database import folder_database
 from brdfpipe.svd import ModelError
+from brdfpipe.version import full_version
 
 # --------------------------------------------------------------------------
 # Fixtures
@@ -274,6 +278,7 @@ def test_duplicate_material_is_rank_deficient(data: dict[str, Path], tmp_path: P
 def test_failed_fit_leaves_nothing(data: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     out = tmp_path / "model.zarr"
     svd.fit(data["logmap"], out)  # an earlier, good model
+    before = _tree(out)
     real = svd.iter_columns
 
     def failing(lm, start=0, stop=None):  # type: ignore[no-untyped-def]
@@ -285,7 +290,42 @@ def test_failed_fit_leaves_nothing(data: dict[str, Path], tmp_path: Path, monkey
     monkeypatch.setattr(svd, "iter_columns", failing)
     with pytest.raises(OSError, match="disk full"):
         svd.fit(data["logmap"], out)
-    assert not out.exists() and _leftovers(tmp_path) == []
+    assert _tree(out) == before and _leftovers(tmp_path) == []  # the earlier model is kept as it was
+    svd.open_model(out)
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("kind", ["folder", "zarr group", "store"])
+def test_refuses_a_foreign_output_before_any_work(kind: str, data: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "model.zarr"
+    if kind == "folder":
+        out.mkdir()
+        (out / "notes.txt").write_text("keep me")
+    elif kind == "zarr group":
+        zarr.open_group(out, mode="w", zarr_format=3).attrs["format"] = "brdfpipe.pca-model/0"
+    else:
+        shutil.copytree(data["store"], out)
+    before = _tree(out)
+    part = tmp_path / "p.npz"
+    svd.write_partial(part, logmap_path=data["logmap"], block=0, n_blocks=1)
+    for call in (lambda: svd.fit(data["logmap"], out), lambda: svd.write_model(data["logmap"], [part], out)):
+        with pytest.raises(OutputError, match=re.escape(str(out)) + ".*refusing to replace"):
+            call()
+        assert _tree(out) == before
+    assert _leftovers(tmp_path) == []
+
+
+def test_stale_sibling_of_a_dead_writer_is_removed(data: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "model.zarr"
+    dead = int(subprocess.run(["sh", "-c", "echo $$"], capture_output=True, text=True, check=True).stdout)
+    stale = tmp_path / f".model.zarr.tmp-{dead}-0123abcd"
+    stale.mkdir()
+    (stale / "zarr.json").write_text("{}")
+    svd.fit(data["logmap"], out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model.zarr"]
 
 
 def test_refuses_to_overwrite_the_logmap(data: dict[str, Path], tmp_path: Path) -> None:

@@ -147,7 +147,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe import atomic, logmap, merl
 from brdfpipe.merl import N_CELLS
-from brdfpipe.store import BrdfStore, iter_column_blocks, open_store
+from brdfpipe.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
 
 __all__ = [
     "SPACES",
@@ -262,7 +262,7 @@ class GramInfo:
 def _select(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
     if materials is None:
         return np.arange(st.n_materials, dtype=np.intp)
-    return logmap._material_indices(st, materials, "materials")
+    return material_indices(st, materials, "materials")
 
 
 def _space_maps(
@@ -322,7 +322,7 @@ def gram_matrix(
     n = rows.size
     G = np.zeros((n, n), dtype=np.float64)
     s = np.zeros(n, dtype=np.float64)
-    for j0, j1, data in logmap._iter_cell_blocks(st, rows, cells):
+    for j0, j1, data in iter_cell_blocks(st, rows, cells):
         for a0 in range(0, j1 - j0, _SUB_COLS):
             a1 = min(a0 + _SUB_COLS, j1 - j0)
             sa = None if a_all is None else a_all[j0 + a0 : j0 + a1]

@@ -60,9 +60,13 @@ store's source digests and ρ_ref, so it identifies this log-map's content
 (the SVD refuses Gram partials computed from another one) while the same
 inputs still give the same bytes.
 
-The output is built in a temporary sibling directory and renamed into place;
-on any error nothing is left at ``out`` (an earlier log-map there is removed,
-as for the store, so that a stale result never passes for a fresh one).
+The output is built in a temporary sibling directory and swapped into place
+(:func:`brdfpipe.atomic.atomic_dir`): after any error or interrupt an earlier
+log-map at ``out`` is left exactly as it was, and an ``out`` that holds
+anything but a log-map (a store, another Zarr group, a folder) is refused
+before any work.  The store is opened with :func:`brdfpipe.store.open_store`,
+which verifies every shard against its digest, so a damaged or missing shard
+is a :class:`~brdfpipe.store.StoreError` naming the material, never NaN in X.
 
 Memory: the store is read in blocks of 145,800 cells (all three channels of
 the needed materials, float32: 175 MB for 100 materials) and mapped in float64
@@ -88,15 +92,14 @@ from typing import Any, Final
 import numpy as np
 import zarr
 from numpy.typing import ArrayLike, NDArray
-from zarr.codecs import BloscCodec
 
 from brdfpipe import merl
-from brdfpipe.version import full_version
+from brdfpipe.atomic import atomic_dir, check_replaceable
 from brdfpipe.merl import N_CELLS
-from brdfpipe.store import (
-    CHUNK_COLS as STORE_CHUNK_COLS,
-)
-from brdfpipe.store import BrdfStore, _remove, _replace_dir, _tmp_sibling, open_store
+from brdfpipe.store import CHUNK_COLS as STORE_CHUNK_COLS
+from brdfpipe.store import BrdfStore, iter_cell_blocks, material_indices, open_store
+from brdfpipe.version import full_version
+from brdfpipe.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
 
 __all__ = [
     "EPS",
@@ -108,6 +111,7 @@ __all__ = [
     "COMPLETE_ATTR",
     "LogmapError",
     "Logmap",
+    "is_logmap",
     "cell_weights",
     "forward",
     "inverse",
@@ -131,11 +135,10 @@ SPLITS: Final = ("all", "train")
 #: Columns per chunk of ``X`` (a quarter of the store's chunk width).
 CHUNK_COLS: Final = STORE_CHUNK_COLS // 4  # 36,450
 LOGMAP_FORMAT: Final = "brdfpipe.logmap/1"
-#: Group attribute written last; log-maps without it are refused.
-COMPLETE_ATTR: Final = "brdfpipe_complete"
 #: Columns per float64 working sub-block while mapping.
 _SUB_COLS: Final = 8192
-_CODEC: Final = {"cname": "lz4", "clevel": 5, "shuffle": "shuffle", "blocksize": 0}
+#: ``replaceable`` predicate of :func:`brdfpipe.atomic.atomic_dir`: an earlier log-map (and nothing else).
+is_logmap: Final = format_predicate((LOGMAP_FORMAT,))
 
 
 class LogmapError(ValueError):
@@ -193,65 +196,8 @@ def inverse(x: ArrayLike, ref: ArrayLike, w: ArrayLike, eps: float = EPS) -> NDA
 
 
 # --------------------------------------------------------------------------
-# Reading the store by cell blocks
+# Reference
 # --------------------------------------------------------------------------
-
-
-def _runs(sorted_rows: NDArray[np.intp]) -> list[tuple[int, int]]:
-    """Runs ``(r0, r1)`` of consecutive row indices (each read with one basic slice)."""
-    if sorted_rows.size == 0:
-        return []
-    breaks = np.flatnonzero(np.diff(sorted_rows) != 1) + 1
-    return [(int(r[0]), int(r[-1]) + 1) for r in np.split(sorted_rows, breaks)]
-
-
-def _iter_cell_blocks(
-    st: BrdfStore, rows: NDArray[np.intp], cells: NDArray[np.int64]
-) -> Iterator[tuple[int, int, NDArray[np.float32]]]:
-    """Yield ``(j0, j1, data)``: columns ``cells[j0:j1]`` of store rows ``rows`` (ascending).
-
-    ``data`` is float32 ``(len(rows), 3, j1 - j0)`` (all three channels), read
-    one chunk-aligned block of 145,800 cells at a time.
-    """
-    runs = _runs(rows)
-    n = rows.size
-    for start in range(0, N_CELLS, STORE_CHUNK_COLS):
-        stop = start + STORE_CHUNK_COLS
-        j0, j1 = (int(v) for v in np.searchsorted(cells, [start, stop]))
-        if j0 == j1:
-            continue
-        raw = np.empty((n, 3, stop - start), dtype=np.float32)
-        for c in range(3):
-            k = 0
-            for r0, r1 in runs:
-                raw[k : k + r1 - r0, c] = st.brdf[r0:r1, c * N_CELLS + start : c * N_CELLS + stop]
-                k += r1 - r0
-        local = cells[j0:j1] - start
-        yield j0, j1, raw[:, :, local] if local.size < raw.shape[2] else raw
-
-
-def _material_indices(st: BrdfStore, names: Sequence[str], what: str) -> NDArray[np.intp]:
-    """Row indices of ``names`` in the store; ValueError for bad input."""
-    if isinstance(names, str):
-        raise ValueError(f"{what} must be a list of material names, not the string {names!r}")
-    names = list(names)
-    if not names:
-        raise ValueError(f"{what} is empty: at least one material is needed")
-    bad = [n for n in names if not isinstance(n, str)]
-    if bad:
-        raise ValueError(f"{what}: material names must be strings, got {bad!r}")
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise ValueError(f"{what}: listed more than once: {', '.join(dup)}")
-    index = {m: i for i, m in enumerate(st.materials)}
-    unknown = [n for n in names if n not in index]
-    if unknown:
-        avail = ", ".join(st.materials[:8]) + (" …" if st.n_materials > 8 else "")
-        raise ValueError(
-            f"{what}: unknown material(s) {', '.join(unknown)} in {st.path} "
-            f"({st.n_materials} materials: {avail})"
-        )
-    return np.array([index[n] for n in names], dtype=np.intp)
 
 
 def _check_cells(cells: ArrayLike) -> NDArray[np.int64]:
@@ -299,10 +245,10 @@ def median_reference(
     for unknown / duplicate / no materials or bad cells.
     """
     st = store if isinstance(store, BrdfStore) else open_store(store)
-    idx = np.sort(_material_indices(st, rows_materials, "rows_materials"))
+    idx = np.sort(material_indices(st, rows_materials, "rows_materials"))
     cells64 = _check_cells(cells)
     ref = np.empty(cells64.size, dtype=np.float64)
-    for j0, j1, data in _iter_cell_blocks(st, idx, cells64):
+    for j0, j1, data in iter_cell_blocks(st, idx, cells64):
         ref[j0:j1] = _median_rows(data.reshape(-1, j1 - j0))
     return ref
 
@@ -310,37 +256,6 @@ def median_reference(
 # --------------------------------------------------------------------------
 # Writing and opening a log-map
 # --------------------------------------------------------------------------
-
-
-def _group_format(path: Path) -> str | None:
-    """The ``format`` attribute of a Zarr v3 group at ``path`` (None if there is none)."""
-    try:
-        doc = json.loads((path / "zarr.json").read_text(encoding="utf-8"))
-        return str(doc["attributes"]["format"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-
-
-def _check_replaceable(out: Path, fmt: str) -> None:
-    """Refuse an output path holding anything but an earlier output of format ``fmt``.
-
-    Protects stores and unrelated folders from a mistyped output path: an
-    existing ``out`` must be an empty folder or a Zarr group whose ``format``
-    attribute is ``fmt``.
-    """
-    if out.is_symlink() or out.exists():
-        ok = out.is_dir() and not out.is_symlink() and (
-            not any(out.iterdir()) or _group_format(out) == fmt
-        )
-        if not ok:
-            raise ValueError(f"{out}: exists and is not a {fmt} output; refusing to replace it")
-
-
-def _discard_stale(out: Path, fmt: str) -> None:
-    """After a failed run, delete an earlier output of format ``fmt`` at ``out`` (nothing else)."""
-    if out.is_dir() and not out.is_symlink() and _group_format(out) == fmt:
-        logger.warning("removing the earlier output at %s after a failed run", out)
-        _remove(out)
 
 
 class _ChunkWriter:
@@ -369,26 +284,6 @@ class _ChunkWriter:
             self.array[:, self.offset : self.offset + self.fill] = self.buf[:, : self.fill]
             self.offset += self.fill
             self.fill = 0
-
-
-def _create(group: zarr.Group, name: str, data_or_shape: Any, chunks: tuple[int, ...], dtype: Any,
-            dims: tuple[str, ...], *, compress: bool = True) -> zarr.Array:
-    """A Zarr array in ``group`` (Blosc lz4 + shuffle unless ``compress=False``), filled if data is given."""
-    shape = data_or_shape.shape if isinstance(data_or_shape, np.ndarray) else data_or_shape
-    fill = np.nan if np.dtype(dtype).kind == "f" else 0
-    arr = group.create_array(
-        name,
-        shape=shape,
-        chunks=chunks,
-        dtype=dtype,
-        compressors=BloscCodec(typesize=np.dtype(dtype).itemsize, **_CODEC) if compress else None,
-        fill_value=fill,
-        dimension_names=dims,
-        config={"write_empty_chunks": True},
-    )
-    if isinstance(data_or_shape, np.ndarray):
-        arr[...] = data_or_shape
-    return arr
 
 
 def _check_split(split: str, st: BrdfStore, train: Sequence[str]) -> None:
@@ -423,21 +318,26 @@ def write_logmap(
     format.  Raises ValueError (before writing anything) for an unknown
     ``split`` or ``weighting``, an empty training set, unknown or duplicate
     materials, a training set inconsistent with ``split``, ε ≤ 0, or an
-    ``out`` that exists and is not a log-map (a store is never replaced); and
-    :class:`brdfpipe.store.StoreError` for a bad store.  Atomic: on any error
-    nothing is left at ``out``.
+    ``out`` that exists and is not a log-map (a store or any other folder is
+    never replaced: :class:`brdfpipe.atomic.OutputError`, checked before the
+    store is read); and :class:`brdfpipe.store.StoreError` naming the store
+    and the material for a bad store, including a shard that is missing or
+    does not match its digest (the store is verified when it is opened).
+    Atomic (:func:`brdfpipe.atomic.atomic_dir`): after any error or
+    interrupt an earlier log-map at ``out`` is left exactly as it was.
     """
     _check_weighting(weighting)
     if not (isinstance(eps, (int, float)) and np.isfinite(eps) and eps > 0):
         raise ValueError(f"eps must be a positive finite number, got {eps!r}")
     eps = float(eps)
     out = Path(out)
+    check_replaceable(out, replaceable=is_logmap)
     st = open_store(store_path)
-    train_idx = _material_indices(st, materials_train, "materials_train")
+    train_idx = material_indices(st, materials_train, "materials_train")
     _check_split(split, st, list(materials_train))
     if materials_out is None:
         materials_out = list(materials_train)
-    out_idx = _material_indices(st, materials_out, "materials_out")
+    out_idx = material_indices(st, materials_out, "materials_out")
     train_names = [st.materials[i] for i in sorted(train_idx)]  # store order
     out_names = [st.materials[i] for i in out_idx]  # order given
 
@@ -457,17 +357,14 @@ def write_logmap(
     train_pos = np.array([pos[int(r)] for r in sorted(train_idx)], dtype=np.intp)
     out_pos = np.array([pos[int(r)] for r in out_idx], dtype=np.intp)
 
-    _check_replaceable(out, LOGMAP_FORMAT)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_sibling(out, "tmp")
     logger.info("log-mapping %d rows x %d cells of %s (train: %d materials, split %s, weighting %s) -> %s",
                 m_out, p, st.path, len(train_names), split, weighting, out)
-    try:
+    with atomic_dir(out, replaceable=is_logmap) as tmp:
         group = zarr.open_group(tmp, mode="w-", zarr_format=3)
-        x_arr = _create(group, "X", (m_out, p), (m_out, CHUNK_COLS), "float32", ("row", "column"))
+        x_arr = create_array(group, "X", (m_out, p), (m_out, CHUNK_COLS), "float32", ("row", "column"))
         writer = _ChunkWriter(x_arr, CHUNK_COLS)
         ref = np.empty(p, dtype=np.float64)
-        for j0, j1, data in _iter_cell_blocks(st, need, cells):
+        for j0, j1, data in iter_cell_blocks(st, need, cells):
             for a in range(0, j1 - j0, _SUB_COLS):
                 b = min(a + _SUB_COLS, j1 - j0)
                 sub = data[:, :, a:b]
@@ -478,9 +375,9 @@ def write_logmap(
         writer.flush()
         if writer.offset != p:  # cannot happen unless the store changed underfoot
             raise LogmapError(f"{out}: wrote {writer.offset} of {p} columns")
-        _create(group, "reference", ref, (p,), "float64", ("column",))
-        _create(group, "weight", w, (p,), "float64", ("column",))
-        _create(group, "cells", cells.astype(np.int32), (p,), "int32", ("column",))
+        create_array(group, "reference", ref, (p,), "float64", ("column",))
+        create_array(group, "weight", w, (p,), "float64", ("column",))
+        create_array(group, "cells", cells.astype(np.int32), (p,), "int32", ("column",))
         attrs = {
             "format": LOGMAP_FORMAT,
             "split": split,
@@ -497,11 +394,6 @@ def write_logmap(
         digest.update(ref.tobytes())
         group.attrs[COMPLETE_ATTR] = {"rows": m_out, "columns": p, "id": digest.hexdigest()[:16]}
         open_logmap(tmp)  # check what was written
-        _replace_dir(tmp, out)
-    except BaseException:
-        _remove(tmp)
-        _discard_stale(out, LOGMAP_FORMAT)
-        raise
     logger.info("wrote log-map %s", out)
 
 
@@ -553,20 +445,10 @@ def open_logmap(path: str | os.PathLike[str]) -> Logmap:
     cells not strictly increasing, weights not positive).
     """
     path = Path(path)
-    if not path.is_dir():
-        raise LogmapError(f"{path}: no such log-map")
-    try:
-        group = zarr.open_group(path, mode="r", zarr_format=3)
-    except Exception as exc:
-        raise LogmapError(f"{path}: not a readable Zarr v3 group ({exc})") from exc
-    attrs = dict(group.attrs)
-    if attrs.get("format") != LOGMAP_FORMAT:
-        raise LogmapError(
-            f"{path}: not a brdfpipe log-map (format {attrs.get('format')!r}, expected {LOGMAP_FORMAT!r})"
-        )
-    marker = attrs.get(COMPLETE_ATTR)
-    if not isinstance(marker, dict):
-        raise LogmapError(f"{path}: incomplete log-map (no completion marker {COMPLETE_ATTR!r}); re-run it")
+    group, attrs = open_finished_group(
+        path, fmt=LOGMAP_FORMAT, what="log-map", kind="brdfpipe log-map", error=LogmapError
+    )
+    marker = attrs[COMPLETE_ATTR]
     arrays: dict[str, zarr.Array] = {}
     for name, dtype, ndim in (("X", np.float32, 2), ("reference", np.float64, 1),
                               ("weight", np.float64, 1), ("cells", np.int32, 1)):

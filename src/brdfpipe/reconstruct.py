@@ -143,7 +143,7 @@ from brdfpipe import atomic, logmap, merl, sampling, svd
 from brdfpipe.logmap import Logmap, open_logmap
 from brdfpipe.merl import N_CELLS
 from brdfpipe.sampling import DEFAULT_ETA, Directions, read_directions, reconstruct_coefficients
-from brdfpipe.store import BrdfStore, open_store, read_ahead
+from brdfpipe.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
 from brdfpipe.store import CHUNK_COLS as STORE_CHUNK_COLS
 from brdfpipe.svd import Model, open_model
 
@@ -533,7 +533,7 @@ class _StoreColumns:
         self.inverse = np.empty_like(self.order)
         self.inverse[self.order] = np.arange(idx.size)
         self.identity = bool(np.array_equal(self.order, np.arange(idx.size)))
-        self.runs = logmap._runs(self.sorted)
+        self.runs = row_runs(self.sorted)
         self.cells = np.asarray(cells, dtype=np.int64)
         self._start = -1
         self._data: NDArray[np.float32] | None = None
@@ -578,7 +578,7 @@ class _Progress:
 
 
 def _material_rows(st: BrdfStore, names: Sequence[str], what: str) -> NDArray[np.intp]:
-    return logmap._material_indices(st, names, what)
+    return material_indices(st, names, what)
 
 
 def _check_columns(st: BrdfStore, mdl: Model) -> None:

@@ -87,8 +87,9 @@ Attributes: ``format`` (``"brdfpipe.pca-model/1"``), ``rows``, ``materials``,
 the completion marker ``brdfpipe_complete`` = ``{"rows": m, "columns": p,
 "k": k, "logmap_id": …, "id": <hex digest>}`` (the id: sha256 of the
 log-map's id, the tolerance and Σ, so the same inputs give the same bytes).  Atomic like the log-map: built
-in a temporary sibling, renamed into place; nothing is left at ``out`` after
-an error.
+in a temporary sibling and swapped into place (:func:`brdfpipe.atomic.atomic_dir`);
+after any error an earlier model at ``out`` is left as it was, and an ``out``
+holding anything but a model is refused before any work.
 """
 
 from __future__ import annotations
@@ -108,24 +109,19 @@ import numpy as np
 import zarr
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.version import full_version
-from brdfpipe.logmap import (
-    COMPLETE_ATTR,
-    Logmap,
-    _check_replaceable,
-    _create,
-    _discard_stale,
-    iter_columns,
-    open_logmap,
-)
+from brdfpipe.atomic import atomic_dir, check_replaceable, save_npz
+from brdfpipe.logmap import Logmap, iter_columns, open_logmap
 from brdfpipe.merl import N_CELLS
-from brdfpipe.store import _remove, _replace_dir, _tmp_sibling, read_ahead
+from brdfpipe.store import read_ahead
+from brdfpipe.version import full_version
+from brdfpipe.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
 
 __all__ = [
     "TOL",
     "MODEL_FORMAT",
     "PARTIAL_FORMAT",
     "ModelError",
+    "is_model",
     "GramPartial",
     "PartialInfo",
     "Model",
@@ -151,6 +147,8 @@ MODEL_FORMAT: Final = "brdfpipe.pca-model/1"
 PARTIAL_FORMAT: Final = "brdfpipe.gram-partial/1"
 #: σ² must exceed this × m × 2⁻⁵³ × trace(G) (the rounding level of the centred Gram matrix).
 _FLOOR_FACTOR: Final = 16.0
+#: ``replaceable`` predicate of :func:`brdfpipe.atomic.atomic_dir`: an earlier model (and nothing else).
+is_model: Final = format_predicate((MODEL_FORMAT,))
 
 
 class ModelError(ValueError):
@@ -258,29 +256,22 @@ def save_partial(
         raise ValueError(f"partial has shapes {gram.shape}, {colsum.shape}; the log-map has m = {lm.m}")
     if int(partial.ncols) != stop - start:
         raise ValueError(f"partial has {partial.ncols} columns; block {block}/{n_blocks} has {stop - start}")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_sibling(path, "tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            np.savez(
-                fh,
-                format=np.array(PARTIAL_FORMAT),
-                gram=gram,
-                colsum=colsum,
-                ncols=np.int64(partial.ncols),
-                block=np.int64(block),
-                n_blocks=np.int64(n_blocks),
-                start=np.int64(start),
-                stop=np.int64(stop),
-                m=np.int64(lm.m),
-                p=np.int64(lm.p),
-                logmap_id=np.array(lm.id),
-            )
-        os.replace(tmp, path)
-    except BaseException:
-        _remove(tmp)
-        raise
+    save_npz(
+        path,
+        {
+            "format": np.array(PARTIAL_FORMAT),
+            "gram": gram,
+            "colsum": colsum,
+            "ncols": np.int64(partial.ncols),
+            "block": np.int64(block),
+            "n_blocks": np.int64(n_blocks),
+            "start": np.int64(start),
+            "stop": np.int64(stop),
+            "m": np.int64(lm.m),
+            "p": np.int64(lm.p),
+            "logmap_id": np.array(lm.id),
+        },
+    )
 
 
 def parse_scatteritem(scatteritem: str) -> tuple[int, int]:
@@ -445,8 +436,8 @@ def decompose(
 def _write_model(
     lm: Logmap, gram: NDArray[np.float64], colsum: NDArray[np.float64], p: int, out: Path, tol: float
 ) -> None:
-    """Decompose and write the model of ``lm`` at ``out`` (via a temporary sibling; the callers
-    remove an earlier model after an error)."""
+    """Decompose and write the model of ``lm`` at ``out`` (:func:`brdfpipe.atomic.atomic_dir`:
+    an earlier model at ``out`` is replaced only on success)."""
     if gram.shape != (lm.m, lm.m) or p != lm.p:
         raise ModelError(f"{lm.path}: Gram matrix {gram.shape} over {p} columns does not match X {lm.X.shape}")
     u, sigma = decompose(gram, colsum, p, tol)
@@ -455,13 +446,10 @@ def _write_model(
     u_ext = np.empty((lm.m, k + 1), dtype=np.float64)
     u_ext[:, :k] = u - u.mean(axis=0)
     u_ext[:, k] = 1.0 / lm.m
-    _check_replaceable(out, MODEL_FORMAT)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_sibling(out, "tmp")
     logger.info("PCA of %s: m = %d, p = %d, k = %d (tol %g) -> %s", lm.path, lm.m, p, k, tol, out)
-    try:
+    with atomic_dir(out, replaceable=is_model) as tmp:
         group = zarr.open_group(tmp, mode="w-", zarr_format=3)
-        q_arr = _create(group, "Q", (p, k), (lm.chunk_cols, k), "float32", ("column", "component"),
+        q_arr = create_array(group, "Q", (p, k), (lm.chunk_cols, k), "float32", ("column", "component"),
                         compress=False)
         mean = np.empty(p, dtype=np.float64)
         # Q chunks are written by a second thread while the next chunk is multiplied.
@@ -479,12 +467,12 @@ def _write_model(
         # Cheap consistency check of the partials against the data: 1ᵀ(X·1) = m·Σμ.
         if not np.isclose(lm.m * mean.sum(), colsum.sum(), rtol=1e-6, atol=1e-6 * lm.m * p):
             raise ModelError(f"{lm.path}: the Gram partials' row sums disagree with the log-map's data")
-        _create(group, "mean", mean, (p,), "float64", ("column",))
-        _create(group, "sigma", sigma, (k,), "float64", ("component",))
-        _create(group, "U", u, (lm.m, k), "float64", ("row", "component"))
-        _create(group, "cells", lm.cells, (p,), "int32", ("column",))
-        _create(group, "reference", lm.reference, (p,), "float64", ("column",))
-        _create(group, "weight", lm.weight, (p,), "float64", ("column",))
+        create_array(group, "mean", mean, (p,), "float64", ("column",))
+        create_array(group, "sigma", sigma, (k,), "float64", ("component",))
+        create_array(group, "U", u, (lm.m, k), "float64", ("row", "component"))
+        create_array(group, "cells", lm.cells, (p,), "int32", ("column",))
+        create_array(group, "reference", lm.reference, (p,), "float64", ("column",))
+        create_array(group, "weight", lm.weight, (p,), "float64", ("column",))
         group.attrs.update(
             {
                 "format": MODEL_FORMAT,
@@ -505,10 +493,6 @@ def _write_model(
         group.attrs[COMPLETE_ATTR] = {"rows": lm.m, "columns": p, "k": k, "logmap_id": lm.id,
                                       "id": digest.hexdigest()[:16]}
         open_model(tmp)
-        _replace_dir(tmp, out)
-    except BaseException:
-        _remove(tmp)
-        raise
     logger.info("wrote model %s (sigma[0] = %.4g, sigma[-1] = %.4g)", out, sigma[0], sigma[-1])
 
 
@@ -522,10 +506,13 @@ def write_model(
 
     The partials must all come from this log-map (same id), share one
     ``n_blocks`` and cover each block exactly once; :class:`ModelError`
-    otherwise (raised before ``out`` is touched).  Atomic: after an error in
-    the decomposition or the writing nothing is left at ``out`` (an earlier
-    model there is removed).
+    otherwise (raised before ``out`` is touched).  An ``out`` holding anything
+    but a model is refused (:class:`brdfpipe.atomic.OutputError`) before any
+    work.  Atomic: after any error or interrupt an earlier model at ``out``
+    is left exactly as it was.
     """
+    out = Path(out)
+    check_replaceable(out, replaceable=is_model)
     lm = open_logmap(logmap_path)
     if not partial_paths:
         raise ValueError("no partials given")
@@ -545,13 +532,7 @@ def write_model(
         repeated = sorted({b for b in blocks if blocks.count(b) > 1})
         raise ModelError(f"partials must cover blocks 0..{n - 1} once each (missing {missing}, repeated {repeated})")
     gram, colsum, p = combine(part for part, _ in loaded)
-    out = Path(out)
-    _check_replaceable(out, MODEL_FORMAT)
-    try:
-        _write_model(lm, gram, colsum, p, out, tol)
-    except BaseException:
-        _discard_stale(out, MODEL_FORMAT)
-        raise
+    _write_model(lm, gram, colsum, p, out, tol)
 
 
 def fit(
@@ -559,19 +540,17 @@ def fit(
 ) -> None:
     """All of it in this process: Gram partials over ``n_blocks`` blocks, combine, decompose, write.
 
-    Atomic: after any error past the argument checks nothing is left at
-    ``out`` (an earlier model there is removed).
+    An ``out`` holding anything but a model is refused
+    (:class:`brdfpipe.atomic.OutputError`) before any work.  Atomic: after
+    any error or interrupt an earlier model at ``out`` is left exactly as it
+    was.
     """
-    lm = open_logmap(logmap_path)
     out = Path(out)
+    check_replaceable(out, replaceable=is_model)
+    lm = open_logmap(logmap_path)
     block_range(lm.p, n_blocks, 0, lm.chunk_cols)  # validates n_blocks
-    _check_replaceable(out, MODEL_FORMAT)
-    try:
-        gram, colsum, p = combine(gram_partial(lm, b, n_blocks) for b in range(n_blocks))
-        _write_model(lm, gram, colsum, p, out, tol)
-    except BaseException:
-        _discard_stale(out, MODEL_FORMAT)
-        raise
+    gram, colsum, p = combine(gram_partial(lm, b, n_blocks) for b in range(n_blocks))
+    _write_model(lm, gram, colsum, p, out, tol)
 
 
 @dataclass
@@ -621,18 +600,8 @@ def open_model(path: str | os.PathLike[str]) -> Model:
     format, or with arrays / attributes that disagree in shape or dtype.
     """
     path = Path(path)
-    if not path.is_dir():
-        raise ModelError(f"{path}: no such model")
-    try:
-        group = zarr.open_group(path, mode="r", zarr_format=3)
-    except Exception as exc:
-        raise ModelError(f"{path}: not a readable Zarr v3 group ({exc})") from exc
-    attrs = dict(group.attrs)
-    if attrs.get("format") != MODEL_FORMAT:
-        raise ModelError(f"{path}: not a brdfpipe model (format {attrs.get('format')!r}, expected {MODEL_FORMAT!r})")
-    marker = attrs.get(COMPLETE_ATTR)
-    if not isinstance(marker, dict):
-        raise ModelError(f"{path}: incomplete model (no completion marker {COMPLETE_ATTR!r}); re-run it")
+    group, attrs = open_finished_group(path, fmt=MODEL_FORMAT, what="model", kind="brdfpipe model", error=ModelError)
+    marker = attrs[COMPLETE_ATTR]
     m, p, k = marker.get("rows"), marker.get("columns"), marker.get("k")
     if not all(isinstance(v, int) for v in (m, p, k)) or attrs.get("k") != k:
         raise ModelError(f"{path}: completion marker {marker} disagrees with attribute k = {attrs.get('k')}")
