@@ -31,6 +31,17 @@ def test_synth_ingest_info_round_trip(tmp_path: Path, capsys: pytest.CaptureFixt
     assert info["materials"] == 5 and info["database"] == "synthetic" and info["verified"]
     assert info["valid_cells"] == int(merl.measured_mask().sum())
 
+    # A flipped bit in one material's shard: plain `info` (verifying by default) names the store and material.
+    shard = st.shard_path(3)
+    data = bytearray(shard.read_bytes())
+    data[len(data) // 2] ^= 0x10
+    shard.write_bytes(bytes(data))
+    capsys.readouterr()
+    assert cli.main(["info", str(zarr_path)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(zarr_path) in err and names[3] in err, err
+    assert cli.main(["info", str(zarr_path), "--no-verify"]) == 0  # metadata only: the bytes are not read
+
 
 def test_ingest_of_a_bad_file_exits_non_zero_naming_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]

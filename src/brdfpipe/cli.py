@@ -186,8 +186,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("info", help="validate a store and print a summary")
     p.add_argument("store", help="path of a store written by ingest")
-    p.add_argument("--verify", action="store_true",
-                   help="also check every row's bytes against its recorded digest")
+    p.add_argument("--verify", action=argparse.BooleanOptionalAction, default=True,
+                   help="check every row's bytes against its recorded digest (default; --no-verify checks "
+                        "only the metadata, shard sizes and the valid mask)")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("reconstruct", help="reconstruct a full MERL BRDF from sparse observations")

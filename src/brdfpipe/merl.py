@@ -46,6 +46,7 @@ __all__ = [
     "write_merl",
     "as_directions",
     "half_diff",
+    "bin_indices",
     "cell_index",
     "lookup",
     "cell_centres",
@@ -204,10 +205,10 @@ def half_diff(
     return theta_h, theta_d, phi_d
 
 
-def _bin_indices(
+def bin_indices(
     theta_h: NDArray[np.float64], theta_d: NDArray[np.float64], phi_d: NDArray[np.float64]
 ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
-    """MERL's binning of half/difference angles (square-root θh, φd folded)."""
+    """MERL's bin indices ``(iθh, iθd, iφd)`` of half/difference angles in radians (square-root θh, φd folded)."""
     with np.errstate(invalid="ignore"):
         t = np.sqrt(np.maximum(theta_h, 0.0) / _HALF_PI * N_THETA_H * N_THETA_H)
     ih = np.clip(np.where(theta_h > 0.0, t, 0.0).astype(np.intp), 0, N_THETA_H - 1)
@@ -219,7 +220,7 @@ def _bin_indices(
 
 def cell_index(wi: ArrayLike, wo: ArrayLike) -> NDArray[np.intp]:
     """Flat MERL cell index (0 … 1,457,999, inside one channel) of each pair."""
-    ih, idd, ip = _bin_indices(*half_diff(wi, wo))
+    ih, idd, ip = bin_indices(*half_diff(wi, wo))
     return (ih * N_THETA_D + idd) * N_PHI_D + ip
 
 

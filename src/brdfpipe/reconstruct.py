@@ -382,7 +382,7 @@ def load_observations(path: str | os.PathLike[str]) -> tuple[NDArray[np.intp], F
             raise ObservationError(f"{path}: {int(low.sum())} observation(s) with the light or view direction at or "
                                    f"below the horizon, first observation {r + 1} (θh = {th[r]:g}, θd = {td[r]:g}, "
                                    f"φd = {pd[r]:g})")
-        ih, idd, ip = merl._bin_indices(th_r, td_r, pd_r)
+        ih, idd, ip = merl.bin_indices(th_r, td_r, pd_r)
         cells = (ih * merl.N_THETA_D + idd) * merl.N_PHI_D + ip
     logger.info("%s: %d observations (%s), %d distinct cells", path, cells.size, fmt, np.unique(cells).size)
     return np.asarray(cells, dtype=np.intp), rgb
