@@ -185,7 +185,8 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
         merl.write_merl(folder / f"{name}.binary", table)
     good = (folder / "beta.binary").read_bytes()
     (folder / "beta.binary").write_bytes(good[: len(good) // 2])  # truncated
-    cfg = write_config(tmp_path / "merl.yaml", merl_dir=str(folder), test_materials=["alpha"])
+    cfg = write_config(tmp_path / "merl.yaml", merl_dir=str(folder), test_materials=["alpha"],
+                       manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
     r = snakemake(tmp_path, "--keep-going", configfile=cfg)
     assert r.returncode != 0
     log = (tmp_path / "logs" / "ingest_material" / "beta.log").read_text()
@@ -262,3 +263,35 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, shape: str) -> None:
     untouched = {"synthesize_material", "write_manifest", "ingest_material", "assemble_store", "write_splits",
                  "map_logrelative", "make_envmap", "prerender_material", "compute_gram", "fit_gplvm"}
     assert not planned & untouched, planned & untouched
+
+
+@pytest.mark.parametrize("name", ["brace{x}", "with space", "café", "x" * 101])
+def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, name: str) -> None:
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    table = np.full(merl.SHAPE, 0.1)
+    table[:, ~merl.measured_mask()] = -1.0
+    for stem in ("alpha", "beta", name):
+        merl.write_merl(folder / f"{stem}.binary", table)
+    cfg = write_config(tmp_path / "merl.yaml", merl_dir=str(folder), test_materials=["alpha"],
+                       manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
+    r = snakemake(tmp_path, "-n", configfile=cfg)
+    assert r.returncode != 0
+    out = r.stdout + r.stderr
+    assert "merl_dir" in out and "material name" in out and "Traceback" not in out, out[-2000:]
+    assert not (tmp_path / "results").exists()
+
+
+def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
+    """A folder written by `brdfpipe synth` and given as merl_dir: the store says synthetic, like the CLI."""
+    from brdfpipe import cli
+
+    folder = tmp_path / "db"
+    assert cli.main(["-q", "synth", "--count", "3", "--seed", "3", "--out", str(folder), "--jobs", "2"]) == 0
+    (folder / "manifest.json").unlink()  # the label comes from the files, not from the manifest
+    names = sorted(p.stem for p in folder.glob("*.binary"))
+    cfg = write_config(tmp_path / "synth.yaml", merl_dir=str(folder), test_materials=names[:1],
+                       manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
+    r = snakemake(tmp_path, "results/merl.zarr", configfile=cfg)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert store.open_store(tmp_path / "results" / "merl.zarr").database == "synthetic"
