@@ -3,7 +3,19 @@
 from __future__ import annotations
 
 import json
+import time
+from collections.abc import Callable
 from pathlib import Path
+
+
+def best_time(fn: Callable[[], object], rounds: int) -> float:
+    """Best wall time in seconds of ``rounds`` calls of ``fn``."""
+    best = float("inf")
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 def training_materials(store_path: Path, splits: Path):

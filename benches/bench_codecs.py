@@ -33,8 +33,7 @@ import glob
 import os
 import sys
 import tempfile
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +43,7 @@ import zarr.codecs  # noqa: F401  (sets numcodecs.blosc.use_threads = False, as 
 from numcodecs import LZ4, Blosc, Zstd
 from numcodecs.abc import Codec
 
+from _common import best_time  # benches/ is on sys.path
 from brdfpipe import merl
 
 N_COLS = 3 * merl.N_CELLS
@@ -96,13 +96,6 @@ def candidates() -> list[tuple[str, Codec | None]]:
     return out
 
 
-def _best(fn: Callable[[], object], repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def measure(
@@ -112,13 +105,13 @@ def measure(
     chunks = [row[j : j + width] for row in rows for j in range(0, row.size, width)]
     raw = sum(c.nbytes for c in chunks)
     if codec is None:
-        t = _best(lambda: [c.tobytes() for c in chunks], repeat)
+        t = best_time(lambda: [c.tobytes() for c in chunks], repeat)
         return Result(name, 1.0, raw / t / 1e6, raw / t / 1e6)
     encoded: list[bytes] = [codec.encode(c) for c in chunks]
     for c, e in zip(chunks[:3], encoded[:3]):  # sanity: lossless
         assert np.array_equal(np.frombuffer(codec.decode(e), np.float32), c)
-    tc = _best(lambda: [codec.encode(c) for c in chunks], repeat)
-    td = _best(lambda: [codec.decode(e) for e in encoded], repeat)
+    tc = best_time(lambda: [codec.encode(c) for c in chunks], repeat)
+    td = best_time(lambda: [codec.decode(e) for e in encoded], repeat)
     return Result(name, raw / sum(len(e) for e in encoded), raw / tc / 1e6, raw / td / 1e6)
 
 

@@ -40,19 +40,13 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
+
+from _common import best_time  # noqa: E402  (benches/ is on sys.path)
 
 TARGET = 0.10
 
 
-def _best(fn: Callable[[], object], rounds: int) -> float:
-    best = float("inf")
-    for _ in range(rounds):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def _cpu_name() -> str:
@@ -95,8 +89,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"machine: {os.cpu_count()} cores, {_cpu_name()}; python {sys.version.split()[0]}; "
               f"best of {args.rounds}, warm page cache")
 
-        t_open = _best(lambda: store.open_store(st_path, verify=False), args.rounds)
-        t_verified = _best(lambda: store.open_store(st_path), args.rounds)
+        t_open = best_time(lambda: store.open_store(st_path, verify=False), args.rounds)
+        t_verified = best_time(lambda: store.open_store(st_path), args.rounds)
         cost = max(t_verified - t_open, 0.0)
         print(f"  open_store(verify=False)   {t_open * 1e3:9.1f} ms")
         print(f"  open_store(verify=True)    {t_verified * 1e3:9.1f} ms   (verification {cost * 1e3:.1f} ms, "
@@ -110,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         }
         worst = 0.0
         for name, fn in stages.items():
-            t = _best(fn, args.rounds)
+            t = best_time(fn, args.rounds)
             ratio = cost / max(t - cost, 1e-9)
             worst = max(worst, ratio)
             print(f"  {name:38s} {t:7.2f} s   verification / rest of the stage = {100 * ratio:5.1f} %")
