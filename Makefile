@@ -18,7 +18,7 @@ setup: $(STAMP) llvm
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m pip install --quiet -e ".[workflow,test]"
 	touch $@
 
 # Mitsuba's llvm_ad_rgb variant needs LLVM 19 (Debian's libllvm19); the LLVM 14/15

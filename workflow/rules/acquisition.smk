@@ -12,20 +12,20 @@ rule map_logrelative:
         splits=fn.splits(),
     output:
         logmap=directory(fn.logmap("{split}")),
-    params:
-        train=lambda wildcards: split_training_materials(wildcards.split),
-        weighting=ACQ["weighting"],
-        code=code("map_logrelative.py"),
     log:
         "logs/map_logrelative/{split}.log",
     benchmark:
         "benchmarks/map_logrelative/{split}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=4000,
         runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        train=lambda wildcards: split_training_materials(wildcards.split),
+        weighting=ACQ["weighting"],
+        code=code("map_logrelative.py"),
     script:
         "../scripts/map_logrelative.py"
 
@@ -35,18 +35,18 @@ rule accumulate_gram:
         logmap=fn.logmap("{split}"),
     output:
         partial=temp(fn.gram_partial("{split}", "{scatteritem}")),
-    params:
-        code=code("accumulate_gram.py"),
     log:
         "logs/accumulate_gram/{split}-{scatteritem}.log",
     benchmark:
         "benchmarks/accumulate_gram/{split}-{scatteritem}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        code=code("accumulate_gram.py"),
     script:
         "../scripts/accumulate_gram.py"
 
@@ -57,18 +57,18 @@ rule decompose_svd:
         partials=gather.gram(fn.gram_partial("{{split}}", "{scatteritem}")),
     output:
         model=directory(fn.svd_model("{split}")),
-    params:
-        code=code("decompose_svd.py"),
     log:
         "logs/decompose_svd/{split}.log",
     benchmark:
         "benchmarks/decompose_svd/{split}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 2
     resources:
         mem_mb=4000,
         runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        code=code("decompose_svd.py"),
     script:
         "../scripts/decompose_svd.py"
 
@@ -78,24 +78,26 @@ rule optimize_directions:
         model=fn.svd_model("{split}"),
     output:
         directions=fn.directions("{split}", "{setup}", "{fov}", "{metric}"),
+    log:
+        "logs/optimize_directions/{split}/{setup}-fov{fov}-{metric}.log",
+    benchmark:
+        "benchmarks/optimize_directions/{split}/{setup}-fov{fov}-{metric}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=60,
     params:
-        n_max=lambda wildcards: ACQ["n_max_point" if wildcards.setup == "point" else "n_max_images"],
+        n_max=lambda wildcards: ACQ[
+            "n_max_point" if wildcards.setup == "point" else "n_max_images"
+        ],
         candidates=ACQ["candidates"],
         grid=ACQ["grid"],
         eta=ACQ["eta"],
         beta=ACQ["beta"],
         seed=ACQ["seed"],
         code=code("optimize_directions.py"),
-    log:
-        "logs/optimize_directions/{split}/{setup}-fov{fov}-{metric}.log",
-    benchmark:
-        "benchmarks/optimize_directions/{split}/{setup}-fov{fov}-{metric}.tsv"
-    threads: 1
-    resources:
-        mem_mb=4000,
-        runtime=60,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/optimize_directions.py"
 
@@ -107,20 +109,20 @@ rule evaluate_directions:
         directions=DIRECTIONS["train"],
     output:
         errors=fn.errors(),
-    params:
-        test_materials=TEST_MATERIALS,
-        eta=ACQ["eta"],
-        code=code("evaluate_directions.py"),
     log:
         "logs/evaluate_directions.log",
     benchmark:
         "benchmarks/evaluate_directions.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 2
     resources:
         mem_mb=6000,
         runtime=60,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        test_materials=TEST_MATERIALS,
+        eta=ACQ["eta"],
+        code=code("evaluate_directions.py"),
     script:
         "../scripts/evaluate_directions.py"
 
@@ -132,18 +134,18 @@ rule check_directions:
         directions=lambda wildcards: DIRECTIONS[wildcards.split],
     output:
         consistency=fn.consistency("{split}"),
-    params:
-        code=code("check_directions.py"),
     log:
         "logs/check_directions/{split}.log",
     benchmark:
         "benchmarks/check_directions/{split}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=4000,
         runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        code=code("check_directions.py"),
     script:
         "../scripts/check_directions.py"
 
@@ -157,22 +159,22 @@ if CURVE_DIRECTIONS:
             directions=CURVE_DIRECTIONS,
         output:
             training_size=fn.training_size(),
+        log:
+            "logs/evaluate_training_size.log",
+        benchmark:
+            "benchmarks/evaluate_training_size.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 2
+        resources:
+            mem_mb=6000,
+            runtime=60,
         params:
             test_materials=TEST_MATERIALS,
             eta=ACQ["eta"],
             sizes=TRAINING_SIZES,
             order_seed=ACQ["seed"],
             code=code("evaluate_training_size.py"),
-        log:
-            "logs/evaluate_training_size.log",
-        benchmark:
-            "benchmarks/evaluate_training_size.tsv"
-        threads: 2
-        resources:
-            mem_mb=6000,
-            runtime=60,
-        conda:
-            "../../envs/brdfpipe.yaml"
         script:
             "../scripts/evaluate_training_size.py"
 
@@ -184,19 +186,19 @@ rule plot_acquisition_figures:
         directions=DIRECTIONS["all"] + DIRECTIONS["train"],
     output:
         **ACQUISITION_FIGURES,
+    log:
+        "logs/plot_acquisition_figures.log",
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=15,
     params:
         figure_keys=list(ACQUISITION_FIGURES),
         fovs=ACQ["fovs"],
         fixed_fov=ACQ["fixed_fov"],
         n_point=min(5, ACQ["n_max_point"]),
         code=code("plot_acquisition_figures.py"),
-    log:
-        "logs/plot_acquisition_figures.log",
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=15,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/plot_acquisition_figures.py"

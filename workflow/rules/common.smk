@@ -3,7 +3,6 @@
 # fail on bad configuration fails here, at parse time, before any job runs.
 # Parsing imports only light modules (no matplotlib, SciPy or Zarr).
 
-import logging
 import re
 from pathlib import Path
 
@@ -13,7 +12,6 @@ from brdfpipe import database as brdf_db
 from brdfpipe import filenames as fn
 from brdfpipe import plan
 from brdfpipe.version import script_digest
-
 
 SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
 
@@ -33,7 +31,9 @@ def _load_database():
             db = brdf_db.database_from_folder(config["merl_dir"], key="merl_dir")
         else:
             syn = config["synthetic"]
-            db = brdf_db.synthetic_database(f"{fn.RESULTS}/synthetic", syn["count"], syn["seed"])
+            db = brdf_db.synthetic_database(
+                f"{fn.RESULTS}/synthetic", syn["count"], syn["seed"]
+            )
         test = brdf_db.resolve_test_materials(config["test_materials"], db)
     except brdf_db.DatabaseError as err:
         raise WorkflowError(f"invalid configuration: {err}") from None
@@ -64,7 +64,9 @@ CURVE_DIRECTIONS = plan.curve_directions(ACQ)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
 ALBEDO_MAP_DIMS = plan.albedo_map_dims(MAN)
-MANIFOLD_DATA = [fn.albedo(), fn.paths_csv(), fn.reproduction()] + [fn.albedo_map(q) for q in ALBEDO_MAP_DIMS]
+MANIFOLD_DATA = [fn.albedo(), fn.paths_csv(), fn.reproduction()] + [
+    fn.albedo_map(q) for q in ALBEDO_MAP_DIMS
+]
 
 # Rendering track: the scene's outputs and the rendered path points.
 SCENE = RENDER["scene"]

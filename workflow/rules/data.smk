@@ -8,21 +8,21 @@ if SYNTHETIC:
         output:
             binary=fn.synthetic_binary("{material}"),
             record=fn.synthetic_record("{material}"),
+        log:
+            "logs/synthesize_material/{material}.log",
+        benchmark:
+            "benchmarks/synthesize_material/{material}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=1500,
+            runtime=10,
         params:
             n_materials=config["synthetic"]["count"],
             seed=config["synthetic"]["seed"],
             noise=config["synthetic"]["noise"],
             code=code("synthesize_material.py"),
-        log:
-            "logs/synthesize_material/{material}.log",
-        benchmark:
-            "benchmarks/synthesize_material/{material}.tsv"
-        threads: 1
-        resources:
-            mem_mb=1500,
-            runtime=10,
-        conda:
-            "../../envs/brdfpipe.yaml"
         script:
             "../scripts/synthesize_material.py"
 
@@ -31,20 +31,20 @@ if SYNTHETIC:
             records=expand(fn.synthetic_record("{material}"), material=MATERIALS),
         output:
             manifest=fn.manifest(),
+        log:
+            "logs/write_manifest.log",
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=200,
+            runtime=5,
         params:
             n_materials=config["synthetic"]["count"],
             seed=config["synthetic"]["seed"],
             noise=config["synthetic"]["noise"],
             test_materials=TEST_MATERIALS,
             code=code("write_manifest.py"),
-        log:
-            "logs/write_manifest.log",
-        threads: 1
-        resources:
-            mem_mb=200,
-            runtime=5,
-        conda:
-            "../../envs/brdfpipe.yaml"
         script:
             "../scripts/write_manifest.py"
 
@@ -54,18 +54,18 @@ rule ingest_material:
         binary=source_file,
     output:
         row=temp(directory(fn.ingest_row("{material}"))),
-    params:
-        code=code("ingest_material.py"),
     log:
         "logs/ingest_material/{material}.log",
     benchmark:
         "benchmarks/ingest_material/{material}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=600,
         runtime=10,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        code=code("ingest_material.py"),
     script:
         "../scripts/ingest_material.py"
 
@@ -75,19 +75,19 @@ rule assemble_store:
         rows=expand(fn.ingest_row("{material}"), material=MATERIALS),
     output:
         store=directory(fn.store()),
-    params:
-        database=DATABASE.kind,
-        code=code("assemble_store.py"),
     log:
         "logs/assemble_store.log",
     benchmark:
         "benchmarks/assemble_store.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=1000,
         runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        database=DATABASE.kind,
+        code=code("assemble_store.py"),
     script:
         "../scripts/assemble_store.py"
 
@@ -98,16 +98,16 @@ rule write_splits:
         manifest=fn.manifest() if SYNTHETIC else [],
     output:
         splits=fn.splits(),
-    params:
-        test_materials=TEST_MATERIALS,
-        code=code("write_splits.py"),
     log:
         "logs/write_splits.log",
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=200,
         runtime=5,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        test_materials=TEST_MATERIALS,
+        code=code("write_splits.py"),
     script:
         "../scripts/write_splits.py"

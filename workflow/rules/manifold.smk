@@ -8,18 +8,18 @@ rule compute_gram:
         store=fn.store(),
     output:
         gram=fn.gram("{space}"),
-    params:
-        code=code("compute_gram.py"),
     log:
         "logs/compute_gram/{space}.log",
     benchmark:
         "benchmarks/compute_gram/{space}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        code=code("compute_gram.py"),
     script:
         "../scripts/compute_gram.py"
 
@@ -30,6 +30,16 @@ rule fit_gplvm:
     output:
         model=fn.gplvm_model("{q}"),
         trace=fn.gplvm_trace("{q}"),
+    log:
+        "logs/fit_gplvm/q{q}.log",
+    benchmark:
+        "benchmarks/fit_gplvm/q{q}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=30,
     params:
         ell=MAN["ell"],
         mu=MAN["mu"],
@@ -38,16 +48,6 @@ rule fit_gplvm:
         normalise=MAN["normalise"],
         method=MAN["method"],
         code=code("fit_gplvm.py"),
-    log:
-        "logs/fit_gplvm/q{q}.log",
-    benchmark:
-        "benchmarks/fit_gplvm/q{q}.tsv"
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/fit_gplvm.py"
 
@@ -62,6 +62,16 @@ rule analyze_manifold:
         paths=fn.paths_csv(),
         reproduction=fn.reproduction(),
         albedo_maps=[fn.albedo_map(q) for q in ALBEDO_MAP_DIMS],
+    log:
+        "logs/analyze_manifold.log",
+    benchmark:
+        "benchmarks/analyze_manifold.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
     params:
         latent_dims=MAN["latent_dims"],
         albedo_map_dims=ALBEDO_MAP_DIMS,
@@ -72,16 +82,6 @@ rule analyze_manifold:
         albedo_grid=MAN["albedo_grid"],
         pca_ks=MAN["pca_components"],
         code=code("analyze_manifold.py"),
-    log:
-        "logs/analyze_manifold.log",
-    benchmark:
-        "benchmarks/analyze_manifold.tsv"
-    threads: 1
-    resources:
-        mem_mb=4000,
-        runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/analyze_manifold.py"
 
@@ -96,18 +96,18 @@ rule plot_manifold_figures:
         reproduction=fn.reproduction(),
     output:
         **MANIFOLD_FIGURES,
+    log:
+        "logs/plot_manifold_figures.log",
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
     params:
         figure_keys=list(MANIFOLD_FIGURES),
         latent_dims=MAN["latent_dims"],
         albedo_map_dims=ALBEDO_MAP_DIMS,
         code=code("plot_manifold_figures.py"),
-    log:
-        "logs/plot_manifold_figures.log",
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=10,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/plot_manifold_figures.py"

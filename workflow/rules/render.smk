@@ -7,20 +7,20 @@
 rule make_envmap:
     output:
         envmap=fn.envmap(SCENE),
+    log:
+        f"logs/make_envmap/{SCENE}.log",
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
     params:
         width=RENDER["envmap"]["width"],
         height=RENDER["envmap"]["height"],
         sun_elevation=RENDER["envmap"]["sun_elevation"],
         sun_azimuth=RENDER["envmap"]["sun_azimuth"],
         code=code("make_envmap.py"),
-    log:
-        f"logs/make_envmap/{SCENE}.log",
-    threads: 1
-    resources:
-        mem_mb=500,
-        runtime=5,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/make_envmap.py"
 
@@ -31,6 +31,16 @@ rule prerender_material:
         envmap=fn.envmap(SCENE),
     output:
         image=fn.prerender(SCENE, "{material}"),
+    log:
+        f"logs/prerender_material/{SCENE}/{{material}}.log",
+    benchmark:
+        f"benchmarks/prerender_material/{SCENE}/{{material}}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 2
+    resources:
+        mem_mb=3000,
+        runtime=30,
     params:
         variant=RENDER["variant"],
         resolution=RENDER["resolution"],
@@ -39,16 +49,6 @@ rule prerender_material:
         seed=RENDER["seed"],
         database=DATABASE.kind,
         code=code("prerender_material.py"),
-    log:
-        f"logs/prerender_material/{SCENE}/{{material}}.log",
-    benchmark:
-        f"benchmarks/prerender_material/{SCENE}/{{material}}.tsv"
-    threads: 2
-    resources:
-        mem_mb=3000,
-        runtime=30,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/prerender_material.py"
 
@@ -60,17 +60,17 @@ rule interpolate_path_point:
     output:
         merl=fn.path_point(SCENE, "{path}", "{t}", "binary"),
         weights=fn.path_point(SCENE, "{path}", "{t}", "weights"),
-    params:
-        ends=lambda wildcards: PATH_ENDS[wildcards.path],
-        code=code("interpolate_path_point.py"),
     log:
         f"logs/interpolate_path_point/{SCENE}/{{path}}-t{{t}}.log",
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
-    conda:
-        "../../envs/brdfpipe.yaml"
+    params:
+        ends=lambda wildcards: PATH_ENDS[wildcards.path],
+        code=code("interpolate_path_point.py"),
     script:
         "../scripts/interpolate_path_point.py"
 
@@ -82,6 +82,16 @@ rule render_path_point:
     output:
         image=fn.path_point(SCENE, "{path}", "{t}", "image"),
         noise=fn.path_point(SCENE, "{path}", "{t}", "noise"),
+    log:
+        f"logs/render_path_point/{SCENE}/{{path}}-t{{t}}.log",
+    benchmark:
+        f"benchmarks/render_path_point/{SCENE}/{{path}}-t{{t}}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 2
+    resources:
+        mem_mb=3000,
+        runtime=60,
     params:
         variant=RENDER["variant"],
         resolution=RENDER["resolution"],
@@ -90,16 +100,6 @@ rule render_path_point:
         seeds=[RENDER["seed"], RENDER["noise_seed"]],
         database=DATABASE.kind,
         code=code("render_path_point.py"),
-    log:
-        f"logs/render_path_point/{SCENE}/{{path}}-t{{t}}.log",
-    benchmark:
-        f"benchmarks/render_path_point/{SCENE}/{{path}}-t{{t}}.tsv"
-    threads: 2
-    resources:
-        mem_mb=3000,
-        runtime=60,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/render_path_point.py"
 
@@ -117,20 +117,20 @@ if PATH_POINTS:
             blended=errormap_files("blended.exr"),
             error_exrs=errormap_files("error.exr"),
             error_pngs=errormap_files("error.png"),
-        params:
-            materials=MATERIALS,
-            database=DATABASE.kind,
-            code=code("error_maps.py"),
         log:
             f"logs/error_maps/{SCENE}.log",
         benchmark:
             f"benchmarks/error_maps/{SCENE}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
         threads: 1
         resources:
             mem_mb=2000,
             runtime=10,
-        conda:
-            "../../envs/brdfpipe.yaml"
+        params:
+            materials=MATERIALS,
+            database=DATABASE.kind,
+            code=code("error_maps.py"),
         script:
             "../scripts/error_maps.py"
 
@@ -145,18 +145,18 @@ rule plot_render_figures:
         summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
     output:
         **RENDER_FIGURES,
+    log:
+        f"logs/plot_render_figures/{SCENE}.log",
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=10,
     params:
         figure_keys=list(RENDER_FIGURES),
         materials=MATERIALS,
         database=DATABASE.kind,
         code=code("plot_render_figures.py"),
-    log:
-        f"logs/plot_render_figures/{SCENE}.log",
-    threads: 1
-    resources:
-        mem_mb=3000,
-        runtime=10,
-    conda:
-        "../../envs/brdfpipe.yaml"
     script:
         "../scripts/plot_render_figures.py"
