@@ -68,3 +68,14 @@ def test_synthetic_database_plan(tmp_path: Path) -> None:
     assert len(test) == db.default_test_count(12) == 3
     assert all(d.sources[m].parent == tmp_path for m in d.materials)
     assert db.default_test_count(100) == 10
+
+
+def test_select_materials_by_name_and_pattern() -> None:
+    full = db.synthetic_database("unused", 40, 3)
+    metals = [n for n in full.materials if n.startswith("metal-")]
+    sub = db.select_materials(full, ["metal-*", full.materials[-1]])
+    assert sub.kind == full.kind and sub.materials == sorted({*metals, full.materials[-1]})
+    assert set(sub.default_test) == set(full.default_test) & set(sub.materials)
+    assert db.select_materials(full, None) is full
+    with pytest.raises(db.DatabaseError, match=r"materials: 'no-such-\*' match"):
+        db.select_materials(full, ["metal-*", "no-such-*"])

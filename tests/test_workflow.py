@@ -166,6 +166,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         ({"acquisition": {"training_sizes": [3, 50]}}, "acquisition.training_sizes"),
         ({"render": {"path_points": [0.1234561, 0.1234562]}}, "render.path_points"),
         ({"merl_dir": ""}, "merl_dir"),
+        ({"materials": ["no-such-*"]}, "materials: 'no-such-*' match"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:
@@ -295,3 +296,16 @@ def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
     r = snakemake(tmp_path, "results/merl.zarr", configfile=cfg)
     assert r.returncode == 0, r.stderr[-3000:]
     assert store.open_store(tmp_path / "results" / "merl.zarr").database == "synthetic"
+
+
+def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None:
+    from brdfpipe import database
+
+    names = database.synthetic_database("x", 12, 7).materials
+    subset = [n for n in names if n.startswith(("metal-", "paint-"))]
+    cfg = write_config(tmp_path / "subset.yaml", materials=["metal-*", "paint-*"], test_materials=subset[:1],
+                       manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})
+    r = snakemake(tmp_path, "-n", "--quiet", "rules", configfile=cfg)
+    assert r.returncode == 0, r.stderr[-3000:]
+    out = r.stdout + r.stderr
+    assert any(line.split()[:2] == ["ingest_material", str(len(subset))] for line in out.splitlines()), out

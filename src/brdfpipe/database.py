@@ -39,6 +39,7 @@ __all__ = [
     "synthetic_database",
     "folder_database",
     "default_test_count",
+    "select_materials",
     "resolve_test_materials",
     "write_splits",
 ]
@@ -262,6 +263,33 @@ def synthetic_database(out_dir: str | os.PathLike[str], count: int, seed: int) -
     return Database("synthetic", sources, default)
 
 
+def select_materials(db: Database, patterns: Sequence[str] | None, *, key: str = "materials") -> Database:
+    """The part of ``db`` whose names match ``patterns`` (names or shell-style globs); all if ``None``.
+
+    Lets a user try the workflow (or the cluster path) on a few materials of
+    a real MERL folder first.  The default held-out materials shrink to
+    those selected.  Raises :class:`DatabaseError` naming ``key`` and every
+    pattern that matches no material.
+    """
+    if patterns is None:
+        return db
+    import fnmatch
+
+    names = db.materials
+    unmatched = [p for p in patterns if not fnmatch.filter(names, p)]
+    if unmatched:
+        raise DatabaseError(
+            f"{key}: {', '.join(repr(p) for p in unmatched)} match(es) no material of the {db.kind} database "
+            f"({len(names)} materials: {', '.join(names[:8])}{' …' if len(names) > 8 else ''})"
+        )
+    keep = {n for p in patterns for n in fnmatch.filter(names, p)}
+    return Database(
+        db.kind,
+        {n: src for n, src in db.sources.items() if n in keep},
+        tuple(n for n in db.default_test if n in keep),
+    )
+
+
 def resolve_test_materials(requested: Sequence[str] | None, db: Database) -> list[str]:
     """The held-out materials: ``requested``, or the database's default if ``None``.
 
@@ -272,8 +300,9 @@ def resolve_test_materials(requested: Sequence[str] | None, db: Database) -> lis
     what = "default test_materials" if requested is None else "test_materials"
     if requested is None and not names:
         raise DatabaseError(
-            f"test_materials: the {db.kind} database has no default held-out materials (a synthetic "
-            "folder without its manifest.json); list them in test_materials"
+            f"test_materials: no default held-out material among the {len(db.sources)} materials of the "
+            f"{db.kind} database (a subset chosen with 'materials', or a synthetic folder without its "
+            "manifest.json); list them in test_materials"
         )
     unknown = [n for n in names if n not in db.sources]
     if unknown:

@@ -112,6 +112,7 @@ __all__ = [
     "VARIANTS",
     "RenderError",
     "use_variant",
+    "set_cpu_threads",
     "register_merl_bsdf",
     "merl_bsdf",
     "SamplingFit",
@@ -153,6 +154,19 @@ class RenderError(RuntimeError):
 
 _registered: set[str] = set()
 _lock = threading.Lock()
+
+
+def set_cpu_threads(threads: int) -> None:
+    """Limit Dr.Jit's CPU (LLVM backend) thread pool to ``threads`` (≥ 1).
+
+    Without it a render job uses every core of its node, whatever the
+    workflow declared; the CUDA backend is unaffected.
+    """
+    import drjit as dr
+
+    if int(threads) < 1:
+        raise ValueError(f"threads must be ≥ 1, got {threads}")
+    dr.set_thread_count(int(threads))
 
 
 def use_variant(variant: str) -> None:

@@ -469,6 +469,7 @@ def render_material(
     seed: int,
     attrs: Mapping[str, str] | None = None,
     progress: Callable[[str], None] | None = None,
+    threads: int | None = None,
 ) -> NDArray[np.float32]:
     """Render the preview scene with a MERL material (the ``merl`` plugin) to an EXR.
 
@@ -476,10 +477,14 @@ def render_material(
     ``variant`` is validated by :func:`brdfpipe.render.use_variant`
     (RenderError for an unknown or unavailable one); a missing or corrupt
     MERL file raises an error naming it before anything is rendered.
+    ``threads``: CPU threads of Dr.Jit's LLVM backend (the job's declared
+    threads; ``None`` leaves Dr.Jit's default, every core of the machine).
     """
     from brdfpipe import render
 
     render.use_variant(variant)
+    if threads is not None:
+        render.set_cpu_threads(threads)
     render.register_merl_bsdf()
     scene = scene_dict(
         render.merl_bsdf(merl_path), envmap=envmap, resolution=tuple(resolution),  # type: ignore[arg-type]

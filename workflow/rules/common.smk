@@ -34,6 +34,7 @@ def _load_database():
             db = brdf_db.synthetic_database(
                 f"{fn.RESULTS}/synthetic", syn["count"], syn["seed"]
             )
+        db = brdf_db.select_materials(db, config["materials"])
         test = brdf_db.resolve_test_materials(config["test_materials"], db)
     except brdf_db.DatabaseError as err:
         raise WorkflowError(f"invalid configuration: {err}") from None

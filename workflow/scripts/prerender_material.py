@@ -12,6 +12,7 @@ with log_to(snakemake.log[0]):
         resolution=snakemake.params.resolution,
         spp=snakemake.params.spp,
         max_depth=snakemake.params.max_depth,
+        threads=snakemake.threads,
         seed=snakemake.params.seed,
         attrs={"database": snakemake.params.database, "material": snakemake.wildcards.material},
     )

@@ -13,5 +13,6 @@ with log_to(snakemake.log[0]):
         resolution=snakemake.params.resolution,
         spp=snakemake.params.spp,
         max_depth=snakemake.params.max_depth,
+        threads=snakemake.threads,
         attrs={"database": snakemake.params.database, "path_point": snakemake.wildcards.path + "-t" + snakemake.wildcards.t},
     )
