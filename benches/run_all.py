@@ -41,6 +41,10 @@ def main() -> None:
     run("benches/bench_gplvm.py", "--scaling", "entry")
     # Rendering track: the merl BSDF vs Mitsuba's analytic plugins.
     run("benches/bench_render.py")
+    # Trust and cluster: verifying the store on open, parse time, declared memory vs the run's peaks.
+    run("benches/bench_verify.py")
+    run("benches/bench_dryrun.py")
+    run("benches/bench_memory.py")
 
 
 if __name__ == "__main__":

@@ -114,7 +114,7 @@ def read_merl_raw(path: str | os.PathLike[str]) -> NDArray[np.float64]:
         channel, cell = divmod(first, N_CELLS)
         raise MerlFormatError(
             f"{path}: {bad.size} non-finite value(s) (NaN or Inf), first at channel "
-            f"{'RGB'[channel]}, cell {np.unravel_index(cell, DIMS)} (θh, θd, φd index)"
+            f"{'RGB'[channel]}, cell {tuple(int(i) for i in np.unravel_index(cell, DIMS))} (θh, θd, φd index)"
         )
     return raw.reshape(SHAPE).astype(np.float64, copy=False)
 

@@ -188,6 +188,8 @@ rule plot_acquisition_figures:
         **ACQUISITION_FIGURES,
     log:
         "logs/plot_acquisition_figures.log",
+    benchmark:
+        "benchmarks/plot_acquisition_figures.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1

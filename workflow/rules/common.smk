@@ -69,8 +69,10 @@ MANIFOLD_DATA = [fn.albedo(), fn.paths_csv(), fn.reproduction()] + [
     fn.albedo_map(q) for q in ALBEDO_MAP_DIMS
 ]
 
-# Rendering track: the scene's outputs and the rendered path points.
+# Rendering track: the scene's outputs and the rendered path points; render jobs
+# ask for a GPU (the Slurm plugin's `gpu` resource) when the variant needs one.
 SCENE = RENDER["scene"]
+RENDER_GPUS = 1 if RENDER["variant"].startswith("cuda") else 0
 PATH_ENDS = {fn.path_name(a, b): (a, b) for a, b in MANIFOLD_PATHS}
 PATH_POINTS = [(p, fn.format_t(t)) for p in PATH_ENDS for t in RENDER["path_points"]]
 RENDER_FIGURES = plan.render_figures(len(PATH_POINTS))

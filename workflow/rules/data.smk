@@ -33,6 +33,8 @@ if SYNTHETIC:
             manifest=fn.manifest(),
         log:
             "logs/write_manifest.log",
+        benchmark:
+            "benchmarks/write_manifest.tsv"
         conda:
             "../envs/brdfpipe.yaml"
         threads: 1
@@ -100,6 +102,8 @@ rule write_splits:
         splits=fn.splits(),
     log:
         "logs/write_splits.log",
+    benchmark:
+        "benchmarks/write_splits.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1

@@ -98,6 +98,8 @@ rule plot_manifold_figures:
         **MANIFOLD_FIGURES,
     log:
         "logs/plot_manifold_figures.log",
+    benchmark:
+        "benchmarks/plot_manifold_figures.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1

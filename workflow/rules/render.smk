@@ -9,6 +9,8 @@ rule make_envmap:
         envmap=fn.envmap(SCENE),
     log:
         f"logs/make_envmap/{SCENE}.log",
+    benchmark:
+        f"benchmarks/make_envmap/{SCENE}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1
@@ -39,6 +41,7 @@ rule prerender_material:
         "../envs/brdfpipe.yaml"
     threads: 2
     resources:
+        gpu=RENDER_GPUS,
         mem_mb=3000,
         runtime=30,
     params:
@@ -62,6 +65,8 @@ rule interpolate_path_point:
         weights=fn.path_point(SCENE, "{path}", "{t}", "weights"),
     log:
         f"logs/interpolate_path_point/{SCENE}/{{path}}-t{{t}}.log",
+    benchmark:
+        f"benchmarks/interpolate_path_point/{SCENE}/{{path}}-t{{t}}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1
@@ -90,6 +95,7 @@ rule render_path_point:
         "../envs/brdfpipe.yaml"
     threads: 2
     resources:
+        gpu=RENDER_GPUS,
         mem_mb=3000,
         runtime=60,
     params:
@@ -147,6 +153,8 @@ rule plot_render_figures:
         **RENDER_FIGURES,
     log:
         f"logs/plot_render_figures/{SCENE}.log",
+    benchmark:
+        f"benchmarks/plot_render_figures/{SCENE}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1
