@@ -38,7 +38,7 @@ llvm: $(STAMP)
 run: setup
 	$(SMK) --cores $(CORES) --configfile $(CONFIG)
 
-test: setup
+test: setup lint
 	$(PY) -m pytest -q
 
 bench: setup
@@ -48,6 +48,7 @@ dryrun: $(STAMP)
 	$(SMK) -n --configfile tests/config/tiny.yaml
 
 lint: $(STAMP)
+	$(VENV)/bin/snakefmt --check workflow
 	$(SMK) --lint --configfile tests/config/tiny.yaml
 
 clean:

@@ -165,3 +165,17 @@ def test_digests_change_with_the_code_they_cover(tmp_path: Path, monkeypatch: py
     assert after[2] != before[2]  # and the version of every output tells the two apart
     version._imports.cache_clear()
     version.full_version.cache_clear()
+
+
+def test_every_rule_has_a_memory_model_that_grows_with_retries() -> None:
+    import re
+
+    rules = set()
+    for smk in (ROOT / "workflow" / "rules").glob("*.smk"):
+        rules |= set(re.findall(r"^\s*rule (\w+):", smk.read_text(), flags=re.M))
+    assert rules == set(plan.MEMORY_MB), rules ^ set(plan.MEMORY_MB)
+    for rule in rules:
+        first, second, third = (plan.mem_mb(rule, 100, a) for a in (1, 2, 3))
+        assert 100 <= first < second < third and first % 50 == 0
+        assert plan.mem_mb(rule, 1000) >= first  # never shrinks with more materials
+    assert plan.mem_mb("map_logrelative", 1000) > 5 * plan.mem_mb("map_logrelative", 100) / 2

@@ -37,6 +37,8 @@ __all__ = [
     "acquisition_figures",
     "manifold_figures",
     "render_figures",
+    "MEMORY_MB",
+    "mem_mb",
 ]
 
 #: The latent paths of Soler et al. 2018, Fig. 9 (used when all six materials exist).
@@ -238,3 +240,55 @@ def render_figures(n_path_points: int) -> dict[str, list[str]]:
     """Rendering-track figures: the pre-render grid always; the path figures when there are path points."""
     keys = ["fig01"] + (["fig12", "fig13"] if n_path_points else [])
     return {k: filenames.figure_files(filenames.RENDER_FIGURE_STEMS[k]) for k in keys}
+
+
+# -- memory -------------------------------------------------------------------
+
+#: Peak memory model of each rule's jobs, MB = base + per_material × N, from the
+#: benchmark files (max_rss) of the default run (N = 100, synthetic database,
+#: 2-core AMD EPYC) and the tiny-point run (N = 6); `benches/bench_memory.py`
+#: prints measured vs declared for any finished run.  The declared value
+#: (:func:`mem_mb`) adds :data:`MEMORY_HEADROOM` on top.
+MEMORY_MB: dict[str, tuple[float, float]] = {
+    # data stage
+    "synthesize_material": (310.0, 0.0),
+    "write_manifest": (120.0, 0.0),
+    "ingest_material": (65.0, 0.0),
+    "assemble_store": (80.0, 0.3),
+    "write_splits": (120.0, 0.0),
+    # acquisition track
+    "map_logrelative": (170.0, 5.8),
+    "accumulate_gram": (96.0, 2.9),
+    "decompose_svd": (170.0, 5.0),
+    "optimize_directions": (210.0, 5.0),
+    "evaluate_directions": (300.0, 8.0),
+    "check_directions": (180.0, 5.0),
+    "evaluate_training_size": (300.0, 8.0),
+    "plot_acquisition_figures": (250.0, 0.0),
+    # manifold track
+    "compute_gram": (276.0, 3.9),
+    "fit_gplvm": (95.0, 0.0),
+    "analyze_manifold": (480.0, 8.0),
+    "plot_manifold_figures": (300.0, 0.0),
+    # rendering track
+    "make_envmap": (150.0, 0.0),
+    "prerender_material": (255.0, 0.0),
+    "interpolate_path_point": (300.0, 5.0),
+    "render_path_point": (255.0, 0.0),
+    "error_maps": (250.0, 1.0),
+    "plot_render_figures": (300.0, 1.0),
+}
+#: Declared / modelled peak on the first attempt (keeps declared within [1, 2] × measured).
+MEMORY_HEADROOM: float = 1.3
+#: Growth of the declared memory with each retry (attempt 2: × 1.5, attempt 3: × 2.25).
+MEMORY_RETRY_GROWTH: float = 1.5
+
+
+def mem_mb(rule: str, n_materials: int, attempt: int = 1) -> int:
+    """``mem_mb`` a job of ``rule`` declares for ``n_materials`` materials at retry ``attempt`` (≥ 1).
+
+    Rounded up to 50 MB; at least 100 MB.  KeyError for a rule without a model.
+    """
+    base, per = MEMORY_MB[rule]
+    need = (base + per * int(n_materials)) * MEMORY_HEADROOM * MEMORY_RETRY_GROWTH ** (max(1, int(attempt)) - 1)
+    return max(100, int(math.ceil(need / 50.0)) * 50)

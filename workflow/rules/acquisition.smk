@@ -20,7 +20,7 @@ rule map_logrelative:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=4000,
+        mem_mb=mem("map_logrelative"),
         runtime=30,
     params:
         train=lambda wildcards: split_training_materials(wildcards.split),
@@ -43,7 +43,7 @@ rule accumulate_gram:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=2000,
+        mem_mb=mem("accumulate_gram"),
         runtime=30,
     params:
         code=code("accumulate_gram.py"),
@@ -65,7 +65,7 @@ rule decompose_svd:
         "../envs/brdfpipe.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=mem("decompose_svd"),
         runtime=30,
     params:
         code=code("decompose_svd.py"),
@@ -86,7 +86,7 @@ rule optimize_directions:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=4000,
+        mem_mb=mem("optimize_directions"),
         runtime=60,
     params:
         n_max=lambda wildcards: ACQ[
@@ -117,7 +117,7 @@ rule evaluate_directions:
         "../envs/brdfpipe.yaml"
     threads: 2
     resources:
-        mem_mb=6000,
+        mem_mb=mem("evaluate_directions"),
         runtime=60,
     params:
         test_materials=TEST_MATERIALS,
@@ -142,7 +142,7 @@ rule check_directions:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=4000,
+        mem_mb=mem("check_directions"),
         runtime=30,
     params:
         code=code("check_directions.py"),
@@ -167,7 +167,7 @@ if CURVE_DIRECTIONS:
             "../envs/brdfpipe.yaml"
         threads: 2
         resources:
-            mem_mb=6000,
+            mem_mb=mem("evaluate_training_size"),
             runtime=60,
         params:
             test_materials=TEST_MATERIALS,
@@ -194,7 +194,7 @@ rule plot_acquisition_figures:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=2000,
+        mem_mb=mem("plot_acquisition_figures"),
         runtime=15,
     params:
         figure_keys=list(ACQUISITION_FIGURES),

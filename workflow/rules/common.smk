@@ -78,6 +78,11 @@ PATH_POINTS = [(p, fn.format_t(t)) for p in PATH_ENDS for t in RENDER["path_poin
 RENDER_FIGURES = plan.render_figures(len(PATH_POINTS))
 
 
+def mem(rule):
+    """A rule's mem_mb: measured peak for this many materials, growing by half per retry (brdfpipe.plan)."""
+    return lambda wildcards, attempt: plan.mem_mb(rule, len(MATERIALS), attempt)
+
+
 def split_training_materials(split):
     """Materials whose channels are the rows (and whose median is the reference) of a split."""
     return MATERIALS if split == "all" else TRAIN_MATERIALS

@@ -16,7 +16,7 @@ if SYNTHETIC:
             "../envs/brdfpipe.yaml"
         threads: 1
         resources:
-            mem_mb=1500,
+            mem_mb=mem("synthesize_material"),
             runtime=10,
         params:
             n_materials=config["synthetic"]["count"],
@@ -39,7 +39,7 @@ if SYNTHETIC:
             "../envs/brdfpipe.yaml"
         threads: 1
         resources:
-            mem_mb=200,
+            mem_mb=mem("write_manifest"),
             runtime=5,
         params:
             n_materials=config["synthetic"]["count"],
@@ -64,7 +64,7 @@ rule ingest_material:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=600,
+        mem_mb=mem("ingest_material"),
         runtime=10,
     params:
         code=code("ingest_material.py"),
@@ -85,7 +85,7 @@ rule assemble_store:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=mem("assemble_store"),
         runtime=30,
     params:
         database=DATABASE.kind,
@@ -108,7 +108,7 @@ rule write_splits:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=200,
+        mem_mb=mem("write_splits"),
         runtime=5,
     params:
         test_materials=TEST_MATERIALS,

@@ -16,7 +16,7 @@ rule compute_gram:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=2000,
+        mem_mb=mem("compute_gram"),
         runtime=30,
     params:
         code=code("compute_gram.py"),
@@ -38,7 +38,7 @@ rule fit_gplvm:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=1000,
+        mem_mb=mem("fit_gplvm"),
         runtime=30,
     params:
         ell=MAN["ell"],
@@ -70,7 +70,7 @@ rule analyze_manifold:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=4000,
+        mem_mb=mem("analyze_manifold"),
         runtime=30,
     params:
         latent_dims=MAN["latent_dims"],
@@ -104,7 +104,7 @@ rule plot_manifold_figures:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=2000,
+        mem_mb=mem("plot_manifold_figures"),
         runtime=10,
     params:
         figure_keys=list(MANIFOLD_FIGURES),

@@ -15,7 +15,7 @@ rule make_envmap:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=500,
+        mem_mb=mem("make_envmap"),
         runtime=5,
     params:
         width=RENDER["envmap"]["width"],
@@ -42,7 +42,7 @@ rule prerender_material:
     threads: 2
     resources:
         gpu=RENDER_GPUS,
-        mem_mb=3000,
+        mem_mb=mem("prerender_material"),
         runtime=30,
     params:
         variant=RENDER["variant"],
@@ -71,7 +71,7 @@ rule interpolate_path_point:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=2000,
+        mem_mb=mem("interpolate_path_point"),
         runtime=10,
     params:
         ends=lambda wildcards: PATH_ENDS[wildcards.path],
@@ -96,7 +96,7 @@ rule render_path_point:
     threads: 2
     resources:
         gpu=RENDER_GPUS,
-        mem_mb=3000,
+        mem_mb=mem("render_path_point"),
         runtime=60,
     params:
         variant=RENDER["variant"],
@@ -131,7 +131,7 @@ if PATH_POINTS:
             "../envs/brdfpipe.yaml"
         threads: 1
         resources:
-            mem_mb=2000,
+            mem_mb=mem("error_maps"),
             runtime=10,
         params:
             materials=MATERIALS,
@@ -159,7 +159,7 @@ rule plot_render_figures:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=mem("plot_render_figures"),
         runtime=10,
     params:
         figure_keys=list(RENDER_FIGURES),
