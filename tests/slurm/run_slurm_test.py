@@ -66,7 +66,6 @@ def environment() -> dict[str, str]:
     env["PATH"] = os.pathsep.join([str(BIN), env.get("PATH", "/usr/bin:/bin")])
     paths = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), *paths])
-    env.pop("SLURM_CONF", None)  # the cluster's own configuration (/etc/slurm)
     return env
 
 
@@ -229,6 +228,9 @@ def main() -> int:
             if r.returncode != 0:
                 raise Skip(f"cannot install Slurm: {r.stderr.strip()[-500:]}")
             started = True
+            # our cluster's configuration is /etc/slurm/slurm.conf (a link)
+            os.environ.pop("SLURM_CONF", None)
+            env.pop("SLURM_CONF", None)
             r = subprocess.run([str(CLUSTER), "start", str(state)], text=True, capture_output=True)
             print(r.stdout, end="")
             if r.returncode != 0:
