@@ -11,7 +11,7 @@ STAMP  := $(VENV)/.brdfpipe-installed
 CONFIG ?= config/config.yaml
 CORES  ?= all
 
-.PHONY: run test bench setup llvm dryrun lint clean
+.PHONY: run test bench setup llvm dryrun lint clean slurm-test
 
 setup: $(STAMP) llvm
 
@@ -50,6 +50,12 @@ dryrun: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/snakefmt --check workflow
 	$(SMK) --lint --configfile tests/config/tiny.yaml
+
+# The workflow on a real single-node Slurm (root: installs and starts Debian's
+# slurmctld/slurmd/munge unless sinfo answers), checked against Slurm's job
+# records and against a local run (byte-identical results/). See profiles/slurm/.
+slurm-test: setup
+	$(PY) tests/slurm/run_slurm_test.py
 
 clean:
 	rm -rf results/* .snakemake logs benchmarks
