@@ -34,6 +34,10 @@ def _slurm_answers() -> bool:
 
 
 def test_workflow_on_slurm_matches_local_run(tmp_path: Path) -> None:
+    if os.environ.get("BRDFPIPE_SLURM_TEST") != "1":
+        # ~7.5 min on the 2-core machine (a Slurm run and a local run of tiny-point): more than
+        # make test's 15-minute budget leaves. `make slurm-test` runs the harness itself.
+        pytest.skip("the Slurm run takes ~7.5 min: run `make slurm-test`, or set BRDFPIPE_SLURM_TEST=1")
     if not _slurm_answers():
         if os.geteuid() != 0:
             pytest.skip("no Slurm cluster answers sinfo, and starting one needs root")
