@@ -244,39 +244,42 @@ def render_figures(n_path_points: int) -> dict[str, list[str]]:
 
 # -- memory -------------------------------------------------------------------
 
-#: Peak memory model of each rule's jobs, MB = base + per_material × N, from the
-#: benchmark files (max_rss) of the default run (N = 100, synthetic database,
-#: 2-core AMD EPYC) and the tiny-point run (N = 6); `benches/bench_memory.py`
-#: prints measured vs declared for any finished run.  The declared value
-#: (:func:`mem_mb`) adds :data:`MEMORY_HEADROOM` on top.
+#: Peak memory model of each rule's jobs, MB = base + per_material × N: a line
+#: through the peak RSS (``max_rss`` of the benchmark files) of the default run
+#: (N = 100, synthetic database, 2-core AMD EPYC) and of the tiny-point run
+#: (N = 6); the local rules and ``interpolate_path_point`` were measured at
+#: N = 100 with ``/usr/bin/time`` on the same run's inputs.  A slope 0 means the
+#: two sizes peaked alike.  ``benches/bench_memory.py`` prints measured vs
+#: declared for any finished run.  The declared value (:func:`mem_mb`) adds
+#: :data:`MEMORY_HEADROOM` on top.
 MEMORY_MB: dict[str, tuple[float, float]] = {
     # data stage
-    "synthesize_material": (310.0, 0.0),
-    "write_manifest": (120.0, 0.0),
-    "ingest_material": (65.0, 0.0),
-    "assemble_store": (80.0, 0.3),
-    "write_splits": (120.0, 0.0),
+    "synthesize_material": (306.0, 0.0),
+    "write_manifest": (135.0, 0.0),  # not measured at N = 100: as write_splits (the same imports)
+    "ingest_material": (64.0, 0.0),
+    "assemble_store": (78.0, 0.28),
+    "write_splits": (135.0, 0.0),
     # acquisition track
-    "map_logrelative": (170.0, 5.8),
-    "accumulate_gram": (96.0, 2.9),
-    "decompose_svd": (170.0, 5.0),
-    "optimize_directions": (210.0, 5.0),
-    "evaluate_directions": (300.0, 8.0),
-    "check_directions": (180.0, 5.0),
-    "evaluate_training_size": (300.0, 8.0),
-    "plot_acquisition_figures": (250.0, 0.0),
+    "map_logrelative": (170.0, 5.82),
+    "accumulate_gram": (96.0, 2.93),
+    "decompose_svd": (137.0, 5.32),
+    "optimize_directions": (131.0, 13.4),
+    "evaluate_directions": (280.0, 3.5),
+    "check_directions": (136.0, 6.8),
+    "evaluate_training_size": (250.0, 2.45),  # N = 100 only: slope as evaluate_directions'
+    "plot_acquisition_figures": (157.0, 0.0),
     # manifold track
-    "compute_gram": (276.0, 3.9),
+    "compute_gram": (276.0, 3.93),
     "fit_gplvm": (95.0, 0.0),
-    "analyze_manifold": (480.0, 8.0),
-    "plot_manifold_figures": (300.0, 0.0),
+    "analyze_manifold": (380.0, 16.8),
+    "plot_manifold_figures": (204.0, 0.0),
     # rendering track
-    "make_envmap": (150.0, 0.0),
-    "prerender_material": (255.0, 0.0),
-    "interpolate_path_point": (300.0, 5.0),
-    "render_path_point": (255.0, 0.0),
-    "error_maps": (250.0, 1.0),
-    "plot_render_figures": (300.0, 1.0),
+    "make_envmap": (116.0, 0.0),
+    "prerender_material": (253.0, 0.0),
+    "interpolate_path_point": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
+    "render_path_point": (253.0, 0.0),
+    "error_maps": (110.0, 0.05),
+    "plot_render_figures": (240.0, 1.0),
 }
 #: Declared / modelled peak on the first attempt (keeps declared within [1, 2] × measured).
 MEMORY_HEADROOM: float = 1.3
