@@ -39,7 +39,7 @@ run: setup
 	$(SMK) --cores $(CORES) --configfile $(CONFIG)
 
 test: setup lint
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2
 
 bench: setup
 	$(PY) benches/run_all.py

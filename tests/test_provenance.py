@@ -112,7 +112,7 @@ def test_synthetic_label_comes_from_the_files_without_manifest(synth_dir: Path, 
     d = db.database_from_folder(folder)
     assert d.kind == "synthetic" and len(d.materials) == COUNT
     assert d.default_test == ()
-    with pytest.raises(db.DatabaseError, match="no default held-out materials.*test_materials"):
+    with pytest.raises(db.DatabaseError, match="no default held-out material.*test_materials"):
         db.resolve_test_materials(None, d)
     assert db.resolve_test_materials([d.materials[0]], d) == [d.materials[0]]
 
