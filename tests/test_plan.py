@@ -142,6 +142,46 @@ def test_module_closure_follows_imports() -> None:
         version.module_closure(["no_such_module"])
 
 
+def _ast_imports(source: str, base: list[str]) -> set[str]:
+    """Reference for the import scan: every import statement of the syntax tree."""
+    import ast
+
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                anchor = base[: len(base) - (node.level - 1)] if node.level > 1 else base
+                mod = ".".join([*anchor, node.module] if node.module else anchor)
+            else:
+                mod = node.module or ""
+            found.add(mod)
+            found.update(f"{mod}.{a.name}" for a in node.names)
+    return found
+
+
+def test_import_scan_finds_what_the_syntax_tree_has() -> None:
+    """The fast textual scan finds every import the syntax tree has, in the package and the scripts."""
+    files = [(p, ["brdfpipe", *p.relative_to(version.PACKAGE_DIR).parent.parts]) for p in version.PACKAGE_DIR.rglob("*.py")]
+    files += [(p, []) for p in (ROOT / "workflow" / "scripts").glob("*.py")]
+    for path, base in files:
+        source = path.read_text(encoding="utf-8")
+        scanned = version._import_names(source, base)
+        expected = _ast_imports(source, base)
+        assert expected <= scanned, f"{path}: missed {sorted(expected - scanned)}"
+        own = ".".join([*base, path.stem]) if path.stem != "__init__" else ".".join(base)
+        # a docstring's usage example may mention its own module: harmless
+        spurious = {m for m in scanned - expected if m.startswith("brdfpipe") and m != own}
+        assert not spurious, f"{path}: spurious {sorted(spurious)}"
+    tricky = (
+        "def f():\n    from brdfpipe import (\n        svd,  # a comment\n        store as st,\n    )\n"
+        "import brdfpipe.merl as m, os\nfrom . import atomic\nfrom .. import x\n"
+        "from brdfpipe.zgroup import \\\n    open_group\n"
+    )
+    assert _ast_imports(tricky, ["brdfpipe", "sub"]) == version._import_names(tricky, ["brdfpipe", "sub"])
+
+
 def test_digests_change_with_the_code_they_cover(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pkg = copy_package(tmp_path)
     script = tmp_path / "job.py"
