@@ -59,14 +59,29 @@ def log(msg: str) -> None:
     print(f"[slurm-test] {msg}", flush=True)
 
 
+# `make slurm-plugins` installs the executor plug-in here, outside site-packages
+# (so local runs do not import it); a cluster user's environment may have it
+# installed normally instead.
+PLUGINS = Path(os.environ.get("BRDFPIPE_SLURM_PLUGINS", BIN.parent / "slurm-plugins"))
+
+
 def environment() -> dict[str, str]:
     env = dict(os.environ)
     # jobs run `python -m snakemake` again on the node: sbatch exports this
     # environment, so the node finds the same virtual environment and library
     env["PATH"] = os.pathsep.join([str(BIN), env.get("PATH", "/usr/bin:/bin")])
     paths = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), *paths])
+    extra = [str(PLUGINS)] if PLUGINS.is_dir() else []
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), *extra, *paths])
     return env
+
+
+def check_plugin(env: dict[str, str]) -> None:
+    r = subprocess.run([sys.executable, "-c", "import snakemake_executor_plugin_slurm"],
+                       env=env, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise Skip("the Slurm executor plug-in is not installed: run `make slurm-plugins` "
+                   "(or pip install the project's `slurm` extra)")
 
 
 def sh(*cmd: str, env=None, check=True, timeout=120) -> subprocess.CompletedProcess:
@@ -198,6 +213,8 @@ def main() -> int:
     ap.add_argument("--scratch", type=Path, default=None, help="keep the run folders here")
     ap.add_argument("--status-interval", type=int, default=2,
                     help="seconds between the plug-in's status checks (the profile's 20 s suits real clusters)")
+    ap.add_argument("--profile", type=Path, default=PROFILE,
+                    help="the Slurm profile to run with (default: the project's profiles/slurm)")
     ap.add_argument("--timeout", type=int, default=900)
     args = ap.parse_args()
     config = args.config.resolve()
@@ -216,6 +233,7 @@ def main() -> int:
     signal.signal(signal.SIGHUP, on_signal)
     status = 1
     try:
+        check_plugin(env)
         answers = shutil.which("sinfo") and sh("sinfo", "-h", check=False, timeout=15).returncode == 0
         if answers:
             log("sinfo answers: using the running cluster")
@@ -245,7 +263,7 @@ def main() -> int:
             shutil.rmtree(d, ignore_errors=True)
             d.mkdir()
         wall_slurm, text = snakemake(
-            slurm_dir, config, "--executor", "slurm", "--profile", str(PROFILE), *group_args,
+            slurm_dir, config, "--executor", "slurm", "--profile", str(args.profile.resolve()), *group_args,
             "--slurm-init-seconds-before-status-checks", str(args.status_interval),
             "--slurm-keep-successful-logs", env=env, timeout=args.timeout)
         jobcomp = state / "jobcomp.log" if started else None
