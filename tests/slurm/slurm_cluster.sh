@@ -123,7 +123,10 @@ ReturnToService=2
 SlurmctldTimeout=30
 SlurmdTimeout=60
 $node NodeAddr=127.0.0.1 State=UNKNOWN
-PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP
+# OverSubscribe=FORCE:2: two jobs may share a core. A Slurm job of this workflow
+# spends most of its wall time starting Snakemake and waiting to be polled, so
+# on a single small node two per core keep the CPUs busy.
+PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP OverSubscribe=FORCE:2
 EOF
   # Clients inside jobs must find the configuration too: the Slurm plug-in's
   # job step drops every SLURM_* variable (SLURM_CONF included) before it calls
