@@ -167,3 +167,35 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
                                   albedo_maps_out={5: fresh / "q5.npz"}, paths_out=fresh / "paths.csv",
                                   reproduction_out=fresh / "reproduction.csv")
     assert not fresh.exists()  # nothing written by a failed call
+
+
+def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
+    """One pass over the store writes, per point, the table Σ wᵢ Zᵢ of that point's own weights."""
+    import json
+
+    names = small["names"]
+    points = [(names[0], names[3], 0.0), (names[0], names[3], 0.5), (names[1], names[4], 0.25)]
+    out = small["tmp"] / "points"
+    merls = [out / f"p{k}.binary" for k in range(3)]
+    jsons = [out / f"p{k}.json" for k in range(3)]
+    W = manifold.path_points_to_files(model=small["models"][2], store=small["store"], points=points,
+                                      merl_outs=merls, weights_outs=jsons)
+    m = gplvm.load_model(small["models"][2])
+    valid = np.tile(small["valid"], 3)  # per cell -> per column (3 channels)
+    for k, (a, b, t) in enumerate(points):
+        x = (1 - t) * m.X[m.names.index(a)] + t * m.X[m.names.index(b)]
+        w = gplvm.blend_weights(gplvm.weights(m, x))
+        np.testing.assert_allclose(W[k], w, rtol=1e-12, atol=1e-15)
+        doc = json.loads(jsons[k].read_text())
+        assert (doc["material_a"], doc["material_b"], doc["t"]) == (a, b, t)
+        assert np.allclose([doc["weights"][n] for n in m.names], w, rtol=1e-12, atol=1e-15)
+        table = merl.read_merl(merls[k]).reshape(-1)
+        expect = np.maximum(w @ small["brdf"][[names.index(n) for n in m.names]], 0.0)
+        np.testing.assert_allclose(table[valid], expect[valid], rtol=1e-9, atol=1e-12)
+        assert np.all(table[~valid] == -1.0)
+    # t = 0 is the first material itself (exact reproduction at training points)
+    first = np.maximum(small["brdf"][names.index(points[0][0])], 0.0)
+    np.testing.assert_allclose(merl.read_merl(merls[0]).reshape(-1)[valid], first[valid], rtol=1e-6, atol=1e-9)
+    with pytest.raises(ValueError, match="one MERL and one weights output per path point"):
+        manifold.path_points_to_files(model=small["models"][2], store=small["store"], points=points,
+                                      merl_outs=merls[:2], weights_outs=jsons)

@@ -63,7 +63,7 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("evaluate_directions", 1), ("evaluate_training_size", 1), ("check_directions", 2),
                     ("plot_acquisition_figures", 1),
                     ("compute_gram", 1), ("fit_gplvm", 2), ("analyze_manifold", 1),
-                    ("make_envmap", 1), ("prerender_material", 12), ("interpolate_path_point", 3),
+                    ("make_envmap", 1), ("prerender_material", 12), ("interpolate_path_points", 1),
                     ("render_path_point", 3), ("error_maps", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 

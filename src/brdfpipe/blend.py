@@ -453,7 +453,7 @@ def error_maps_from_files(
     """:func:`error_maps` with each path point given by its weights JSON and two reference renders.
 
     The workflow's ``error_maps`` job.  ``weights[k]`` is the JSON written
-    by :func:`brdfpipe.manifold.path_point_to_files` (``path``, ``t``,
+    by :func:`brdfpipe.manifold.path_points_to_files` (``path``, ``t``,
     ``weights``); ``references[k]`` / ``references_noise[k]`` the renders of
     that interpolated material with the main and the second seed;
     ``blended[k]``, ``error_exrs[k]``, ``error_pngs[k]`` its output files.

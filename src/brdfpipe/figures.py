@@ -2435,7 +2435,7 @@ def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
     """Write the requested rendering-track figures (keys of :data:`RENDER_FIGURE_STEMS`), PNG + PDF each.
 
     Per path point ``k``: ``weights[k]`` (its weights JSON,
-    :func:`brdfpipe.manifold.path_point_to_files`), ``references[k]`` (its
+    :func:`brdfpipe.manifold.path_points_to_files`), ``references[k]`` (its
     reference render), ``blended[k]`` and ``errors[k]`` (the blend and the
     error EXR of :func:`brdfpipe.blend.error_maps`); ``summary``: the error
     maps' ``summary.csv`` (needed for ``fig13``).  ``figures``: key → its PNG

@@ -79,7 +79,7 @@ __all__ = [
     "reproduction_errors",
     "path_analysis",
     "analyze_manifold",
-    "path_point_to_files",
+    "path_points_to_files",
 ]
 
 logger = logging.getLogger("brdfpipe.manifold")
@@ -370,37 +370,46 @@ def analyze_manifold(
     logger.info("manifold analyses of %d materials (%s database) -> %s", len(names), database, reproduction_out)
 
 
-def path_point_to_files(
+def path_points_to_files(
     *,
     model: str | os.PathLike[str],
     store: str | os.PathLike[str],
-    a: str,
-    b: str,
-    t: float,
-    merl_out: str | os.PathLike[str],
-    weights_out: str | os.PathLike[str],
+    points: Sequence[tuple[str, str, float]],
+    merl_outs: Sequence[str | os.PathLike[str]],
+    weights_outs: Sequence[str | os.PathLike[str]],
 ) -> NDArray[np.float64]:
-    """The interpolated material at fraction ``t`` of the latent path ``a → b``: MERL file and weights JSON.
+    """Interpolated materials at points ``(a, b, t)`` of latent paths ``a → b``: MERL files and weights JSONs.
 
-    The workflow's ``interpolate_path_point`` job (the rendering track blends
-    pre-rendered images with the same weights).  The JSON holds ``path``,
-    ``t``, ``q``, the latent point ``x`` and ``weights`` {material: wᵢ}
-    (blend weights, Σw = 1), written atomically.  Returns the weights.
+    The workflow's ``interpolate_path_points`` job (the rendering track blends
+    pre-rendered images with the same weights).  All points are blended in one
+    pass over the store (:func:`brdfpipe.gplvm.interpolate_tables`): the store
+    is read once, not once per point.  ``merl_outs[k]`` and
+    ``weights_outs[k]`` belong to ``points[k]``.  Each JSON holds ``path``,
+    ``t``, ``q``, the latent point ``x`` and ``weights`` {material: wᵢ} (blend
+    weights, Σw = 1), written atomically.  Returns the weights ``(P, N)``.
     """
     import json
 
+    if not (len(points) == len(merl_outs) == len(weights_outs)) or not points:
+        raise ValueError(f"need one MERL and one weights output per path point, got {len(points)} points, "
+                         f"{len(merl_outs)} MERL and {len(weights_outs)} weights outputs")
     m = gplvm.load_model(model)
-    check_paths([(a, b)], m.names, what=f"path of {model}")
-    if not np.isfinite(t):
-        raise ValueError(f"t must be finite, got {t}")
+    check_paths(sorted({(a, b) for a, b, _ in points}), m.names, what=f"path of {model}")
     names = list(m.names)
-    x = (1.0 - t) * m.X[names.index(a)] + t * m.X[names.index(b)]
-    w = gplvm.blend_weights(gplvm.weights(m, x))
-    table, clamped = gplvm.interpolate_table(store, w, materials=names, space=m.space)
-    merl.write_merl(merl_out, table)
-    doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
-           "x": [float(v) for v in x], "clamped": int(clamped),
-           "weights": {n: float(v) for n, v in zip(names, w)}}
-    atomic.write_text(weights_out, json.dumps(doc, indent=1) + "\n")
-    logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped, merl_out)
-    return w
+    xs, ws = [], []
+    for a, b, t in points:
+        if not np.isfinite(t):
+            raise ValueError(f"t must be finite, got {t}")
+        x = (1.0 - t) * m.X[names.index(a)] + t * m.X[names.index(b)]
+        xs.append(x)
+        ws.append(gplvm.blend_weights(gplvm.weights(m, x)))
+    W = np.stack(ws)
+    tables, clamped = gplvm.interpolate_tables(store, W, materials=names, space=m.space)
+    for k, (a, b, t) in enumerate(points):
+        merl.write_merl(merl_outs[k], tables[k])
+        doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
+               "x": [float(v) for v in xs[k]], "clamped": int(clamped[k]),
+               "weights": {n: float(v) for n, v in zip(names, W[k])}}
+        atomic.write_text(weights_outs[k], json.dumps(doc, indent=1) + "\n")
+        logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped[k], merl_outs[k])
+    return W

@@ -247,8 +247,10 @@ def render_figures(n_path_points: int) -> dict[str, list[str]]:
 #: Peak memory model of each rule's jobs, MB = base + per_material × N: a line
 #: through the peak RSS (``max_rss`` of the benchmark files) of the default run
 #: (N = 100, synthetic database, 2-core AMD EPYC) and of the tiny-point run
-#: (N = 6); the local rules and ``interpolate_path_point`` were measured at
-#: N = 100 with ``/usr/bin/time`` on the same run's inputs.  A slope 0 means the
+#: (N = 6); the local rules and ``interpolate_path_points`` were measured at
+#: N = 100 with ``/usr/bin/time`` on the same run's inputs.  A third number,
+#: where present, is MB per output of a job that writes many
+#: (:data:`PER_OUTPUT_MB`).  A slope 0 means the
 #: two sizes peaked alike.  ``benches/bench_memory.py`` prints measured vs
 #: declared for any finished run.  The declared value (:func:`mem_mb`) adds
 #: :data:`MEMORY_HEADROOM` on top.
@@ -276,22 +278,29 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     # rendering track
     "make_envmap": (116.0, 0.0),
     "prerender_material": (253.0, 0.0),
-    "interpolate_path_point": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
+    "interpolate_path_points": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
     "render_path_point": (253.0, 0.0),
     "error_maps": (110.0, 0.05),
     "plot_render_figures": (240.0, 1.0),
 }
+#: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every
+#: output in memory: ``interpolate_path_points`` holds one float64 MERL table
+#: (35 MB) per path point, plus the blend of one column block.
+PER_OUTPUT_MB: dict[str, float] = {"interpolate_path_points": 36.0}
 #: Declared / modelled peak on the first attempt (keeps declared within [1, 2] × measured).
 MEMORY_HEADROOM: float = 1.3
 #: Growth of the declared memory with each retry (attempt 2: × 1.5, attempt 3: × 2.25).
 MEMORY_RETRY_GROWTH: float = 1.5
 
 
-def mem_mb(rule: str, n_materials: int, attempt: int = 1) -> int:
+def mem_mb(rule: str, n_materials: int, attempt: int = 1, *, outputs: int = 1) -> int:
     """``mem_mb`` a job of ``rule`` declares for ``n_materials`` materials at retry ``attempt`` (≥ 1).
 
-    Rounded up to 50 MB; at least 100 MB.  KeyError for a rule without a model.
+    ``outputs``: how many outputs the job writes (counts only for the rules
+    of :data:`PER_OUTPUT_MB`).  Rounded up to 50 MB; at least 100 MB.
+    KeyError for a rule without a model.
     """
     base, per = MEMORY_MB[rule]
+    base += PER_OUTPUT_MB.get(rule, 0.0) * max(0, int(outputs) - 1)
     need = (base + per * int(n_materials)) * MEMORY_HEADROOM * MEMORY_RETRY_GROWTH ** (max(1, int(attempt)) - 1)
     return max(100, int(math.ceil(need / 50.0)) * 50)

@@ -78,9 +78,13 @@ PATH_POINTS = [(p, fn.format_t(t)) for p in PATH_ENDS for t in RENDER["path_poin
 RENDER_FIGURES = plan.render_figures(len(PATH_POINTS))
 
 
-def mem(rule):
-    """A rule's mem_mb: measured peak for this many materials, growing by half per retry (brdfpipe.plan)."""
-    return lambda wildcards, attempt: plan.mem_mb(rule, len(MATERIALS), attempt)
+def mem(rule, outputs=1):
+    """A rule's mem_mb: measured peak for this many materials and outputs, growing by half per retry (brdfpipe.plan)."""
+
+    def mem_mb(wildcards, attempt):
+        return plan.mem_mb(rule, len(MATERIALS), attempt, outputs=outputs)
+
+    return mem_mb
 
 
 def split_training_materials(split):

@@ -56,28 +56,32 @@ rule prerender_material:
         "../scripts/prerender_material.py"
 
 
-rule interpolate_path_point:
-    input:
-        model=fn.gplvm_model(PATH_Q),
-        store=fn.store(),
-    output:
-        merl=fn.path_point(SCENE, "{path}", "{t}", "binary"),
-        weights=fn.path_point(SCENE, "{path}", "{t}", "weights"),
-    log:
-        f"logs/interpolate_path_point/{SCENE}/{{path}}-t{{t}}.log",
-    benchmark:
-        f"benchmarks/interpolate_path_point/{SCENE}/{{path}}-t{{t}}.tsv"
-    conda:
-        "../envs/brdfpipe.yaml"
-    threads: 1
-    resources:
-        mem_mb=mem("interpolate_path_point"),
-        runtime=10,
-    params:
-        ends=lambda wildcards: PATH_ENDS[wildcards.path],
-        code=code("interpolate_path_point.py"),
-    script:
-        "../scripts/interpolate_path_point.py"
+if PATH_POINTS:
+
+    # One job for all path points: each point blends every material, so one
+    # pass over the store serves them all (a job per point read it per point).
+    rule interpolate_path_points:
+        input:
+            model=fn.gplvm_model(PATH_Q),
+            store=fn.store(),
+        output:
+            merl=path_point_files("binary"),
+            weights=path_point_files("weights"),
+        log:
+            f"logs/interpolate_path_points/{SCENE}.log",
+        benchmark:
+            f"benchmarks/interpolate_path_points/{SCENE}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("interpolate_path_points", len(PATH_POINTS)),
+            runtime=20,
+        params:
+            points=[(*PATH_ENDS[p], float(t)) for p, t in PATH_POINTS],
+            code=code("interpolate_path_points.py"),
+        script:
+            "../scripts/interpolate_path_points.py"
 
 
 rule render_path_point:
