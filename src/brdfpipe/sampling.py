@@ -561,16 +561,23 @@ class _Weighted:
 
 
 def _as_block(block: RowBlock | ArrayLike, k: int, name: str) -> _Weighted:
+    """Validate a block and weight its rows (float64, one pass over the rows)."""
     b = block if isinstance(block, RowBlock) else RowBlock(block)
-    R = _as_rows(b.rows, k, name)
+    R = np.asarray(b.rows)
+    if R.ndim == 1:
+        R = R[None, :]
+    if R.ndim != 2 or R.shape[1] != k or R.shape[0] == 0 or not np.issubdtype(R.dtype, np.number):
+        raise ValueError(f"{name} must be a non-empty (r, {k}) array of Q rows, got shape {R.shape}")
+    if not np.all(np.isfinite(R)):
+        raise ValueError(f"{name} must be finite")
     stats = None if b.stats is None else _check_stats(b.stats[0], b.stats[1], k)
     if b.counts is None:
-        return _Weighted(R, np.ones(R.shape[0]), stats)
+        return _Weighted(np.asarray(R, dtype=np.float64), np.ones(R.shape[0]), stats)
     c = np.asarray(b.counts, dtype=np.float64)
     if c.shape != (R.shape[0],) or not np.all(np.isfinite(c)) or np.any(c <= 0):
         raise ValueError(f"{name}: counts must be {R.shape[0]} finite positive multiplicities, got shape {c.shape}")
     s = np.sqrt(c)
-    return _Weighted(s[:, None] * R, s, stats)
+    return _Weighted(np.multiply(s[:, None], R, dtype=np.float64), s, stats)
 
 
 class FactoredSelection:
@@ -669,10 +676,12 @@ class FactoredSelection:
         """This selection with the block ``add`` added and the block ``remove`` removed (either may be None).
 
         The removed rows must have been added before (not checked: ``G + ηI``
-        may even stay positive definite).  The result has ``depth + 1``; its
-        solve is derived from this one's (identity of the section comment)
-        when that is computed and the blocks are small, else done afresh on
-        first use.
+        may even stay positive definite).  Removing subtracts the block's
+        Gram matrix, which costs accuracy of order ε·‖G_b‖/η relative; for
+        a strong block (‖G_b‖ ≫ 1e3·η) build the selection afresh from the
+        remaining rows instead.  The result has ``depth + 1``; its solve is
+        derived from this one's (identity of the section comment) when that
+        is computed and the blocks are small, else done afresh on first use.
         """
         k = self.model.k
         return self._updated([(_as_block(b, k, name), sign)
@@ -718,6 +727,9 @@ class FactoredSelection:
             (r ≥ 1 may differ between blocks; a 1-D array is one row).
         remove:
             A block (previously added) removed from every candidate, or None.
+            As for :meth:`updated`, results lose accuracy of order
+            ε·‖G_remove‖/η relative: for strong blocks use a selection built
+            without them.
         method:
             ``"auto"``: per block the cheaper of the low-rank form and a fresh
             evaluation (by flop count); ``"lowrank"`` / ``"direct"`` force one
@@ -1667,10 +1679,25 @@ def config_from_dict(setup: Setup, record: dict[str, Any]) -> Config:
 # relative 1e-12, so rounding noise never counts as one (and the search
 # cannot cycle).
 #
-# Cost per evaluation: gather the rows (Q float32 kept in memory, cell →
-# column lookup), one dsyrk of them, one Cholesky + solve (E) or one
-# eigvalsh (κ) — scipy's BLAS/LAPACK only, see the performance note at the
-# top.  Deterministic for a seed (numpy Generator).
+# Cost.  Candidates are evaluated in batches sharing one base
+# (FactoredSelection, "Many candidates against one factored base selection"
+# in the metrics section): the greedy add's t candidates are the current set
+# + their block; a configuration's ≤ 7 moves are the current set − its block
+# + the moved block.  The current set's M = G + ηI is factored and solved
+# once and carried along as the set changes (fresh Cholesky, solve by the
+# update identity; rebuilt from the blocks once per n and every
+# _MAX_UPDATE_DEPTH updates).  A point candidate then costs O(k² + km)
+# flops — a few stacked triangular solves and dgemm rows — instead of a
+# fresh Cholesky + solve with m right-hand sides, O(k³/3 + 2k²m).  Near-field
+# images (hundreds of distinct cells, the low-rank form would cost more) are
+# still evaluated afresh: their distinct rows (counted, not repeated) in one
+# dsyrk, one Cholesky + solve (E), one eigvalsh (κ, more than k rows) — and
+# a configuration whose block is too strong to downdate accurately
+# (tr G_j > η/_DOWNDATE_TOL) has its moves evaluated against the set without
+# it, summed afresh from the other blocks.  scipy's BLAS/LAPACK only for
+# k-sized work, see the performance note at the top.  The reported E(S) and
+# κ of every set are recomputed from scratch (summarise).  Deterministic for a
+# seed (numpy Generator; single-threaded choice, fixed reduction order).
 
 logger = logging.getLogger("brdfpipe.sampling")
 
@@ -1679,6 +1706,8 @@ DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
 _METRICS = ("error", "condition")
 _REL_IMPROVE: float = 1e-12
 _CELL_CACHE_MAX: int = 10_000  # configurations whose observed cells are cached (≤ ~40 MB)
+_EVAL_CHUNK_ROWS: int = 4096  # distinct candidate rows gathered from Q at a time (≤ ~9 MB as float64)
+_MAX_UPDATE_DEPTH: int = 32  # the current set's statistics are rebuilt after this many derivations
 _Q_READ_ROWS: int = 36_450 * 4
 _AXIS_NAMES = {
     "point": ("iθh", "iθd", "iφd"),
@@ -1741,7 +1770,8 @@ class _Block:
     """One configuration of the current set and its observation rows."""
 
     config: Config
-    rows: NDArray[np.float32]  # (n_i, k)
+    idx: NDArray[np.intp]  # (n_i,) model rows observed, with repeats
+    rows: NDArray[np.float32]  # (n_i, k) = Q[idx]
     G: F64
     qsum: F64
 
@@ -1803,6 +1833,7 @@ class _Optimizer:
         beta: float,
         rng: np.random.Generator,
         log: Callable[[str], Any] | logging.Logger | None,
+        evaluation: Literal["fast", "direct"] = "fast",
     ) -> None:
         sigma = np.asarray(model.sigma, dtype=np.float64)
         U = np.asarray(model.U, dtype=np.float64)
@@ -1833,6 +1864,10 @@ class _Optimizer:
         self.wrap = (False, False, setup.kind != "nearfield")
         self._cache: dict[Config, NDArray[np.int32] | None] = {}
         self.evaluations = 0
+        # "fast": candidates by low-rank updates where cheaper; "direct": each one afresh (reference).
+        self.method: Literal["auto", "direct"] = "direct" if evaluation == "direct" else "auto"
+        # The current set's configurations and factored statistics (see current()).
+        self._current: tuple[tuple[Config, ...], FactoredSelection] | None = None
 
     # -- configurations --------------------------------------------------
 
@@ -1852,12 +1887,22 @@ class _Optimizer:
         self._cache[config] = result
         return result
 
-    def rows(self, cells: NDArray[np.intp]) -> NDArray[np.float32]:
-        return self.Q[self.lookup[cells]]
+    def rows_of(self, cells: NDArray[np.int32]) -> NDArray[np.intp]:
+        """Model rows (indices into Q) of observed cells."""
+        return self.lookup[cells].astype(np.intp)
 
-    def block(self, config: Config, rows: NDArray[np.float32]) -> _Block:
+    def block(self, config: Config, idx: NDArray[np.intp]) -> _Block:
+        rows = self.Q[idx]
         G, qsum = selection_stats(rows)
-        return _Block(config, rows, G, qsum)
+        return _Block(config, idx, rows, G, qsum)
+
+    def row_block(self, idx: NDArray[np.intp], stats: tuple[F64, F64] | None = None) -> RowBlock:
+        """The distinct rows of Q observed (``idx``, with repeats) and their counts."""
+        if idx.size > 1:
+            u, counts = np.unique(idx, return_counts=True)
+            if u.size < idx.size:
+                return RowBlock(self.Q[u], counts.astype(np.float64), stats)
+        return RowBlock(self.Q[idx], None, stats)
 
     def shift(self, config: Config, axis: int, delta: int) -> Config | None:
         c = list(config)
@@ -1906,15 +1951,70 @@ class _Optimizer:
     # -- metric ------------------------------------------------------------
 
     def key(self, G: F64, qsum: F64, nrows: int, parts: Callable[[], list[NDArray[np.float32]]]) -> tuple[float, ...]:
+        """The metric of one selection evaluated afresh from its statistics (and rows, for κ)."""
         self.evaluations += 1
         E = expected_error(self.em, G, qsum)
         if self.metric == "error":
             return (E,)
+        return (self.kappa(G, nrows, parts), E)
+
+    def kappa(self, G: Callable[[], F64] | F64, nrows: int, parts: Callable[[], list[NDArray[np.float32]]]) -> float:
+        """κ(Q̃): from the rows when there are at most k, else from the Gram matrix ``G``."""
         if nrows <= self.k:
-            kappa = condition_number(np.concatenate(parts(), axis=0))
-        else:
-            kappa = condition_number(G, nrows)
-        return (kappa, E)
+            return condition_number(np.concatenate(parts(), axis=0))
+        return condition_number(G() if callable(G) else G, nrows)
+
+    def evaluate(
+        self, base: FactoredSelection, n0: int, base_parts: list[NDArray[np.float32]],
+        cands: Sequence[NDArray[np.intp]], remove: _Block | None = None,
+    ) -> list[tuple[float, ...]]:
+        """Metric keys of ``base`` (less the block ``remove``) plus each candidate (model rows ``idx``).
+
+        E(S) of all candidates at once by :meth:`FactoredSelection.candidate_errors`
+        (low-rank updates of the base's factorisation where cheaper, the
+        direct form otherwise), in chunks of ≤ _EVAL_CHUNK_ROWS distinct rows
+        so that memory stays bounded; κ as in :meth:`kappa`.  ``n0`` and
+        ``base_parts`` are the row count and rows without ``remove``.
+        """
+        self.evaluations += len(cands)
+        rem = None if remove is None else self.row_block(remove.idx, (remove.G, remove.qsum))
+        keys: list[tuple[float, ...]] = []
+        start = 0
+        while start < len(cands):
+            blocks: list[RowBlock] = []
+            rows = 0
+            while start + len(blocks) < len(cands) and (not blocks or rows < _EVAL_CHUNK_ROWS):
+                idx = cands[start + len(blocks)]
+                b = self.row_block(idx)
+                if self.metric == "condition" and n0 + idx.size > self.k:
+                    # κ needs the candidate's Gram matrix: computed once, also used for E when direct.
+                    b = b._replace(stats=_as_block(b, self.k, "block").gram())
+                blocks.append(b)
+                rows += len(b.rows)
+            errors = base.candidate_errors(blocks, remove=rem, method=self.method)
+            for i, E in enumerate(errors):
+                if self.metric == "error":
+                    keys.append((float(E),))
+                    continue
+                idx, b = cands[start + i], blocks[i]
+
+                def gram(b: RowBlock = b) -> F64:
+                    assert b.stats is not None
+                    G = base.G + b.stats[0]
+                    return G if remove is None else G - remove.G
+
+                kappa = self.kappa(gram, n0 + idx.size, lambda idx=idx: base_parts + [self.Q[idx]])
+                keys.append((kappa, float(E)))
+            start += len(blocks)
+        return keys
+
+    def current(self, blocks: Sequence[_Block]) -> FactoredSelection:
+        """The current set's factored statistics: kept across steps, rebuilt from the blocks when stale."""
+        configs = tuple(b.config for b in blocks)
+        if self._current is None or self._current[0] != configs or self._current[1].depth >= _MAX_UPDATE_DEPTH:
+            G, qsum, _ = self.totals(blocks)
+            self._current = (configs, FactoredSelection(self.em, G, qsum))
+        return self._current[1]
 
     def totals(self, blocks: Sequence[_Block]) -> tuple[F64, F64, int]:
         G, qsum = empty_stats(self.k)
@@ -1940,60 +2040,72 @@ class _Optimizer:
     # -- search steps --------------------------------------------------------
 
     def greedy_add(self, blocks: list[_Block], t: int) -> tuple[tuple[float, ...], int]:
-        G0, q0, n0 = self.totals(blocks)
+        self._current = None  # rebuilt from the blocks once per n: no rounding carried over
+        base = self.current(blocks)
+        n0 = sum(b.n for b in blocks)
         exclude = {b.config for b in blocks}
         shared = blocks[0].config[0] if (self.fixed and blocks) else None
-        base_parts = [b.rows for b in blocks]
-        best: tuple[tuple[float, ...], Config, NDArray[np.float32]] | None = None
-        tried = 0
+        configs: list[Config] = []
+        cands: list[NDArray[np.intp]] = []
         for cfg in self.sample(t, exclude, shared):
             cells = self.obs(cfg)
-            if cells is None:
-                continue
-            tried += 1
-            R = self.rows(cells)
-            G, q = add_rows(G0, q0, R)
-            key = self.key(G, q, n0 + R.shape[0], lambda: base_parts + [R])
-            if best is None or key < best[0]:
-                best = (key, cfg, R)
-        if best is None:
+            if cells is not None:
+                configs.append(cfg)
+                cands.append(self.rows_of(cells))
+        if not cands:
             raise ValueError(
                 f"no valid {self.setup.kind} configuration left to add to a set of {len(blocks)} "
                 "(the model's columns leave none)"
             )
-        blocks.append(self.block(best[1], best[2]))
-        return best[0], tried
-
-    def _eval_single(
-        self, blocks: list[_Block], j: int, cfg: Config, rest: tuple[F64, F64, int], taken: set[Config]
-    ) -> tuple[tuple[float, ...], Config, NDArray[np.float32]] | None:
-        if cfg in taken:
-            return None
-        cells = self.obs(cfg)
-        if cells is None:
-            return None
-        R = self.rows(cells)
-        G, q = add_rows(rest[0], rest[1], R)
-        parts = lambda: [b.rows for i, b in enumerate(blocks) if i != j] + [R]  # noqa: E731
-        return self.key(G, q, rest[2] + R.shape[0], parts), cfg, R
+        keys = self.evaluate(base, n0, [b.rows for b in blocks], cands)
+        best = 0
+        for i in range(1, len(keys)):
+            if keys[i] < keys[best]:
+                best = i
+        new = self.block(configs[best], cands[best])
+        blocks.append(new)
+        self._current = (tuple(b.config for b in blocks),
+                         base.updated(add=self.row_block(new.idx, (new.G, new.qsum))))
+        return keys[best], len(cands)
 
     def move_single(
         self, blocks: list[_Block], j: int, s: int, current: tuple[float, ...]
     ) -> tuple[tuple[float, ...], list[_Block], str] | None:
-        """Best improving move of configuration ``j`` by ±s (or the combined move), or None."""
-        others = [b for i, b in enumerate(blocks) if i != j]
-        rest = self.totals(others)
-        taken = {b.config for b in others}
-        cfg = blocks[j].config
-        results: dict[tuple[int, int], tuple[tuple[float, ...], Config, NDArray[np.float32]]] = {}
+        """Best improving move of configuration ``j`` by ±s (or the combined move), or None.
+
+        All moves are evaluated against one base: the current set's
+        factorisation, less block j by a downdate, when block j is weak
+        enough for that to be accurate (``tr G_j ≤ η/_DOWNDATE_TOL``: every
+        point row of the default models), else the set without j built
+        afresh from the other blocks (near-field images, strong rows).
+        """
+        old = blocks[j]
+        remove: _Block | None = old
+        if float(np.trace(old.G)) * _DOWNDATE_TOL <= self.em.eta:
+            base = self.current(blocks)
+        else:
+            G, qsum, _ = self.totals([b for i, b in enumerate(blocks) if i != j])
+            base, remove = FactoredSelection(self.em, G, qsum), None
+        n0 = sum(b.n for b in blocks) - old.n
+        parts = [b.rows for i, b in enumerate(blocks) if i != j]
+        taken = {b.config for i, b in enumerate(blocks) if i != j}
+        cfg = old.config
+
+        def valid(new: Config | None) -> NDArray[np.intp] | None:
+            if new is None or new == cfg or new in taken:
+                return None
+            cells = self.obs(new)
+            return None if cells is None else self.rows_of(cells)
+
+        moves: list[tuple[tuple[int, int], Config, NDArray[np.intp]]] = []
         for axis in self.axes:
             for d in (1, -1):
                 new = self.shift(cfg, axis, d * s)
-                if new is None or new == cfg:
-                    continue
-                r = self._eval_single(blocks, j, new, rest, taken)
-                if r is not None:
-                    results[(axis, d)] = r
+                idx = valid(new)
+                if idx is not None:
+                    moves.append(((axis, d), new, idx))  # type: ignore[arg-type]
+        keys = self.evaluate(base, n0, parts, [mv[2] for mv in moves], remove)
+        results = {mv[0]: (key, mv[1], mv[2]) for mv, key in zip(moves, keys)}
         candidates = list(results.values())
         # The paper's gradient step: move along every axis that improves, at once.
         dirs: dict[int, int] = {}
@@ -2004,20 +2116,24 @@ class _Optimizer:
                 if _better(k_best, current):
                     dirs[axis] = d_best
         if len(dirs) >= 2:
-            new: Config | None = cfg
+            new_c: Config | None = cfg
             for axis, d in dirs.items():
-                new = self.shift(new, axis, d * s) if new is not None else None
-            if new is not None and new != cfg:
-                r = self._eval_single(blocks, j, new, rest, taken)
-                if r is not None:
-                    candidates.append(r)
+                new_c = self.shift(new_c, axis, d * s) if new_c is not None else None
+            idx = valid(new_c)
+            if idx is not None:
+                key_c = self.evaluate(base, n0, parts, [idx], remove)[0]
+                candidates.append((key_c, new_c, idx))  # type: ignore[arg-type]
         if not candidates:
             return None
-        key, new_cfg, R = min(candidates, key=lambda r: r[0])
+        key, new_cfg, idx = min(candidates, key=lambda r: r[0])
         if not _better(key, current):
             return None
         new_blocks = list(blocks)
-        new_blocks[j] = self.block(new_cfg, R)
+        new_blocks[j] = self.block(new_cfg, idx)
+        nb = new_blocks[j]
+        self._current = (tuple(b.config for b in new_blocks),
+                         base.updated(add=self.row_block(nb.idx, (nb.G, nb.qsum)),
+                                      remove=None if remove is None else self.row_block(old.idx, (old.G, old.qsum))))
         unit = "direction" if self.setup.kind == "point" else "image"
         return key, new_blocks, f"{unit} {j + 1} {self.describe(cfg)} -> {self.describe(new_cfg)}"
 
@@ -2025,26 +2141,28 @@ class _Optimizer:
         self, blocks: list[_Block], s: int, current: tuple[float, ...]
     ) -> tuple[tuple[float, ...], list[_Block], str] | None:
         """Best improving ±s move of the shared elevation (fixed_*), or None."""
-        best: tuple[tuple[float, ...], list[Config], list[NDArray[np.float32]]] | None = None
+        best: tuple[tuple[float, ...], list[Config], list[NDArray[np.intp]]] | None = None
         for d in (1, -1):
             news = [self.shift(b.config, 0, d * s) for b in blocks]
             if any(c is None for c in news):
                 continue
-            parts: list[NDArray[np.float32]] = []
+            idxs: list[NDArray[np.intp]] = []
             for c in news:
                 cells = self.obs(c)  # type: ignore[arg-type]
                 if cells is None:
                     break
-                parts.append(self.rows(cells))
+                idxs.append(self.rows_of(cells))
             else:
+                # Every image changes: evaluated afresh.
+                parts = [self.Q[i] for i in idxs]
                 G, q = selection_stats(np.concatenate(parts, axis=0))
                 nrows = sum(p_.shape[0] for p_ in parts)
                 key = self.key(G, q, nrows, lambda: parts)
                 if best is None or key < best[0]:
-                    best = (key, news, parts)  # type: ignore[assignment]
+                    best = (key, news, idxs)  # type: ignore[assignment]
         if best is None or not _better(best[0], current):
             return None
-        new_blocks = [self.block(c, R) for c, R in zip(best[1], best[2])]
+        new_blocks = [self.block(c, i) for c, i in zip(best[1], best[2])]
         name = _AXIS_NAMES[self.setup.kind][0]
         return best[0], new_blocks, f"shared {name} {blocks[0].config[0]} -> {best[1][0][0]}"
 
@@ -2112,6 +2230,7 @@ def optimize(
     beta: float = 0.0,
     seed: int | None = 0,
     log: Callable[[str], Any] | logging.Logger | None = None,
+    evaluation: Literal["fast", "direct"] = "fast",
 ) -> list[DirectionSet]:
     """Optimal acquisition configurations for n = 1 … ``n_max`` (Xu et al. §5; see the section comment).
 
@@ -2142,6 +2261,14 @@ def optimize(
         A callable taking one line, a :class:`logging.Logger`, or None (the
         ``brdfpipe.sampling`` logger, INFO): one line per greedy add, accepted
         move, step change and convergence, with the metric value.
+    evaluation:
+        How candidates' E(S) is computed: ``"fast"`` (default) by low-rank
+        updates of a factorisation shared by a batch of candidates where
+        that is cheaper (:class:`FactoredSelection`), ``"direct"`` each
+        candidate afresh (:func:`expected_error`; the reference the fast
+        path is tested against, many times slower for point sampling).  Both
+        are exact; they differ by rounding (≈ 1e-13 relative), which can only
+        change which of two candidates tied to that precision wins.
 
     Returns
     -------
@@ -2162,8 +2289,10 @@ def optimize(
     if isinstance(candidates, bool) or not isinstance(candidates, (int, np.integer)) or candidates < 1:
         raise ValueError(f"candidates must be a positive integer, got {candidates!r}")
     step_list = _check_steps(steps)
+    if evaluation not in ("fast", "direct"):
+        raise ValueError(f"evaluation must be 'fast' or 'direct', got {evaluation!r}")
     ErrorModel(np.ones(1), np.zeros((1, 1)), eta=eta, beta=beta)  # checks η and β before the model is read
-    opt = _Optimizer(model, setup, metric, eta, beta, np.random.default_rng(seed), log)
+    opt = _Optimizer(model, setup, metric, eta, beta, np.random.default_rng(seed), log, evaluation)
     _emit(log, f"optimise {setup.kind} fov {setup.fov_deg:g}° grid {setup.grid}, metric {metric}, "
                f"n = 1..{n_max}, t = {candidates}, steps {step_list}, η = {opt.em.eta:g}, β = {opt.em.beta:g}, "
                f"seed {seed}; model p = {opt.cells.size}, k = {opt.k}, m = {opt.em.m}")
