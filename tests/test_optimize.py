@@ -161,6 +161,43 @@ def test_reported_metrics_recomputed_from_scratch(kind: str, beta: float) -> Non
         assert math.isfinite(s.expected_error) and s.expected_error > 0
 
 
+@pytest.mark.parametrize(
+    "kind,metric,beta,grid",
+    [
+        ("point", "error", 0.0, 16),
+        ("point", "error", 0.5, 16),
+        ("point", "condition", 0.0, 16),
+        ("nearfield", "error", 0.0, 2),  # a 2 × 2 lattice: blocks of 1-4 rows, low-rank and direct
+        ("nearfield", "error", 0.5, 16),
+        ("nearfield", "condition", 0.0, 2),
+        ("fixed_camera", "error", 0.0, 2),
+        ("fixed_light", "error", 0.5, 16),
+    ],
+)
+def test_fast_evaluation_selects_as_direct(kind: str, metric: str, beta: float, grid: int) -> None:
+    """The low-rank candidate evaluation makes the same choices as evaluating every candidate afresh."""
+    model = full_model()
+    setup = setup_of(kind, grid)
+    n_max = 6 if kind == "point" else 3
+    kw = dict(metric=metric, n_max=n_max, candidates=T, seed=5, beta=beta, log=lambda line: None)
+    fast = optimize(model, setup, evaluation="fast", **kw)  # type: ignore[arg-type]
+    direct = optimize(model, setup, evaluation="direct", **kw)  # type: ignore[arg-type]
+    assert [s.configurations for s in fast] == [s.configurations for s in direct]
+    assert [s.moves for s in fast] == [s.moves for s in direct]
+    for a, b in zip(fast, direct):
+        assert a.expected_error == b.expected_error  # recomputed from scratch for both
+        assert a.greedy_value == pytest.approx(b.greedy_value, rel=1e-10)
+        assert a.metric_value == pytest.approx(b.metric_value, rel=1e-10)
+        if metric == "error":
+            assert a.metric_value == pytest.approx(a.expected_error, rel=1e-10)
+
+
+def test_bad_evaluation_raises() -> None:
+    with pytest.raises(ValueError):
+        optimize(full_model(), setup_of("point"), n_max=1, candidates=5,
+                 evaluation="woodbury")  # type: ignore[arg-type]
+
+
 def test_point_error_equals_direct_training_error() -> None:
     """The issue's acceptance check: predicted E(S) = mean reconstruction error of the training rows."""
     model = full_model()
