@@ -258,3 +258,23 @@ def test_render_material_uses_the_merl_plugin(mi: Any, envmap: Path, tmp_path: P
     with pytest.raises(ValueError, match="distinct seed"):
         scene.render_material_seeds(tmp_path / "lambert.binary", [tmp_path / "a.exr"], seeds=[0, 1],
                                     variant="llvm_ad_rgb", **kw)
+
+
+def test_one_thread_render_finishes_and_equals_two_threads(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    """A job given one core (Snakemake --cores 1) renders, and the image does not depend on the thread count.
+
+    Mitsuba 3.9 never finishes loading an environment map with Dr.Jit's worker
+    pool disabled; run in a fresh process, with a timeout, so a hang fails.
+    """
+    from brdfpipe import merl, render
+
+    merl.write_merl(tmp_path / "lambert.binary", render.lambertian_table(0.5))
+    code = (
+        "import sys; from brdfpipe import scene\n"
+        "scene.render_material(sys.argv[1], sys.argv[2], envmap=sys.argv[3], variant='llvm_ad_rgb',"
+        " resolution=(24, 18), spp=8, max_depth=3, seed=0, threads=int(sys.argv[4]))\n"
+    )
+    for threads in (1, 2):
+        subprocess.run([sys.executable, "-c", code, str(tmp_path / "lambert.binary"), str(tmp_path / f"t{threads}.exr"),
+                        str(envmap), str(threads)], check=True, timeout=120)
+    assert np.array_equal(read_exr(tmp_path / "t1.exr"), read_exr(tmp_path / "t2.exr"))

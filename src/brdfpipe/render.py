@@ -98,6 +98,7 @@ import math
 import os
 import threading
 from collections import OrderedDict
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -160,13 +161,38 @@ def set_cpu_threads(threads: int) -> None:
     """Limit Dr.Jit's CPU (LLVM backend) thread pool to ``threads`` (≥ 1).
 
     Without it a render job uses every core of its node, whatever the
-    workflow declared; the CUDA backend is unaffected.
+    workflow declared; the CUDA backend is unaffected.  With ``threads = 1``
+    (Dr.Jit then has no worker thread) scenes must be loaded with
+    :func:`load_scene`: Mitsuba's environment-map emitter never finishes
+    loading without a worker (Mitsuba 3.9 / Dr.Jit 1.5, LLVM backend).
     """
     import drjit as dr
 
     if int(threads) < 1:
         raise ValueError(f"threads must be ≥ 1, got {threads}")
     dr.set_thread_count(int(threads))
+
+
+def load_scene(scene: Mapping[str, Any]) -> Any:
+    """``mitsuba.load_dict(scene)`` with at least one Dr.Jit worker thread while it loads.
+
+    Loading an ``envmap`` emitter with Dr.Jit's worker pool disabled
+    (``set_cpu_threads(1)``, as Snakemake sets for a rule's job on one core)
+    hangs forever in Mitsuba 3.9; rendering with one thread works.  So the
+    pool is raised to 2 threads (the caller plus one worker) for the load only
+    and put back before rendering.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    before = dr.thread_count()
+    if before < 2:
+        dr.set_thread_count(2)
+    try:
+        return mi.load_dict(dict(scene))
+    finally:
+        if before < 2:
+            dr.set_thread_count(before)
 
 
 def use_variant(variant: str) -> None:

@@ -417,6 +417,8 @@ def render_to_exr(
     fails to load or render raises :class:`SceneError`; a render with NaN/Inf
     pixels raises :class:`SceneError` naming ``out`` (nothing is written).
     """
+    from brdfpipe import render
+
     out = Path(out)
     mi = _mitsuba()
     passes = pass_seeds(spp, seed, pass_spp)
@@ -432,7 +434,7 @@ def render_to_exr(
         raise ValueError(f"{out}: attrs may not set {', '.join(clash)} (render_to_exr records them)")
     say = progress if progress is not None else logger.info
     try:
-        loaded = mi.load_dict(dict(scene))
+        loaded = render.load_scene(scene)
     except Exception as exc:
         raise SceneError(f"{out}: Mitsuba could not load the scene: {exc}") from exc
 
