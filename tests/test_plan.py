@@ -219,3 +219,12 @@ def test_every_rule_has_a_memory_model_that_grows_with_retries() -> None:
         assert 100 <= first < second < third and first % 50 == 0
         assert plan.mem_mb(rule, 1000) >= first  # never shrinks with more materials
     assert plan.mem_mb("map_logrelative", 1000) > 5 * plan.mem_mb("map_logrelative", 100) / 2
+
+
+def test_memory_grows_with_the_outputs_a_job_holds() -> None:
+    """interpolate_path_points holds one table per path point: its mem_mb grows with them, other rules' do not."""
+    one = plan.mem_mb("interpolate_path_points", 100, outputs=1)
+    nine = plan.mem_mb("interpolate_path_points", 100, outputs=9)
+    extra = 8 * plan.PER_OUTPUT_MB["interpolate_path_points"] * plan.MEMORY_HEADROOM
+    assert extra - 50 <= nine - one <= extra + 50
+    assert plan.mem_mb("prerender_material", 100, outputs=9) == plan.mem_mb("prerender_material", 100)

@@ -248,9 +248,8 @@ def render_figures(n_path_points: int) -> dict[str, list[str]]:
 #: through the peak RSS (``max_rss`` of the benchmark files) of the default run
 #: (N = 100, synthetic database, 2-core AMD EPYC) and of the tiny-point run
 #: (N = 6); the local rules and ``interpolate_path_points`` were measured at
-#: N = 100 with ``/usr/bin/time`` on the same run's inputs.  A third number,
-#: where present, is MB per output of a job that writes many
-#: (:data:`PER_OUTPUT_MB`).  A slope 0 means the
+#: N = 100 with ``/usr/bin/time`` on the same run's inputs (one path point;
+#: each further point adds :data:`PER_OUTPUT_MB`).  A slope 0 means the
 #: two sizes peaked alike.  ``benches/bench_memory.py`` prints measured vs
 #: declared for any finished run.  The declared value (:func:`mem_mb`) adds
 #: :data:`MEMORY_HEADROOM` on top.
