@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import pytest
 import scipy.spatial
 import scipy.stats
 
-from brdfpipe import latent
+from brdfpipe import gplvm, latent, manifold, store, synth
 
 # --------------------------------------------------------------------------
 # hull_contains
@@ -138,3 +140,155 @@ def test_sample_in_hull_is_deterministic_given_the_seed() -> None:
     seg = np.array([[0.0, 0], [2, 2]])
     s = latent.sample_in_hull(seg, 1000, np.random.default_rng(1))
     assert np.allclose(s[:, 0], s[:, 1]) and 0 <= s.min() and s.max() <= 2
+
+
+# --------------------------------------------------------------------------
+# Models by hand
+# --------------------------------------------------------------------------
+
+
+def _model(X: np.ndarray, names: Sequence[str], ell: float = 1.0, mu: float = 1e-4, space: str = "raw"
+           ) -> gplvm.GplvmModel:
+    X = np.asarray(X, dtype=np.float64)
+    chol = np.linalg.cholesky(gplvm.kernel_matrix(X, ell, mu))
+    return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gplvm.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)))
+
+
+def _albedo_by_weights(model: gplvm.GplvmModel, A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Independent route: gplvm.weights point by point."""
+    return gplvm.blend_weights(gplvm.weights(model, x)) @ A
+
+
+def test_nearest_materials_units_order_ties_and_exclusion() -> None:
+    m = _model([[0.0, 0.0], [0.0, 4.0], [4.0, 0.0], [1.0, 1.0]], ["zeta", "beta", "alpha", "mid"], ell=2.0)
+    # from the origin: zeta 0, mid √2/2, then alpha and beta tie at 4/ℓ = 2: by name
+    got = latent.nearest_materials(m, [0.0, 0.0], k=4)
+    assert [n for n, _ in got] == ["zeta", "mid", "alpha", "beta"]
+    assert np.allclose([d for _, d in got], [0.0, np.sqrt(2) / 2, 2.0, 2.0])
+    assert latent.nearest_materials(m, [0.0, 0.0], k=3)[-1][0] == "alpha"
+    assert len(latent.nearest_materials(m, "mid", k=10)) == 4
+    got = latent.nearest_materials(m, "beta", k=2, exclude=["beta"])
+    assert got == [("mid", pytest.approx(np.sqrt(10) / 2)), ("zeta", pytest.approx(2.0))]
+    with pytest.raises(ValueError, match="unknown material 'nope'"):
+        latent.nearest_materials(m, "nope")
+    with pytest.raises(ValueError, match="q = 2"):
+        latent.nearest_materials(m, [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="k must be"):
+        latent.nearest_materials(m, [0.0, 0.0], k=0)
+
+
+def test_blend_weights_at_equals_gplvm_weights_point_by_point() -> None:
+    rng = np.random.default_rng(7)
+    X = rng.normal(size=(9, 3))
+    m = _model(X, [f"m{i}" for i in range(9)], ell=1.3, mu=1e-3)
+    pts = np.vstack([rng.normal(size=(5, 3)), X[4]])  # the last: exactly a training point (δ term)
+    W = latent.blend_weights_at(m, pts)
+    for p, w in zip(pts, W):
+        assert np.allclose(w, gplvm.blend_weights(gplvm.weights(m, p)), atol=1e-10)
+    assert np.allclose(W[-1], np.eye(9)[4], atol=1e-8) and np.allclose(W.sum(axis=1), 1.0)
+
+
+_A3 = np.array([[0.2, 0.3, 0.1], [0.5, 0.6, 0.3], [0.8, 0.9, 0.5]])
+
+
+@pytest.mark.parametrize(("start", "through", "reason", "channel"), [
+    ("A", "B", "albedo above 1", "g"),  # beyond C the green albedo passes 1 first
+    ("C", "B", "albedo below 0", "b"),  # beyond A the blue albedo drops below 0 first
+])
+def test_extrapolate_stops_at_the_first_step_leaving_0_1(start: str, through: str, reason: str, channel: str) -> None:
+    m = _model([[0.0], [1.0], [2.0]], ["A", "B", "C"], ell=3.0)
+    e = latent.extrapolate(m, _A3, start, through, step=0.05, max_s=5.0)
+    assert e.reason == reason and e.channel == channel
+    # independently: walk with gplvm.weights until the first albedo outside [0, 1]
+    x0, x1 = m.X[m.names.index(start)], m.X[m.names.index(through)]
+    k = 0
+    while True:
+        a = _albedo_by_weights(m, _A3, x0 + k * 0.05 * (x1 - x0))
+        assert np.allclose(e.albedos[k], a, atol=1e-9)
+        if (a > 1).any() or (a < 0).any():
+            break
+        k += 1
+    assert k > 20 and len(e.s) == k + 1  # well beyond the material B at s = 1
+    assert e.stop_s == pytest.approx(k * 0.05) and e.last_valid_s == pytest.approx((k - 1) * 0.05)
+    bad = e.albedos[-1][latent._CHANNELS.index(channel)]
+    assert (bad > 1) if reason == "albedo above 1" else (bad < 0)
+    assert ((e.albedos[:-1] >= 0) & (e.albedos[:-1] <= 1)).all()
+    assert np.allclose(e.point(1.0), x1) and np.allclose(e.last_valid_point, x0 + e.last_valid_s * (x1 - x0))
+
+
+def test_extrapolate_max_s_direction_vectors_and_errors() -> None:
+    m = _model([[0.0], [1.0], [2.0]], ["A", "B", "C"], ell=3.0)
+    e = latent.extrapolate(m, _A3, "A", [1.0], step=0.25, max_s=1.0)
+    assert e.reason == "max_s reached" and e.stop_s is None and e.last_valid_s == 1.0
+    assert np.allclose(e.s, [0, 0.25, 0.5, 0.75, 1.0]) and np.allclose(e.albedos[-1], _A3[1])
+    # a start outside [0, 1] already: no valid step
+    A = _A3.copy()
+    A[0, 2] = 1.5
+    e = latent.extrapolate(m, A, "A", "B")
+    assert e.last_valid_s is None and e.stop_s == 0.0 and e.reason == "albedo above 1" and e.channel == "b"
+    with pytest.raises(ValueError, match="step"):
+        latent.extrapolate(m, _A3, "A", "B", step=0)
+    with pytest.raises(ValueError, match="zero"):
+        latent.extrapolate(m, _A3, "B", "B")
+    with pytest.raises(ValueError, match="albedos must be"):
+        latent.extrapolate(m, _A3[:2], "A", "B")
+    with pytest.raises(ValueError, match="not linear"):
+        latent.extrapolate(_model(m.X, m.names, space="log"), _A3, "A", "B")
+
+
+def test_sample_material_rejects_implausible_albedos_and_is_seeded() -> None:
+    X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 0.5]])
+    A = np.array([[1.6, 0.5, 0.5], [0.2, 0.3, 0.4], [0.5, 0.5, 0.5], [0.3, 0.2, 0.1], [0.4, 0.4, 0.4]])
+    m = _model(X, ["a", "b", "c", "d", "e"], ell=0.7)
+    s = latent.sample_material(m, A, np.random.default_rng(4), n=200)
+    assert s.points.shape == (200, 2) and s.weights.shape == (200, 5) and s.albedos.shape == (200, 3)
+    assert latent.hull_contains(X, s.points).all()
+    assert ((s.albedos >= 0) & (s.albedos <= 1)).all()
+    assert np.allclose(s.weights, latent.blend_weights_at(m, s.points)) and np.allclose(s.albedos, s.weights @ A)
+    # the corner near "a" is implausible: rejections happened, and the same candidates are what was drawn
+    assert s.tries > 200
+    cand = latent.sample_in_hull(X, 400, np.random.default_rng(4))
+    ok = ((latent.latent_albedos(m, A, cand) >= 0) & (latent.latent_albedos(m, A, cand) <= 1)).all(axis=1)
+    assert 0.05 < 1 - ok.mean() < 0.95
+    again = latent.sample_material(m, A, np.random.default_rng(4), n=200)
+    assert np.array_equal(again.points, s.points) and again.tries == s.tries
+    with pytest.raises(ValueError, match="only 0 of 3"):
+        latent.sample_material(m, A + 2.0, np.random.default_rng(0), n=3, max_tries=500)
+
+
+# --------------------------------------------------------------------------
+# With a store: the albedo of the interpolated table
+# --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    tmp = tmp_path_factory.mktemp("latent")
+    db = tmp / "db"
+    synth.synthesize(db, count=5, seed=2, jobs=1, progress=False)
+    zarr_path = tmp / "merl.zarr"
+    store.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
+    names = list(store.open_store(zarr_path).materials)
+    X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.4, 0.6]])
+    return {"tmp": tmp, "store": zarr_path, "names": names, "X": X,
+            "albedos": manifold.material_albedos(zarr_path, names)}
+
+
+def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -> None:
+    pts = np.array([[0.3, 0.2], [0.9, 0.7], [0.0, 0.0]])
+    for space in ("raw", "log"):
+        m = _model(tiny["X"], tiny["names"], ell=0.8, space=space)
+        got = latent.latent_albedos(m, tiny["store"], pts, exact=True)
+        for p, a in zip(pts, got):
+            w = gplvm.blend_weights(gplvm.weights(m, p))
+            table, clamped = gplvm.interpolate_table(tiny["store"], w, materials=m.names, space=space)
+            assert np.allclose(a, manifold.material_albedo(table), rtol=1e-9, atol=0), space
+        assert np.allclose(got[2], tiny["albedos"][0], rtol=1e-6)  # a training point reproduces its material
+        linear = latent.blend_weights_at(m, pts) @ tiny["albedos"]
+        default = latent.latent_albedos(m, tiny["store"], pts)
+        if space == "raw":
+            # w·A, which ignores the clamping of the negative values that these weights produce
+            assert np.allclose(default, linear, rtol=1e-12) and np.allclose(default[2], got[2], rtol=1e-6)
+            assert not np.allclose(default[:2], got[:2], rtol=1e-3)
+        else:  # the log blend is not the blend of the albedos: the table is always formed
+            assert np.array_equal(default, got) and not np.allclose(got[:2], linear[:2], rtol=1e-3)
