@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import json
+import types
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.spatial
 import scipy.stats
 
-from brdfpipe import gplvm, latent, manifold, store, synth
+from brdfpipe import cli, gplvm, latent, manifold, merl, store, synth
 
 # --------------------------------------------------------------------------
 # hull_contains
@@ -292,3 +295,103 @@ def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -
             assert not np.allclose(default[:2], got[:2], rtol=1e-3)
         else:  # the log blend is not the blend of the albedos: the table is always formed
             assert np.array_equal(default, got) and not np.allclose(got[:2], linear[:2], rtol=1e-3)
+
+
+# --------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def model_file(tiny: dict) -> Path:
+    """A hand-placed raw-space model of the tiny store, saved like the workflow's fits."""
+    fit = types.SimpleNamespace(X=tiny["X"], ell=2.0, mu=1e-4, log_likelihood=0.0, d=1.0,
+                                trace=[(0, 0.0)], method="hybrid")
+    path = tiny["tmp"] / "q2.npz"
+    gplvm.save_model(path, fit, tiny["names"], space="raw")  # type: ignore[arg-type]
+    return path
+
+
+def _one_line_error(capsys: pytest.CaptureFixture[str], *needles: str) -> None:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and all(n in err for n in needles), err
+
+
+def test_cli_nearest(tiny: dict, model_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    names = tiny["names"]
+    capsys.readouterr()
+    assert cli.main(["-q", "nearest", "--model", str(model_file), "--material", names[4], "-k", "3"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    # x = (0.4, 0.6): nearest is (0, 1) at √0.32, then (0, 0) and (1, 1) tie at √0.52 (ℓ = 2): by name
+    assert names[0] < names[3]
+    assert [g["material"] for g in got] == [names[2], names[0], names[3]]
+    assert np.allclose([g["latent_distance"] for g in got], np.sqrt([0.32, 0.52, 0.52]) / 2)
+    assert cli.main(["-q", "nearest", "--model", str(model_file), "--at", "1,0.1", "-k", "1"]) == 0
+    assert json.loads(capsys.readouterr().out)[0]["material"] == names[1]
+    assert cli.main(["-q", "nearest", "--model", str(model_file), "--material", "nope"]) == 1
+    _one_line_error(capsys, "--material", "nope", str(model_file))
+    assert cli.main(["-q", "nearest", "--model", str(model_file), "--at", "1,2,3"]) == 1
+    _one_line_error(capsys, "--at", "q = 2")
+    assert cli.main(["-q", "nearest", "--model", str(tiny["tmp"] / "missing.npz"), "--at", "1,2"]) == 1
+    _one_line_error(capsys, "missing.npz")
+
+
+def test_cli_extrapolate_writes_the_last_valid_material(
+    tiny: dict, model_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    names, st = tiny["names"], str(tiny["store"])
+    out = tmp_path / "last.binary"
+    capsys.readouterr()
+    assert cli.main(["-q", "extrapolate", "--model", str(model_file), "--store", st, "--from", names[0],
+                     "--through", names[1], "--step", "0.05", "--max-s", "3", "--out", str(out)]) == 0
+    got = json.loads(capsys.readouterr().out)
+    model = gplvm.load_model(model_file)
+    e = latent.extrapolate(model, tiny["albedos"], names[0], names[1], step=0.05, max_s=3.0)
+    assert got["reason"] == e.reason == "albedo above 1" and 1.0 < got["stop_s"] < 3.0
+    assert got["last_valid_s"] == pytest.approx(got["stop_s"] - 0.05)
+    assert max(got["albedo_at_stop"]) > 1 and max(got["albedo_last_valid"]) <= 1
+    w = gplvm.blend_weights(gplvm.weights(model, e.last_valid_point))
+    table, _ = gplvm.interpolate_table(tiny["store"], w, materials=model.names, space="raw")
+    assert np.allclose(merl.read_merl(out), table, rtol=1e-12)
+    capsys.readouterr()
+    assert cli.main(["-q", "extrapolate", "--model", str(model_file), "--store", st, "--from", names[0],
+                     "--through", "nope"]) == 1
+    _one_line_error(capsys, "--through", "nope")
+    assert cli.main(["-q", "extrapolate", "--model", str(model_file), "--store", st, "--from", names[0],
+                     "--through", names[1], "--out", st]) == 1
+    _one_line_error(capsys, "would write over the input")
+
+
+def test_cli_sample_writes_seeded_plausible_materials(
+    tiny: dict, model_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    st = str(tiny["store"])
+    args = ["-q", "sample", "--model", str(model_file), "--store", st, "--seed", "5", "--count", "3"]
+    assert cli.main([*args, "--out-dir", str(tmp_path / "a")]) == 0
+    meta = json.loads((tmp_path / "a" / "samples.json").read_text())
+    assert meta["count"] == 3 and len(meta["samples"]) == 3 and meta["candidates_drawn"] >= 3
+    model = gplvm.load_model(model_file)
+    pts = np.array([r["latent"] for r in meta["samples"]])
+    assert latent.hull_contains(model.X, pts).all()
+    for r in meta["samples"]:
+        alb = np.array(r["albedo"])
+        assert ((alb >= 0) & (alb <= 1)).all()
+        w = np.array([r["weights"][n] for n in model.names])
+        assert np.allclose(w, latent.blend_weights_at(model, np.array(r["latent"]))[0])
+        assert np.allclose(alb, w @ tiny["albedos"])
+        table, _ = gplvm.interpolate_table(tiny["store"], w, materials=model.names, space="raw")
+        assert np.allclose(merl.read_merl(tmp_path / "a" / r["file"]), table, rtol=1e-12)
+    rows = (tmp_path / "a" / "samples.csv").read_text().splitlines()
+    assert len(rows) == 4 and rows[0].startswith("file,x1,x2,albedo_r")
+    # the same seed gives the same files; another seed other points
+    assert cli.main([*args, "--out-dir", str(tmp_path / "b")]) == 0
+    for r in meta["samples"]:
+        assert (tmp_path / "a" / r["file"]).read_bytes() == (tmp_path / "b" / r["file"]).read_bytes()
+    args[args.index("5")] = "6"
+    assert cli.main([*args, "--out-dir", str(tmp_path / "c")]) == 0
+    other = json.loads((tmp_path / "c" / "samples.json").read_text())
+    assert other["samples"][0]["latent"] != meta["samples"][0]["latent"]
+    capsys.readouterr()
+    assert cli.main(["-q", "sample", "--model", str(model_file), "--store", str(tmp_path / "no.zarr"),
+                     "--seed", "1", "--count", "1", "--out-dir", str(tmp_path / "d")]) == 1
+    _one_line_error(capsys, "no.zarr")

@@ -6,6 +6,9 @@ Subcommands::
     brdfpipe ingest DIR --out results/merl.zarr [--jobs J]
     brdfpipe info   results/merl.zarr
     brdfpipe interpolate --model results/gplvm/q5.npz (--at x1,…,xq | --between A B [--t 0.5]) --out F.binary
+    brdfpipe nearest --model M (--at x1,…,xq | --material NAME) [-k 5]
+    brdfpipe extrapolate --model M --store S --from A --through B [--step 0.05] [--max-s 3] [--out F.binary]
+    brdfpipe sample --model M --store S --seed N --count K --out-dir DIR
     brdfpipe reconstruct OBSERVATIONS --model results/svd/train.zarr --out FILE.binary [--eta η]
     brdfpipe render MATERIAL.binary --out IMAGE.exr [--spp N] [--resolution W H] [--variant V]
 
@@ -129,6 +132,108 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_nearest(args: argparse.Namespace) -> int:
+    from brdfpipe import gplvm, latent
+
+    model = gplvm.load_model(args.model)
+    if args.material is not None:
+        if args.material not in model.names:
+            raise ValueError(f"--material: {args.material!r} is not a material of {args.model}")
+        found = latent.nearest_materials(model, args.material, args.k, exclude=[args.material])
+    else:
+        q = model.X.shape[1]
+        if len(args.at) != q:
+            raise ValueError(f"--at: {args.model} has q = {q} latent coordinates, got {len(args.at)}")
+        found = latent.nearest_materials(model, args.at, args.k)
+    print(json.dumps([{"material": n, "latent_distance": d} for n, d in found], indent=2))
+    return 0
+
+
+def _cmd_extrapolate(args: argparse.Namespace) -> int:
+    from brdfpipe import gplvm, latent, merl
+
+    if args.out is not None:
+        check_not_input(args.out, [args.model, args.store])
+    model = gplvm.load_model(args.model)
+    for flag, name in (("--from", args.start), ("--through", args.through)):
+        if name not in model.names:
+            raise ValueError(f"{flag}: {name!r} is not a material of {args.model}")
+    if args.start == args.through:
+        raise ValueError("--from and --through name the same material; give two different ones")
+    e = latent.extrapolate(model, args.store, args.start, args.through, step=args.step, max_s=args.max_s,
+                           exact=args.exact)
+    last = len(e.s) - 2 if e.stop_s is not None else len(e.s) - 1  # index of the last valid step
+    summary = {
+        "from": args.start, "through": args.through, "step": args.step, "max_s": args.max_s,
+        "reason": e.reason, "channel": e.channel,
+        "last_valid_s": None if e.last_valid_s is None else round(e.last_valid_s, 12),
+        "stop_s": None if e.stop_s is None else round(e.stop_s, 12),
+        "albedo_last_valid": None if e.last_valid_s is None else e.albedos[last].tolist(),
+        "albedo_at_stop": None if e.stop_s is None else e.albedos[-1].tolist(),
+        "out": args.out,
+    }
+    if args.out is not None:
+        point = e.last_valid_point
+        if point is None:
+            raise ValueError(f"the albedo at {args.start} itself is outside [0, 1]; nothing to write to {args.out}")
+        w = gplvm.blend_weights(gplvm.weights(model, point))
+        table, clamped = gplvm.interpolate_table(args.store, w, materials=model.names, space=model.space)
+        merl.write_merl(args.out, table)
+        summary["clamped_values"] = clamped  # negative interpolated values written as 0
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+def _cmd_sample(args: argparse.Namespace) -> int:
+    import csv
+    import io
+    from pathlib import Path
+
+    import numpy as np
+
+    from brdfpipe import atomic, gplvm, latent, merl
+
+    out_dir = Path(args.out_dir)
+    check_not_input(out_dir, [args.model, args.store], what="--out-dir")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"--out-dir {out_dir}: exists and is not a folder")
+    model = gplvm.load_model(args.model)
+    s = latent.sample_material(model, args.store, np.random.default_rng(args.seed), args.count,
+                               max_tries=args.max_tries, exact=args.exact)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = [f"sample-{i:03d}.binary" for i in range(args.count)]
+    for a in range(0, args.count, 4):
+        tables, _ = gplvm.interpolate_tables(args.store, s.weights[a : a + 4], materials=model.names,
+                                             space=model.space)
+        for j, table in enumerate(tables):
+            merl.write_merl(out_dir / files[a + j], table)
+    q = model.X.shape[1]
+    rows = []
+    for i, name in enumerate(files):
+        w = s.weights[i]
+        top = np.argsort(-w, kind="stable")[:3]
+        rows.append({
+            "file": name, "latent": s.points[i].tolist(), "albedo": s.albedos[i].tolist(),
+            "top_weights": {model.names[j]: float(w[j]) for j in top},
+            "negative_weight_sum": float(w[w < 0].sum()),
+            "weights": {n: float(v) for n, v in zip(model.names, w)},
+        })
+    meta = {"model": str(args.model), "store": str(args.store), "seed": args.seed, "count": args.count,
+            "space": model.space, "exact_albedo": bool(args.exact), "candidates_drawn": s.tries, "samples": rows}
+    buf = io.StringIO()
+    wr = csv.writer(buf, lineterminator="\n")
+    wr.writerow(["file", *(f"x{k + 1}" for k in range(q)), "albedo_r", "albedo_g", "albedo_b",
+                 "top_material", "top_weight", "negative_weight_sum"])
+    for r in rows:
+        (tn, tw), = list(r["top_weights"].items())[:1]
+        wr.writerow([r["file"], *(repr(v) for v in r["latent"]), *(repr(v) for v in r["albedo"]), tn, repr(tw),
+                     repr(r["negative_weight_sum"])])
+    atomic.write_text(out_dir / "samples.csv", buf.getvalue())
+    atomic.write_text(out_dir / "samples.json", json.dumps(meta, indent=2) + "\n")
+    print(out_dir / "samples.json")
+    return 0
+
+
 def _cmd_render(args: argparse.Namespace) -> int:
     import tempfile
 
@@ -183,6 +288,39 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--store", default="results/merl.zarr", help="the store the model was fitted to")
     p.add_argument("--out", required=True, help="MERL file to write")
     p.set_defaults(func=_cmd_interpolate)
+
+    p = sub.add_parser("nearest", help="the training materials nearest a point of a GPLVM latent space")
+    p.add_argument("--model", required=True, help="a fit written by the workflow (results/gplvm/q5.npz)")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--at", type=_latent_point, help="latent point x1,…,xq")
+    where.add_argument("--material", help="a material of the model (itself left out of the answer)")
+    p.add_argument("-k", "--k", type=_positive_int, default=5, help="how many (default 5)")
+    p.set_defaults(func=_cmd_nearest)
+
+    p = sub.add_parser("extrapolate", help="walk from material A through B until the albedo leaves [0, 1]")
+    p.add_argument("--model", required=True, help="a fit written by the workflow (results/gplvm/q5.npz)")
+    p.add_argument("--store", default="results/merl.zarr", help="the store the model was fitted to")
+    p.add_argument("--from", dest="start", required=True, metavar="A", help="start material (s = 0)")
+    p.add_argument("--through", required=True, metavar="B", help="material at s = 1")
+    p.add_argument("--step", type=_positive_float, default=0.05, help="step in s (default 0.05)")
+    p.add_argument("--max-s", type=_non_negative_float, default=3.0, help="farthest s (default 3)")
+    p.add_argument("--exact", action="store_true",
+                   help="albedo of the clamped interpolated table (slow) instead of w·A in linear spaces")
+    p.add_argument("--out", default=None, help="MERL file to write the last valid material to")
+    p.set_defaults(func=_cmd_extrapolate)
+
+    p = sub.add_parser("sample", help="sample plausible new materials uniformly in the latent hull")
+    p.add_argument("--model", required=True, help="a fit written by the workflow (results/gplvm/q5.npz)")
+    p.add_argument("--store", default="results/merl.zarr", help="the store the model was fitted to")
+    p.add_argument("--seed", type=int, required=True, help="seed of every random choice")
+    p.add_argument("--count", type=_positive_int, required=True, help="number of materials")
+    p.add_argument("--max-tries", type=_positive_int, default=None,
+                   help="most candidates drawn (default max(1000, 100 × count))")
+    p.add_argument("--exact", action="store_true",
+                   help="albedo of the clamped interpolated table (slow) instead of w·A in linear spaces")
+    p.add_argument("--out-dir", required=True,
+                   help="folder for sample-NNN.binary, samples.json and samples.csv (created if needed)")
+    p.set_defaults(func=_cmd_sample)
 
     p = sub.add_parser("info", help="validate a store and print a summary")
     p.add_argument("store", help="path of a store written by ingest")
