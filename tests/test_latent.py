@@ -395,3 +395,20 @@ def test_cli_sample_writes_seeded_plausible_materials(
     assert cli.main(["-q", "sample", "--model", str(model_file), "--store", str(tmp_path / "no.zarr"),
                      "--seed", "1", "--count", "1", "--out-dir", str(tmp_path / "d")]) == 1
     _one_line_error(capsys, "no.zarr")
+
+
+@pytest.mark.parametrize("method", ["rejection", "cones"])
+def test_samples_uniform_in_an_irregular_polygon(method: str) -> None:
+    # cones from the vertex mean have unequal areas here (a uniform choice of cone would fail)
+    P = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 0.5], [0.3, 2.0], [-0.5, 0.4]])
+    s = latent.sample_in_hull(P, 20000, np.random.default_rng(8), method=method)
+    assert latent.hull_contains(P, s).all()
+    # area of the part x > 3: clip the polygon by the half-plane (vertices right of it + edge crossings)
+    pts = [p for p in P if p[0] > 3]
+    for a, b in zip(P, np.roll(P, -1, axis=0)):
+        if (a[0] - 3) * (b[0] - 3) < 0:
+            t = (3 - a[0]) / (b[0] - a[0])
+            pts.append(a + t * (b - a))
+    share = scipy.spatial.ConvexHull(np.array(pts)).volume / scipy.spatial.ConvexHull(P).volume
+    assert 0.1 < share < 0.2  # 0.128; cones chosen uniformly instead of by area would give 0.175
+    assert _binomial_ok(int((s[:, 0] > 3).sum()), 20000, share)

@@ -63,7 +63,7 @@ clamped table, red channel, 1.0 M clamped values, in
 In the ``log`` space
 the blend is of log-mapped values, so the table itself is formed
 (:func:`brdfpipe.gplvm.interpolate_tables`) and its albedo computed
-(:func:`brdfpipe.manifold.material_albedo`) — exact, and ~1 s per point.
+(:func:`brdfpipe.manifold.material_albedo`) — exact, one pass over the store per 4 points.
 """
 
 from __future__ import annotations
@@ -210,7 +210,7 @@ def hull_contains(X: ArrayLike, points: ArrayLike, *, method: str = "auto") -> N
     docstring, "Hull geometry".  Points on the boundary count as inside
     (tolerance ``1e-9`` × the size of the set).  ``method``: "auto" (Qhull
     half-spaces, the LP test if Qhull fails), "qhull" or "lp" (one linear
-    program per point: exact but ~1 ms each).  ValueError for bad shapes or
+    program per point: exact but ~2 ms each).  ValueError for bad shapes or
     non-finite values.
     """
     if method not in HULL_METHODS:
@@ -438,8 +438,8 @@ def latent_albedos(
 
     ``source``: the materials' albedos ``(N, 3)`` in model order
     (:func:`brdfpipe.manifold.material_albedos`; linear data spaces only) or
-    the store (any space; in the log space the tables are formed, ~1 s per
-    point).  ``exact``: form the table in every space (needs the store), so
+    the store (any space; in the log space the tables are formed, one store pass per 4
+    points).  ``exact``: form the table in every space (needs the store), so
     the clamping of negative interpolated values counts.  See the module
     docstring, "Albedo at a latent point".
     """
