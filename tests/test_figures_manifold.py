@@ -22,6 +22,7 @@ import pytest
 
 from brdfpipe import figures, gplvm
 from brdfpipe.filenames import MANIFOLD_FIGURE_STEMS
+from brdfpipe.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
 from brdfpipe.figures import (
     ALBEDO_COLUMNS,
     PATHS_COLUMNS,
@@ -108,8 +109,11 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
         w = w / (w.sum(-1, keepdims=True) + 1e-3)
         alb = np.einsum("hwn,nc->hwc", w, rgb) + 1e-3 * rgb.mean(axis=0)
         maps[q] = root / "manifold" / f"albedo-map-q{q}.npz"
+        inside = (gx - X[:, 0].mean()) ** 2 + (gy - X[:, 1].mean()) ** 2 < (0.3 * (hi[0] - lo[0])) ** 2
         np.savez(maps[q], x=x, y=y, dims=dims, albedo=alb, luminance=alb @ np.array([0.2126, 0.7152, 0.0722]),
-                 fixed=fixed, q=np.array(q), database=np.array(database))
+                 fixed=fixed, q=np.array(q), database=np.array(database), inside_hull=inside,
+                 bad_inside=np.array(0.0), bad_outside=np.array(0.25), training_gap_median=np.array(1e-4),
+                 training_gap_max=np.array(3e-3))
 
     rows = []
     for pid, q, a, b in PATHS:
@@ -136,8 +140,22 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
         for q in QS:
             rows.append([database, "raw", n, "gplvm", q, repr(0.0 if i % 3 == 0 else (i % 5 + 1) * 1e-16)])
     repro_csv = _write_csv(root / "manifold" / "reproduction.csv", REPRODUCTION_COLUMNS, rows)
+    rows, srows = [], []
+    for c, (space, mu) in {"standardised-mu1e-06": ("standardised", 1e-6), "raw-mu0.0001": ("raw", 1e-4)}.items():
+        for q in QS:
+            r = {k: 0.5 for k in SPACE_COLUMNS}
+            r.update(database=database, candidate=c, space=space, mu=mu, q=q, default=str(space != "raw").lower(),
+                     kappa=1e4 if space != "raw" else 1e6, albedo_bad_hull=0.001 if space != "raw" else 0.2,
+                     albedo_bad_map=0.01 if q == 2 else float("nan"))
+            rows.append([r[k] for k in SPACE_COLUMNS])
+            for norm in ("raw", "space"):
+                for eps in (1e-9, 1e-6, 1e-3):
+                    med = (1e-5 if space != "raw" else 0.08) + eps
+                    srows.append([database, c, space, mu, q, norm, eps, med, 2 * med, 3 * med])
+    spaces_csv = _write_csv(root / "manifold" / "spaces.csv", SPACE_COLUMNS, rows)
+    stability_csv = _write_csv(root / "manifold" / "spaces-stability.csv", STABILITY_COLUMNS, srows)
     return dict(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=maps, paths_csv=paths_csv,
-                reproduction_csv=repro_csv)
+                reproduction_csv=repro_csv, spaces_csv=spaces_csv, stability_csv=stability_csv)
 
 
 @pytest.fixture(scope="module")
@@ -165,7 +183,7 @@ def outputs(inputs: dict[str, object], tmp_path_factory: pytest.TempPathFactory)
 def test_writes_every_figure(outputs: tuple[Path, list[Path]]) -> None:
     out, files = outputs
     expected = [out / f"{stem}.{ext}" for stem in MANIFOLD_FIGURE_STEMS.values() for ext in ("png", "pdf")]
-    assert files == expected and len(files) == 14
+    assert files == expected and len(files) == 16
     assert files == [p for v in figure_map(out).values() for p in v]
     for p in files:
         assert p.is_file() and p.stat().st_size > 1000, p
@@ -346,7 +364,7 @@ def test_inconsistent_inputs(inputs: dict[str, object], tmp_path: Path) -> None:
 
 def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """Database from the inputs (merl → "MERL database"); no traces, no maps, only the q = 2 model: still
-    14 files (the empty panels say so; warnings logged)."""
+    16 files (the empty panels say so; warnings logged)."""
     kw = write_inputs(tmp_path / "in", database="merl")
     with Path(kw["paths_csv"]).open(encoding="utf-8", newline="") as fh:  # type: ignore[arg-type]
         recs = [r for r in csv.DictReader(fh) if r["q"] == "2"]
@@ -354,7 +372,7 @@ def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     with caplog.at_level(logging.WARNING, logger="brdfpipe.figures"):
         files = make_manifold_figures(**{**kw, "models": {2: kw["models"][2]}, "traces": {}, "albedo_maps": {},  # type: ignore[index]
                                          "paths_csv": paths}, figures=figure_map(tmp_path / "out"))
-    assert len(files) == 14 and all(p.is_file() for p in files)
+    assert len(files) == 16 and all(p.is_file() for p in files)
     assert files_under(tmp_path / "out") == sorted(files)
     for p in files:
         assert b"MERL database" in p.read_bytes(), p.name

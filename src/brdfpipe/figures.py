@@ -1136,7 +1136,10 @@ PATHS_COLUMNS: tuple[str, ...] = (
 #: Columns of ``reproduction.csv``.
 REPRODUCTION_COLUMNS: tuple[str, ...] = ("database", "space", "material", "method", "k", "relative_error")
 #: Arrays of an albedo map npz.
-ALBEDO_MAP_KEYS: tuple[str, ...] = ("x", "y", "dims", "albedo", "luminance", "fixed", "q", "database")
+ALBEDO_MAP_KEYS: tuple[str, ...] = (
+    "x", "y", "dims", "albedo", "luminance", "fixed", "q", "database", "inside_hull", "bad_inside", "bad_outside",
+    "training_gap_median", "training_gap_max",
+)
 
 #: Most path panels drawn in Figs. 9 and eq. 7 (the first paths of paths.csv, in file order).
 MAX_PATH_PANELS: int = 6
@@ -1262,6 +1265,13 @@ class AlbedoMap:
     albedo: np.ndarray
     luminance: np.ndarray
     fixed: np.ndarray
+    #: (H, W): grid point inside the convex hull of the q-dimensional training points.
+    inside_hull: np.ndarray
+    #: Share of grid points inside / outside the hull with albedo outside [0, 1] (NaN: no such point).
+    bad_inside: float
+    bad_outside: float
+    #: Luminance |A_map(xᵢ) − Aᵢ| of the smooth map at the training points: median, max.
+    training_gap: tuple[float, float]
 
 
 def read_albedo_map(path: str | os.PathLike[str]) -> AlbedoMap:
@@ -1315,7 +1325,15 @@ def read_albedo_map(path: str | os.PathLike[str]) -> AlbedoMap:
     db = str(arrays["database"].reshape(()) if arrays["database"].size == 1 else "").strip()
     if not db:
         raise FigureInputError(f"{p}: empty or missing 'database'")
-    return AlbedoMap(p, db, q, dims, x, y, albedo, lum, fixed)
+    inside = arrays["inside_hull"]
+    if inside.shape != (H, W) or inside.dtype != bool:
+        raise FigureInputError(f"{p}: 'inside_hull' must be a boolean {(H, W)} array, got {inside.dtype} {inside.shape}")
+    try:
+        stats = [float(arrays[k].reshape(())) for k in ("bad_inside", "bad_outside", "training_gap_median",
+                                                         "training_gap_max")]
+    except (TypeError, ValueError) as exc:
+        raise FigureInputError(f"{p}: the hull statistics must be single numbers ({exc})") from exc
+    return AlbedoMap(p, db, q, dims, x, y, albedo, lum, fixed, inside, stats[0], stats[1], (stats[2], stats[3]))
 
 
 @dataclass(frozen=True)
@@ -1455,6 +1473,66 @@ def _read_model(path: str | os.PathLike[str], q: int) -> Any:
     return model
 
 
+SPACES_FIGURE_COLUMNS: tuple[str, ...] = (
+    "database", "candidate", "space", "mu", "q", "default", "kappa", "albedo_bad_hull", "albedo_bad_map",
+    "sum_abs_w_hull_median", "sum_abs_w_path_max", "nn_median",
+)
+STABILITY_FIGURE_COLUMNS: tuple[str, ...] = ("database", "candidate", "q", "norm", "epsilon", "median", "p90")
+
+
+@dataclass(frozen=True)
+class SpacesTable:
+    """``spaces.csv`` and ``spaces-stability.csv`` of :mod:`brdfpipe.fidelity`."""
+
+    path: Path
+    database: str
+    default: str
+    #: (candidate, q) → the row's numbers (NaN where the measure does not apply).
+    rows: dict[tuple[str, int], dict[str, float]]
+    #: (candidate, q, norm) → (ε, median, p90) arrays sorted by ε.
+    stability: dict[tuple[str, int, str], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+    @property
+    def candidates(self) -> list[str]:
+        return sorted({c for c, _ in self.rows}, key=lambda c: (c != self.default, c))
+
+    @property
+    def dims(self) -> list[int]:
+        return sorted({q for _, q in self.rows})
+
+
+def read_spaces(spaces_csv: str | os.PathLike[str], stability_csv: str | os.PathLike[str]) -> SpacesTable:
+    """Read and check the data-space comparison of ``compare_spaces`` (one default candidate, one database)."""
+    p, rows = _read_manifold_csv(spaces_csv, SPACES_FIGURE_COLUMNS, "data-space comparison")
+    if not rows:
+        raise FigureInputError(f"{p}: no rows")
+    out: dict[tuple[str, int], dict[str, float]] = {}
+    defaults = set()
+    for r in rows:
+        i = int(r["__line__"])
+        c = _nonempty(p, i, "candidate", r["candidate"])
+        q = _parse_int(p, i, "q", r["q"])
+        if (c, q) in out:
+            raise FigureInputError(f"{p}: line {i}: duplicate row for {c} q = {q}")
+        if r["default"] == "true":
+            defaults.add(c)
+        out[(c, q)] = {k: _parse_float(p, i, k, r[k]) for k in SPACES_FIGURE_COLUMNS[3:] if k != "default"}
+    if len(defaults) != 1:
+        raise FigureInputError(f"{p}: expected exactly one default candidate, found {sorted(defaults)}")
+    database = _single_database(p, (r["database"] for r in rows))
+    sp, srows = _read_manifold_csv(stability_csv, STABILITY_FIGURE_COLUMNS, "stability table")
+    acc: dict[tuple[str, int, str], list[tuple[float, float, float]]] = {}
+    for r in srows:
+        i = int(r["__line__"])
+        key = (r["candidate"], _parse_int(sp, i, "q", r["q"]), r["norm"])
+        acc.setdefault(key, []).append((_finite(sp, i, "epsilon", r["epsilon"]), _finite(sp, i, "median", r["median"]),
+                                        _finite(sp, i, "p90", r["p90"])))
+    if srows and _single_database(sp, (r["database"] for r in srows)) != database:
+        raise FigureInputError(f"{sp}: another database than {p}")
+    stab = {k: tuple(np.array(col) for col in zip(*sorted(v))) for k, v in acc.items()}
+    return SpacesTable(p, database, defaults.pop(), out, stab)  # type: ignore[arg-type]
+
+
 @dataclass(frozen=True)
 class ManifoldInputs:
     """Everything :func:`make_manifold_figures` draws, read and cross-checked."""
@@ -1467,6 +1545,8 @@ class ManifoldInputs:
     maps: dict[int, AlbedoMap]
     paths: PathTable
     reproduction: ReproductionTable
+    #: The data-space comparison (``spaces.csv``), when given.
+    spaces: SpacesTable | None = None
 
 
 def _q_key(q: Any, what: str) -> int:
@@ -1482,7 +1562,9 @@ def _q_key(q: Any, what: str) -> int:
 def read_manifold_inputs(*, models: Mapping[int, str | os.PathLike[str]],
                          traces: Mapping[int, str | os.PathLike[str]], albedo_csv: str | os.PathLike[str],
                          albedo_maps: Mapping[int, str | os.PathLike[str]], paths_csv: str | os.PathLike[str],
-                         reproduction_csv: str | os.PathLike[str], database: str | None = None) -> ManifoldInputs:
+                         reproduction_csv: str | os.PathLike[str], database: str | None = None,
+                         spaces_csv: str | os.PathLike[str] | None = None,
+                         stability_csv: str | os.PathLike[str] | None = None) -> ManifoldInputs:
     """Read every input of the manifold figures and check them against each other.
 
     FigureInputError (naming the file) for a missing or malformed file, a
@@ -1524,8 +1606,15 @@ def read_manifold_inputs(*, models: Mapping[int, str | os.PathLike[str]],
         if absent:
             raise FigureInputError(f"{albedo.path}: no albedo row for {len(absent)} material(s) of the q = {q} "
                                    f"model ({', '.join(absent[:5])}{', …' if len(absent) > 5 else ''})")
+    spaces = None
+    if (spaces_csv is None) != (stability_csv is None):
+        raise FigureInputError("give both spaces_csv and stability_csv, or neither")
+    if spaces_csv is not None and stability_csv is not None:
+        spaces = read_spaces(spaces_csv, stability_csv)
     sources = [(albedo.database, albedo.path), (paths.database, paths.path),
                (reproduction.database, reproduction.path)] + [(m.database, m.path) for m in maps.values()]
+    if spaces is not None:
+        sources.append((spaces.database, spaces.path))
     names = sorted({db for db, _ in sources})
     if len(names) > 1:
         raise FigureInputError("inputs from different databases: "
@@ -1533,7 +1622,7 @@ def read_manifold_inputs(*, models: Mapping[int, str | os.PathLike[str]],
     if database is not None and str(database).strip() and names[0] != str(database).strip():
         raise FigureInputError(f"{sources[0][1]}: database {names[0]!r}, but the figures are for database "
                                f"{str(database).strip()!r}")
-    return ManifoldInputs(names[0], loaded, model_paths, trace_tables, albedo, maps, paths, reproduction)
+    return ManifoldInputs(names[0], loaded, model_paths, trace_tables, albedo, maps, paths, reproduction, spaces)
 
 
 # ---------------------------------------------------------------------------
@@ -1808,6 +1897,12 @@ def _grid_shape(n: int, max_cols: int) -> tuple[int, int]:
     return max(1, math.ceil(n / ncols)), ncols
 
 
+def _fit_note(inp: ManifoldInputs) -> str:
+    """"standardised space, mu 1e-06" for the titles: which data space and noise term the fits use (ASCII: PDF metadata)."""
+    fits = sorted({(str(m.space), float(m.mu)) for m in inp.models.values()})
+    return "; ".join(f"{s} space, mu {mu:g}" for s, mu in fits) or "no model"
+
+
 def _space_note(spaces: Iterable[str]) -> str:
     s = sorted(set(spaces))
     return f"data space {', '.join(s)}" if s else ""
@@ -1876,7 +1971,7 @@ def manifold_fig05_likelihood(inp: ManifoldInputs, stem: str | os.PathLike[str])
             gap.set_title("distance to the best log-likelihood")
             if not gap.get_lines():
                 _no_data(gap, "no improvement")
-        title = f"GPLVM log-likelihood during the fit ({database_label(inp.database)})"
+        title = f"GPLVM log-likelihood during the fit ({database_label(inp.database)}, {_fit_note(inp)})"
         methods = sorted({str(m.method) for m in inp.models.values()})
         scales = sorted({f"{float(m.gram_scale):.4g}" for m in inp.models.values()})
         subtitle = (f"Soler 2018 Fig. 5 analogue; method {', '.join(methods)}; Gram matrix divided by "
@@ -1924,7 +2019,7 @@ def manifold_fig10_latent_q2(inp: ManifoldInputs, stem: str | os.PathLike[str]) 
                 ax.set_visible(False)
         _latent_row(axes, P, inp.albedo.display_colours(model.names), views, labels,
                     f"q = {q}, {len(names)} materials", size=22.0)
-        title = f"The {'2-D ' if q == 2 else ''}latent space of the materials ({database_label(inp.database)})"
+        title = f"The {'2-D ' if q == 2 else ''}latent space of the materials ({database_label(inp.database)}, {_fit_note(inp)})"
         subtitle = (f"Soler 2018 Fig. 10 analogue; colour: hemispherical albedo (RGB / brightest channel, "
                     f"gamma 1/2.2); ℓ = {model.ell:g}, μ = {model.mu:g}; {_space_note([model.space])}"
                     + ("; each material named once, in the deepest panel showing it" if len(views) > 1 else ""))
@@ -1975,7 +2070,7 @@ def manifold_fig10_latent_q5(inp: ManifoldInputs, stem: str | os.PathLike[str]) 
             _latent_row(axes, P, colours, views, (f"latent dim {dims[0]}", f"latent dim {dims[1]}"),
                         f"dims {dims[0]}, {dims[1]}", size=16.0)
             rows.append((axes, P))
-        title = f"Projections of the q = {q} latent space ({database_label(inp.database)})"
+        title = f"Projections of the q = {q} latent space ({database_label(inp.database)}, {_fit_note(inp)})"
         subtitle = (f"Soler 2018 Fig. 10 analogue; latent points projected onto pairs of latent dimensions; "
                     f"colour: hemispherical albedo (gamma 1/2.2); {_space_note([model.space])}"
                     + ("; each material named once per row, in the deepest panel showing it"
@@ -2020,8 +2115,16 @@ def manifold_fig07_albedo(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> 
                 warn(f"{m.path}: constant luminance {lo:.4g}; no iso-lines")
             model = inp.models[m.q]
             X = np.asarray(model.X, dtype=np.float64)
+            if m.inside_hull.any() and not m.inside_hull.all():
+                ax.contour(m.x, m.y, m.inside_hull.astype(float), levels=[0.5], colors="white", linewidths=1.2,
+                           linestyles="dashed", zorder=3)
             ax.scatter(X[:, m.dims[0]], X[:, m.dims[1]], s=7.0, c="white", edgecolors="#222222",
                        linewidths=0.35, zorder=4)
+            ax.text(0.01, 0.01, f"albedo outside [0, 1]: {100 * m.bad_inside:.2f} % of the grid inside the hull, "
+                    f"{100 * m.bad_outside:.1f} % outside\nsmooth map vs own albedo at the training points: "
+                    f"median {m.training_gap[0]:.2g}, max {m.training_gap[1]:.2g}",
+                    transform=ax.transAxes, fontsize=6.0, color="white", va="bottom", zorder=5,
+                    bbox={"facecolor": "#000000", "alpha": 0.45, "edgecolor": "none", "pad": 1.5})
             if uniform:
                 ax.set_xlim(extent[0], extent[1])
                 ax.set_ylim(extent[2], extent[3])
@@ -2052,10 +2155,13 @@ def manifold_fig07_albedo(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> 
                 warn(f"{m.path}: luminance albedo outside [0, 1] ({lo:.4g}..{hi:.4g})")
         for ax in axes[max(1, len(maps)):]:
             ax.set_visible(False)
-        title = f"Albedo of the interpolated BRDFs over the latent space ({database_label(inp.database)})"
+        title = f"Albedo of the interpolated BRDFs over the latent space ({database_label(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 Fig. 7 analogue; luminance 0.2126 R + 0.7152 G + 0.0722 B of the hemispherical "
-                    "albedo, iso-lines labelled; white dots: training materials (for q > 2 their projection "
-                    "onto the slice, so their albedo need not match the map)")
+                    "albedo, iso-lines labelled; white dashed line: the convex hull of the training points "
+                    "(for q > 2, where the slice cuts the q-dimensional hull); white dots: training materials "
+                    "(for q > 2 their projection onto the slice, so their albedo need not match the map). "
+                    "The map is the smooth interpolant (kernel without the μδ term): no grid point is a "
+                    "training point, where the δ term would give the material's own albedo exactly")
         return _finish(fig, stem, title, subtitle, inp.database, warn)
 
 
@@ -2089,7 +2195,7 @@ def manifold_fig09_paths(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> F
             ax.set_ylabel("perceptual distance / d(A, B)")
             ax.legend(loc="best", fontsize=6.5)
         _hide_unused_path_panels(axes, len(paths))
-        title = f"Perceptual distances along latent paths ({database_label(inp.database)})"
+        title = f"Perceptual distances along latent paths ({database_label(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 Fig. 9 analogue; blue: distance of the interpolated BRDF to A, red: to B, "
                     "both divided by the distance between A and B; dashed: perceptually uniform; "
                     f"{_space_note(p.space for p in paths)}")
@@ -2172,7 +2278,7 @@ def manifold_fig08_reproduction(inp: ManifoldInputs, stem: str | os.PathLike[str
             ax.set_ylabel("relative error ‖ẑ − z‖ / ‖z‖")
             ax.legend(loc="center left", bbox_to_anchor=(1.02, 0.5), borderaxespad=0.0)
         ax.set_title(f"reproduction of the {len(mats)} training materials ({space} space)")
-        title = f"Reproducing the training materials: PCA vs GPLVM ({database_label(inp.database)})"
+        title = f"Reproducing the training materials: PCA vs GPLVM ({database_label(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 Fig. 8 analogue; PCA truncated to k components vs the GPLVM interpolant at "
                     "each material's latent point (exact in exact arithmetic: b(x_i) = e_i)")
         return _finish(fig, stem, title, subtitle, inp.database, warn)
@@ -2214,11 +2320,75 @@ def manifold_eq7_bound(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> Fig
                 _no_data(ax, "deviation and bound are 0")
                 ax.set_title(lp.title, fontsize=8.0)
         _hide_unused_path_panels(axes, len(paths))
-        title = f"Deviation from the nearest training material vs the eq. 7 bound ({database_label(inp.database)})"
+        title = f"Deviation from the nearest training material vs the eq. 7 bound ({database_label(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 eq. 7: ‖z* − z_j‖ ≤ e^(−1/2)·√(2N)/ℓ·κ(K)·‖Z‖·‖x* − x_j‖, j the nearest "
                     "training point in latent space; the path ends (bound 0, deviation 0 up to rounding) omitted; "
                     f"{_space_note(p.space for p in paths)}")
         return _finish(fig, stem, title, subtitle, inp.database, warn)
+
+
+def manifold_spaces(table: SpacesTable, stem: str | os.PathLike[str]) -> FigureOutput:
+    """The data spaces compared: albedo outside [0, 1], stability near the training points, κ(K) and Σ|w|."""
+    warn = _Warnings("manifold-spaces")
+    cands = table.candidates
+    dims = table.dims
+    with _style():
+        fig = _new_figure(12.0, 8.6)
+        (ax_a, ax_s), (ax_k, ax_w) = fig.subplots(2, 2)
+        x = np.arange(len(cands))
+        width = 0.8 / max(1, len(dims))
+        for j, q in enumerate(dims):
+            colour = _COLOURS[j % len(_COLOURS)]
+            off = (j - (len(dims) - 1) / 2) * width
+            hull = [100 * table.rows.get((c, q), {}).get("albedo_bad_hull", np.nan) for c in cands]
+            ax_a.bar(x + off, hull, width * 0.9, color=colour, label=f"q = {q}: inside the hull")
+            if q == 2:
+                mp = [100 * table.rows.get((c, q), {}).get("albedo_bad_map", np.nan) for c in cands]
+                ax_a.plot(x + off, mp, "v", color="#222222", markersize=5, label="q = 2: plotted map (box 15 % past the data)")
+            kap = [table.rows.get((c, q), {}).get("kappa", np.nan) for c in cands]
+            ax_k.bar(x + off, kap, width * 0.9, color=colour, label=f"q = {q}")
+            ws = [table.rows.get((c, q), {}).get("sum_abs_w_path_max", np.nan) for c in cands]
+            wh = [table.rows.get((c, q), {}).get("sum_abs_w_hull_median", np.nan) for c in cands]
+            ax_w.bar(x + off, ws, width * 0.9, color=colour, label=f"q = {q}: max along the paths")
+            ax_w.plot(x + off, wh, "o", color="#222222", markersize=4, label="median over the hull" if j == 0 else None)
+        ax_a.axhline(1.0, color="#aa0000", linestyle=":", linewidth=1.0, label="target: ≤ 1 %")
+        ax_a.set_ylabel("albedo outside [0, 1] (% of points)")
+        ax_a.set_title("(a) physically implausible albedo")
+        ax_k.set_yscale("log")
+        ax_k.set_ylabel("κ(K) (2-norm)")
+        ax_k.set_title("(c) condition number of K")
+        ax_w.set_yscale("log")
+        ax_w.axhline(1.0, color="#777777", linestyle=":", linewidth=1.0)
+        ax_w.set_ylabel("Σ|wᵢ| (1 = convex blend)")
+        ax_w.set_title("(d) cancelling blend weights")
+        for ax in (ax_a, ax_k, ax_w):
+            ax.set_xticks(x)
+            ax.set_xticklabels([c + (" (default)" if c == table.default else "") for c in cands], rotation=30,
+                               ha="right", fontsize=7)
+            ax.legend(fontsize=6.5)
+        qs = max(dims)
+        for i, c in enumerate(cands):
+            colour = _COLOURS[i % len(_COLOURS)]
+            for norm, style in (("space", "-"), ("raw", ":")):
+                v = table.stability.get((c, qs, norm))
+                if v is None:
+                    continue
+                eps, med, _ = v
+                ok = med > 0
+                ax_s.plot(eps[ok], med[ok], style, color=colour, marker="o", markersize=2.5, linewidth=1.4 if c == table.default else 0.9,
+                          label=f"{c}" if norm == "space" else None)
+        ax_s.axhline(0.01, color="#aa0000", linestyle=":", linewidth=1.0)
+        ax_s.set_xscale("log")
+        ax_s.set_yscale("log")
+        ax_s.set_xlabel("offset ε from the training point (ℓ)")
+        ax_s.set_ylabel("median ‖z(xᵢ+εu) − zᵢ‖ / ‖zᵢ‖")
+        ax_s.set_title(f"(b) stability near the training points, q = {qs}\nsolid: the fit's own space; dotted: raw BRDF units; red: 1 %")
+        ax_s.legend(fontsize=6.5)
+        title = f"GPLVM data spaces compared ({database_label(table.database)})"
+        subtitle = (f"candidates: data space and kernel noise μ; default: {table.default}. (a) albedo outside [0, 1] "
+                    "of the interpolated material (linear blend, before clamping); (b) change of the interpolated "
+                    "material a distance ε from a training point; (c) κ(K); (d) Σ|w|")
+        return _finish(fig, stem, title, subtitle, table.database, warn)
 
 
 def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
@@ -2226,7 +2396,9 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
                           albedo_maps: Mapping[int, str | os.PathLike[str]], paths_csv: str | os.PathLike[str],
                           reproduction_csv: str | os.PathLike[str],
                           figures: Mapping[str, Sequence[str | os.PathLike[str]]],
-                          database: str | None = None) -> list[Path]:
+                          database: str | None = None,
+                          spaces_csv: str | os.PathLike[str] | None = None,
+                          stability_csv: str | os.PathLike[str] | None = None) -> list[Path]:
     """Write the requested Soler 2018 figure analogues (keys of :data:`MANIFOLD_FIGURE_STEMS`).
 
     ``models``, ``traces``, ``albedo_maps``: q → path.  ``figures``: key →
@@ -2245,12 +2417,17 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
     ``fig09`` paths                  perceptual distance to A / B along paths
     ``fig08`` reproduction           per-material reproduction error, PCA vs GPLVM
     ``eq7`` bound                    deviation vs eq. 7 bound along paths
+    ``spaces`` data spaces           the candidates of ``compare_spaces``
+                                     (``spaces_csv``, ``stability_csv``)
     ==============================  ===========================================
     """
     _check_keys(figures, MANIFOLD_FIGURE_STEMS, "make_manifold_figures")
     stems = {k: figure_stem(v) for k, v in figures.items()}
+    if "spaces" in stems and (spaces_csv is None or stability_csv is None):
+        raise FigureInputError("the 'spaces' figure needs spaces_csv and stability_csv")
     inp = read_manifold_inputs(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=albedo_maps,
-                               paths_csv=paths_csv, reproduction_csv=reproduction_csv, database=database)
+                               paths_csv=paths_csv, reproduction_csv=reproduction_csv, database=database,
+                               spaces_csv=spaces_csv, stability_csv=stability_csv)
     draw = {
         "fig05": manifold_fig05_likelihood,
         "fig10_q2": manifold_fig10_latent_q2,
@@ -2260,7 +2437,9 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
         "fig08": manifold_fig08_reproduction,
         "eq7": manifold_eq7_bound,
     }
-    results = [draw[k](inp, stems[k]) for k in MANIFOLD_FIGURE_STEMS if k in stems]
+    results = [draw[k](inp, stems[k]) for k in MANIFOLD_FIGURE_STEMS if k in stems and k != "spaces"]
+    if "spaces" in stems and inp.spaces is not None:
+        results.append(manifold_spaces(inp.spaces, stems["spaces"]))
     return [p for r in results for p in r.files]
 
 
@@ -2270,7 +2449,7 @@ __all__ += [
     "ReproductionTable", "ManifoldInputs", "read_trace", "read_albedo", "read_albedo_map", "read_paths",
     "read_reproduction", "read_manifold_inputs", "manifold_fig05_likelihood", "manifold_fig10_latent_q2",
     "manifold_fig10_latent_q5", "manifold_fig07_albedo", "manifold_fig09_paths", "manifold_fig08_reproduction",
-    "manifold_eq7_bound", "make_manifold_figures",
+    "manifold_eq7_bound", "make_manifold_figures", "SpacesTable", "read_spaces", "manifold_spaces",
 ]
 
 

@@ -38,6 +38,8 @@ __all__ = [
     "gram",
     "gplvm_model",
     "gplvm_trace",
+    "spaces_csv",
+    "spaces_stability_csv",
     "albedo",
     "albedo_map",
     "paths_csv",
@@ -74,6 +76,7 @@ MANIFOLD_FIGURE_STEMS: dict[str, str] = {
     "fig09": "manifold-fig09-paths",
     "fig08": "manifold-fig08-reproduction",
     "eq7": "manifold-eq7-bound",
+    "spaces": "manifold-spaces",
 }
 #: Rendering-track figures: key → file stem.
 RENDER_FIGURE_STEMS: dict[str, str] = {
@@ -175,12 +178,22 @@ def gram(space: str) -> str:
     return f"{RESULTS}/gplvm/gram-{space}.npz"
 
 
-def gplvm_model(q: int | str) -> str:
-    return f"{RESULTS}/gplvm/q{q}.npz"
+def gplvm_model(candidate: str, q: int | str) -> str:
+    """A GPLVM fit of one candidate (``<space>-mu<μ>``, :func:`brdfpipe.plan.candidate_label`)."""
+    return f"{RESULTS}/gplvm/{candidate}/q{q}.npz"
 
 
-def gplvm_trace(q: int | str) -> str:
-    return f"{RESULTS}/gplvm/q{q}-trace.csv"
+def gplvm_trace(candidate: str, q: int | str) -> str:
+    return f"{RESULTS}/gplvm/{candidate}/q{q}-trace.csv"
+
+
+def spaces_csv() -> str:
+    """Every fidelity measure of every candidate data space (:mod:`brdfpipe.fidelity`)."""
+    return f"{RESULTS}/manifold/spaces.csv"
+
+
+def spaces_stability_csv() -> str:
+    return f"{RESULTS}/manifold/spaces-stability.csv"
 
 
 def albedo() -> str:

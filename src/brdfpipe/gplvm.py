@@ -14,7 +14,19 @@ N × d matrix is never held in float64).  Data spaces:
 * ``cosine``: each cell × cos θi · cos θo of its centre (``merl.cell_directions``);
 * ``log``: ``ln((ρw + ε)/(ρ_ref w + ε))`` like the acquisition track
   (:func:`brdfpipe.logmap.forward`, ``w`` = :func:`brdfpipe.logmap.cell_weights`
-  "product", ρ_ref = per-cell median over all channels of the materials used).
+  "product", ρ_ref = per-cell median over all channels of the materials used);
+* ``relative``: each cell × ``cos θi · cos θo / max(ρ_ref, 1e-3)`` (ρ_ref as
+  for ``log``): a per-cell weighted inner product on the raw values;
+* ``standardised``: each value × ``√(cos θi · cos θo) / σ`` with σ the
+  standard deviation of that channel of that cell over the materials used
+  (floored at 1e-6 sr⁻¹): every cell carries the same variance, weighted by
+  the cosines.
+
+Every space but ``log`` is a fixed per-value scaling ``z̃ = D z`` of the raw
+values (:data:`LINEAR_SPACES`): the fit sees ``D z``, but the interpolant
+``Σ wᵢ D zᵢ = D Σ wᵢ zᵢ``, so the blend weights apply to the raw BRDFs — and
+to images rendered from them (Soler §5.2) — unchanged.  ``log`` is not
+linear in the BRDF: its interpolant is a blend of log-mapped values.
 
 Model
 -----
@@ -151,6 +163,7 @@ from brdfpipe.store import BrdfStore, iter_cell_blocks, iter_column_blocks, mate
 
 __all__ = [
     "SPACES",
+    "LINEAR_SPACES",
     "INIT_SCALES",
     "MEAN_HANDLING",
     "GramInfo",
@@ -182,8 +195,13 @@ __all__ = [
 
 logger = logging.getLogger("brdfpipe.gplvm")
 
-#: Data spaces of :func:`gram_matrix`.
-SPACES: Final = ("raw", "cosine", "log")
+#: Data spaces of :func:`gram_matrix` (see the module docstring).
+SPACES: Final = ("raw", "cosine", "log", "relative", "standardised")
+#: Spaces that scale each raw value by a constant: their interpolant is linear in the raw BRDFs.
+LINEAR_SPACES: Final = ("raw", "cosine", "relative", "standardised")
+#: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space.
+RELATIVE_FLOOR: Final = 1e-3
+STANDARDISED_FLOOR: Final = 1e-6
 #: Initial-scale rules of :func:`fit` (plus ``"best"``: try all, keep the best L).
 INIT_SCALES: Final = ("nn", "rms", "unit")
 MEAN_HANDLING: Final = "mean subtracted"
@@ -268,10 +286,16 @@ def _select(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
 def _space_maps(
     st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64], space: str
 ) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
-    """Per-cell factor (cosine) or (ρ_ref, w) (log) of a space; (None, None) for raw."""
-    if space == "cosine":
+    """Per-cell maps of a space: factor (cosine, relative), (ρ_ref, w) (log), √cos (standardised); None for raw."""
+    if space in ("cosine", "relative", "standardised"):
         wi, wo = merl.cell_directions(cells)
-        return wi[:, 2] * wo[:, 2], None
+        cos = wi[:, 2] * wo[:, 2]
+        if space == "cosine":
+            return cos, None
+        if space == "standardised":
+            return np.sqrt(np.maximum(cos, 0.0)), None
+        ref = logmap.median_reference(st, list(names), cells)
+        return cos / np.maximum(ref, RELATIVE_FLOOR), None
     if space == "log":
         return logmap.median_reference(st, list(names), cells), logmap.cell_weights(cells, "product")
     return None, None
@@ -282,9 +306,13 @@ def _map_block(
 ) -> NDArray[np.float64]:
     """Map a float32 ``(n, 3, cols)`` block to float64 in ``space`` (a, b: the block's per-cell maps)."""
     x = data.astype(np.float64)
-    if space == "cosine":
+    if space in ("cosine", "relative"):
         assert a is not None
         x *= a
+    elif space == "standardised":
+        # σ of each (channel, cell) over the materials of the block: every row is in the block
+        assert a is not None
+        x *= a / np.maximum(x.std(axis=0), STANDARDISED_FLOOR)
     elif space == "log":
         assert a is not None and b is not None
         x = logmap.forward(x, a, b)
@@ -999,8 +1027,8 @@ def interpolate_tables(
 
     ``weights`` is ``(P, N)``: one row of blend weights per output table,
     over ``materials`` (in that order; default all of the store).  In the
-    ``raw`` and ``cosine`` spaces the blend is of the stored values (the
-    cosine factor is per cell, so blending before or after it is the same).
+    :data:`LINEAR_SPACES` the blend is of the stored values (their factor is
+    per value, so blending before or after it is the same).
     In the ``log`` space the blend is taken of the log-mapped values, with the
     same ρ_ref (median of ``materials``) and weights as :func:`gram_matrix`,
     and mapped back with :func:`brdfpipe.logmap.inverse`.  Cells not valid in

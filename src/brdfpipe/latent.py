@@ -327,7 +327,7 @@ def sample_in_hull(
 
 def _is_linear(space: str) -> bool:
     """Whether the interpolated table is the plain blend Σ wᵢ zᵢ of the stored values (albedo = w·A)."""
-    return space != "log"
+    return space in gplvm.LINEAR_SPACES
 
 
 def _point(model: gplvm.GplvmModel, x: ArrayLike | str, what: str) -> NDArray[np.float64]:

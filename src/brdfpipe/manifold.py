@@ -56,7 +56,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic, gplvm, merl, perceptual
+from brdfpipe import atomic, gplvm, latent, merl, perceptual
 from brdfpipe.filenames import path_name
 from brdfpipe.plan import SOLER_PATHS, check_paths, default_paths
 from brdfpipe.store import BrdfStore, iter_column_blocks, open_store
@@ -168,7 +168,19 @@ def albedo_map(
     """Albedo ``Σ wᵢ(x) Aᵢ`` of the interpolated BRDF over a latent plane (a slice through the mean of X).
 
     Returns the arrays of an ``albedo-map-q{q}.npz``: ``x``, ``y``, ``albedo``
-    (H, W, 3), ``luminance`` (H, W), ``dims``, ``fixed`` (q,), ``q``.
+    (H, W, 3), ``luminance`` (H, W), ``dims``, ``fixed`` (q,), ``q``,
+    ``inside_hull`` (H, W: the grid point lies inside the convex hull of the
+    q-dimensional training points, :func:`brdfpipe.latent.hull_contains`),
+    ``bad_inside`` / ``bad_outside`` (share of grid points inside / outside
+    the hull whose albedo leaves [0, 1] in some channel) and
+    ``training_gap_median`` / ``_max`` (luminance |A_map(xᵢ) − Aᵢ| of the map's
+    interpolant at the training points).
+
+    The map is the smooth interpolant: ``k`` without the μδ term, since no
+    grid point coincides with a training point.  At a training point itself
+    the model's δ convention gives its own albedo exactly; the training gap
+    measures how far the smooth map is from that there (the jump of
+    ``μK⁻¹eᵢ``).
     """
     A = np.asarray(albedos, dtype=np.float64)
     q = model.X.shape[1]
@@ -182,9 +194,19 @@ def albedo_map(
     pts = np.tile(fixed, (XX.size, 1))
     pts[:, dims[0]], pts[:, dims[1]] = XX.ravel(), YY.ravel()
     alb = (_blend_weights_at(model, pts) @ A).reshape(n, n, 3)
+    inside = latent.hull_contains(model.X, pts).reshape(n, n)
+    bad = ((alb < 0.0) | (alb > 1.0)).any(axis=2)
+    # the map's interpolant at the training points themselves (a hair off: the δ term dropped)
+    at_train = _blend_weights_at(model, model.X) @ A
+    gap = np.abs((at_train - A) @ _LUMA)
     return {
         "x": xs, "y": ys, "albedo": alb, "luminance": alb @ _LUMA,
         "dims": np.array(dims), "fixed": fixed, "q": np.array(q),
+        "inside_hull": inside,
+        "bad_inside": np.array(float(bad[inside].mean()) if inside.any() else float("nan")),
+        "bad_outside": np.array(float(bad[~inside].mean()) if (~inside).any() else float("nan")),
+        "training_gap_median": np.array(float(np.median(gap))),
+        "training_gap_max": np.array(float(gap.max())),
     }
 
 

@@ -24,6 +24,8 @@ from brdfpipe import filenames
 __all__ = [
     "ConfigError",
     "SOLER_PATHS",
+    "candidate_label",
+    "manifold_candidates",
     "check_finite",
     "check_config",
     "default_paths",
@@ -77,6 +79,27 @@ def path_q(manifold: Mapping[str, Any]) -> int:
     return q
 
 
+def candidate_label(space: str, mu: float) -> str:
+    """``"<space>-mu<μ>"`` (e.g. ``standardised-mu1e-06``): a GPLVM candidate's name in files and tables."""
+    return f"{space}-mu{float(mu):g}"
+
+
+def manifold_candidates(manifold: Mapping[str, Any]) -> dict[str, tuple[str, float]]:
+    """Label → (space, μ) of every GPLVM candidate: the default (``space``, ``mu``) first, then ``candidates``.
+
+    :class:`ConfigError` naming ``manifold.candidates`` for two entries with the same label.
+    """
+    out = {candidate_label(manifold["space"], manifold["mu"]): (str(manifold["space"]), float(manifold["mu"]))}
+    seen: set[str] = set()
+    for k, c in enumerate(manifold.get("candidates") or []):
+        label = candidate_label(c["space"], c["mu"])
+        if label in seen:
+            raise ConfigError(f"config manifold.candidates[{k}]: {label} is listed twice")
+        seen.add(label)
+        out.setdefault(label, (str(c["space"]), float(c["mu"])))
+    return out
+
+
 def training_sizes(acquisition: Mapping[str, Any], n_train: int) -> list[int]:
     """``acquisition.training_sizes``, checked against the number of training materials."""
     sizes = [int(n) for n in acquisition["training_sizes"]]
@@ -106,6 +129,7 @@ def check_config(config: Mapping[str, Any], *, materials: Sequence[str], train: 
             f"config manifold.latent_dims: q = {bad} must be below the number of materials ({n})"
         )
     path_q(config["manifold"])
+    manifold_candidates(config["manifold"])
     training_sizes(config["acquisition"], len(train))
     render = config["render"]
     if render["noise_seed"] == render["seed"]:
@@ -227,7 +251,7 @@ def acquisition_figures(acquisition: Mapping[str, Any]) -> dict[str, list[str]]:
 def manifold_figures(manifold: Mapping[str, Any]) -> dict[str, list[str]]:
     """Soler 2018 figure analogues this config produces: key → files (PNG, PDF)."""
     dims = [int(q) for q in manifold["latent_dims"]]
-    keys = ["fig05", "fig10_q2", "fig09", "fig08", "eq7"]
+    keys = ["fig05", "fig10_q2", "fig09", "fig08", "eq7", "spaces"]
     if max(dims) >= 3:
         keys.append("fig10_q5")
     if albedo_map_dims(manifold):
@@ -273,6 +297,7 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "compute_gram": (276.0, 3.93),
     "fit_gplvm": (95.0, 0.0),
     "analyze_manifold": (380.0, 16.8),
+    "compare_spaces": (400.0, 16.8),
     "plot_manifold_figures": (204.0, 0.0),
     # rendering track
     "make_envmap": (116.0, 0.0),

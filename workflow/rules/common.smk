@@ -52,6 +52,8 @@ try:
     plan.check_config(config, materials=MATERIALS, train=TRAIN_MATERIALS)
     TRAINING_SIZES = plan.training_sizes(ACQ, len(TRAIN_MATERIALS))
     PATH_Q = plan.path_q(MAN)
+    # GPLVM candidates (data space, mu): label -> (space, mu); the default first.
+    CANDIDATES = plan.manifold_candidates(MAN)
     # Latent paths (Soler Fig. 9): checked against the database at load.
     MANIFOLD_PATHS = plan.latent_paths(MAN, MATERIALS)
 except plan.ConfigError as err:
@@ -64,8 +66,16 @@ CHECKED_SPLITS = [split for split in PCA_SPLITS if DIRECTIONS[split]]
 CURVE_DIRECTIONS = plan.curve_directions(ACQ)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
+DEFAULT_CANDIDATE = plan.candidate_label(MAN["space"], MAN["mu"])
+CANDIDATE_SPACES = sorted({space for space, _ in CANDIDATES.values()} | {"raw"})
 ALBEDO_MAP_DIMS = plan.albedo_map_dims(MAN)
-MANIFOLD_DATA = [fn.albedo(), fn.paths_csv(), fn.reproduction()] + [
+MANIFOLD_DATA = [
+    fn.albedo(),
+    fn.paths_csv(),
+    fn.reproduction(),
+    fn.spaces_csv(),
+    fn.spaces_stability_csv(),
+] + [
     fn.albedo_map(q) for q in ALBEDO_MAP_DIMS
 ]
 
@@ -120,7 +130,8 @@ wildcard_constraints:
     metric="error|condition",
     fov=r"\d+(\.\d+)?",
     q=r"\d+",
-    space="raw|cosine|log",
+    space="raw|cosine|log|relative|standardised",
+    candidate="|".join(re.escape(c) for c in CANDIDATES),
     path="|".join(re.escape(p) for p in PATH_ENDS) or "(?!)",
     t=r"\d+(\.\d+)?",
 

@@ -1,6 +1,7 @@
 # Manifold track (Soler 2018): the N x N Gram matrix of the mean-subtracted
-# materials, streamed once from the store, then one GPLVM fit per latent
-# dimension q, the analyses of the fits and their figures.
+# materials in each data space, streamed once from the store, then one GPLVM
+# fit per candidate (data space, mu) and latent dimension q, the comparison of
+# the candidates, the analyses of the default candidate's fits and figures.
 
 
 rule compute_gram:
@@ -26,14 +27,14 @@ rule compute_gram:
 
 rule fit_gplvm:
     input:
-        gram=fn.gram(MAN["space"]),
+        gram=lambda w: fn.gram(CANDIDATES[w.candidate][0]),
     output:
-        model=fn.gplvm_model("{q}"),
-        trace=fn.gplvm_trace("{q}"),
+        model=fn.gplvm_model("{candidate}", "{q}"),
+        trace=fn.gplvm_trace("{candidate}", "{q}"),
     log:
-        "logs/fit_gplvm/q{q}.log",
+        "logs/fit_gplvm/{candidate}/q{q}.log",
     benchmark:
-        "benchmarks/fit_gplvm/q{q}.tsv"
+        "benchmarks/fit_gplvm/{candidate}/q{q}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1
@@ -42,7 +43,7 @@ rule fit_gplvm:
         runtime=30,
     params:
         ell=MAN["ell"],
-        mu=MAN["mu"],
+        mu=lambda w: CANDIDATES[w.candidate][1],
         seed=MAN["seed"],
         max_sweeps=MAN["max_sweeps"],
         normalise=MAN["normalise"],
@@ -56,7 +57,7 @@ rule analyze_manifold:
     input:
         store=fn.store(),
         gram=fn.gram(MAN["space"]),
-        models=expand(fn.gplvm_model("{q}"), q=MAN["latent_dims"]),
+        models=expand(fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
     output:
         albedo=fn.albedo(),
         paths=fn.paths_csv(),
@@ -86,10 +87,45 @@ rule analyze_manifold:
         "../scripts/analyze_manifold.py"
 
 
+rule compare_spaces:
+    input:
+        store=fn.store(),
+        grams=expand(fn.gram("{space}"), space=CANDIDATE_SPACES),
+        models=expand(fn.gplvm_model("{c}", "{q}"), c=CANDIDATES, q=MAN["latent_dims"]),
+    output:
+        spaces=fn.spaces_csv(),
+        stability=fn.spaces_stability_csv(),
+    log:
+        "logs/compare_spaces.log",
+    benchmark:
+        "benchmarks/compare_spaces.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=mem("compare_spaces"),
+        runtime=60,
+    params:
+        spaces=CANDIDATE_SPACES,
+        candidates=[c for c in CANDIDATES for q in MAN["latent_dims"]],
+        dims=[q for c in CANDIDATES for q in MAN["latent_dims"]],
+        default=DEFAULT_CANDIDATE,
+        paths=[list(p) for p in MANIFOLD_PATHS],
+        path_q=PATH_Q,
+        seed=MAN["seed"],
+        steps=MAN["path_steps"],
+        albedo_grid=MAN["albedo_grid"],
+        code=code("compare_spaces.py"),
+    script:
+        "../scripts/compare_spaces.py"
+
+
 rule plot_manifold_figures:
     input:
-        models=expand(fn.gplvm_model("{q}"), q=MAN["latent_dims"]),
-        traces=expand(fn.gplvm_trace("{q}"), q=MAN["latent_dims"]),
+        models=expand(fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
+        traces=expand(fn.gplvm_trace(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
+        spaces=fn.spaces_csv(),
+        stability=fn.spaces_stability_csv(),
         albedo=fn.albedo(),
         albedo_maps=[fn.albedo_map(q) for q in ALBEDO_MAP_DIMS],
         paths=fn.paths_csv(),

@@ -62,7 +62,7 @@ if PATH_POINTS:
     # pass over the store serves them all (a job per point read it per point).
     rule interpolate_path_points:
         input:
-            model=fn.gplvm_model(PATH_Q),
+            model=fn.gplvm_model(DEFAULT_CANDIDATE, PATH_Q),
             store=fn.store(),
         output:
             merl=path_point_files("binary"),

@@ -12,5 +12,7 @@ with log_to(snakemake.log[0]):
         albedo_maps=dict(zip(snakemake.params.albedo_map_dims, snakemake.input.albedo_maps)),
         paths_csv=snakemake.input.paths,
         reproduction_csv=snakemake.input.reproduction,
+        spaces_csv=snakemake.input.spaces,
+        stability_csv=snakemake.input.stability,
         figures={key: list(snakemake.output[key]) for key in snakemake.params.figure_keys},
     )

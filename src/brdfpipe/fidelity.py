@@ -1,0 +1,395 @@
+"""How faithful a GPLVM material manifold is, measured per data space (Soler et al. 2018 §3–§5).
+
+A fitted model (:class:`brdfpipe.gplvm.GplvmModel`) is judged here on what a
+user of the manifold relies on, with the same numbers for every candidate data
+space (:data:`brdfpipe.gplvm.SPACES` × μ), so the default can be chosen by
+measurement (rule ``compare_spaces``, CSV :data:`SPACE_COLUMNS`):
+
+Weights
+-------
+``w(x) = blend_weights(K⁻¹k(x))`` with ``k`` **without** the μδ term
+(:func:`smooth_weights`): the interpolant a hair away from a training point.
+At a training point exactly, the model's own convention adds μ to ``k`` and
+gives ``w = eᵢ`` (:func:`brdfpipe.gplvm.weights`).  The gap between the two,
+``μ K⁻¹ eᵢ``, is what makes the interpolant jump at the training points.
+
+Measures
+--------
+* ``albedo_bad_hull``: share of latent points, drawn uniformly inside the
+  convex hull of the training points (:func:`brdfpipe.latent.sample_in_hull`),
+  whose interpolated material has an albedo outside [0, 1] in some channel;
+  ``albedo_bad_map`` the same over the plotted albedo map (q = 2: the grid of
+  :func:`brdfpipe.manifold.latent_grid`, 15 % past the data).  In the linear
+  spaces the albedo of the blend is ``w·A`` exactly (albedo is linear in the
+  BRDF; the clamping of negative values before rendering is not applied); in
+  the ``log`` space it is computed from the interpolated tables of
+  :data:`LOG_ALBEDO_POINTS` of the points (the map is not computed).
+* ``sum_abs_w_*``: ``Σ|wᵢ|`` over the hull points and along the paths
+  (median and max): 1 for a convex blend; large values mean cancelling
+  weights, noise amplification in image blends and negative BRDF values.
+* ``kappa``: the 2-norm condition number of K.
+* stability (:func:`stability`): relative change of the interpolated
+  material ``‖z(xᵢ + εu) − zᵢ‖ / ‖zᵢ‖`` for a random unit direction ``u`` per
+  material and ε in :data:`EPSILONS` (ℓ units), exactly from Gram matrices
+  (``‖Σ vⱼ zⱼ‖² = vᵀ G v``, ``v = w − eᵢ``), in raw BRDF units
+  (``norm = "raw"``) and in the space the model was fitted in
+  (``norm = "space"``); median, 90th percentile and max over the materials.
+  For ε → 0 it tends to the reproduction error of the smooth interpolant.
+* nearest-neighbour spread: distance from each latent point to its nearest
+  neighbour (median, min, in ℓ), and the number of pairs closer than
+  ``√(2μ)`` (where the kernel's δ term outweighs their distance) and 1e-5.
+* ``perceptual_*`` (:func:`path_uniformity`): along each latent path, the
+  perceptual distance from A of the interpolated material divided by that of
+  B, compared with ``t`` (Soler Fig. 9: a perceptually uniform manifold has
+  ``d(A, x(t)) / d(A, B) ≈ t``): the largest deviation, and the number of
+  steps where the distance from A decreases.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+from brdfpipe import atomic, gplvm, latent, manifold, perceptual
+
+__all__ = [
+    "EPSILONS",
+    "LOG_ALBEDO_POINTS",
+    "SPACE_COLUMNS",
+    "STABILITY_COLUMNS",
+    "Candidate",
+    "candidate_label",
+    "smooth_weights",
+    "albedo_outside",
+    "stability",
+    "nearest_neighbour_spread",
+    "path_uniformity",
+    "measure_model",
+    "compare_spaces",
+]
+
+logger = logging.getLogger("brdfpipe.fidelity")
+
+#: Offsets from the training points (ℓ units) of the stability measure.
+EPSILONS: Final = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
+#: Latent points whose tables are interpolated to measure albedo in the ``log`` space.
+LOG_ALBEDO_POINTS: Final = 48
+#: Hull points drawn per model for the albedo and weight statistics.
+HULL_POINTS: Final = 20000
+SPACE_COLUMNS: Final = (
+    "database", "candidate", "space", "mu", "q", "default", "log_likelihood", "kappa",
+    "albedo_bad_hull", "albedo_bad_map", "hull_points",
+    "sum_abs_w_hull_median", "sum_abs_w_hull_max", "sum_abs_w_path_median", "sum_abs_w_path_max",
+    "stability_raw_median_1e-6", "stability_raw_p90_1e-6", "stability_space_median_1e-6",
+    "stability_space_p90_1e-6",
+    "nn_median", "nn_min", "pairs_within_sqrt2mu", "pairs_within_1e-5",
+    "perceptual_max_deviation", "perceptual_decreasing_steps",
+)
+STABILITY_COLUMNS: Final = ("database", "candidate", "space", "mu", "q", "norm", "epsilon", "median", "p90", "max")
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One data space and noise term μ whose fits are compared."""
+
+    space: str
+    mu: float
+
+    @property
+    def label(self) -> str:
+        return candidate_label(self.space, self.mu)
+
+
+def candidate_label(space: str, mu: float) -> str:
+    """``"<space>-mu<μ>"``, e.g. ``raw-mu0.0001``: the candidate's name in file names and tables."""
+    if space not in gplvm.SPACES:
+        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(gplvm.SPACES)}")
+    mu_f = float(mu)
+    if not np.isfinite(mu_f) or mu_f < 0:
+        raise ValueError(f"mu must be a finite number >= 0, got {mu!r}")
+    return f"{space}-mu{mu_f:g}"
+
+
+# --------------------------------------------------------------------------
+# Weights
+# --------------------------------------------------------------------------
+
+
+def smooth_weights(model: gplvm.GplvmModel, points: ArrayLike) -> NDArray[np.float64]:
+    """Blend weights ``(P, N)`` at latent points with ``k`` free of the μδ term (one triangular solve)."""
+    P = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    if P.shape[1] != model.X.shape[1]:
+        raise ValueError(f"points must have {model.X.shape[1]} coordinates, got shape {P.shape}")
+    d2 = ((P[:, None, :] - model.X[None, :, :]) ** 2).sum(axis=2)
+    k = np.exp(-d2 / (2.0 * model.ell * model.ell))
+    b = scipy.linalg.cho_solve((model.chol, True), k.T).T
+    return b + (1.0 - b.sum(axis=1, keepdims=True)) / model.X.shape[0]
+
+
+def _outside(albedo: NDArray[np.float64]) -> NDArray[np.bool_]:
+    return ((albedo < 0.0) | (albedo > 1.0)).any(axis=1)
+
+
+def albedo_outside(
+    model: gplvm.GplvmModel,
+    points: ArrayLike,
+    albedos: ArrayLike,
+    *,
+    store: Any = None,
+) -> NDArray[np.bool_]:
+    """For each latent point: is the albedo of its interpolated material outside [0, 1] in some channel?
+
+    Linear spaces: ``w·A`` with the materials' albedos ``A`` (N, 3).  The
+    ``log`` space: the albedo of each interpolated table (needs ``store``).
+    """
+    W = smooth_weights(model, points)
+    if model.space in gplvm.LINEAR_SPACES:
+        return _outside(W @ np.asarray(albedos, dtype=np.float64))
+    if store is None:
+        raise ValueError(f"albedo in the {model.space!r} space needs the store (the blend is not linear)")
+    out = np.empty(W.shape[0], dtype=bool)
+    for c0 in range(0, W.shape[0], 8):
+        tables, _ = gplvm.interpolate_tables(store, W[c0 : c0 + 8], materials=model.names, space=model.space)
+        out[c0 : c0 + 8] = _outside(np.stack([manifold.material_albedo(t) for t in tables]))
+        del tables
+    return out
+
+
+# --------------------------------------------------------------------------
+# Stability near the training points
+# --------------------------------------------------------------------------
+
+
+def stability(
+    model: gplvm.GplvmModel,
+    gram: ArrayLike,
+    *,
+    epsilons: Sequence[float] = EPSILONS,
+    rng: np.random.Generator,
+) -> dict[float, NDArray[np.float64]]:
+    """Relative change ``‖z(xᵢ + εuᵢ) − zᵢ‖/‖zᵢ‖`` per material (N,) for each ε.
+
+    ``gram`` is an *un-centred* Gram matrix ``Z Zᵀ`` of the materials (in
+    model order) in the units the change is measured in; ``uᵢ`` are random
+    unit directions (one per material, from ``rng``).  Linear spaces only
+    (the blend of the ``log`` space is not a linear combination of rows).
+    """
+    G = np.asarray(gram, dtype=np.float64)
+    n, q = model.X.shape
+    if G.shape != (n, n):
+        raise ValueError(f"gram must be {n} x {n}, got {G.shape}")
+    u = rng.standard_normal((n, q))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    norms = np.sqrt(np.maximum(np.diag(G), 0.0))
+    norms[norms == 0] = 1.0
+    out: dict[float, NDArray[np.float64]] = {}
+    for eps in epsilons:
+        V = smooth_weights(model, model.X + float(eps) * u) - np.eye(n)
+        out[float(eps)] = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", V, G, V), 0.0)) / norms
+    return out
+
+
+def nearest_neighbour_spread(model: gplvm.GplvmModel) -> dict[str, float]:
+    """Nearest-neighbour distances of the latent points (ℓ units) and counts of near-coincident pairs."""
+    X = model.X / model.ell
+    D = np.sqrt(np.maximum(((X[:, None, :] - X[None, :, :]) ** 2).sum(axis=2), 0.0))
+    iu = np.triu_indices(X.shape[0], 1)
+    pairs = D[iu]
+    np.fill_diagonal(D, np.inf)
+    nn = D.min(axis=1)
+    return {
+        "nn_median": float(np.median(nn)),
+        "nn_min": float(nn.min()),
+        "pairs_within_sqrt2mu": int((pairs < np.sqrt(2.0 * model.mu)).sum()),
+        "pairs_within_1e-5": int((pairs < 1e-5).sum()),
+    }
+
+
+# --------------------------------------------------------------------------
+# Perceptual uniformity along paths (Soler Fig. 9)
+# --------------------------------------------------------------------------
+
+
+def path_uniformity(path_rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
+    """From :func:`brdfpipe.manifold.path_analysis` rows: largest ``|d(A, x)/d(A, B) − t|`` and decreasing steps."""
+    by_path: dict[str, list[Mapping[str, Any]]] = {}
+    for r in path_rows:
+        by_path.setdefault(str(r["path"]), []).append(r)
+    dev, dec = 0.0, 0
+    for rows in by_path.values():
+        rows = sorted(rows, key=lambda r: float(r["t"]))
+        d_ab = float(rows[-1]["perceptual_a"]) or 1.0
+        da = np.array([float(r["perceptual_a"]) for r in rows])
+        t = np.array([float(r["t"]) for r in rows])
+        dev = max(dev, float(np.max(np.abs(da / d_ab - t))))
+        dec += int((np.diff(da) < 0).sum())
+    return {"perceptual_max_deviation": dev, "perceptual_decreasing_steps": dec}
+
+
+# --------------------------------------------------------------------------
+# One model, all measures
+# --------------------------------------------------------------------------
+
+
+def _hull_points(model: gplvm.GplvmModel, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    return latent.sample_in_hull(model.X, n, rng)
+
+
+def measure_model(
+    model: gplvm.GplvmModel,
+    *,
+    albedos: ArrayLike,
+    raw_gram: ArrayLike,
+    space_gram: ArrayLike,
+    paths: Sequence[tuple[str, str]],
+    steps: int,
+    rng: np.random.Generator,
+    store: Any = None,
+    hull_points: int = HULL_POINTS,
+    albedo_grid: int = 96,
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Every measure of the module docstring for one fit: a :data:`SPACE_COLUMNS` row (partial) and stability rows.
+
+    ``raw_gram`` / ``space_gram``: un-centred Gram matrices of the model's
+    materials in raw units and in the model's space (``space_gram`` may be
+    None for the ``log`` space, whose stability is not a Gram quantity and
+    is left empty).  ``paths``: latent paths (material pairs) for ``Σ|w|``.
+    """
+    A = np.asarray(albedos, dtype=np.float64)
+    n, q = model.X.shape
+    row: dict[str, Any] = {"q": q, "log_likelihood": model.log_likelihood}
+    K = model.chol @ model.chol.T
+    row["kappa"] = float(np.linalg.cond(K))
+    linear = model.space in gplvm.LINEAR_SPACES
+
+    H = _hull_points(model, hull_points, rng)
+    row["hull_points"] = int(H.shape[0])
+    if linear:
+        row["albedo_bad_hull"] = float(albedo_outside(model, H, A).mean())
+    else:
+        pick = H[: LOG_ALBEDO_POINTS]
+        row["albedo_bad_hull"] = float(albedo_outside(model, pick, A, store=store).mean())
+        row["hull_points"] = int(pick.shape[0])
+    if q == 2 and linear:
+        xs, ys = manifold.latent_grid(model.X, (0, 1), albedo_grid)
+        XX, YY = np.meshgrid(xs, ys)
+        row["albedo_bad_map"] = float(albedo_outside(model, np.c_[XX.ravel(), YY.ravel()], A).mean())
+    else:
+        row["albedo_bad_map"] = float("nan")
+    sw = np.abs(smooth_weights(model, H)).sum(axis=1)
+    row["sum_abs_w_hull_median"], row["sum_abs_w_hull_max"] = float(np.median(sw)), float(sw.max())
+    names = list(model.names)
+    ts = np.arange(steps + 1) / steps
+    sp = []
+    for a, b in paths:
+        xa, xb = model.X[names.index(a)], model.X[names.index(b)]
+        sp.append(np.abs(smooth_weights(model, (1.0 - ts)[:, None] * xa + ts[:, None] * xb)).sum(axis=1))
+    spa = np.concatenate(sp) if sp else np.array([np.nan])
+    row["sum_abs_w_path_median"], row["sum_abs_w_path_max"] = float(np.median(spa)), float(np.max(spa))
+    row.update(nearest_neighbour_spread(model))
+
+    stab_rows: list[dict[str, Any]] = []
+    for norm, G in (("raw", raw_gram), ("space", space_gram)):
+        key = f"stability_{norm}"
+        if G is None or not linear:
+            row[f"{key}_median_1e-6"] = row[f"{key}_p90_1e-6"] = float("nan")
+            continue
+        res = stability(model, G, rng=np.random.default_rng(rng.integers(2**63)))
+        for eps, rel in res.items():
+            stab_rows.append({"q": q, "norm": norm, "epsilon": eps, "median": float(np.median(rel)),
+                              "p90": float(np.percentile(rel, 90)), "max": float(rel.max())})
+        row[f"{key}_median_1e-6"] = float(np.median(res[1e-6]))
+        row[f"{key}_p90_1e-6"] = float(np.percentile(res[1e-6], 90))
+    return row, stab_rows
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "true" if v else "false"
+    if isinstance(v, (float, np.floating)):
+        return format(float(v), ".10g")
+    return str(v)
+
+
+def _write_csv(path: str | os.PathLike[str], columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> None:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for r in rows:
+        w.writerow([_fmt(r[c]) for c in columns])
+    atomic.write_text(Path(path), buf.getvalue())
+
+
+def compare_spaces(
+    *,
+    store: str | os.PathLike[str],
+    grams: Mapping[str, str | os.PathLike[str]],
+    models: Mapping[str, Mapping[int, str | os.PathLike[str]]],
+    default: str,
+    paths: Sequence[Sequence[str]] | None,
+    path_q: int,
+    seed: int,
+    steps: int = 20,
+    albedo_grid: int = 96,
+    perceptual_paths: bool = True,
+    spaces_out: str | os.PathLike[str],
+    stability_out: str | os.PathLike[str],
+) -> list[dict[str, Any]]:
+    """The workflow's ``compare_spaces`` job: every measure for every candidate's fits.
+
+    ``grams``: data space → Gram file (:func:`brdfpipe.gplvm.save_gram`; the
+    ``raw`` one is required: raw-unit stability); ``models``: candidate label
+    (:func:`candidate_label`) → {q: model file}; ``default``: the label of the
+    configured default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row
+    per candidate and q) and ``stability_out`` (:data:`STABILITY_COLUMNS`).
+    """
+    from brdfpipe.plan import check_paths, default_paths
+    from brdfpipe.store import open_store
+
+    if "raw" not in grams:
+        raise ValueError("compare_spaces needs the raw Gram matrix (stability in raw units)")
+    st = open_store(store)
+    loaded = {s: gplvm.load_gram(p) for s, p in grams.items()}
+    names = list(loaded["raw"][2].materials)
+    raw_gram = loaded["raw"][2].raw_gram
+    pairs = check_paths(paths, names) if paths else default_paths(names, seed)
+    A = manifold.material_albedos(st, names)
+    rows: list[dict[str, Any]] = []
+    stab: list[dict[str, Any]] = []
+    for label in sorted(models):
+        for q, path in sorted(models[label].items()):
+            model = gplvm.load_model(path)
+            if list(model.names) != names:
+                raise ValueError(f"{path}: its materials differ from those of {grams['raw']}")
+            if candidate_label(model.space, model.mu) != label:
+                raise ValueError(f"{path}: a {candidate_label(model.space, model.mu)} fit, expected {label}")
+            sg = loaded[model.space][2].raw_gram if model.space in loaded else None
+            rng = np.random.default_rng([seed, int(q), *label.encode()])
+            row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=sg, paths=pairs,
+                                       steps=steps, rng=rng, store=st, albedo_grid=albedo_grid)
+            if perceptual_paths and int(q) == int(path_q):
+                prow = []
+                for a, b in pairs:
+                    prow += manifold.path_analysis(st, model, loaded.get(model.space, loaded["raw"])[0], a, b, steps)
+                row.update(path_uniformity(prow))
+            else:
+                row.update({"perceptual_max_deviation": float("nan"), "perceptual_decreasing_steps": -1})
+            meta = {"database": st.database, "candidate": label, "space": model.space, "mu": model.mu}
+            rows.append({**meta, "default": label == default, **row})
+            stab += [{**meta, **r} for r in srows]
+            logger.info("%s q = %d: albedo outside [0, 1] on %.2f %% of the hull; kappa %.3g; "
+                        "stability at 1e-6 (space) median %.3g", label, q, 100 * row["albedo_bad_hull"],
+                        row["kappa"], row["stability_space_median_1e-6"])
+    _write_csv(spaces_out, SPACE_COLUMNS, rows)
+    _write_csv(stability_out, STABILITY_COLUMNS, stab)
+    return rows
