@@ -13,9 +13,11 @@ both at once::
     bounce.register_bounce_integrator()
     scene = {..., "integrator": {"type": "bouncesplit", "max_depth": 6}}
 
-Each sample returns the total radiance (the film's R, G, B) and the ``I¹⁻``
-part as three AOV channels (:data:`AOV_NAMES`, after R, G, B in the image
-``mi.render`` returns); ``I²⁺ = total − I¹⁻``.
+Each sample returns the total radiance (the film's R, G, B), the ``I¹⁻``
+part as three AOV channels and the object mask (1 where the camera ray's first
+hit is on the material, so the film gives the pixel's coverage) as a fourth
+(:data:`AOV_NAMES`, after R, G, B in the image ``mi.render`` returns);
+``I²⁺ = total − I¹⁻``.
 
 The path tracer
 ---------------
@@ -73,8 +75,9 @@ __all__ = [
 
 #: Mitsuba plugin name of the integrator.
 PLUGIN_NAME: Final = "bouncesplit"
-#: AOV channels of the I¹⁻ image (after R, G, B in ``mi.render``'s output).
-AOV_NAMES: Final = ("one.R", "one.G", "one.B")
+#: AOV channels (after R, G, B in ``mi.render``'s output): the I¹⁻ image, then the
+#: object mask (fraction of a pixel's camera rays whose first hit is on the material).
+AOV_NAMES: Final = ("one.R", "one.G", "one.B", "object")
 #: Default id of the edited material's BSDF (see :func:`brdfpipe.scene.scene_dict`).
 MATERIAL_ID: Final = "material"
 
@@ -185,6 +188,7 @@ def _bounce_class(variant: str) -> type:
             active = mi.Bool(active)
             valid_ray = mi.Bool((not self.hide_emitters) and scene.environment() is not None)
 
+            obj = mi.Float(0.0)  # first hit on the material (object mask)
             prev_si = dr.zeros(mi.Interaction3f)
             prev_bsdf_pdf = mi.Float(1.0)
             prev_bsdf_delta = mi.Bool(True)
@@ -210,7 +214,9 @@ def _bounce_class(variant: str) -> type:
                 active_next = active & (depth + 1 < self.max_depth) & si.is_valid()
 
                 bsdf = si.bsdf(ray)
-                on_mat = active_next & (bsdf == material)
+                hit_mat = active & si.is_valid() & (bsdf == material)
+                obj = dr.select((depth == 0) & hit_mat, 1.0, obj)
+                on_mat = active_next & hit_mat
                 n_here = n_mat + dr.select(on_mat, 1, 0)
 
                 # ---------------------- Emitter sampling ----------------------
@@ -251,7 +257,7 @@ def _bounce_class(variant: str) -> type:
                 active = active_next & (~rr_active | rr_continue) & (throughput_max != 0.0)
 
             return (dr.select(valid_ray, result, 0.0), valid_ray,
-                    [one[0], one[1], one[2]])
+                    [one[0], one[1], one[2], obj])
 
         def to_string(self) -> str:
             return (f"BounceSplitIntegrator[max_depth={self.max_depth}, rr_depth={self.rr_depth}, "
