@@ -165,3 +165,30 @@ def test_missing_material_is_a_clear_error(mi: Any, envmap: Path) -> None:
         chain.append(str(err))
         err = err.__cause__
     assert any("no shape of the scene has a bsdf with id 'nope'" in m for m in chain), chain
+
+
+def test_render_material_writes_both_parts_from_one_render(mi: Any, envmap: Path, tables: dict[str, Path],
+                                                           tmp_path: Path) -> None:
+    from brdfpipe.exr import read_exr, read_exr_attrs
+
+    kw = dict(envmap=envmap, variant=VARIANT, resolution=(32, 24), spp=8, max_depth=4, seed=2)
+    whole = scene.render_material(tables["white"], tmp_path / "i.exr", out_one=tmp_path / "one.exr", **kw)
+    one = read_exr(tmp_path / "one.exr")
+    assert np.array_equal(read_exr(tmp_path / "i.exr"), whole)
+    assert (one <= whole + 1e-5 * whole.max()).all() and one.mean() < whole.mean()
+    assert read_exr_attrs(tmp_path / "one.exr")["image"].startswith("I1-")
+    # the whole image is the stock path integrator's (same passes and seeds)
+    d = scene.scene_dict(render.merl_bsdf(tables["white"]), envmap=envmap, resolution=(32, 24), max_depth=4,
+                         spp=8, seed=2)
+    ref = scene.render_to_exr(d, tmp_path / "path.exr", spp=8, seed=2)
+    assert np.allclose(whole, ref, rtol=1e-4, atol=1e-5)
+    # same inputs, same bytes; without out_one the whole image is unchanged
+    scene.render_material(tables["white"], tmp_path / "i2.exr", out_one=tmp_path / "one2.exr", **kw)
+    scene.render_material(tables["white"], tmp_path / "i3.exr", **kw)
+    assert (tmp_path / "one2.exr").read_bytes() == (tmp_path / "one.exr").read_bytes()
+    assert np.array_equal(read_exr(tmp_path / "i3.exr"), whole)
+    mask = scene.render_object_mask(tmp_path / "mask.exr", envmap=envmap, variant=VARIANT, resolution=(32, 24),
+                                    spp=4, seed=0)
+    assert mask.shape == (24, 32) and mask[12, 16] == 1.0 and mask[0, 0] == 0.0
+    with pytest.raises(scene.SceneError, match="bouncesplit"):
+        scene.render_split_to_exr(d, tmp_path / "x.exr", spp=1, seed=0)
