@@ -98,9 +98,9 @@ def register_bounce_integrator() -> None:
     """
     import mitsuba as mi
 
-    from .render import _current_variant
+    from . import render
 
-    variant = _current_variant()
+    variant = render._current_variant()
     with _lock:
         if variant in _registered:
             return
@@ -122,8 +122,9 @@ def _bounce_class(variant: str) -> type:
     import drjit as dr
     import mitsuba as mi
 
-    from .render import RenderError
+    from . import render
 
+    RenderError = render.RenderError
     if mi.variant() != variant:
         raise RenderError(f"variant {variant!r} is not the current Mitsuba variant ({mi.variant()!r})")
 
