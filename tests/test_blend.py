@@ -370,3 +370,80 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
                                     figures={k: [tmp_path / "figs2" / f"{k}.png", tmp_path / "figs2" / f"{k}.pdf"]
                                              for k in figures.RENDER_FIGURE_STEMS}, database="synthetic")
     assert not (tmp_path / "figs2").exists() or not list((tmp_path / "figs2").iterdir())
+
+
+def test_error_maps_of_the_one_bounce_part(tmp_path: Path) -> None:
+    """With I¹⁻ pre-renders, the same weights blend them and six ``_one`` columns compare them."""
+    prerenders, points, images = _setup(tmp_path)
+    rng = np.random.default_rng(8)
+    src = tmp_path / "in"
+    ones = {}
+    for m in MATERIALS:
+        images[m + "-one"] = (0.8 * images[m]).astype(np.float32)
+        ones[m] = src / f"{m}-one.exr"
+        write_exr(ones[m], images[m + "-one"])
+    for k, pt in enumerate(points):
+        exact = sum(pt["weights"][m] * images[m + "-one"].astype(np.float64) for m in MATERIALS)
+        for key, name in (("reference_one", f"one-{k}.exr"), ("reference_one_seed2", f"one-{k}-2.exr")):
+            img = (exact + rng.normal(0.0, 0.04, exact.shape)).astype(np.float32)
+            write_exr(src / name, img)
+            pt[key] = str(src / name)
+            images[name] = img
+    out = tmp_path / "out"
+    rows = error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=out / "s.csv",
+                      database="synthetic", prerenders_one=ones)
+    for k, (row, pt) in enumerate(zip(rows, points)):
+        direct = sum(pt["weights"][m] * images[m + "-one"].astype(np.float64) for m in MATERIALS)
+        ref, ref2 = (images[n].astype(np.float64) for n in (f"one-{k}.exr", f"one-{k}-2.exr"))
+        rb, rn = (np.sqrt(np.mean((a - b) ** 2)) / ref.mean() for a, b in ((direct, ref), (ref, ref2)))
+        rb2 = np.sqrt(np.mean((direct - ref2) ** 2)) / ref.mean()
+        assert row["rmse_blend_one"] == pytest.approx(rb, rel=1e-12)
+        assert row["rmse_noise_one"] == pytest.approx(rn, rel=1e-12)
+        assert row["ratio_one"] == pytest.approx(rb / rn, rel=1e-12)
+        assert row["ratio_one_seed2"] == pytest.approx(rb2 / rn, rel=1e-12)
+        assert row["mean_reference_one"] == pytest.approx(ref.mean(), rel=1e-12)
+    with open(out / "s.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert float(table[1]["ratio_one_seed2"]) == pytest.approx(rows[1]["ratio_one_seed2"], rel=1e-8)
+    # without I¹⁻ images the columns are empty; a point lacking its I¹⁻ reference is named
+    error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=out / "s.csv", database="synthetic")
+    with open(out / "s.csv", newline="") as fh:
+        assert all(r["ratio_one"] == "" for r in csv.DictReader(fh))
+    lacking = [{k: v for k, v in pt.items() if k != "reference_one"} for pt in points]
+    with pytest.raises(BlendError, match="reference_one"):
+        error_maps(prerenders=prerenders, paths=_outputs(lacking, out), summary=out / "s.csv",
+                   database="synthetic", prerenders_one=ones)
+    with pytest.raises(BlendError, match="different materials"):
+        error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=out / "s.csv",
+                   database="synthetic", prerenders_one={MATERIALS[0]: ones[MATERIALS[0]]})
+
+
+def test_bounce_shares(tmp_path: Path) -> None:
+    from brdfpipe.blend import SHARE_COLUMNS, bounce_shares
+
+    rng = np.random.default_rng(3)
+    mask = np.zeros((H, W, 3), np.float32)
+    mask[: H // 2] = 1.0
+    write_exr(tmp_path / "mask.exr", mask)
+    images, ones = {}, {}
+    for k, m in enumerate(MATERIALS):
+        whole = rng.uniform(0.5, 1.0, (H, W, 3)).astype(np.float32)
+        one = whole.copy()
+        one[: H // 2] *= np.float32(1.0 - 0.1 * k)  # I²⁺ only on the object, 10 k %
+        images[m], ones[m] = tmp_path / f"{m}.exr", tmp_path / f"{m}-one.exr"
+        write_exr(images[m], whole)
+        write_exr(ones[m], one)
+    rows = bounce_shares(images=images, ones=ones, mask=tmp_path / "mask.exr", out=tmp_path / "s.csv",
+                         database="synthetic")
+    for k, row in enumerate(rows):
+        whole, one = read_exr(images[row["material"]]).astype(np.float64), read_exr(ones[row["material"]])
+        assert row["share_object"] == pytest.approx(0.1 * k, abs=1e-6)
+        assert row["share_image"] == pytest.approx(1.0 - one.astype(np.float64).mean() / whole.mean(), abs=1e-9)
+        assert row["object_pixels"] == (H // 2) * W
+    with open(tmp_path / "s.csv", newline="") as fh:
+        table = list(csv.reader(fh))
+    assert tuple(table[0]) == SHARE_COLUMNS and [r[1] for r in table[1:]] == list(MATERIALS)
+    write_exr(tmp_path / "empty.exr", np.zeros((H, W, 3), np.float32))
+    with pytest.raises(BlendError, match="empty.exr"):
+        bounce_shares(images=images, ones=ones, mask=tmp_path / "empty.exr", out=tmp_path / "s.csv",
+                      database="synthetic")

@@ -64,7 +64,8 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("plot_acquisition_figures", 1),
                     ("compute_gram", 1), ("fit_gplvm", 2), ("analyze_manifold", 1),
                     ("make_envmap", 1), ("prerender_material", 12), ("interpolate_path_points", 1),
-                    ("render_path_point", 3), ("error_maps", 1)]:
+                    ("render_path_point", 3), ("error_maps", 1), ("render_object_mask", 1),
+                    ("bounce_shares", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 
 
@@ -135,6 +136,14 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     with open(tmp_path / "results" / "errormaps" / "preview" / "summary.csv") as fh:
         summary = list(csv.DictReader(fh))
     assert len(summary) == 3 and all(float(r["rmse_noise"]) > 0 for r in summary)
+    assert all(float(r["rmse_noise_one"]) > 0 and float(r["ratio_one_seed2"]) > 0 for r in summary)
+    # the I¹⁻ part of every render, and the I²⁺ share of every material
+    assert sorted(p.stem for p in (renders / "materials-one").glob("*.exr")) == sorted(names)
+    assert len(list((renders / "paths").glob("*-t0.5-one-noise.exr"))) == 3
+    with open(renders / "bounce-shares.csv") as fh:
+        shares = list(csv.DictReader(fh))
+    assert sorted(r["material"] for r in shares) == sorted(names)
+    assert all(-1e-3 <= float(r["share_image"]) < 0.5 and int(r["object_pixels"]) > 0 for r in shares)
     # a second run has nothing to do
     again = snakemake(tmp_path, "-n")
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr

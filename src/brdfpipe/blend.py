@@ -59,13 +59,25 @@ __all__ = [
     "tonemap",
     "error_maps",
     "error_maps_from_files",
+    "SUMMARY_ONE_COLUMNS",
+    "SHARE_COLUMNS",
+    "bounce_shares",
 ]
 
 logger = logging.getLogger("brdfpipe.blend")
 
-#: Columns of ``summary.csv`` written by :func:`error_maps`, in order.
+#: Columns of ``summary.csv`` written by :func:`error_maps`, in order (the ``_one``
+#: columns: the same for the I¹⁻ images; empty when no I¹⁻ images are given).
 SUMMARY_COLUMNS: Final = (
     "database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "rmse_blend_seed2", "ratio_seed2", "mean_reference",
+    "rmse_blend_one", "rmse_noise_one", "ratio_one", "rmse_blend_one_seed2", "ratio_one_seed2", "mean_reference_one",
+)
+#: The I¹⁻ columns of :data:`SUMMARY_COLUMNS`.
+SUMMARY_ONE_COLUMNS: Final = SUMMARY_COLUMNS[9:]
+#: Columns of the I²⁺ share CSV written by :func:`bounce_shares`, in order.
+SHARE_COLUMNS: Final = (
+    "database", "material", "mean_image", "mean_one", "share_image", "mean_image_object", "mean_one_object",
+    "share_object", "object_pixels",
 )
 
 #: Characters allowed in a path name (it becomes part of file names).
@@ -288,12 +300,28 @@ def _ratio(err: float, noise: float) -> float:
     return math.inf if err > 0.0 else math.nan
 
 
+def _one_row(blend: NDArray[np.float64], ref_path: Path, ref2_path: Path) -> dict[str, float]:
+    """The ``_one`` columns of a summary row: the I¹⁻ blend against the two I¹⁻ references."""
+    ref = read_exr(ref_path).astype(np.float64)
+    ref2 = read_exr(ref2_path).astype(np.float64)
+    for p, img in ((ref_path, ref), (ref2_path, ref2)):
+        if img.shape != blend.shape:
+            raise BlendError(f"{p}: image has shape {img.shape}, but the I1- pre-renders have {blend.shape}")
+    rmse_blend = relative_rmse(blend, ref, ref)
+    rmse_noise = relative_rmse(ref, ref2, ref)
+    rmse_blend2 = relative_rmse(blend, ref2, ref)
+    return {"rmse_blend_one": rmse_blend, "rmse_noise_one": rmse_noise,
+            "ratio_one": _ratio(rmse_blend, rmse_noise), "rmse_blend_one_seed2": rmse_blend2,
+            "ratio_one_seed2": _ratio(rmse_blend2, rmse_noise), "mean_reference_one": float(ref.mean())}
+
+
 def error_maps(
     *,
     prerenders: Mapping[str, str | os.PathLike[str]],
     paths: Sequence[Mapping[str, Any]],
     summary: str | os.PathLike[str],
     database: str,
+    prerenders_one: Mapping[str, str | os.PathLike[str]] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Blend the pre-renders at points along manifold paths and compare with references (Fig. 13).
@@ -329,6 +357,19 @@ def error_maps(
       a visible blending bias gives more;
     * ``mean_reference`` = mean of the reference over pixels and channels.
 
+    With ``prerenders_one`` (each material's ``I¹⁻`` pre-render: light paths
+    with at most one scattering on the material, :mod:`brdfpipe.bounce`;
+    same materials as ``prerenders``), every point also needs
+    ``reference_one`` and ``reference_one_seed2`` (the references' ``I¹⁻``
+    images), the ``I¹⁻`` pre-renders are blended with the same weights, and
+    the row gets the same six numbers for them, suffixed ``_one``
+    (``rmse_blend_one``, ``rmse_noise_one``, ``ratio_one``,
+    ``rmse_blend_one_seed2``, ``ratio_one_seed2``, ``mean_reference_one``;
+    relative to the ``I¹⁻`` reference's mean).  ``I¹⁻`` is exactly affine in
+    the material, so its blend has no bias from ``I²⁺``: ``ratio_one_seed2``
+    ≈ 1 apart from the material interpolation's own error.  Without
+    ``prerenders_one`` those cells are empty.
+
     Then writes ``summary`` (CSV, columns :data:`SUMMARY_COLUMNS`, one line
     per point in input order, numbers as ``%.9g``, ``t`` as ``format_t``)
     atomically, and returns the rows (floats unrounded).  Each pre-render is
@@ -345,13 +386,23 @@ def error_maps(
         raise BlendError("no pre-renders given")
     if not paths:
         raise BlendError("no path points given")
+    with_one = prerenders_one is not None
+    if prerenders_one is not None and set(prerenders_one) != set(materials):
+        extra = sorted(set(prerenders_one) - set(materials))
+        lacking = sorted(set(materials) - set(prerenders_one))
+        raise BlendError(
+            "I1- pre-renders and pre-renders name different materials"
+            + (f"; I1- only: {', '.join(extra)}" if extra else "")
+            + (f"; without an I1- pre-render: {', '.join(lacking)}" if lacking else "")
+        )
+    ref_keys = ("reference", "reference_seed2") + (("reference_one", "reference_one_seed2") if with_one else ())
 
     # validate the points and every input file up front, before any work
     points: list[tuple[str, float, str]] = []
     W = np.empty((len(paths), len(materials)), dtype=np.float64)
     seen: dict[tuple[str, str], int] = {}
     for k, pt in enumerate(paths):
-        missing_keys = [key for key in ("path", "t", "weights", "reference", "reference_seed2", "blended",
+        missing_keys = [key for key in ("path", "t", "weights", *ref_keys, "blended",
                                         "error_exr", "error_png") if key not in pt]
         if missing_keys:
             raise BlendError(f"path point {k}: missing key(s) {', '.join(missing_keys)}")
@@ -375,7 +426,9 @@ def error_maps(
         W[k] = _check_weights([weights[m] for m in materials], len(materials), f"path {name} t={s} weights")
         points.append((name, t, s))
     inputs = [Path(prerenders[m]) for m in materials]
-    inputs += [Path(pt[key]) for pt in paths for key in ("reference", "reference_seed2")]
+    if prerenders_one is not None:
+        inputs += [Path(prerenders_one[m]) for m in materials]
+    inputs += [Path(pt[key]) for pt in paths for key in ref_keys]
     for f in inputs:
         if not f.is_file():
             raise ExrError(f"{f}: no such file")
@@ -388,6 +441,8 @@ def error_maps(
         check_not_input(o, inputs, what="output")
 
     blends = _blend_many([Path(prerenders[m]) for m in materials], W, progress)
+    blends_one = (_blend_many([Path(prerenders_one[m]) for m in materials], W, progress)
+                  if prerenders_one is not None else None)
 
     rows: list[dict[str, Any]] = []
     errs: list[NDArray[np.float64]] = []
@@ -414,11 +469,16 @@ def error_maps(
                             attrs={**attrs, "image": "mean over RGB of |blended - reference|",
                                    "reference": ref_path.name})
         errs.append(err)
-        rows.append({"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
-                     "ratio": ratio, "rmse_blend_seed2": rmse_blend2, "ratio_seed2": ratio2,
-                     "mean_reference": mean_ref})
-        _say(progress, f"{name} t={s}: relative RMSE blend {rmse_blend:.4g}, noise {rmse_noise:.4g}, "
-                       f"ratio {ratio:.3g}")
+        row = {"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
+               "ratio": ratio, "rmse_blend_seed2": rmse_blend2, "ratio_seed2": ratio2,
+               "mean_reference": mean_ref}
+        msg = (f"{name} t={s}: relative RMSE blend {rmse_blend:.4g}, noise {rmse_noise:.4g}, "
+               f"ratio {ratio:.3g}, vs seed 2 {ratio2:.3g}")
+        if blends_one is not None:
+            row.update(_one_row(blends_one[k], Path(pt["reference_one"]), Path(pt["reference_one_seed2"])))
+            msg += f"; I1- ratio {row['ratio_one']:.3g}, vs seed 2 {row['ratio_one_seed2']:.3g}"
+        rows.append(row)
+        _say(progress, msg)
 
     vmax = max(float(np.percentile(e, 99.0)) for e in errs) or max(float(e.max()) for e in errs) or 1.0
     for (name, _, s), err, row, pt in zip(points, errs, rows, paths):
@@ -432,7 +492,7 @@ def error_maps(
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(SUMMARY_COLUMNS)
     for (_, _, s), row in zip(points, rows):
-        writer.writerow([database, row["path"], s] + [_fmt(row[c]) for c in SUMMARY_COLUMNS[3:]])
+        writer.writerow([database, row["path"], s] + [_fmt(row[c]) if c in row else "" for c in SUMMARY_COLUMNS[3:]])
     text = buf.getvalue()
     _atomic_write(summary, lambda fh: fh.write(text), binary=False)
     return rows
@@ -449,6 +509,9 @@ def error_maps_from_files(
     error_pngs: Sequence[str | os.PathLike[str]],
     summary: str | os.PathLike[str],
     database: str,
+    prerenders_one: Mapping[str, str | os.PathLike[str]] | None = None,
+    references_one: Sequence[str | os.PathLike[str]] | None = None,
+    references_one_noise: Sequence[str | os.PathLike[str]] | None = None,
 ) -> list[dict[str, Any]]:
     """:func:`error_maps` with each path point given by its weights JSON and two reference renders.
 
@@ -457,15 +520,24 @@ def error_maps_from_files(
     ``weights``); ``references[k]`` / ``references_noise[k]`` the renders of
     that interpolated material with the main and the second seed;
     ``blended[k]``, ``error_exrs[k]``, ``error_pngs[k]`` its output files.
+    ``prerenders_one``, ``references_one`` and ``references_one_noise``
+    (all three or none): the ``I¹⁻`` images of the pre-renders and of the
+    two references (see :func:`error_maps`).
     BlendError naming the file for an unreadable or malformed JSON.
     """
     import json
 
-    lists = (weights, references, references_noise, blended, error_exrs, error_pngs)
+    ones = (prerenders_one, references_one, references_one_noise)
+    if any(x is None for x in ones) and not all(x is None for x in ones):
+        raise BlendError("give all of prerenders_one, references_one and references_one_noise, or none")
+    lists = [weights, references, references_noise, blended, error_exrs, error_pngs]
+    if references_one is not None and references_one_noise is not None:
+        lists += [references_one, references_one_noise]
     if len({len(x) for x in lists}) != 1:
-        raise BlendError("weights, references, references_noise and the output lists must have the same length")
+        raise BlendError("weights, references, references_noise (references_one, references_one_noise) and the "
+                         "output lists must have the same length")
     points = []
-    for wf, ref, ref2, bl, ee, ep in zip(*lists):
+    for wf, ref, ref2, bl, ee, ep, *one in zip(*lists):
         try:
             doc = json.loads(Path(wf).read_text(encoding="utf-8"))
             points.append({"path": doc["path"], "t": float(doc["t"]), "weights": dict(doc["weights"]),
@@ -473,5 +545,81 @@ def error_maps_from_files(
                            "error_png": ep})
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise BlendError(f"{wf}: not a path-point weights file ({type(err).__name__}: {err})") from None
+        if one:
+            points[-1].update(reference_one=one[0], reference_one_seed2=one[1])
     return error_maps(prerenders=prerenders, paths=points, summary=summary, database=database,
-                      progress=lambda msg: logger.info("%s", msg))
+                      prerenders_one=prerenders_one, progress=lambda msg: logger.info("%s", msg))
+
+
+def bounce_shares(
+    *,
+    images: Mapping[str, str | os.PathLike[str]],
+    ones: Mapping[str, str | os.PathLike[str]],
+    mask: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    database: str,
+    progress: Callable[[str], None] | None = None,
+) -> list[dict[str, Any]]:
+    """The share of ``I²⁺`` (≥ 2 scatterings on the material) in each material's pre-render.
+
+    The workflow's ``bounce_shares`` job.  ``images[m]`` is material ``m``'s
+    whole pre-render ``I``, ``ones[m]`` its ``I¹⁻`` part (same render,
+    :func:`brdfpipe.scene.render_material`), ``mask`` the object mask EXR
+    (:func:`brdfpipe.scene.render_object_mask`; a pixel is the object's when
+    its mask is ≥ 0.5).  Writes ``out`` (CSV, columns :data:`SHARE_COLUMNS`,
+    one row per material in the order of ``images``, numbers ``%.9g``)
+    atomically and returns the rows:
+
+    * ``mean_image``, ``mean_one``: means of ``I`` and ``I¹⁻`` over all
+      pixels and channels; ``share_image`` = 1 − mean_one / mean_image
+      (= mean ``I²⁺`` / mean ``I``);
+    * ``mean_image_object``, ``mean_one_object``, ``share_object``: the same
+      over the object's pixels; ``object_pixels``: how many there are.
+
+    The share is ``nan`` where the mean of ``I`` is 0.  BlendError if the
+    two mappings name different materials, a shape differs (naming the file)
+    or the mask has no object pixel; ExrError naming a missing or corrupt
+    file.
+    """
+    out = Path(out)
+    materials = list(images)
+    if not materials:
+        raise BlendError("no pre-renders given")
+    if set(ones) != set(materials):
+        raise BlendError(f"images and I1- images name different materials: "
+                         f"{sorted(set(materials) ^ set(ones))}")
+    inputs = [Path(mask)] + [Path(images[m]) for m in materials] + [Path(ones[m]) for m in materials]
+    for f in inputs:
+        if not f.is_file():
+            raise ExrError(f"{f}: no such file")
+    check_not_input(out, inputs, what="output")
+    m_img = read_exr(mask)
+    obj = m_img[..., 0] >= 0.5
+    if not obj.any():
+        raise BlendError(f"{mask}: the object mask has no pixel >= 0.5")
+    rows: list[dict[str, Any]] = []
+    for m in materials:
+        whole = read_exr(images[m]).astype(np.float64)
+        one = read_exr(ones[m]).astype(np.float64)
+        for p, img in ((Path(images[m]), whole), (Path(ones[m]), one)):
+            if img.shape != m_img.shape:
+                raise BlendError(f"{p}: image has shape {img.shape}, but the mask {mask} has {m_img.shape}")
+        mi_, mo = float(whole.mean()), float(one.mean())
+        mi_obj, mo_obj = float(whole[obj].mean()), float(one[obj].mean())
+        row = {"material": m, "mean_image": mi_, "mean_one": mo,
+               "share_image": 1.0 - mo / mi_ if mi_ > 0 else math.nan,
+               "mean_image_object": mi_obj, "mean_one_object": mo_obj,
+               "share_object": 1.0 - mo_obj / mi_obj if mi_obj > 0 else math.nan,
+               "object_pixels": int(obj.sum())}
+        rows.append(row)
+        _say(progress, f"{m}: I2+ share {row['share_image']:.4g} of the image, {row['share_object']:.4g} "
+                       f"of the object")
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(SHARE_COLUMNS)
+    for row in rows:
+        writer.writerow([database, row["material"]]
+                        + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c]) for c in SHARE_COLUMNS[2:]])
+    text = buf.getvalue()
+    _atomic_write(out, lambda fh: fh.write(text), binary=False)
+    return rows

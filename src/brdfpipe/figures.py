@@ -2589,6 +2589,9 @@ def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[st
         else:
             note = (f"RMSE {float(row['rmse_blend']):.3g}, vs 2nd seed {float(row['rmse_blend_seed2']):.3g} "
                     f"(noise {float(row['rmse_noise']):.3g})")
+            if row.get("rmse_blend_one_seed2"):  # the I¹⁻ part (paths with ≤ 1 bounce on the material)
+                note += (f"\nI¹⁻ only: vs 2nd seed {float(row['rmse_blend_one_seed2']):.3g} "
+                         f"(noise {float(row['rmse_noise_one']):.3g})")
         _image_axes(fig.add_subplot(gs[r, 0]), tonemap(ref, ev), f"{q.path}\nreference t = {q.t:g}", 5.0)
         _image_axes(fig.add_subplot(gs[r, 1]), tonemap(bl, ev), "blended pre-renders", 5.5)
         ax = fig.add_subplot(gs[r, 2])
@@ -2602,7 +2605,8 @@ def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[st
             "mean over RGB of |blend − ref| (radiance)", fontsize=6)
     title = f"Blended vs reference renders of interpolated materials (Soler Fig. 13) — {database_label(database)}"
     return _finish(fig, stem, title, "relative RMSE over pixels and channels, divided by the reference mean; "
-                   "noise = the same between two seeds of the reference", database, warn)
+                   "noise = the same between two seeds of the reference; I¹⁻: light paths with at most one "
+                   "bounce on the material (blending is exact for them)", database, warn)
 
 
 def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],

@@ -47,6 +47,9 @@ __all__ = [
     "figure_files",
     "envmap",
     "prerender",
+    "prerender_one",
+    "object_mask",
+    "bounce_shares",
     "path_point",
     "errormap_summary",
     "errormap",
@@ -229,10 +232,26 @@ def prerender(scene: str, material: str) -> str:
     return f"{RESULTS}/renders/{scene}/materials/{material}.exr"
 
 
+def prerender_one(scene: str, material: str) -> str:
+    """The I¹⁻ part of a pre-render (light paths with at most one scattering on the material)."""
+    return f"{RESULTS}/renders/{scene}/materials-one/{material}.exr"
+
+
+def object_mask(scene: str) -> str:
+    return f"{RESULTS}/renders/{scene}/object-mask.exr"
+
+
+def bounce_shares(scene: str) -> str:
+    """Per-material share of I²⁺ (≥ 2 scatterings on the material) in the pre-renders."""
+    return f"{RESULTS}/renders/{scene}/bounce-shares.csv"
+
+
 def path_point(scene: str, path: str, t: float | str, kind: str) -> str:
-    """A latent-path point's file: kind ``binary`` (material), ``image``, ``noise`` (second seed) or ``weights``."""
+    """A latent-path point's file: kind ``binary`` (material), ``image``, ``noise`` (second seed),
+    ``one``, ``one_noise`` (their I¹⁻ parts) or ``weights``."""
     base = f"{RESULTS}/renders/{scene}/paths/{path}-t{format_t(t)}"
-    suffix = {"binary": ".binary", "image": ".exr", "noise": "-noise.exr", "weights": "-weights.json"}
+    suffix = {"binary": ".binary", "image": ".exr", "noise": "-noise.exr", "one": "-one.exr",
+              "one_noise": "-one-noise.exr", "weights": "-weights.json"}
     if kind not in suffix:
         raise ValueError(f"kind must be one of {sorted(suffix)}, got {kind!r}")
     return base + suffix[kind]

@@ -304,7 +304,9 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "prerender_material": (253.0, 0.0),
     "interpolate_path_points": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
     "render_path_point": (253.0, 0.0),
-    "error_maps": (110.0, 0.05),
+    "render_object_mask": (253.0, 0.0),  # as render_path_point: one small render, not measured alone
+    "bounce_shares": (110.0, 0.0),  # not measured: reads two images at a time, less than error_maps
+    "error_maps": (110.0, 0.1),  # reads the I¹⁻ pre-renders too: twice error_maps' per-material share
     "plot_render_figures": (240.0, 1.0),
 }
 #: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every

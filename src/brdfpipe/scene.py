@@ -84,8 +84,10 @@ __all__ = [
     "scene_dict",
     "pass_seeds",
     "render_to_exr",
+    "render_split_to_exr",
     "render_material",
     "render_material_seeds",
+    "render_object_mask",
 ]
 
 logger = logging.getLogger("brdfpipe.scene")
@@ -392,6 +394,62 @@ def pass_seeds(spp: int, seed: int, pass_spp: int = DEFAULT_PASS_SPP) -> list[tu
     return [(seed * _MAX_PASSES + p, min(pass_spp, spp - p * pass_spp)) for p in range(n)]
 
 
+def _check_attrs(out: Path, attrs: Mapping[str, str] | None, auto: Mapping[str, str]) -> None:
+    clash = sorted(set(auto) & set(attrs or {}))
+    if clash:
+        raise ValueError(f"{out}: attrs may not set {', '.join(clash)} (render_to_exr records them)")
+
+
+def _render_passes(
+    scene: Mapping[str, Any],
+    out: Path,
+    passes: list[tuple[int, int]],
+    say: Callable[[str], None],
+) -> NDArray[np.float64]:
+    """Load ``scene`` and render it in ``passes``; the sample-weighted mean, ``(H, W, C)`` float64.
+
+    ``C`` is every channel ``mi.render`` returns (R, G, B, then the
+    integrator's AOVs).  Non-finite values raise :class:`SceneError` naming ``out``.
+    """
+    from brdfpipe import render
+
+    mi = _mitsuba()
+    spp = sum(n for _, n in passes)
+    try:
+        loaded = render.load_scene(scene)
+    except Exception as exc:
+        raise SceneError(f"{out}: Mitsuba could not load the scene: {exc}") from exc
+    total: NDArray[np.float64] | None = None
+    for p, (pass_seed, n) in enumerate(passes):
+        try:
+            img = np.array(mi.render(loaded, seed=pass_seed, spp=n), dtype=np.float64)
+        except Exception as exc:
+            cause = exc.__cause__ if exc.__cause__ is not None else exc  # mi.render wraps Python errors
+            raise SceneError(f"{out}: Mitsuba render pass {p + 1}/{len(passes)} failed: {cause}") from exc
+        if img.ndim != 3 or img.shape[2] < 3:
+            raise SceneError(f"{out}: render returned an image of shape {img.shape}, expected (H, W, 3)")
+        total = img * n if total is None else total + img * n
+        say(f"{out.name}: pass {p + 1}/{len(passes)} done ({n} spp, seed {pass_seed}, "
+            f"{sum(k for _, k in passes[: p + 1])}/{spp} spp)")
+    assert total is not None
+    mean = total / spp
+    bad = ~np.isfinite(mean.astype(np.float32))
+    if bad.any():
+        raise SceneError(f"{out}: render produced {int(bad.sum())} non-finite value(s) (NaN or Inf); not written")
+    return mean
+
+
+def _auto_attrs(spp: int, seed: int, pass_spp: int) -> dict[str, str]:
+    mi = _mitsuba()
+    return {
+        "spp": str(spp),
+        "seed": str(seed),
+        "pass_spp": str(pass_spp),
+        "mitsuba_variant": str(mi.variant()),
+        "mitsuba_version": str(mi.__version__),
+    }
+
+
 def render_to_exr(
     scene: Mapping[str, Any],
     out: str | os.PathLike[str],
@@ -413,56 +471,79 @@ def render_to_exr(
     ``spp``, ``seed``, ``pass_spp``, ``mitsuba_variant`` and
     ``mitsuba_version`` plus ``attrs`` (which may not override those).  The
     same scene, ``spp``, ``seed`` and ``pass_spp`` on the same variant give
-    the same bytes.  Returns the ``(H, W, 3)`` float32 image.  A scene that
-    fails to load or render raises :class:`SceneError`; a render with NaN/Inf
-    pixels raises :class:`SceneError` naming ``out`` (nothing is written).
+    the same bytes.  Returns the ``(H, W, 3)`` float32 image (R, G, B; AOVs
+    are dropped).  A scene that fails to load or render raises
+    :class:`SceneError`; a render with NaN/Inf pixels raises
+    :class:`SceneError` naming ``out`` (nothing is written).
     """
-    from brdfpipe import render
-
     out = Path(out)
-    mi = _mitsuba()
     passes = pass_seeds(spp, seed, pass_spp)
-    auto = {
-        "spp": str(spp),
-        "seed": str(seed),
-        "pass_spp": str(pass_spp),
-        "mitsuba_variant": str(mi.variant()),
-        "mitsuba_version": str(mi.__version__),
-    }
-    clash = sorted(set(auto) & set(attrs or {}))
-    if clash:
-        raise ValueError(f"{out}: attrs may not set {', '.join(clash)} (render_to_exr records them)")
+    auto = _auto_attrs(spp, seed, pass_spp)
+    _check_attrs(out, attrs, auto)
     say = progress if progress is not None else logger.info
-    try:
-        loaded = render.load_scene(scene)
-    except Exception as exc:
-        raise SceneError(f"{out}: Mitsuba could not load the scene: {exc}") from exc
-
-    total: NDArray[np.float64] | None = None
-    for p, (pass_seed, n) in enumerate(passes):
-        try:
-            img = np.array(mi.render(loaded, seed=pass_seed, spp=n), dtype=np.float64)
-        except Exception as exc:
-            raise SceneError(f"{out}: Mitsuba render pass {p + 1}/{len(passes)} failed: {exc}") from exc
-        if img.ndim != 3 or img.shape[2] < 3:
-            raise SceneError(f"{out}: render returned an image of shape {img.shape}, expected (H, W, 3)")
-        img = img[..., :3]
-        total = img * n if total is None else total + img * n
-        say(f"{out.name}: pass {p + 1}/{len(passes)} done ({n} spp, seed {pass_seed}, "
-            f"{sum(k for _, k in passes[: p + 1])}/{spp} spp)")
-    assert total is not None
-    image = (total / spp).astype(np.float32)
-    bad = ~np.isfinite(image)
-    if bad.any():
-        raise SceneError(f"{out}: render produced {int(bad.sum())} non-finite value(s) (NaN or Inf); not written")
+    image = _render_passes(scene, out, passes, say)[..., :3].astype(np.float32)
     write_exr(out, image, attrs={**dict(attrs or {}), **auto})
     return image
+
+
+def render_split_to_exr(
+    scene: Mapping[str, Any],
+    out: str | os.PathLike[str] | None,
+    *,
+    out_one: str | os.PathLike[str] | None = None,
+    out_mask: str | os.PathLike[str] | None = None,
+    spp: int,
+    seed: int,
+    attrs: Mapping[str, str] | None = None,
+    progress: Callable[[str], None] | None = None,
+    pass_spp: int = DEFAULT_PASS_SPP,
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """:func:`render_to_exr` for a scene with the ``bouncesplit`` integrator: one render, up to three EXRs.
+
+    Writes the whole image ``I`` to ``out``, its ``I¹⁻`` part (light paths
+    with at most one scattering on the material, :mod:`brdfpipe.bounce`) to
+    ``out_one`` and the object mask (coverage of the material's first hits,
+    repeated in R, G, B) to ``out_mask``, each if given (at least one must
+    be), from the **same** passes (one render).  Headers as :func:`render_to_exr`, plus ``image``
+    saying which part the file holds.  Returns ``(I, I¹⁻)`` as ``(H, W, 3)``
+    float32.  :class:`SceneError` if the scene's integrator gives no split
+    (not ``bouncesplit``).
+    """
+    from brdfpipe import bounce
+
+    given = [Path(p) for p in (out, out_one, out_mask) if p is not None]
+    if not given:
+        raise ValueError("render_split_to_exr: give at least one of out, out_one, out_mask")
+    label = given[0]
+    passes = pass_seeds(spp, seed, pass_spp)
+    auto = _auto_attrs(spp, seed, pass_spp)
+    _check_attrs(label, attrs, auto)
+    say = progress if progress is not None else logger.info
+    img = _render_passes(scene, label, passes, say)
+    if img.shape[2] != 3 + len(bounce.AOV_NAMES):
+        raise SceneError(f"{label}: the render has {img.shape[2]} channels, expected "
+                         f"{3 + len(bounce.AOV_NAMES)}: the scene's integrator must be "
+                         f"{bounce.PLUGIN_NAME!r} (brdfpipe.bounce)")
+    whole = img[..., :3].astype(np.float32)
+    one = img[..., 3:6].astype(np.float32)
+    base = {**dict(attrs or {}), **auto}
+    if out is not None:
+        write_exr(out, whole, attrs={**base, "image": "I (every light path)"})
+    if out_one is not None:
+        write_exr(out_one, one, attrs={**base, "image": "I1- (light paths with at most one scattering "
+                                                           "on the material)"})
+    if out_mask is not None:
+        mask = np.repeat(img[..., 6:7], 3, axis=2).astype(np.float32)
+        write_exr(out_mask, mask, attrs={**base, "image": "object mask (fraction of camera rays whose "
+                                                            "first hit is on the material)"})
+    return whole, one
 
 
 def render_material(
     merl_path: str | os.PathLike[str],
     out: str | os.PathLike[str],
     *,
+    out_one: str | os.PathLike[str] | None = None,
     envmap: str | os.PathLike[str],
     variant: str,
     resolution: tuple[int, int],
@@ -476,26 +557,36 @@ def render_material(
     """Render the preview scene with a MERL material (the ``merl`` plugin) to an EXR.
 
     The workflow's ``prerender_material`` and ``render_path_point`` jobs.
-    ``variant`` is validated by :func:`brdfpipe.render.use_variant`
-    (RenderError for an unknown or unavailable one); a missing or corrupt
-    MERL file raises an error naming it before anything is rendered.
-    ``threads``: CPU threads of Dr.Jit's LLVM backend (the job's declared
-    threads; ``None`` leaves Dr.Jit's default, every core of the machine).
+    The integrator is ``bouncesplit`` (:mod:`brdfpipe.bounce`: Mitsuba's
+    ``path`` with the same ``max_depth``, Russian roulette and sampler draws,
+    so the whole image is ``path``'s), so one render gives the whole image
+    ``I`` (written to ``out``) and its ``I¹⁻`` part (paths with at most one
+    scattering on the material; written to ``out_one`` if given) — see
+    :func:`render_split_to_exr`.  ``variant`` is validated by
+    :func:`brdfpipe.render.use_variant` (RenderError for an unknown or
+    unavailable one); a missing or corrupt MERL file raises an error naming
+    it before anything is rendered.  ``threads``: CPU threads of Dr.Jit's
+    LLVM backend (the job's declared threads; ``None`` leaves Dr.Jit's
+    default, every core of the machine).  Returns the whole image.
     """
-    from brdfpipe import render
+    from brdfpipe import bounce, render
 
     render.use_variant(variant)
     if threads is not None:
         render.set_cpu_threads(threads)
     render.register_merl_bsdf()
+    bounce.register_bounce_integrator()
     scene = scene_dict(
         render.merl_bsdf(merl_path), envmap=envmap, resolution=tuple(resolution),  # type: ignore[arg-type]
         max_depth=max_depth, spp=spp, seed=seed,
     )
-    meta = {"material_file": Path(merl_path).name, **(attrs or {})}
+    scene["integrator"] = bounce.bounce_integrator(max_depth)
+    meta = {"material_file": Path(merl_path).name, "integrator": bounce.PLUGIN_NAME, **(attrs or {})}
     logger.info("rendering %s: %dx%d, %d spp, max_depth %d, seed %d, %s",
                 Path(merl_path).name, resolution[0], resolution[1], spp, max_depth, seed, variant)
-    return render_to_exr(scene, out, spp=spp, seed=seed, attrs=meta, progress=progress)
+    whole, _ = render_split_to_exr(scene, out, out_one=out_one, spp=spp, seed=seed, attrs=meta,
+                                   progress=progress)
+    return whole
 
 
 def render_material_seeds(
@@ -503,11 +594,53 @@ def render_material_seeds(
     outs: list[str | os.PathLike[str]],
     *,
     seeds: list[int],
+    outs_one: list[str | os.PathLike[str]] | None = None,
     attrs: Mapping[str, str] | None = None,
     **kwargs: Any,
 ) -> None:
-    """:func:`render_material` once per seed (``outs[k]`` with ``seeds[k]``), in one process (one JIT warm-up)."""
+    """:func:`render_material` once per seed (``outs[k]``, ``outs_one[k]`` with ``seeds[k]``), in one process (one JIT warm-up)."""
     if len(outs) != len(seeds) or len(set(seeds)) != len(seeds):
         raise ValueError(f"need one distinct seed per output, got seeds {seeds} for {len(outs)} outputs")
-    for out, seed in zip(outs, seeds):
-        render_material(merl_path, out, seed=seed, attrs={**(attrs or {}), "seed_role": f"seed {seed}"}, **kwargs)
+    if outs_one is not None and len(outs_one) != len(outs):
+        raise ValueError(f"need one I1- output per output, got {len(outs_one)} for {len(outs)}")
+    ones = list(outs_one) if outs_one is not None else [None] * len(outs)
+    for out, one, seed in zip(outs, ones, seeds):
+        render_material(merl_path, out, out_one=one, seed=seed,
+                        attrs={**(attrs or {}), "seed_role": f"seed {seed}"}, **kwargs)
+
+
+def render_object_mask(
+    out: str | os.PathLike[str],
+    *,
+    envmap: str | os.PathLike[str],
+    variant: str,
+    resolution: tuple[int, int],
+    spp: int,
+    seed: int,
+    attrs: Mapping[str, str] | None = None,
+    threads: int | None = None,
+) -> NDArray[np.float32]:
+    """The preview object's mask: per pixel, the fraction of camera rays whose first hit is the object.
+
+    The workflow's ``object_mask`` job (the pixels over which
+    :func:`brdfpipe.blend.bounce_shares` measures the object's ``I²⁺``
+    share).  Rendered with the ``bouncesplit`` integrator (``max_depth`` 1)
+    and the same camera sampling as the pre-renders (``spp``, ``seed``); the
+    material is irrelevant (a grey ``diffuse``).  Written to ``out`` as an
+    EXR with the mask in R, G and B; returns it, ``(H, W)``.
+    """
+    from brdfpipe import bounce, render
+
+    render.use_variant(variant)
+    if threads is not None:
+        render.set_cpu_threads(threads)
+    bounce.register_bounce_integrator()
+    grey = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
+    scene = scene_dict(grey, envmap=envmap, resolution=tuple(resolution),  # type: ignore[arg-type]
+                       max_depth=1, spp=spp, seed=seed)
+    scene["integrator"] = bounce.bounce_integrator(1)
+    render_split_to_exr(scene, None, out_mask=out, spp=spp, seed=seed,
+                        attrs={"integrator": bounce.PLUGIN_NAME, **(attrs or {})})
+    from .exr import read_exr
+
+    return read_exr(out)[..., 0]

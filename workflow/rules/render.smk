@@ -33,6 +33,7 @@ rule prerender_material:
         envmap=fn.envmap(SCENE),
     output:
         image=fn.prerender(SCENE, "{material}"),
+        one=fn.prerender_one(SCENE, "{material}"),
     log:
         f"logs/prerender_material/{SCENE}/{{material}}.log",
     benchmark:
@@ -91,6 +92,8 @@ rule render_path_point:
     output:
         image=fn.path_point(SCENE, "{path}", "{t}", "image"),
         noise=fn.path_point(SCENE, "{path}", "{t}", "noise"),
+        one=fn.path_point(SCENE, "{path}", "{t}", "one"),
+        one_noise=fn.path_point(SCENE, "{path}", "{t}", "one_noise"),
     log:
         f"logs/render_path_point/{SCENE}/{{path}}-t{{t}}.log",
     benchmark:
@@ -114,6 +117,61 @@ rule render_path_point:
         "../scripts/render_path_point.py"
 
 
+# The object's pixels (for the I²⁺ share over the object): one small render.
+rule render_object_mask:
+    input:
+        envmap=fn.envmap(SCENE),
+    output:
+        mask=fn.object_mask(SCENE),
+    log:
+        f"logs/render_object_mask/{SCENE}.log",
+    benchmark:
+        f"benchmarks/render_object_mask/{SCENE}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 2
+    resources:
+        gpu=RENDER_GPUS,
+        mem_mb=mem("render_object_mask"),
+        runtime=10,
+    params:
+        variant=RENDER["variant"],
+        resolution=RENDER["resolution"],
+        spp=RENDER["spp"],
+        seed=RENDER["seed"],
+        database=DATABASE.kind,
+        code=code("render_object_mask.py"),
+    script:
+        "../scripts/render_object_mask.py"
+
+
+# Share of I²⁺ (paths with ≥ 2 scatterings on the material, which blending
+# gets wrong) in each pre-render, over the image and over the object.
+rule bounce_shares:
+    input:
+        images=expand(fn.prerender(SCENE, "{material}"), material=MATERIALS),
+        ones=expand(fn.prerender_one(SCENE, "{material}"), material=MATERIALS),
+        mask=fn.object_mask(SCENE),
+    output:
+        shares=fn.bounce_shares(SCENE),
+    log:
+        f"logs/bounce_shares/{SCENE}.log",
+    benchmark:
+        f"benchmarks/bounce_shares/{SCENE}.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=mem("bounce_shares"),
+        runtime=10,
+    params:
+        materials=MATERIALS,
+        database=DATABASE.kind,
+        code=code("bounce_shares.py"),
+    script:
+        "../scripts/bounce_shares.py"
+
+
 if PATH_POINTS:
 
     rule error_maps:
@@ -122,6 +180,11 @@ if PATH_POINTS:
             weights=path_point_files("weights"),
             references=path_point_files("image"),
             references_noise=path_point_files("noise"),
+            prerenders_one=expand(
+                fn.prerender_one(SCENE, "{material}"), material=MATERIALS
+            ),
+            references_one=path_point_files("one"),
+            references_one_noise=path_point_files("one_noise"),
         output:
             summary=fn.errormap_summary(SCENE),
             blended=errormap_files("blended.exr"),

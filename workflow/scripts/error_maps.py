@@ -14,4 +14,7 @@ with log_to(snakemake.log[0]):
         error_pngs=list(snakemake.output.error_pngs),
         summary=snakemake.output.summary,
         database=snakemake.params.database,
+        prerenders_one=dict(zip(snakemake.params.materials, snakemake.input.prerenders_one)),
+        references_one=list(snakemake.input.references_one),
+        references_one_noise=list(snakemake.input.references_one_noise),
     )

@@ -1,4 +1,4 @@
-"""Global-illumination pre-render of one material (rule prerender_material)."""
+"""Global-illumination pre-render of one material and its I¹⁻ part, one render (rule prerender_material)."""
 
 from brdfpipe import scene
 from brdfpipe.logutil import log_to
@@ -7,6 +7,7 @@ with log_to(snakemake.log[0]):
     scene.render_material(
         snakemake.input.merl,
         snakemake.output.image,
+        out_one=snakemake.output.one,
         envmap=snakemake.input.envmap,
         variant=snakemake.params.variant,
         resolution=snakemake.params.resolution,

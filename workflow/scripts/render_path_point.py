@@ -1,4 +1,4 @@
-"""Reference renders of an interpolated material with two seeds (rule render_path_point)."""
+"""Reference renders of an interpolated material with two seeds, and their I¹⁻ parts (rule render_path_point)."""
 
 from brdfpipe import scene
 from brdfpipe.logutil import log_to
@@ -7,6 +7,7 @@ with log_to(snakemake.log[0]):
     scene.render_material_seeds(
         snakemake.input.merl,
         [snakemake.output.image, snakemake.output.noise],
+        outs_one=[snakemake.output.one, snakemake.output.one_noise],
         seeds=snakemake.params.seeds,
         envmap=snakemake.input.envmap,
         variant=snakemake.params.variant,

@@ -1,0 +1,13 @@
+"""Share of I²⁺ (≥ 2 scatterings on the material) in each pre-render (rule bounce_shares)."""
+
+from brdfpipe import blend
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    blend.bounce_shares(
+        images=dict(zip(snakemake.params.materials, snakemake.input.images)),
+        ones=dict(zip(snakemake.params.materials, snakemake.input.ones)),
+        mask=snakemake.input.mask,
+        out=snakemake.output.shares,
+        database=snakemake.params.database,
+    )
