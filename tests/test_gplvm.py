@@ -52,14 +52,21 @@ def _random_gram(n: int, seed: int, d: float) -> np.ndarray:
 # --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("space", ["raw", "cosine", "log"])
+@pytest.mark.parametrize("space", gplvm.SPACES)
 def test_gram_matrix_equals_dense_computation(small_store: Path, dense: dict, space: str) -> None:
     G, d, info = gplvm.gram_matrix(small_store, space=space)
     data = dense["data"].astype(np.float64)
     cells = dense["cells"]
+    wi, wo = merl.cell_directions(cells)
+    cos = wi[:, 2] * wo[:, 2]
     if space == "cosine":
-        wi, wo = merl.cell_directions(cells)
-        data = data * (wi[:, 2] * wo[:, 2])
+        data = data * cos
+    elif space == "relative":  # cos θi cos θo over the per-cell median of every channel of every material
+        ref = np.median(dense["data"].transpose(1, 0, 2).reshape(-1, cells.size).astype(np.float64), axis=0)
+        data = data * cos / np.maximum(ref, 1e-3)
+    elif space == "standardised":  # each (channel, cell) over its standard deviation across the materials
+        sd = data.std(axis=0)
+        data = data * np.sqrt(np.maximum(cos, 0.0)) / np.maximum(sd, 1e-6)
     elif space == "log":
         ref = np.median(dense["data"].reshape(-1, cells.size).astype(np.float64), axis=0)
         data = logmap.forward(data, ref, logmap.cell_weights(cells, "product"))
@@ -71,6 +78,18 @@ def test_gram_matrix_equals_dense_computation(small_store: Path, dense: dict, sp
     assert np.allclose(G, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
     assert np.allclose(info.row_sums, Z.sum(axis=1), rtol=1e-9)
     assert np.allclose(G, G.T)
+
+
+@pytest.mark.parametrize("space", gplvm.LINEAR_SPACES)
+def test_linear_spaces_blend_the_raw_tables(small_store: Path, dense: dict, space: str) -> None:
+    """In every linear space the interpolated table is W Z of the stored values, whatever the per-value scaling."""
+    W = np.array([[0.7, 0.5, -0.2, 0.0, 0.0, 0.0], [0.1, 0.1, 0.1, 0.2, 0.2, 0.3]])
+    tables, _ = gplvm.interpolate_tables(small_store, W, space=space)
+    raw = dense["brdf"].reshape(6, 3 * N_CELLS).astype(np.float64)
+    expect = np.clip(W @ raw, 0.0, None)
+    keep = np.tile(dense["valid"], 3)
+    assert np.allclose(tables.reshape(2, -1)[:, keep], expect[:, keep], rtol=1e-6, atol=1e-9)
+    assert (tables.reshape(2, -1)[:, ~keep] == -1.0).all()
 
 
 def test_gram_material_subset_order_and_save_load(small_store: Path, tmp_path: Path) -> None:

@@ -75,7 +75,8 @@ __all__ = [
     "nearest_neighbour_spread",
     "path_uniformity",
     "measure_model",
-    "compare_spaces",
+    "measure_candidate",
+    "combine_candidates",
 ]
 
 logger = logging.getLogger("brdfpipe.fidelity")
@@ -83,7 +84,7 @@ logger = logging.getLogger("brdfpipe.fidelity")
 #: Offsets from the training points (ℓ units) of the stability measure.
 EPSILONS: Final = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
 #: Latent points whose tables are interpolated to measure albedo in the ``log`` space.
-LOG_ALBEDO_POINTS: Final = 48
+LOG_ALBEDO_POINTS: Final = 16
 #: Hull points drawn per model for the albedo and weight statistics.
 HULL_POINTS: Final = 20000
 SPACE_COLUMNS: Final = (
@@ -330,11 +331,12 @@ def _write_csv(path: str | os.PathLike[str], columns: Sequence[str], rows: Seque
     atomic.write_text(Path(path), buf.getvalue())
 
 
-def compare_spaces(
+def measure_candidate(
     *,
     store: str | os.PathLike[str],
     grams: Mapping[str, str | os.PathLike[str]],
-    models: Mapping[str, Mapping[int, str | os.PathLike[str]]],
+    models: Mapping[int, str | os.PathLike[str]],
+    candidate: str,
     default: str,
     paths: Sequence[Sequence[str]] | None,
     path_q: int,
@@ -345,19 +347,21 @@ def compare_spaces(
     spaces_out: str | os.PathLike[str],
     stability_out: str | os.PathLike[str],
 ) -> list[dict[str, Any]]:
-    """The workflow's ``compare_spaces`` job: every measure for every candidate's fits.
+    """The workflow's ``measure_gplvm_candidate`` job: every measure for one candidate's fits.
 
-    ``grams``: data space → Gram file (:func:`brdfpipe.gplvm.save_gram`; the
-    ``raw`` one is required: raw-unit stability); ``models``: candidate label
-    (:func:`candidate_label`) → {q: model file}; ``default``: the label of the
-    configured default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row
-    per candidate and q) and ``stability_out`` (:data:`STABILITY_COLUMNS`).
+    ``grams``: data space → Gram file (:func:`brdfpipe.gplvm.save_gram`):
+    the ``raw`` one (raw-unit stability) and the candidate's own space;
+    ``models``: {q: model file} of the candidate (:func:`candidate_label`
+    must give ``candidate``); ``default``: the label of the configured
+    default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row per q)
+    and ``stability_out`` (:data:`STABILITY_COLUMNS`).  The random hull
+    points and directions are seeded by (``seed``, q, ``candidate``).
     """
     from brdfpipe.plan import check_paths, default_paths
     from brdfpipe.store import open_store
 
     if "raw" not in grams:
-        raise ValueError("compare_spaces needs the raw Gram matrix (stability in raw units)")
+        raise ValueError("measure_candidate needs the raw Gram matrix (stability in raw units)")
     st = open_store(store)
     loaded = {s: gplvm.load_gram(p) for s, p in grams.items()}
     names = list(loaded["raw"][2].materials)
@@ -366,30 +370,76 @@ def compare_spaces(
     A = manifold.material_albedos(st, names)
     rows: list[dict[str, Any]] = []
     stab: list[dict[str, Any]] = []
-    for label in sorted(models):
-        for q, path in sorted(models[label].items()):
-            model = gplvm.load_model(path)
-            if list(model.names) != names:
-                raise ValueError(f"{path}: its materials differ from those of {grams['raw']}")
-            if candidate_label(model.space, model.mu) != label:
-                raise ValueError(f"{path}: a {candidate_label(model.space, model.mu)} fit, expected {label}")
-            sg = loaded[model.space][2].raw_gram if model.space in loaded else None
-            rng = np.random.default_rng([seed, int(q), *label.encode()])
-            row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=sg, paths=pairs,
-                                       steps=steps, rng=rng, store=st, albedo_grid=albedo_grid)
-            if perceptual_paths and int(q) == int(path_q):
-                prow = []
-                for a, b in pairs:
-                    prow += manifold.path_analysis(st, model, loaded.get(model.space, loaded["raw"])[0], a, b, steps)
-                row.update(path_uniformity(prow))
-            else:
-                row.update({"perceptual_max_deviation": float("nan"), "perceptual_decreasing_steps": -1})
-            meta = {"database": st.database, "candidate": label, "space": model.space, "mu": model.mu}
-            rows.append({**meta, "default": label == default, **row})
-            stab += [{**meta, **r} for r in srows]
-            logger.info("%s q = %d: albedo outside [0, 1] on %.2f %% of the hull; kappa %.3g; "
-                        "stability at 1e-6 (space) median %.3g", label, q, 100 * row["albedo_bad_hull"],
-                        row["kappa"], row["stability_space_median_1e-6"])
+    for q, path in sorted(models.items()):
+        model = gplvm.load_model(path)
+        if list(model.names) != names:
+            raise ValueError(f"{path}: its materials differ from those of {grams['raw']}")
+        if candidate_label(model.space, model.mu) != candidate:
+            raise ValueError(f"{path}: a {candidate_label(model.space, model.mu)} fit, expected {candidate}")
+        sg = loaded[model.space][2].raw_gram if model.space in loaded else None
+        rng = np.random.default_rng([seed, int(q), *candidate.encode()])
+        row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=sg, paths=pairs,
+                                   steps=steps, rng=rng, store=st, albedo_grid=albedo_grid)
+        if perceptual_paths and int(q) == int(path_q):
+            prow = []
+            gram = loaded[model.space][0] if model.space in loaded else loaded["raw"][0]
+            for a, b in pairs:
+                prow += manifold.path_analysis(st, model, gram, a, b, steps)
+            row.update(path_uniformity(prow))
+        else:
+            row.update({"perceptual_max_deviation": float("nan"), "perceptual_decreasing_steps": -1})
+        meta = {"database": st.database, "candidate": candidate, "space": model.space, "mu": model.mu}
+        rows.append({**meta, "default": candidate == default, **row})
+        stab += [{**meta, **r} for r in srows]
+        logger.info("%s q = %d: albedo outside [0, 1] on %.2f %% of the hull; kappa %.3g; "
+                    "stability at 1e-6 (space) median %.3g", candidate, q, 100 * row["albedo_bad_hull"],
+                    row["kappa"], row["stability_space_median_1e-6"])
     _write_csv(spaces_out, SPACE_COLUMNS, rows)
     _write_csv(stability_out, STABILITY_COLUMNS, stab)
     return rows
+
+
+def _read_rows(path: str | os.PathLike[str], columns: Sequence[str]) -> list[list[str]]:
+    with open(path, encoding="utf-8", newline="") as fh:
+        r = list(csv.reader(fh))
+    if not r or tuple(r[0]) != tuple(columns):
+        raise ValueError(f"{path}: not a table with columns {', '.join(columns)}")
+    return r[1:]
+
+
+def combine_candidates(
+    *,
+    spaces: Sequence[str | os.PathLike[str]],
+    stability: Sequence[str | os.PathLike[str]],
+    spaces_out: str | os.PathLike[str],
+    stability_out: str | os.PathLike[str],
+) -> None:
+    """The workflow's ``compare_spaces`` job: the candidates' tables, one after another, in one table each.
+
+    ValueError naming a file whose header is not :data:`SPACE_COLUMNS` /
+    :data:`STABILITY_COLUMNS` or that repeats a row (candidate, q[, norm, ε]),
+    or when not exactly one candidate is the default.
+    """
+    texts: list[tuple[str | os.PathLike[str], str]] = []
+    for files, columns, out in ((spaces, SPACE_COLUMNS, spaces_out), (stability, STABILITY_COLUMNS, stability_out)):
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(columns)
+        defaults = set()
+        seen: set[tuple[str, ...]] = set()
+        key = [columns.index(c) for c in ("candidate", "q") + (("norm", "epsilon") if columns is STABILITY_COLUMNS else ())]
+        for f in files:
+            rows = _read_rows(f, columns)
+            for r in rows:
+                k = tuple(r[i] for i in key)
+                if k in seen:
+                    raise ValueError(f"{f}: a second row for {', '.join(k)}")
+                seen.add(k)
+            if columns is SPACE_COLUMNS:
+                defaults |= {r[1] for r in rows if r[columns.index("default")] == "true"}
+            w.writerows(rows)
+        if columns is SPACE_COLUMNS and len(defaults) != 1:
+            raise ValueError(f"expected exactly one default candidate among {len(files)} tables, found {sorted(defaults)}")
+        texts.append((out, buf.getvalue()))
+    for out, text in texts:  # both checked before either is written
+        atomic.write_text(Path(out), text)

@@ -40,6 +40,8 @@ __all__ = [
     "gplvm_trace",
     "spaces_csv",
     "spaces_stability_csv",
+    "candidate_spaces_csv",
+    "candidate_stability_csv",
     "albedo",
     "albedo_map",
     "paths_csv",
@@ -197,6 +199,15 @@ def spaces_csv() -> str:
 
 def spaces_stability_csv() -> str:
     return f"{RESULTS}/manifold/spaces-stability.csv"
+
+
+def candidate_spaces_csv(candidate: str) -> str:
+    """One candidate's rows of :func:`spaces_csv`."""
+    return f"{RESULTS}/manifold/spaces/{candidate}.csv"
+
+
+def candidate_stability_csv(candidate: str) -> str:
+    return f"{RESULTS}/manifold/spaces/{candidate}-stability.csv"
 
 
 def albedo() -> str:

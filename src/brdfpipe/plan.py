@@ -297,7 +297,8 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "compute_gram": (276.0, 3.93),
     "fit_gplvm": (95.0, 0.0),
     "analyze_manifold": (380.0, 16.8),
-    "compare_spaces": (400.0, 16.8),
+    "measure_gplvm_candidate": (400.0, 16.8),
+    "compare_spaces": (60.0, 0.0),
     "plot_manifold_figures": (204.0, 0.0),
     # rendering track
     "make_envmap": (116.0, 0.0),

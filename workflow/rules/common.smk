@@ -68,6 +68,13 @@ ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
 DEFAULT_CANDIDATE = plan.candidate_label(MAN["space"], MAN["mu"])
 CANDIDATE_SPACES = sorted({space for space, _ in CANDIDATES.values()} | {"raw"})
+
+
+def candidate_gram_spaces(candidate):
+    """Gram matrices a candidate's measures read: raw (raw-unit stability) and its own space."""
+    return sorted({"raw", CANDIDATES[candidate][0]})
+
+
 ALBEDO_MAP_DIMS = plan.albedo_map_dims(MAN)
 MANIFOLD_DATA = [
     fn.albedo(),
@@ -75,9 +82,7 @@ MANIFOLD_DATA = [
     fn.reproduction(),
     fn.spaces_csv(),
     fn.spaces_stability_csv(),
-] + [
-    fn.albedo_map(q) for q in ALBEDO_MAP_DIMS
-]
+] + [fn.albedo_map(q) for q in ALBEDO_MAP_DIMS]
 
 # Rendering track: the scene's outputs and the rendered path points; render jobs
 # ask for a GPU (the Slurm plugin's `gpu` resource) when the variant needs one.

@@ -87,34 +87,54 @@ rule analyze_manifold:
         "../scripts/analyze_manifold.py"
 
 
-rule compare_spaces:
+rule measure_gplvm_candidate:
     input:
         store=fn.store(),
-        grams=expand(fn.gram("{space}"), space=CANDIDATE_SPACES),
-        models=expand(fn.gplvm_model("{c}", "{q}"), c=CANDIDATES, q=MAN["latent_dims"]),
+        grams=lambda w: [fn.gram(s) for s in candidate_gram_spaces(w.candidate)],
+        models=expand(fn.gplvm_model("{{candidate}}", "{q}"), q=MAN["latent_dims"]),
     output:
-        spaces=fn.spaces_csv(),
-        stability=fn.spaces_stability_csv(),
+        spaces=fn.candidate_spaces_csv("{candidate}"),
+        stability=fn.candidate_stability_csv("{candidate}"),
     log:
-        "logs/compare_spaces.log",
+        "logs/measure_gplvm_candidate/{candidate}.log",
     benchmark:
-        "benchmarks/compare_spaces.tsv"
+        "benchmarks/measure_gplvm_candidate/{candidate}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 1
     resources:
-        mem_mb=mem("compare_spaces"),
-        runtime=60,
+        mem_mb=mem("measure_gplvm_candidate"),
+        runtime=30,
     params:
-        spaces=CANDIDATE_SPACES,
-        candidates=[c for c in CANDIDATES for q in MAN["latent_dims"]],
-        dims=[q for c in CANDIDATES for q in MAN["latent_dims"]],
+        spaces=lambda w: candidate_gram_spaces(w.candidate),
+        dims=MAN["latent_dims"],
         default=DEFAULT_CANDIDATE,
         paths=[list(p) for p in MANIFOLD_PATHS],
         path_q=PATH_Q,
         seed=MAN["seed"],
         steps=MAN["path_steps"],
         albedo_grid=MAN["albedo_grid"],
+        code=code("measure_gplvm_candidate.py"),
+    script:
+        "../scripts/measure_gplvm_candidate.py"
+
+
+rule compare_spaces:
+    input:
+        spaces=expand(fn.candidate_spaces_csv("{c}"), c=CANDIDATES),
+        stability=expand(fn.candidate_stability_csv("{c}"), c=CANDIDATES),
+    output:
+        spaces=fn.spaces_csv(),
+        stability=fn.spaces_stability_csv(),
+    log:
+        "logs/compare_spaces.log",
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=mem("compare_spaces"),
+        runtime=5,
+    params:
         code=code("compare_spaces.py"),
     script:
         "../scripts/compare_spaces.py"

@@ -1,0 +1,188 @@
+"""brdfpipe.fidelity: every measure of a data-space candidate, recomputed here by another route."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.spatial
+
+from brdfpipe import fidelity, gplvm, latent, manifold, merl, store, synth
+from brdfpipe.merl import N_CELLS
+
+N = 8
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    tmp = tmp_path_factory.mktemp("fidelity")
+    db = tmp / "db"
+    synth.synthesize(db, count=N, seed=3, jobs=1, progress=False)
+    st_path = tmp / "merl.zarr"
+    store.ingest(sorted(db.glob("*.binary")), st_path, database="synthetic", jobs=1)
+    st = store.open_store(st_path)
+    grams, models = {}, {}
+    for space in ("raw", "standardised"):
+        G, d, info = gplvm.gram_matrix(st_path, space=space)
+        grams[space] = tmp / f"gram-{space}.npz"
+        gplvm.save_gram(grams[space], G, d, info)
+    for q in (2, 3):
+        G, d, info = gplvm.load_gram(grams["standardised"])
+        res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=q, mu=1e-6, seed=1, max_sweeps=30)
+        models[q] = tmp / f"q{q}.npz"
+        gplvm.save_model(models[q], res, info.materials, space="standardised")
+    brdf = np.asarray(st.brdf[:], dtype=np.float64).reshape(st.n_materials, 3 * N_CELLS)
+    return {"tmp": tmp, "store": st_path, "grams": grams, "models": models, "brdf": brdf,
+            "valid": np.tile(np.asarray(st.valid[:], dtype=bool), 3), "names": list(st.materials)}
+
+
+def _model(setup: dict, q: int) -> gplvm.GplvmModel:
+    return gplvm.load_model(setup["models"][q])
+
+
+def test_candidate_label() -> None:
+    assert fidelity.candidate_label("raw", 1e-4) == "raw-mu0.0001"
+    assert fidelity.candidate_label("standardised", 1e-6) == "standardised-mu1e-06"
+    with pytest.raises(ValueError, match="unknown data space"):
+        fidelity.candidate_label("lab", 1e-4)
+    with pytest.raises(ValueError, match="mu"):
+        fidelity.candidate_label("raw", -1.0)
+
+
+def test_smooth_weights_match_gplvm_weights_off_the_training_points(setup: dict) -> None:
+    m = _model(setup, 2)
+    rng = np.random.default_rng(0)
+    P = m.X[rng.integers(0, N, 5)] + 0.05 * rng.standard_normal((5, 2))
+    W = fidelity.smooth_weights(m, P)
+    for p, w in zip(P, W):  # one point at a time, through the model's own weights
+        assert np.allclose(w, gplvm.blend_weights(gplvm.weights(m, p)), atol=1e-10)
+    # at a training point the smooth weights differ from e_i by μK⁻¹e_i (no δ term)
+    K = gplvm.kernel_matrix(m.X, m.ell, m.mu)
+    b = np.eye(N)[0] - m.mu * np.linalg.solve(K, np.eye(N)[0])
+    assert np.allclose(fidelity.smooth_weights(m, m.X[:1])[0], gplvm.blend_weights(b), atol=1e-8)
+
+
+def test_albedo_outside_equals_the_albedo_of_the_interpolated_tables(setup: dict) -> None:
+    """w·A (linear) against albedos recomputed from the raw rows; the albedo is linear in the table."""
+    m = _model(setup, 2)
+    A = manifold.material_albedos(setup["store"], m.names)
+    rows = setup["brdf"]
+    valid = setup["valid"]
+    own = np.stack([manifold.material_albedo(np.where(valid, r, -1.0).reshape(merl.SHAPE)) for r in rows])
+    assert np.allclose(own, A, rtol=1e-6)
+    # a convex blend (no negative value): its table's albedo is the blend of the albedos
+    w = np.zeros(N)
+    w[[0, 3]] = 0.3, 0.7
+    blend = manifold.material_albedo(np.where(valid, w @ rows, -1.0).reshape(merl.SHAPE))
+    assert np.allclose(blend, w @ A, rtol=1e-6)
+    H = latent.sample_in_hull(m.X, 6, np.random.default_rng(1))
+    far = m.X.mean(axis=0) + 40.0 * (m.X.max(axis=0) - m.X.min(axis=0))  # far outside: the mean material
+    P = np.vstack([H, far])
+    got = fidelity.albedo_outside(m, P, A)
+    for p, flag in zip(P, got):
+        a = gplvm.blend_weights(gplvm.weights(m, p)) @ own
+        assert flag == bool(((a < 0) | (a > 1)).any())
+    assert not got[-1]  # the mean of physical materials is physical
+
+
+def test_stability_equals_direct_table_differences(setup: dict) -> None:
+    """‖z(xᵢ+εu) − zᵢ‖/‖zᵢ‖ from the Gram matrix equals the norm of the difference of the raw rows."""
+    m = _model(setup, 3)
+    _, _, info = gplvm.load_gram(setup["grams"]["raw"])
+    eps = (1e-6, 1e-2)
+    res = fidelity.stability(m, info.raw_gram, epsilons=eps, rng=np.random.default_rng(5))
+    rng = np.random.default_rng(5)  # the same directions
+    u = rng.standard_normal((N, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    Z = setup["brdf"][:, setup["valid"]]
+    for e in eps:
+        for i in range(N):
+            w = gplvm.blend_weights(gplvm.weights(m, m.X[i] + e * u[i]))
+            direct = np.linalg.norm(w @ Z - Z[i]) / np.linalg.norm(Z[i])
+            assert res[e][i] == pytest.approx(direct, rel=1e-5, abs=1e-12)
+    assert np.median(res[1e-2]) > np.median(res[1e-6])  # further away, more change
+
+
+def test_nearest_neighbour_spread_against_a_kd_tree() -> None:
+    X = np.array([[0.0, 0.0], [0.0, 1e-6], [1.0, 0.0], [3.0, 0.0]])
+    m = gplvm.GplvmModel(tuple("abcd"), X, 0.5, 1e-4, "raw", gplvm.MEAN_HANDLING,
+                         np.linalg.cholesky(gplvm.kernel_matrix(X, 0.5, 1e-4)), 0.0, 10.0, np.zeros((0, 2)))
+    got = fidelity.nearest_neighbour_spread(m)
+    dist, _ = scipy.spatial.cKDTree(X / 0.5).query(X / 0.5, k=2)
+    assert got["nn_median"] == pytest.approx(np.median(dist[:, 1]))
+    assert got["nn_min"] == pytest.approx(2e-6)
+    pairs = scipy.spatial.distance.pdist(X / 0.5)
+    assert got["pairs_within_sqrt2mu"] == int((pairs < np.sqrt(2e-4)).sum()) == 1
+    assert got["pairs_within_1e-5"] == 1
+
+
+def test_path_uniformity() -> None:
+    rows = [{"path": "p", "t": t, "perceptual_a": d} for t, d in ((0.0, 0.0), (0.5, 0.8), (1.0, 1.0))]
+    rows += [{"path": "r", "t": t, "perceptual_a": d} for t, d in ((0.0, 0.0), (0.5, 1.2), (1.0, 1.0))]
+    got = fidelity.path_uniformity(rows)
+    assert got["perceptual_max_deviation"] == pytest.approx(0.7)  # 1.2 / 1.0 − 0.5
+    assert got["perceptual_decreasing_steps"] == 1
+
+
+def test_measure_candidate_and_combine(setup: dict) -> None:
+    tmp = setup["tmp"]
+    names = setup["names"]
+    paths = [[names[0], names[1]]]
+    out_s, out_t = tmp / "cand.csv", tmp / "cand-stab.csv"
+    rows = fidelity.measure_candidate(
+        store=setup["store"], grams=setup["grams"], models=setup["models"], candidate="standardised-mu1e-06",
+        default="standardised-mu1e-06", paths=paths, path_q=3, seed=4, steps=4, albedo_grid=12,
+        spaces_out=out_s, stability_out=out_t)
+    assert [r["q"] for r in rows] == [2, 3]
+    for r, q in zip(rows, (2, 3)):
+        m = _model(setup, q)
+        assert r["kappa"] == pytest.approx(np.linalg.cond(gplvm.kernel_matrix(m.X, m.ell, m.mu)), rel=1e-6)
+        assert 0.0 <= r["albedo_bad_hull"] <= 1.0 and r["hull_points"] == fidelity.HULL_POINTS
+        assert r["sum_abs_w_hull_median"] >= 1.0 - 1e-9
+    assert np.isnan(rows[1]["albedo_bad_map"]) and not np.isnan(rows[0]["albedo_bad_map"])
+    assert np.isnan(rows[0]["perceptual_max_deviation"]) and rows[1]["perceptual_max_deviation"] >= 0.0
+    # the map statistic by another route: the grid of manifold.albedo_map, w·A outside [0, 1]
+    m2 = _model(setup, 2)
+    A = manifold.material_albedos(setup["store"], m2.names)
+    amap = manifold.albedo_map(m2, A, n=12)
+    assert rows[0]["albedo_bad_map"] == pytest.approx(((amap["albedo"] < 0) | (amap["albedo"] > 1)).any(axis=2).mean())
+    with open(out_s, encoding="utf-8") as fh:
+        table = list(csv.DictReader(fh))
+    assert [t["default"] for t in table] == ["true", "true"] and table[0]["database"] == "synthetic"
+    # a wrong label is refused, naming the file
+    with pytest.raises(ValueError, match="q2.npz: a standardised-mu1e-06 fit, expected raw-mu0.0001"):
+        fidelity.measure_candidate(
+            store=setup["store"], grams=setup["grams"], models=setup["models"], candidate="raw-mu0.0001",
+            default="raw-mu0.0001", paths=paths, path_q=3, seed=4, steps=4, albedo_grid=12,
+            spaces_out=tmp / "x.csv", stability_out=tmp / "y.csv")
+    # combining: one default exactly
+    fidelity.combine_candidates(spaces=[out_s], stability=[out_t], spaces_out=tmp / "all.csv",
+                                stability_out=tmp / "all-stab.csv")
+    assert (tmp / "all.csv").read_text() == out_s.read_text()
+    with pytest.raises(ValueError, match="cand.csv: a second row for standardised-mu1e-06, 2"):
+        fidelity.combine_candidates(spaces=[out_s, out_s], stability=[out_t], spaces_out=tmp / "all2.csv",
+                                    stability_out=tmp / "all2-stab.csv")
+    nodefault = tmp / "nodefault.csv"
+    nodefault.write_text(out_s.read_text().replace(",true,", ",false,"))
+    with pytest.raises(ValueError, match="exactly one default"):
+        fidelity.combine_candidates(spaces=[nodefault], stability=[out_t], spaces_out=tmp / "all2.csv",
+                                    stability_out=tmp / "all2-stab.csv")
+    assert not (tmp / "all2.csv").exists()
+
+
+def test_albedo_map_hull_statistics(setup: dict) -> None:
+    m = _model(setup, 2)
+    A = manifold.material_albedos(setup["store"], m.names)
+    amap = manifold.albedo_map(m, A, n=16)
+    XX, YY = np.meshgrid(amap["x"], amap["y"])
+    inside = latent.hull_contains(m.X, np.c_[XX.ravel(), YY.ravel()], method="lp").reshape(16, 16)
+    assert (amap["inside_hull"] == inside).all() and inside.any() and (~inside).any()
+    bad = ((amap["albedo"] < 0) | (amap["albedo"] > 1)).any(axis=2)
+    assert float(amap["bad_inside"]) == pytest.approx(bad[inside].mean())
+    assert float(amap["bad_outside"]) == pytest.approx(bad[~inside].mean())
+    # the map's smooth interpolant at the training points vs their own albedo
+    w = fidelity.smooth_weights(m, m.X)
+    gap = np.abs((w @ A - A) @ np.array([0.2126, 0.7152, 0.0722]))
+    assert float(amap["training_gap_max"]) == pytest.approx(gap.max())

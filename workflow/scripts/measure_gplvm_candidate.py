@@ -1,0 +1,20 @@
+"""Every fidelity measure of one GPLVM candidate (data space, mu) (rule measure_gplvm_candidate)."""
+
+from brdfpipe import fidelity
+from brdfpipe.logutil import log_to
+
+with log_to(snakemake.log[0]):
+    fidelity.measure_candidate(
+        store=snakemake.input.store,
+        grams=dict(zip(snakemake.params.spaces, snakemake.input.grams)),
+        models=dict(zip(snakemake.params.dims, snakemake.input.models)),
+        candidate=snakemake.wildcards.candidate,
+        default=snakemake.params.default,
+        paths=snakemake.params.paths,
+        path_q=snakemake.params.path_q,
+        seed=snakemake.params.seed,
+        steps=snakemake.params.steps,
+        albedo_grid=snakemake.params.albedo_grid,
+        spaces_out=snakemake.output.spaces,
+        stability_out=snakemake.output.stability,
+    )
