@@ -113,16 +113,24 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 + 14 + 6 and "fig05-error-vs-images.png" in figures
+    assert len(figures) == 16 + 16 + 6 and "fig05-error-vs-images.png" in figures
+    assert "manifold-spaces.png" in figures
     assert "manifold-fig09-paths.pdf" in figures and "render-fig13-errors.png" in figures
-    # manifold track: one GPLVM fit per latent dimension, with its likelihood trace
+    # manifold track: one GPLVM fit per candidate (data space, mu) and latent dimension, with its trace
     from brdfpipe import gplvm
 
-    for q in (2, 5):
-        fit = gplvm.load_model(tmp_path / "results" / "gplvm" / f"q{q}.npz")
-        assert fit.X.shape == (12, q) and list(fit.names) == names
-        trace = (tmp_path / "results" / "gplvm" / f"q{q}-trace.csv").read_text().splitlines()
-        assert trace[0] == "step,stage,log_likelihood" and len(trace) > 2
+    for cand, space in (("standardised-mu1e-06", "standardised"), ("raw-mu0.0001", "raw")):
+        for q in (2, 5):
+            fit = gplvm.load_model(tmp_path / "results" / "gplvm" / cand / f"q{q}.npz")
+            assert fit.X.shape == (12, q) and list(fit.names) == names and fit.space == space
+            trace = (tmp_path / "results" / "gplvm" / cand / f"q{q}-trace.csv").read_text().splitlines()
+            assert trace[0] == "step,stage,log_likelihood" and len(trace) > 2
+    with open(tmp_path / "results" / "manifold" / "spaces.csv") as fh:
+        spaces = list(csv.DictReader(fh))
+    assert sorted((r["candidate"], r["q"], r["default"]) for r in spaces) == [
+        ("raw-mu0.0001", "2", "false"), ("raw-mu0.0001", "5", "false"),
+        ("standardised-mu1e-06", "2", "true"), ("standardised-mu1e-06", "5", "true")]
+    assert all(0.0 <= float(r["albedo_bad_hull"]) <= 1.0 for r in spaces)
     # manifold analyses: three seeded paths of path_steps + 1 points, exact ends
     with open(tmp_path / "results" / "manifold" / "paths.csv") as fh:
         rows = list(csv.DictReader(fh))
