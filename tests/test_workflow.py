@@ -62,7 +62,8 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
                     ("evaluate_directions", 1), ("evaluate_training_size", 1), ("check_directions", 2),
                     ("plot_acquisition_figures", 1),
-                    ("compute_gram", 1), ("fit_gplvm", 2), ("analyze_manifold", 1),
+                    ("compute_gram", 2), ("fit_gplvm", 4), ("analyze_manifold", 1),
+                    ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
                     ("make_envmap", 1), ("prerender_material", 12), ("interpolate_path_points", 1),
                     ("render_path_point", 3), ("error_maps", 1), ("render_object_mask", 1),
                     ("bounce_shares", 1)]:

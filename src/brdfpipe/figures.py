@@ -1520,7 +1520,14 @@ def read_spaces(spaces_csv: str | os.PathLike[str], stability_csv: str | os.Path
     if len(defaults) != 1:
         raise FigureInputError(f"{p}: expected exactly one default candidate, found {sorted(defaults)}")
     database = _single_database(p, (r["database"] for r in rows))
-    sp, srows = _read_manifold_csv(stability_csv, STABILITY_FIGURE_COLUMNS, "stability table")
+    sp = _input_file(stability_csv, "stability table")
+    with sp.open(encoding="utf-8") as fh:
+        lines = [line for line in fh.read().splitlines() if line.strip()]
+    header_only = len(lines) == 1
+    if header_only and not set(STABILITY_FIGURE_COLUMNS) <= set(lines[0].split(",")):
+        raise FigureInputError(f"{sp}: missing column(s) of a stability table (required: {', '.join(STABILITY_FIGURE_COLUMNS)})")
+    # the log space has no Gram-based stability: a header alone is a valid (empty) table
+    srows = [] if header_only else _read_manifold_csv(sp, STABILITY_FIGURE_COLUMNS, "stability table")[1]
     acc: dict[tuple[str, int, str], list[tuple[float, float, float]]] = {}
     for r in srows:
         i = int(r["__line__"])
