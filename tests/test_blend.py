@@ -447,3 +447,92 @@ def test_bounce_shares(tmp_path: Path) -> None:
     with pytest.raises(BlendError, match="empty.exr"):
         bounce_shares(images=images, ones=ones, mask=tmp_path / "empty.exr", out=tmp_path / "s.csv",
                       database="synthetic")
+
+
+# -- the noise-floor check of every candidate ---------------------------------
+
+
+def _floor_inputs(tmp_path: Path, spp: tuple[int, int] = (4096, 4096)) -> dict[str, Any]:
+    """Two candidates with two path points each: summaries from error_maps, weights JSONs, references."""
+    import json
+
+    rng = np.random.default_rng(3)
+    pre = {m: p for m, p in zip(MATERIALS, _images(tmp_path, 3, seed=4))}
+    out: dict[str, Any] = {"summaries": {}, "weights": {}, "references": {}}
+    for c, sp in zip(("standardised-mu1e-06", "raw-mu0.0001"), spp):
+        d = tmp_path / c
+        d.mkdir()
+        points, wfiles, refs = [], [], []
+        for k, t in enumerate((0.25, 0.5)):
+            w = rng.normal(size=3)
+            w += (1.0 - w.sum()) / 3
+            wf = d / f"p-t{t}-weights.json"
+            wf.write_text(json.dumps({"path": "a--b", "t": t, "clamped": 10 * k, "measured_values": 1000,
+                                      "weights": dict(zip(MATERIALS, w.tolist()))}))
+            ref, ref2 = d / f"p-t{t}.exr", d / f"p-t{t}-noise.exr"
+            for f, s in ((ref, 10 + k), (ref2, 20 + k)):
+                write_exr(f, rng.uniform(0.5, 1.5, (H, W, 3)).astype(np.float32), attrs={"spp": str(sp)})
+            points.append({"path": "a--b", "t": t, "weights": dict(zip(MATERIALS, w)), "reference": ref,
+                           "reference_seed2": ref2, "blended": d / f"b{k}.exr", "error_exr": d / f"e{k}.exr",
+                           "error_png": d / f"e{k}.png"})
+            wfiles.append(wf)
+            refs.append(ref)
+        out["summaries"][c] = d / "summary.csv"
+        error_maps(prerenders=pre, paths=points, summary=out["summaries"][c], database="synthetic")
+        out["weights"][c], out["references"][c] = wfiles, refs
+    out["candidates"] = {"standardised-mu1e-06": ("standardised", 1e-6), "raw-mu0.0001": ("raw", 1e-4)}
+    return out
+
+
+def test_floor_check_table_joins_every_candidate(tmp_path: Path) -> None:
+    import json
+
+    inp = _floor_inputs(tmp_path)
+    out = tmp_path / "floor-check.csv"
+    rows = blend.floor_check_table(**inp, default="standardised-mu1e-06", out=out, database="synthetic")
+    with open(out, newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert list(table[0]) == list(blend.FLOOR_CHECK_COLUMNS) and len(table) == len(rows) == 4
+    assert [(r["candidate"], r["default"], r["t"]) for r in table] == [
+        ("standardised-mu1e-06", "1", "0.25"), ("standardised-mu1e-06", "1", "0.5"),
+        ("raw-mu0.0001", "0", "0.25"), ("raw-mu0.0001", "0", "0.5")]
+    for r in table:
+        doc = json.loads(Path(inp["weights"][r["candidate"]][0 if r["t"] == "0.25" else 1]).read_text())
+        w = np.array(list(doc["weights"].values()))
+        assert float(r["sum_abs_w"]) == pytest.approx(np.abs(w).sum())
+        assert float(r["norm2_w"]) == pytest.approx(np.sqrt((w * w).sum()))
+        assert float(r["clamped_fraction"]) == pytest.approx(doc["clamped"] / 1000)
+        assert (r["width"], r["height"], r["spp"]) == (str(W), str(H), "4096")
+    # the ratios are the summary's, against the independent seed
+    with open(inp["summaries"]["raw-mu0.0001"], newline="") as fh:
+        summary = list(csv.DictReader(fh))
+    assert [r["ratio_seed2"] for r in table[2:]] == [s["ratio_seed2"] for s in summary]
+
+
+def test_floor_check_table_refuses_mixed_renders_and_other_databases(tmp_path: Path) -> None:
+    inp = _floor_inputs(tmp_path, spp=(4096, 64))
+    out = tmp_path / "floor-check.csv"
+    with pytest.raises(BlendError, match=r"at 64 spp, but .* at 4096 spp"):
+        blend.floor_check_table(**inp, default="standardised-mu1e-06", out=out, database="synthetic")
+    with pytest.raises(BlendError, match="this run's is 'merl'"):
+        blend.floor_check_table(**inp, default="standardised-mu1e-06", out=out, database="merl")
+    with pytest.raises(BlendError, match="not among the candidates"):
+        blend.floor_check_table(**inp, default="log-mu0.0001", out=out, database="synthetic")
+    inp["weights"]["raw-mu0.0001"] = inp["weights"]["raw-mu0.0001"][::-1]
+    with pytest.raises(BlendError, match="does not match"):
+        blend.floor_check_table(**{**inp, "references": {c: r for c, r in inp["references"].items()}},
+                                default="standardised-mu1e-06", out=out, database="synthetic")
+    assert not out.exists()
+
+
+def test_floor_check_figure(tmp_path: Path) -> None:
+    from brdfpipe import figures
+
+    inp = _floor_inputs(tmp_path)
+    table = tmp_path / "floor-check.csv"
+    blend.floor_check_table(**inp, default="standardised-mu1e-06", out=table, database="synthetic")
+    res = figures.plot_floor_check(table=table, files=[tmp_path / "f.png", tmp_path / "f.pdf"], database="synthetic")
+    assert (tmp_path / "f.png").stat().st_size > 0 and "synthetic database" in res.title
+    assert any("I¹⁻" in t for t in res.panel_titles)
+    with pytest.raises(figures.FigureInputError, match="this run's is 'merl'"):
+        figures.plot_floor_check(table=table, files=[tmp_path / "g.png", tmp_path / "g.pdf"], database="merl")

@@ -228,3 +228,13 @@ def test_memory_grows_with_the_outputs_a_job_holds() -> None:
     extra = 8 * plan.PER_OUTPUT_MB["interpolate_path_points"] * plan.MEMORY_HEADROOM
     assert extra - 50 <= nine - one <= extra + 50
     assert plan.mem_mb("prerender_material", 100, outputs=9) == plan.mem_mb("prerender_material", 100)
+
+
+def test_floor_check_candidates() -> None:
+    cands = {"standardised-mu1e-06": ("standardised", 1e-6), "raw-mu0.0001": ("raw", 1e-4)}
+    render = {"floor_check": {"candidates": "all"}}
+    assert plan.floor_check_candidates(render, cands, 9) == ["standardised-mu1e-06", "raw-mu0.0001"]
+    assert plan.floor_check_candidates({"floor_check": {"candidates": "default"}}, cands, 9) == [
+        "standardised-mu1e-06"]
+    assert plan.floor_check_candidates({"floor_check": {"candidates": "none"}}, cands, 9) == []
+    assert plan.floor_check_candidates(render, cands, 0) == []  # no path point, nothing to check

@@ -64,9 +64,12 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("plot_acquisition_figures", 1),
                     ("compute_gram", 2), ("fit_gplvm", 4), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
-                    ("make_envmap", 1), ("prerender_material", 12), ("interpolate_path_points", 1),
+                    ("make_envmap", 1), ("prerender_material", 12 + 12), ("interpolate_path_points", 1),
                     ("render_path_point", 3), ("error_maps", 1), ("render_object_mask", 1),
-                    ("bounce_shares", 1)]:
+                    ("bounce_shares", 1),
+                    # the noise-floor check: both candidates' path points, every material again
+                    ("interpolate_candidate_path_points", 2), ("render_candidate_path_point", 2 * 3),
+                    ("measure_candidate_blends", 2), ("summarize_floor_check", 1), ("plot_floor_check", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 
 
@@ -114,7 +117,8 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 + 16 + 6 and "fig05-error-vs-images.png" in figures
+    assert len(figures) == 16 + 16 + 6 + 2 and "fig05-error-vs-images.png" in figures
+    assert "render-floor-check.png" in figures
     assert "manifold-spaces.png" in figures
     assert "manifold-fig09-paths.pdf" in figures and "render-fig13-errors.png" in figures
     # manifold track: one GPLVM fit per candidate (data space, mu) and latent dimension, with its trace
@@ -153,15 +157,45 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         shares = list(csv.DictReader(fh))
     assert sorted(r["material"] for r in shares) == sorted(names)
     assert all(-1e-3 <= float(r["share_image"]) < 0.5 and int(r["object_pixels"]) > 0 for r in shares)
+    check_floor(tmp_path, names)
     # a second run has nothing to do
     again = snakemake(tmp_path, "-n")
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
+
+
+def check_floor(workdir: Path, names: list[str]) -> None:
+    """The tiny run's noise-floor check: both candidates, every path point, ratios recomputed from the images."""
+    from brdfpipe.exr import read_exr, read_exr_attrs
+
+    floor = workdir / "results" / "renders" / "preview-16x12-64spp"
+    assert sorted(p.stem for p in (floor / "materials-one").glob("*.exr")) == sorted(names)
+    with open(workdir / "results" / "errormaps" / "preview-16x12-64spp" / "floor-check.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert sorted({(r["candidate"], r["default"]) for r in rows}) == [
+        ("raw-mu0.0001", "0"), ("standardised-mu1e-06", "1")]
+    assert len(rows) == 2 * 3 and {r["database"] for r in rows} == {"synthetic"}
+    assert {(r["width"], r["height"], r["spp"]) for r in rows} == {("16", "12", "64")}
+    ones = np.stack([read_exr(floor / "materials-one" / f"{m}.exr").astype(np.float64) for m in names])
+    for r in rows:
+        base = floor / "paths" / r["candidate"] / f"{r['path']}-t{r['t']}"
+        doc = json.loads(Path(f"{base}-weights.json").read_text())
+        w = np.array([doc["weights"][m] for m in names])
+        assert float(r["sum_abs_w"]) == pytest.approx(np.abs(w).sum(), rel=1e-8)
+        assert float(r["clamped_fraction"]) == pytest.approx(doc["clamped"] / doc["measured_values"], rel=1e-8)
+        assert read_exr_attrs(f"{base}-one-noise.exr")["spp"] == "64"
+        # I¹⁻ blend vs the second seed's I¹⁻ reference, over the floor between the two references
+        ref, ref2 = (read_exr(f"{base}{k}.exr").astype(np.float64) for k in ("-one", "-one-noise"))
+        blend = np.tensordot(w, ones, axes=1)
+        rmse = lambda a, b: np.sqrt(np.mean((a - b) ** 2)) / ref.mean()  # noqa: E731
+        assert float(r["ratio_one_seed2"]) == pytest.approx(rmse(blend, ref2) / rmse(ref, ref2), rel=1e-4)
 
 
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
         ({"test_materials": ["no-such-material"]}, "unknown material"),
+        ({"render": {"floor_check": {"candidates": "some"}}}, "is not one of"),
+        ({"render": {"floor_check": {"spp": 0}}}, "less than the minimum of 1"),
         ({"synthetic": {"count": 0}}, "minimum"),
         ({"colour": "red"}, "Additional properties"),
         ({"merl_dir": "/nonexistent/merl"}, "does not exist"),

@@ -62,6 +62,8 @@ __all__ = [
     "SUMMARY_ONE_COLUMNS",
     "SHARE_COLUMNS",
     "bounce_shares",
+    "FLOOR_CHECK_COLUMNS",
+    "floor_check_table",
 ]
 
 logger = logging.getLogger("brdfpipe.blend")
@@ -622,4 +624,136 @@ def bounce_shares(
                         + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c]) for c in SHARE_COLUMNS[2:]])
     text = buf.getvalue()
     _atomic_write(out, lambda fh: fh.write(text), binary=False)
+    return rows
+
+
+# --------------------------------------------------------------------------
+# Blends against the noise floor, every GPLVM candidate (render.floor_check)
+# --------------------------------------------------------------------------
+
+#: Columns of the floor check's CSV written by :func:`floor_check_table`, in order.
+FLOOR_CHECK_COLUMNS: Final = (
+    "database", "candidate", "space", "mu", "default", "path", "t", "width", "height", "spp",
+    "sum_abs_w", "norm2_w", "clamped_fraction",
+    "rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2",
+)
+
+
+def _read_summary_rows(path: Path, database: str) -> list[dict[str, str]]:
+    if not path.is_file():
+        raise BlendError(f"{path}: no such file")
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        missing = [c for c in SUMMARY_COLUMNS if c not in (reader.fieldnames or [])]
+        if missing:
+            raise BlendError(f"{path}: not an error-map summary (missing column(s) {', '.join(missing)})")
+        rows = list(reader)
+    for k, row in enumerate(rows):
+        if row["database"] != database:
+            raise BlendError(f"{path}: row {k + 1} is from database {row['database']!r}, this run's is {database!r}")
+    return rows
+
+
+def _weights_doc(path: Path) -> dict[str, Any]:
+    import json
+
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        w = np.array([float(v) for v in dict(doc["weights"]).values()], dtype=np.float64)
+        out = {"path": str(doc["path"]), "t": format_t(float(doc["t"])), "w": w,
+               "clamped": int(doc["clamped"]), "measured": int(doc["measured_values"])}
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise BlendError(f"{path}: not a path-point weights file ({type(err).__name__}: {err})") from None
+    if w.size == 0 or not np.isfinite(w).all() or out["measured"] <= 0 or not 0 <= out["clamped"] <= out["measured"]:
+        raise BlendError(f"{path}: weights must be finite and non-empty, 0 <= clamped <= measured_values > 0")
+    return out
+
+
+def floor_check_table(
+    *,
+    candidates: Mapping[str, tuple[str, float]],
+    default: str,
+    summaries: Mapping[str, str | os.PathLike[str]],
+    weights: Mapping[str, Sequence[str | os.PathLike[str]]],
+    references: Mapping[str, Sequence[str | os.PathLike[str]]],
+    out: str | os.PathLike[str],
+    database: str,
+) -> list[dict[str, Any]]:
+    """Every candidate's blends against the Monte Carlo noise floor, one row per path point (a CSV).
+
+    The workflow's ``summarize_floor_check`` job.  For each candidate label
+    in ``candidates`` (label → (space, μ); ``default`` is the workflow's
+    default candidate): ``summaries[c]`` is its :func:`error_maps` summary
+    (rendered at the check's spp), ``weights[c]`` the weights JSONs of its
+    path points (:func:`brdfpipe.manifold.path_points_to_files`) and
+    ``references[c]`` the reference renders, both in the summary's row order.
+    Each row carries the candidate, its space and μ, the renders' size and
+    spp (read from the reference EXR, which must agree across the check),
+    Σ|wᵢ| and ‖w‖₂ (noise of the pre-renders enters the blend with ‖w‖₂),
+    the share of the interpolated table's measured values clamped at 0
+    (a clamp the linear blend of images cannot know), the noise floor and
+    the ratios of the summary (whole image and I¹⁻).  Writes ``out``
+    (columns :data:`FLOOR_CHECK_COLUMNS`, numbers ``%.9g``) atomically.
+    :class:`BlendError` naming the file when a summary is of another
+    database, its rows and the weights disagree on the points, or the renders
+    differ in size or spp.
+    """
+    from .exr import read_exr_attrs
+
+    out = Path(out)
+    labels = list(candidates)
+    if default not in candidates:
+        raise BlendError(f"default candidate {default!r} is not among the candidates {labels}")
+    for name, mapping in (("summaries", summaries), ("weights", weights), ("references", references)):
+        if set(mapping) != set(labels):
+            raise BlendError(f"{name} name candidates {sorted(mapping)}, expected {sorted(labels)}")
+    inputs = [Path(summaries[c]) for c in labels] + [Path(f) for c in labels for f in (*weights[c], *references[c])]
+    check_not_input(out, inputs, what="output")
+    rows: list[dict[str, Any]] = []
+    size: tuple[tuple[int, int, int], Path] | None = None
+    for c in labels:
+        summary = Path(summaries[c])
+        srows = _read_summary_rows(summary, database)
+        if not (len(srows) == len(weights[c]) == len(references[c])):
+            raise BlendError(f"{summary}: {len(srows)} rows, but {len(weights[c])} weights files and "
+                             f"{len(references[c])} references for candidate {c}")
+        for srow, wf, rf in zip(srows, weights[c], references[c]):
+            doc = _weights_doc(Path(wf))
+            if (doc["path"], doc["t"]) != (srow["path"], srow["t"]):
+                raise BlendError(f"{summary}: row {srow['path']} t={srow['t']} does not match {wf} "
+                                 f"({doc['path']} t={doc['t']})")
+            img = read_exr(rf)
+            attrs = read_exr_attrs(rf)
+            try:
+                this = (int(img.shape[1]), int(img.shape[0]), int(attrs["spp"]))
+            except (KeyError, ValueError):
+                raise BlendError(f"{rf}: the render records no spp") from None
+            if size is None:
+                size = (this, Path(rf))
+            elif this != size[0]:
+                raise BlendError(f"{rf}: {this[0]}x{this[1]} at {this[2]} spp, but {size[1]} is "
+                                 f"{size[0][0]}x{size[0][1]} at {size[0][2]} spp")
+            space, mu = candidates[c]
+            w = doc["w"]
+            row: dict[str, Any] = {
+                "candidate": c, "space": space, "mu": float(mu), "default": int(c == default),
+                "path": srow["path"], "t": srow["t"], "width": this[0], "height": this[1], "spp": this[2],
+                "sum_abs_w": float(np.abs(w).sum()), "norm2_w": float(np.linalg.norm(w)),
+                "clamped_fraction": doc["clamped"] / doc["measured"],
+            }
+            for col in ("rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2"):
+                row[col] = float(srow[col]) if srow[col] != "" else math.nan
+            rows.append(row)
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(FLOOR_CHECK_COLUMNS)
+    for row in rows:
+        writer.writerow([database] + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c])
+                                      for c in FLOOR_CHECK_COLUMNS[1:]])
+    text = buf.getvalue()
+    _atomic_write(out, lambda fh: fh.write(text), binary=False)
+    for c in labels:
+        mine = [r["ratio_one_seed2"] for r in rows if r["candidate"] == c]
+        logger.info("%s: I1- blend / noise floor (independent seed) %.3g-%.3g over %d points",
+                    c, min(mine), max(mine), len(mine))
     return rows

@@ -2669,3 +2669,72 @@ def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
 
 __all__ += ["RENDER_FIGURE_STEMS", "RenderPoint", "render_fig01_prerenders", "render_fig12_interpolation",
             "render_fig13_errors", "make_render_figures"]
+
+
+# ---------------------------------------------------------------------------
+# The noise-floor check of every candidate (render.floor_check)
+# ---------------------------------------------------------------------------
+
+#: Blends are "at the noise floor" up to this ratio (issue target for the I¹⁻ part).
+FLOOR_RATIO_TARGET = 1.2
+
+
+def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.PathLike[str]],
+                     database: str) -> FigureOutput:
+    """Blend error / noise floor of every candidate at every path point, whole image and I¹⁻ (PNG + PDF).
+
+    ``table`` is :func:`brdfpipe.blend.floor_check_table`'s CSV.  Left: the
+    whole image, right: its I¹⁻ part; one row of markers per candidate, one
+    marker per path point, against the independent-seed reference
+    (``ratio_seed2``, ``ratio_one_seed2``); lines at 1 (no error beyond the
+    noise) and :data:`FLOOR_RATIO_TARGET`.  The subtitle gives the renders'
+    size, spp and the floor's range.  :class:`FigureInputError` for a
+    missing table, a missing column or another database.
+    """
+    from brdfpipe.blend import FLOOR_CHECK_COLUMNS
+
+    stem = figure_stem(files)
+    rows = _read_csv_rows(Path(table), FLOOR_CHECK_COLUMNS)
+    if not rows:
+        raise FigureInputError(f"{table}: no rows")
+    other = sorted({r["database"] for r in rows} - {database})
+    if other:
+        raise FigureInputError(f"{table}: rows of database(s) {other}, this run's is {database!r}")
+    warn = _Warnings(stem.name)
+    labels = list(dict.fromkeys(r["candidate"] for r in rows))
+    default = next((r["candidate"] for r in rows if r["default"] == "1"), "")
+    points = list(dict.fromkeys((r["path"], r["t"]) for r in rows))
+    with _style():
+        from matplotlib.ticker import FuncFormatter, LogLocator
+
+        fig = _new_figure(7.2, 2.0 + 0.34 * len(labels))
+        axes = fig.subplots(1, 2, sharey=True)
+        panels = ((axes[0], "ratio_seed2", "whole image I"), (axes[1], "ratio_one_seed2", "I¹⁻ part (≤ 1 bounce)"))
+        for ax, col, name in panels:
+            for y, c in enumerate(labels):
+                vals = np.array([float(r[col]) for r in rows if r["candidate"] == c], dtype=np.float64)
+                ax.scatter(vals, np.full(vals.size, y), s=14, marker="o" if c == default else "x",
+                           color="C3" if c == default else "C0", zorder=3)
+                worst = np.nanmax(vals) if np.isfinite(vals).any() else math.nan
+                ax.annotate(f"max {worst:.3g}", (1.0, y), xycoords=("axes fraction", "data"), fontsize=5.5,
+                            ha="right", va="bottom", xytext=(0, 2), textcoords="offset points")
+            ax.axvline(1.0, color="0.5", lw=0.8, ls="--")
+            ax.axvline(FLOOR_RATIO_TARGET, color="C2", lw=0.8, ls=":")
+            ax.set_xscale("log")
+            ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
+            ax.set_ylim(len(labels) - 0.5, -0.7)
+            ax.set_title(name)
+            ax.set_xlabel("RMSE(blend, ref.) / RMSE(two seeds)")
+        axes[0].set_yticks(range(len(labels)), [c + (" (default)" if c == default else "") for c in labels])
+        first = rows[0]
+        floors = np.array([float(r["rmse_noise"]) for r in rows], dtype=np.float64)
+        subtitle = (f"{len(points)} path points per candidate, {first['width']}×{first['height']} px, "
+                    f"{first['spp']} spp; noise floor (two seeds) {floors.min():.3g}–{floors.max():.3g} "
+                    f"relative; dotted: {FLOOR_RATIO_TARGET}×")
+        title = f"Blended pre-renders vs renders at the noise floor, every data space — {database_label(database)}"
+        return _finish(fig, stem, title, subtitle, database, warn)
+
+
+__all__ += ["FLOOR_RATIO_TARGET", "plot_floor_check"]

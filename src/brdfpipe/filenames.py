@@ -19,6 +19,7 @@ __all__ = [
     "FIGURE_STEMS",
     "MANIFOLD_FIGURE_STEMS",
     "RENDER_FIGURE_STEMS",
+    "FLOOR_CHECK_STEM",
     "fov_tag",
     "format_t",
     "path_name",
@@ -55,6 +56,11 @@ __all__ = [
     "path_point",
     "errormap_summary",
     "errormap",
+    "floor_scene",
+    "candidate_path_point",
+    "candidate_errormap_summary",
+    "candidate_errormap",
+    "floor_check_csv",
 ]
 
 #: Root folder of every output.
@@ -89,6 +95,8 @@ RENDER_FIGURE_STEMS: dict[str, str] = {
     "fig12": "render-fig12-interpolation",
     "fig13": "render-fig13-errors",
 }
+#: The blends-vs-noise-floor figure of every GPLVM candidate (render.floor_check).
+FLOOR_CHECK_STEM = "render-floor-check"
 
 
 def fov_tag(fov: float | str) -> str:
@@ -277,3 +285,32 @@ def errormap(scene: str, path: str, t: float | str, kind: str) -> str:
     if kind not in ("blended.exr", "error.exr", "error.png"):
         raise ValueError(f"kind must be blended.exr, error.exr or error.png, got {kind!r}")
     return f"{RESULTS}/errormaps/{scene}/{path}-t{format_t(t)}-{kind}"
+
+
+# -- the noise-floor check (render.floor_check): every candidate's path points
+# rendered at an spp where the Monte Carlo floor is small --------------------
+
+
+def floor_scene(scene: str, resolution: tuple[int, int] | list[int], spp: int) -> str:
+    """Folder name of the floor check's renders: the scene, its resolution and spp (``preview-48x36-4096spp``)."""
+    w, h = resolution
+    return f"{scene}-{int(w)}x{int(h)}-{int(spp)}spp"
+
+
+def candidate_path_point(scene: str, candidate: str, path: str, t: float | str, kind: str) -> str:
+    """:func:`path_point` of one GPLVM candidate's latent path (``renders/{scene}/paths/{candidate}/``)."""
+    return path_point(scene, f"{candidate}/{path}", t, kind)
+
+
+def candidate_errormap_summary(scene: str, candidate: str) -> str:
+    return f"{RESULTS}/errormaps/{scene}/{candidate}/summary.csv"
+
+
+def candidate_errormap(scene: str, candidate: str, path: str, t: float | str, kind: str) -> str:
+    """:func:`errormap` of one GPLVM candidate's path point."""
+    return errormap(scene, f"{candidate}/{path}", t, kind)
+
+
+def floor_check_csv(scene: str) -> str:
+    """Every candidate's blends against the noise floor, one row per path point."""
+    return f"{RESULTS}/errormaps/{scene}/floor-check.csv"

@@ -407,7 +407,9 @@ def path_points_to_files(
     pass over the store (:func:`brdfpipe.gplvm.interpolate_tables`): the store
     is read once, not once per point.  ``merl_outs[k]`` and
     ``weights_outs[k]`` belong to ``points[k]``.  Each JSON holds ``path``,
-    ``t``, ``q``, the latent point ``x`` and ``weights`` {material: wᵢ} (blend
+    ``t``, ``q``, the latent point ``x``, ``clamped`` (values of measured cells
+    that came out negative and were clamped to 0), ``measured_values`` (the
+    table's values in measured cells) and ``weights`` {material: wᵢ} (blend
     weights, Σw = 1), written atomically.  Returns the weights ``(P, N)``.
     """
     import json
@@ -431,6 +433,7 @@ def path_points_to_files(
         merl.write_merl(merl_outs[k], tables[k])
         doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
                "x": [float(v) for v in xs[k]], "clamped": int(clamped[k]),
+               "measured_values": int(np.count_nonzero(tables[k] >= 0.0)),
                "weights": {n: float(v) for n, v in zip(names, W[k])}}
         atomic.write_text(weights_outs[k], json.dumps(doc, indent=1) + "\n")
         logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped[k], merl_outs[k])

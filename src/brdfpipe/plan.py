@@ -39,6 +39,7 @@ __all__ = [
     "acquisition_figures",
     "manifold_figures",
     "render_figures",
+    "floor_check_candidates",
     "MEMORY_MB",
     "mem_mb",
 ]
@@ -266,6 +267,23 @@ def render_figures(n_path_points: int) -> dict[str, list[str]]:
     return {k: filenames.figure_files(filenames.RENDER_FIGURE_STEMS[k]) for k in keys}
 
 
+def floor_check_candidates(
+    render: Mapping[str, Any], candidates: Mapping[str, tuple[str, float]], n_path_points: int
+) -> list[str]:
+    """Labels of the GPLVM candidates whose path points ``render.floor_check`` renders.
+
+    None for ``floor_check.candidates: none`` or without path points; the
+    default candidate (the first of ``candidates``, see
+    :func:`manifold_candidates`) alone for ``default``; every candidate for
+    ``all``.
+    """
+    check = render["floor_check"]
+    if check["candidates"] == "none" or n_path_points == 0:
+        return []
+    labels = list(candidates)
+    return labels[:1] if check["candidates"] == "default" else labels
+
+
 # -- memory -------------------------------------------------------------------
 
 #: Peak memory model of each rule's jobs, MB = base + per_material × N: a line
@@ -308,12 +326,17 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "render_object_mask": (253.0, 0.0),  # as render_path_point: one small render, not measured alone
     "bounce_shares": (110.0, 0.0),  # not measured: reads two images at a time, less than error_maps
     "error_maps": (110.0, 0.1),  # reads the I¹⁻ pre-renders too: twice error_maps' per-material share
+    "interpolate_candidate_path_points": (250.0, 2.22),  # as interpolate_path_points
+    "render_candidate_path_point": (253.0, 0.0),  # as render_path_point
+    "measure_candidate_blends": (110.0, 0.1),  # as error_maps (smaller images)
+    "summarize_floor_check": (120.0, 0.0),  # one small CSV per candidate
+    "plot_floor_check": (240.0, 0.0),  # as plot_render_figures, without the images
     "plot_render_figures": (240.0, 1.0),
 }
 #: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every
 #: output in memory: ``interpolate_path_points`` holds one float64 MERL table
 #: (35 MB) per path point, plus the blend of one column block.
-PER_OUTPUT_MB: dict[str, float] = {"interpolate_path_points": 36.0}
+PER_OUTPUT_MB: dict[str, float] = {"interpolate_path_points": 36.0, "interpolate_candidate_path_points": 36.0}
 #: Declared / modelled peak on the first attempt (keeps declared within [1, 2] × measured).
 MEMORY_HEADROOM: float = 1.3
 #: Growth of the declared memory with each retry (attempt 2: × 1.5, attempt 3: × 2.25).

@@ -91,6 +91,19 @@ RENDER_GPUS = 1 if RENDER["variant"].startswith("cuda") else 0
 PATH_ENDS = {fn.path_name(a, b): (a, b) for a, b in MANIFOLD_PATHS}
 PATH_POINTS = [(p, fn.format_t(t)) for p in PATH_ENDS for t in RENDER["path_points"]]
 RENDER_FIGURES = plan.render_figures(len(PATH_POINTS))
+# The noise-floor check (render.floor_check): every material and the chosen
+# candidates' path points rendered again, small and with many samples, in a
+# scene folder of its own. Render settings per scene folder.
+FLOOR_CANDIDATES = plan.floor_check_candidates(RENDER, CANDIDATES, len(PATH_POINTS))
+RENDER_SETTINGS = {SCENE: (RENDER["resolution"], RENDER["spp"])}
+if FLOOR_CANDIDATES:
+    FLOOR = RENDER["floor_check"]
+    FLOOR_SCENE = fn.floor_scene(SCENE, FLOOR["resolution"], FLOOR["spp"])
+    RENDER_SETTINGS[FLOOR_SCENE] = (FLOOR["resolution"], FLOOR["spp"])
+    FLOOR_FIGURE = fn.figure_files(fn.FLOOR_CHECK_STEM)
+else:
+    FLOOR_SCENE = None
+    FLOOR_FIGURE = []
 
 
 def mem(rule, outputs=1):
@@ -122,6 +135,22 @@ def errormap_files(kind):
     return [fn.errormap(SCENE, p, t, kind) for p, t in PATH_POINTS]
 
 
+def candidate_point_files(candidate, kind):
+    """One file per path point of a candidate in the floor check (kinds of fn.path_point)."""
+    return [
+        fn.candidate_path_point(FLOOR_SCENE, candidate, p, t, kind)
+        for p, t in PATH_POINTS
+    ]
+
+
+def candidate_errormap_files(candidate, kind):
+    """One floor-check error-map file per path point of a candidate (kinds of fn.errormap)."""
+    return [
+        fn.candidate_errormap(FLOOR_SCENE, candidate, p, t, kind)
+        for p, t in PATH_POINTS
+    ]
+
+
 # Column blocks of the streamed SVD's Gram matrix (override: --set-scatter gram=N).
 scattergather:
     gram=4,
@@ -139,6 +168,7 @@ wildcard_constraints:
     candidate="|".join(re.escape(c) for c in CANDIDATES),
     path="|".join(re.escape(p) for p in PATH_ENDS) or "(?!)",
     t=r"\d+(\.\d+)?",
+    scene="|".join(re.escape(s) for s in RENDER_SETTINGS),
 
 
 def source_file(wildcards):

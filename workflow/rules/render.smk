@@ -27,17 +27,19 @@ rule make_envmap:
         "../scripts/make_envmap.py"
 
 
+# One job per material and scene folder: the render settings' (RENDER_SETTINGS:
+# the configured render, and the floor check's small, many-sample one).
 rule prerender_material:
     input:
         merl=source_file,
         envmap=fn.envmap(SCENE),
     output:
-        image=fn.prerender(SCENE, "{material}"),
-        one=fn.prerender_one(SCENE, "{material}"),
+        image=fn.prerender("{scene}", "{material}"),
+        one=fn.prerender_one("{scene}", "{material}"),
     log:
-        f"logs/prerender_material/{SCENE}/{{material}}.log",
+        "logs/prerender_material/{scene}/{material}.log",
     benchmark:
-        f"benchmarks/prerender_material/{SCENE}/{{material}}.tsv"
+        "benchmarks/prerender_material/{scene}/{material}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
     threads: 2
@@ -47,8 +49,8 @@ rule prerender_material:
         runtime=30,
     params:
         variant=RENDER["variant"],
-        resolution=RENDER["resolution"],
-        spp=RENDER["spp"],
+        resolution=lambda w: RENDER_SETTINGS[w.scene][0],
+        spp=lambda w: RENDER_SETTINGS[w.scene][1],
         max_depth=RENDER["max_depth"],
         seed=RENDER["seed"],
         database=DATABASE.kind,
@@ -235,3 +237,167 @@ rule plot_render_figures:
         code=code("plot_render_figures.py"),
     script:
         "../scripts/plot_render_figures.py"
+
+
+# The noise-floor check (render.floor_check): at the configured 64 spp the
+# floor between two seeds is 18-36 % relative and hides any blending error.
+# Every material and each chosen candidate's path points are rendered again,
+# small and with many samples (FLOOR_SCENE), and the blends of each candidate's
+# weights compared with its references there.
+if FLOOR_CANDIDATES:
+
+    localrules:
+        summarize_floor_check,
+        plot_floor_check,
+
+    rule interpolate_candidate_path_points:
+        input:
+            model=fn.gplvm_model("{candidate}", PATH_Q),
+            store=fn.store(),
+        output:
+            merl=candidate_point_files("{candidate}", "binary"),
+            weights=candidate_point_files("{candidate}", "weights"),
+        log:
+            "logs/interpolate_candidate_path_points/{candidate}.log",
+        benchmark:
+            "benchmarks/interpolate_candidate_path_points/{candidate}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("interpolate_candidate_path_points", len(PATH_POINTS)),
+            runtime=20,
+        params:
+            points=[(*PATH_ENDS[p], float(t)) for p, t in PATH_POINTS],
+            code=code("interpolate_path_points.py"),
+        script:
+            "../scripts/interpolate_path_points.py"
+
+    rule render_candidate_path_point:
+        input:
+            merl=fn.candidate_path_point(
+                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "binary"
+            ),
+            envmap=fn.envmap(SCENE),
+        output:
+            image=fn.candidate_path_point(
+                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "image"
+            ),
+            noise=fn.candidate_path_point(
+                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "noise"
+            ),
+            one=fn.candidate_path_point(
+                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "one"
+            ),
+            one_noise=fn.candidate_path_point(
+                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "one_noise"
+            ),
+        log:
+            f"logs/render_candidate_path_point/{FLOOR_SCENE}/{{candidate}}/{{path}}-t{{t}}.log",
+        benchmark:
+            f"benchmarks/render_candidate_path_point/{FLOOR_SCENE}/{{candidate}}/{{path}}-t{{t}}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 2
+        resources:
+            gpu=RENDER_GPUS,
+            mem_mb=mem("render_candidate_path_point"),
+            runtime=60,
+        params:
+            variant=RENDER["variant"],
+            resolution=FLOOR["resolution"],
+            spp=FLOOR["spp"],
+            max_depth=RENDER["max_depth"],
+            seeds=[RENDER["seed"], RENDER["noise_seed"]],
+            database=DATABASE.kind,
+            code=code("render_path_point.py"),
+        script:
+            "../scripts/render_path_point.py"
+
+    rule measure_candidate_blends:
+        input:
+            prerenders=expand(
+                fn.prerender(FLOOR_SCENE, "{material}"), material=MATERIALS
+            ),
+            weights=candidate_point_files("{candidate}", "weights"),
+            references=candidate_point_files("{candidate}", "image"),
+            references_noise=candidate_point_files("{candidate}", "noise"),
+            prerenders_one=expand(
+                fn.prerender_one(FLOOR_SCENE, "{material}"), material=MATERIALS
+            ),
+            references_one=candidate_point_files("{candidate}", "one"),
+            references_one_noise=candidate_point_files("{candidate}", "one_noise"),
+        output:
+            summary=fn.candidate_errormap_summary(FLOOR_SCENE, "{candidate}"),
+            blended=candidate_errormap_files("{candidate}", "blended.exr"),
+            error_exrs=candidate_errormap_files("{candidate}", "error.exr"),
+            error_pngs=candidate_errormap_files("{candidate}", "error.png"),
+        log:
+            f"logs/measure_candidate_blends/{FLOOR_SCENE}/{{candidate}}.log",
+        benchmark:
+            f"benchmarks/measure_candidate_blends/{FLOOR_SCENE}/{{candidate}}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("measure_candidate_blends"),
+            runtime=10,
+        params:
+            materials=MATERIALS,
+            database=DATABASE.kind,
+            code=code("error_maps.py"),
+        script:
+            "../scripts/error_maps.py"
+
+    rule summarize_floor_check:
+        input:
+            summaries=expand(
+                fn.candidate_errormap_summary(FLOOR_SCENE, "{c}"), c=FLOOR_CANDIDATES
+            ),
+            weights=[
+                f
+                for c in FLOOR_CANDIDATES
+                for f in candidate_point_files(c, "weights")
+            ],
+            references=[
+                f for c in FLOOR_CANDIDATES for f in candidate_point_files(c, "image")
+            ],
+        output:
+            table=fn.floor_check_csv(FLOOR_SCENE),
+        log:
+            f"logs/summarize_floor_check/{FLOOR_SCENE}.log",
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("summarize_floor_check"),
+            runtime=5,
+        params:
+            candidates={c: list(CANDIDATES[c]) for c in FLOOR_CANDIDATES},
+            default=DEFAULT_CANDIDATE,
+            points=len(PATH_POINTS),
+            database=DATABASE.kind,
+            code=code("summarize_floor_check.py"),
+        script:
+            "../scripts/summarize_floor_check.py"
+
+    rule plot_floor_check:
+        input:
+            table=fn.floor_check_csv(FLOOR_SCENE),
+        output:
+            figure=FLOOR_FIGURE,
+        log:
+            f"logs/plot_floor_check/{FLOOR_SCENE}.log",
+        benchmark:
+            f"benchmarks/plot_floor_check/{FLOOR_SCENE}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("plot_floor_check"),
+            runtime=5,
+        params:
+            database=DATABASE.kind,
+            code=code("plot_floor_check.py"),
+        script:
+            "../scripts/plot_floor_check.py"
