@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import yaml
 
-from brdfpipe import merl, store
+from brdfpipe import filenames, merl, store
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEFILE = ROOT / "workflow" / "Snakefile"
@@ -290,6 +290,14 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, shape: str) -> None:
     assert r.returncode == 0, r.stderr[-4000:]
     figures = {p.relative_to(work).as_posix() for p in (work / "results" / "figures").iterdir()}
     render = {f for fs in plan.render_figures(len(cfg["render"]["path_points"])).values() for f in fs}
+    floor_checked = cfg["render"]["floor_check"]["candidates"] != "none"  # tiny-nearfield: default; tiny-point: none
+    assert floor_checked == (shape == "tiny-nearfield")
+    if floor_checked:
+        render |= set(filenames.figure_files(filenames.FLOOR_CHECK_STEM))
+        (table,) = (work / "results" / "errormaps").glob("*/floor-check.csv")
+        with open(table) as fh:
+            rows = list(csv.DictReader(fh))
+        assert len(rows) == len(cfg["manifold"]["paths"]) * len(cfg["render"]["path_points"])  # the default candidate
     assert figures == declared_outputs(config) | render
     assert store.open_store(work / "results" / "merl.zarr").database == "synthetic"
     assert (work / "results" / "evaluation" / "errors.csv").is_file()
