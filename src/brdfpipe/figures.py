@@ -550,7 +550,7 @@ def _nearfield_and_point(ax: Any, table: ErrorTable, split: str, kind: str, fovs
 
 def _point_curves(ax: Any, table: ErrorTable, split: str, kind: str, warn: _Warnings, allv: list[float]) -> None:
     for metric, colour, label in (("error", _COLOURS[1], "point samples, min E(S)"),
-                                  ("condition", _COLOURS[3], "point samples, min κ (Nielsen 2015)")):
+                                  ("condition", _COLOURS[3], "point samples, min κ (Xu eq. 6)")):
         n, v = table.series(split, "point", 0.0, metric, kind)
         if n.size == 0:
             warn(f"no mean {kind} rows for point sampling, metric {metric}; curve skipped")
@@ -715,7 +715,7 @@ def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
             x = np.arange(len(mats), dtype=np.float64)
             bw = 0.38
             bars = (("error", _COLOURS[2], "directions: min E(S)"),
-                    ("condition", _COLOURS[0], "directions: min κ (Nielsen 2015)"))
+                    ("condition", _COLOURS[0], "directions: min κ (Xu eq. 6)"))
             for j, (metric, colour, label) in enumerate(bars):
                 vals = np.array([table.material_value(split, "point", 0.0, metric, n, kind, m) for m in mats])
                 if not np.isfinite(vals).any():

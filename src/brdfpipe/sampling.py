@@ -908,7 +908,11 @@ def condition_number(
     method: Literal["gram", "svd"] = "gram",
     rtol: float | None = None,
 ) -> float:
-    """Nielsen et al.'s baseline metric κ(Q̃) = σ_max(Q̃) / σ_min(Q̃) (eq. 6).
+    """The condition-number baseline κ(Q̃) = σ_max(Q̃) / σ_min(Q̃) of Xu et al.'s eq. 6.
+
+    Over all k components of Q̃, as Xu write it.  (Nielsen et al. 2015's
+    released code conditions only the first n components and picks other
+    directions; the figures label this baseline "min κ (Xu eq. 6)".)
 
     The singular values are the ``min(n, k)`` singular values of the n × k
     matrix ``Q̃`` — for ``n < k`` the ``n`` (generically non-zero) ones, so a
