@@ -23,7 +23,7 @@ def training_materials(store_path: Path, splits: Path):
 
     Exits with a message if the split file describes another store.
     """
-    from brdfpipe import store
+    from brdfpipe.data import store
 
     st = store.open_store(store_path)
     if not splits.is_file():

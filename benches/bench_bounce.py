@@ -1,7 +1,7 @@
 #!/usr/bin/env python
-"""The ``bouncesplit`` integrator (``brdfpipe.bounce``) against Mitsuba's ``path``, and the I¹⁻ blend.
+"""The ``bouncesplit`` integrator (``brdfpipe.rendering.bounce``) against Mitsuba's ``path``, and the I¹⁻ blend.
 
-1. Pre-render time: the preview scene (:func:`brdfpipe.scene.scene_dict`) with a
+1. Pre-render time: the preview scene (:func:`brdfpipe.rendering.scene.scene_dict`) with a
    synthetic material (``synth.plan_database(100, 0)``, the first metal), at
    ``--res`` and ``--spp`` in passes of 32 like the workflow, once with the
    stock ``path`` integrator and once with ``bouncesplit`` (same
@@ -10,7 +10,7 @@
 2. Blend ratio: materials A (Lambertian, albedo 0.9) and B (the synthetic
    metal); the mix M = ½A + ½B is rendered with seeds 0 and 1 (reference and
    noise floor) and compared with the blend ½I(A) + ½I(B) of the pre-renders
-   (seed 0) by :func:`brdfpipe.blend.error_maps`, for the whole image and for
+   (seed 0) by :func:`brdfpipe.rendering.blend.error_maps`, for the whole image and for
    I¹⁻ (the ``ratio_seed2`` and ``ratio_one_seed2`` columns).
 
 Measured (2 shared CPU cores, ``llvm_ad_rgb``, Mitsuba 3.9.1; defaults):
@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfpipe import blend, bounce, merl, render, scene, synth
+from brdfpipe.rendering import blend, bounce, render, scene
+from brdfpipe.data import merl, synth
 
 
 def main() -> None:

@@ -1,10 +1,10 @@
 #!/usr/bin/env python
-"""Measure Zarr chunk codecs and chunk widths for the MERL store (``brdfpipe.store``).
+"""Measure Zarr chunk codecs and chunk widths for the MERL store (``brdfpipe.data.store``).
 
 What it measures
 ----------------
 Each candidate compresses the float32 rows of a few synthetic-like BRDF tables
-(physical units, unmeasured cells negative, exactly what ``brdfpipe.store``
+(physical units, unmeasured cells negative, exactly what ``brdfpipe.data.store``
 writes), chunk by chunk, single-threaded (as Zarr and our ingest workers run
 Blosc).  For each candidate it prints the compression ratio (raw / compressed
 bytes over all tables) and the compress and decompress throughput in MB/s of
@@ -15,7 +15,7 @@ codecs.
 Candidates: Blosc zstd / lz4 / lz4hc × byte shuffle / bitshuffle × clevels,
 plain zstd, plain lz4 and no compression.
 
-Tables come from ``brdfpipe.synth.synthesize`` (the synthetic database
+Tables come from ``brdfpipe.data.synth.synthesize`` (the synthetic database
 generator, default 1 % noise).  The source is printed with the results.
 
 Usage::
@@ -44,7 +44,7 @@ from numcodecs import LZ4, Blosc, Zstd
 from numcodecs.abc import Codec
 
 from _common import best_time  # benches/ is on sys.path
-from brdfpipe import merl
+from brdfpipe.data import merl
 
 N_COLS = 3 * merl.N_CELLS
 
@@ -56,11 +56,11 @@ N_COLS = 3 * merl.N_CELLS
 
 def make_database(out_dir: str, count: int, seed: int = 0) -> tuple[list[str], str]:
     """Write ``count`` synthetic materials into ``out_dir``; returns (paths, description)."""
-    from brdfpipe import synth
+    from brdfpipe.data import synth
 
     synth.synthesize(out_dir, count=count, seed=seed, jobs=os.cpu_count() or 1, progress=False)
     paths = sorted(glob.glob(os.path.join(out_dir, "*.binary")))
-    return paths[:count], f"brdfpipe.synth.synthesize(count={count}, seed={seed})"
+    return paths[:count], f"brdfpipe.data.synth.synthesize(count={count}, seed={seed})"
 
 
 def load_rows(paths: Sequence[str]) -> list[NDArray[np.float32]]:

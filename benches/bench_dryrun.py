@@ -6,7 +6,7 @@ directory, nothing built yet):
 * ``snakemake --version``: Snakemake's own start-up (the baseline);
 * ``snakemake -n`` on ``tests/config/tiny.yaml``: the whole dry run;
 * importing the modules the workflow's Snakefile imports at parse time
-  (``brdfpipe.database``, ``.plan``, ``.filenames``, ``.version``), measured
+  (``brdfpipe.data.database``, ``.plan``, ``.filenames``, ``.version``), measured
   inside one fresh interpreter;
 
 with the cluster issue's targets (dry run ≤ 1.5 s, own imports ≤ 0.2 s) and
@@ -25,7 +25,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
-IMPORTS = "brdfpipe.database, brdfpipe.plan, brdfpipe.filenames, brdfpipe.version"
+IMPORTS = "brdfpipe.data.database, brdfpipe.core.plan, brdfpipe.core.filenames, brdfpipe.core.version"
 
 
 def wall(cmd: list[str], cwd: Path) -> float:

@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Fit time and final log-likelihood of the GPLVM (Soler et al. 2018 §3).
 
-Target (from the GPLVM issue): :func:`brdfpipe.gplvm.fit` for N = 100,
+Target (from the GPLVM issue): :func:`brdfpipe.manifold.gplvm.fit` for N = 100,
 q = 5 takes ≤ 2 s on one core (the paper: 122 s for q = 2) and reaches a
 log-likelihood, under our objective, at least that of GPy's GPLVM with the
 same fixed kernel.  Also compared: scipy L-BFGS-B with analytic gradients.
@@ -14,7 +14,7 @@ What it does
 ------------
 1. Data: ``--gram PATH`` (default results/gplvm/gram-raw.npz when it exists:
    the centred Gram matrix of the default synthetic store, N = 100, read with
-   :func:`brdfpipe.gplvm.load_gram`); otherwise a seeded random structured
+   :func:`brdfpipe.manifold.gplvm.load_gram`); otherwise a seeded random structured
    Gram matrix (said so in the output).  ``--scaling`` (default ``all``;
    ``--normalise`` = ``normalised`` only): ``raw``; ``normalised`` divides G
    by tr(G)/N (unit average row variance), since in raw units the trace
@@ -92,7 +92,7 @@ import scipy.optimize  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from brdfpipe import gplvm  # noqa: E402
+from brdfpipe.manifold import gplvm  # noqa: E402
 
 ELL = 1.0
 MU = 1e-4

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Ingest speed and memory of ``brdfpipe.store`` against a plain ``np.fromfile`` read.
+"""Ingest speed and memory of ``brdfpipe.data.store`` against a plain ``np.fromfile`` read.
 
 Target (from the store issue): ingesting 100 materials takes ≤ 1.5× the time
 of reading the same files with ``np.fromfile`` in the same run, and the peak
@@ -7,7 +7,7 @@ RSS of the ingest stays < 2 GB.
 
 What it does
 ------------
-1. Generates 100 MERL-format materials (``brdfpipe.synth.synthesize``), or
+1. Generates 100 MERL-format materials (``brdfpipe.data.synth.synthesize``), or
    reuses the ``*.binary`` files in ``--data DIR``.
    Generation runs in a separate process so it does not inflate the RSS
    figures.
@@ -65,10 +65,10 @@ RSS_TARGET_BYTES = 2 * 1024**3
 
 def generate(out_dir: Path, count: int, seed: int = 0) -> str:
     """Write ``count`` synthetic materials into ``out_dir``; returns a description of the source."""
-    from brdfpipe import synth
+    from brdfpipe.data import synth
 
     synth.synthesize(out_dir, count=count, seed=seed, jobs=os.cpu_count() or 1, progress=False)
-    return f"brdfpipe.synth.synthesize(count={count}, seed={seed})"
+    return f"brdfpipe.data.synth.synthesize(count={count}, seed={seed})"
 
 
 def list_sources(data: Path) -> list[Path]:
@@ -123,7 +123,7 @@ def _sha_all(paths: Sequence[Path]) -> float:
 
 
 def _ingest(paths: Sequence[Path], out: Path, jobs: int) -> float:
-    from brdfpipe import store
+    from brdfpipe.data import store
 
     t0 = time.perf_counter()
     store.ingest({p.stem: p for p in paths}, out, database="synthetic", jobs=jobs)
@@ -138,7 +138,7 @@ def measure(paths: list[Path], jobs: int, rounds: int, cold: bool, work: Path) -
     """All timings, in this (fresh) process.  Returns a JSON-able dict."""
     import multiprocessing
 
-    from brdfpipe import store
+    from brdfpipe.data import store
 
     # Fork the workers from this process (store.ingest would use a forkserver once this
     # process has threads), so that their CPU time and RSS show up in RUSAGE_CHILDREN.

@@ -10,10 +10,10 @@ on a model with k = 270 components from 90 training materials takes
 What it does
 ------------
 1. Opens the model given by ``--model PATH`` (a model written by
-   :mod:`brdfpipe.svd`).  Without one it fits one in a scratch folder under
+   :mod:`brdfpipe.acquisition.svd`).  Without one it fits one in a scratch folder under
    /tmp (never under results/): the ``train`` log-map of ``--store``
    (default results/merl.zarr; training materials from results/splits.json)
-   with :func:`brdfpipe.logmap.write_logmap`, then :func:`brdfpipe.svd.fit`.
+   with :func:`brdfpipe.data.logmap.write_logmap`, then :func:`brdfpipe.acquisition.svd.fit`.
    Not timed (its time is printed); the folder is removed at the end unless
    ``--keep``.
 2. Runs :func:`brdfpipe.sampling.optimize` once, timed as a whole — reading Q
@@ -78,7 +78,8 @@ TARGET_S = 600.0
 
 def fit_model(store_path: Path, splits: Path, work: Path) -> Path:
     """Write the train log-map and fit the model in ``work``; returns the model path."""
-    from brdfpipe import logmap, svd
+    from brdfpipe.data import logmap
+    from brdfpipe.acquisition import svd
 
     st, train = training_materials(store_path, splits)
     split = "train" if set(train) != set(st.materials) else "all"
@@ -145,7 +146,8 @@ def main() -> None:
         for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ[var] = str(args.blas_threads)
 
-    from brdfpipe import sampling, svd  # numpy is imported here, after the thread settings
+    from brdfpipe import sampling  # numpy is imported here, after the thread settings
+    from brdfpipe.acquisition import svd
 
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; BLAS threads: "
           f"{ {v: os.environ.get(v) for v in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS')} }; "

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""The ``merl`` Mitsuba 3 BSDF (``brdfpipe.render``) against Mitsuba's built-in BSDFs.
+"""The ``merl`` Mitsuba 3 BSDF (``brdfpipe.rendering.render``) against Mitsuba's built-in BSDFs.
 
 Targets (from the rendering issue): in the same scene at the same spp, the
 ``merl`` plugin's throughput is ≥ 0.7× the built-in ``roughplastic``'s, and
@@ -13,7 +13,7 @@ perspective camera; every surface gets the material under test; ``path``
 integrator, ``max_depth`` 4 (three bounces); ``independent`` sampler.
 
 1. Throughput: ``merl`` with a tabulated ``roughplastic`` (GGX α = 0.2,
-   blue base; :func:`brdfpipe.render.tabulate_bsdf`) against the built-in
+   blue base; :func:`brdfpipe.rendering.render.tabulate_bsdf`) against the built-in
    ``roughplastic`` with the same parameters.  One render warms up (JIT
    compile or Dr.Jit's kernel cache; its time is printed separately), then
    ``--rounds`` renders of each are timed, interleaved so both see the same
@@ -35,7 +35,7 @@ integrator, ``max_depth`` 4 (three bounces); ``independent`` sampler.
    (Both references of part 2 use the same seeds too; the residual noise
    estimate printed there is the RMSE at ``--spp`` scaled by √(spp/ref-spp).)
 4. The sampling mixture of each table and the relative variance of the
-   one-sample albedo estimator it gives (:func:`brdfpipe.render.sampling_report`),
+   one-sample albedo estimator it gives (:func:`brdfpipe.rendering.render.sampling_report`),
    the measurement behind the sampling design.
 
 Prints the Mitsuba variant, the machine (cores, load) and PASS/FAIL against
@@ -60,7 +60,8 @@ from typing import Any
 
 import numpy as np
 
-from brdfpipe import merl, render, synth
+from brdfpipe.data import merl, synth
+from brdfpipe.rendering import render
 
 THROUGHPUT_TARGET = 0.7
 RMSE_TARGET = 1.5

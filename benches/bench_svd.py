@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Streamed PCA (``brdfpipe.svd.fit``) against a dense ``scipy.linalg.svd`` of the same data.
+"""Streamed PCA (``brdfpipe.acquisition.svd.fit``) against a dense ``scipy.linalg.svd`` of the same data.
 
 Targets (from the acquisition issue): the streamed fit is ≥ 10× faster than
 ``scipy.linalg.svd(dense float64 centred matrix, full_matrices=False)`` and
@@ -7,7 +7,7 @@ its peak RSS is ≤ 1/3 of the dense one's.
 
 What it does
 ------------
-1. Writes the ``train`` log-map of the store (``brdfpipe.logmap.write_logmap``:
+1. Writes the ``train`` log-map of the store (``brdfpipe.data.logmap.write_logmap``:
    training materials from ``results/splits.json``, or the first
    ``--materials N`` of them) under a temporary folder in /tmp (or reuses
    ``--logmap PATH``).  Not timed.
@@ -64,7 +64,7 @@ RSS_TARGET = 1.0 / 3.0
 
 
 def child_fit(logmap_path: str, work: str) -> dict[str, object]:
-    from brdfpipe import svd
+    from brdfpipe.acquisition import svd
 
     out = Path(work) / "model.zarr"
     t0 = time.perf_counter()
@@ -78,7 +78,7 @@ def child_fit(logmap_path: str, work: str) -> dict[str, object]:
 def child_dense(logmap_path: str, work: str) -> dict[str, object]:
     import scipy.linalg
 
-    from brdfpipe import logmap
+    from brdfpipe.data import logmap
 
     lm = logmap.open_logmap(logmap_path)
     t0 = time.perf_counter()
@@ -119,7 +119,7 @@ def run_child(kind: str, logmap_path: Path, work: Path) -> dict[str, object]:
 
 
 def make_logmap(store_path: Path, splits: Path, n: int | None, out: Path) -> tuple[int, int]:
-    from brdfpipe import logmap
+    from brdfpipe.data import logmap
 
     st, train = training_materials(store_path, splits)
     if n is not None:
@@ -166,7 +166,7 @@ def main() -> None:
                 raise SystemExit(f"{args.store}: no store (run the workflow's data stage first)")
             m, p = make_logmap(args.store, args.splits, args.materials, lm_path)
         else:
-            from brdfpipe import logmap
+            from brdfpipe.data import logmap
 
             lm_path = args.logmap
             lm = logmap.open_logmap(lm_path)

@@ -2,13 +2,13 @@
 """What verifying the store on open costs, relative to the stages that consume it.
 
 Target (from the trust issue): reading a store verified (every shard file
-read and checked against its name-bound CRC-32C, see ``brdfpipe.store``)
+read and checked against its name-bound CRC-32C, see ``brdfpipe.data.store``)
 adds < 10 % to the consuming stage.
 
 What it does
 ------------
-1. Generates ``--count`` synthetic materials (``brdfpipe.synth.synthesize``)
-   and ingests them (``brdfpipe.store.ingest``) under a temporary folder, or
+1. Generates ``--count`` synthetic materials (``brdfpipe.data.synth.synthesize``)
+   and ingests them (``brdfpipe.data.store.ingest``) under a temporary folder, or
    reuses ``--store PATH``.  Not timed.
 2. Warms the page cache (one verified open), then per round times
 
@@ -67,8 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", type=Path, help="folder for the generated data (default: a temporary one)")
     args = ap.parse_args(argv)
 
-    from brdfpipe import gplvm, logmap, store, synth
-    from brdfpipe.database import folder_database
+    from brdfpipe.manifold import gplvm
+    from brdfpipe.data import logmap, store, synth
+    from brdfpipe.data.database import folder_database
 
     work = Path(tempfile.mkdtemp(prefix="bench-verify-", dir=args.work))
     try:

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from brdfpipe import merl, store
+from brdfpipe.data import merl, store
 
 EPS = 1e-3
 

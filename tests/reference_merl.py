@@ -1,7 +1,7 @@
 """Independent reference implementation of the MERL BRDF binary format.
 
 This module is used ONLY by the test-suite, as an oracle against which the
-library implementation in ``brdfpipe.merl`` is checked.  It was written from
+library implementation in ``brdfpipe.data.merl`` is checked.  It was written from
 the published format description (the MERL BRDF database documentation and
 its reference reader ``BRDFRead.cpp``), without looking at the library code,
 and it is deliberately written in a different style: slow, scalar,

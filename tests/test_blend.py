@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.blend` on tiny synthetic EXR images written with write_exr."""
+"""Tests of :mod:`brdfpipe.rendering.blend` on tiny synthetic EXR images written with write_exr."""
 
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe import blend, filenames
-from brdfpipe.blend import (
+from brdfpipe.rendering import blend
+from brdfpipe.core import filenames
+from brdfpipe.rendering.blend import (
     SUMMARY_COLUMNS,
     BlendError,
     blend_exr,
@@ -22,7 +23,7 @@ from brdfpipe.blend import (
     rmse,
     tonemap,
 )
-from brdfpipe.exr import ExrError, read_exr, read_exr_attrs, write_exr
+from brdfpipe.core.exr import ExrError, read_exr, read_exr_attrs, write_exr
 
 H, W = 6, 8
 MATERIALS = ("alum-bronze", "chrome", "silver-paint")
@@ -318,7 +319,7 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
     import json
 
     from brdfpipe import figures
-    from brdfpipe.blend import error_maps_from_files
+    from brdfpipe.rendering.blend import error_maps_from_files
 
     prerenders, points, _ = _setup(tmp_path)
     wfiles = []
@@ -419,7 +420,7 @@ def test_error_maps_of_the_one_bounce_part(tmp_path: Path) -> None:
 
 
 def test_bounce_shares(tmp_path: Path) -> None:
-    from brdfpipe.blend import SHARE_COLUMNS, bounce_shares
+    from brdfpipe.rendering.blend import SHARE_COLUMNS, bounce_shares
 
     rng = np.random.default_rng(3)
     mask = np.zeros((H, W, 3), np.float32)

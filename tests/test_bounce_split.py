@@ -1,7 +1,7 @@
-"""Tests of :mod:`brdfpipe.bounce`: the I¹⁻ / I²⁺ split of Soler et al. 2018 §5.2.
+"""Tests of :mod:`brdfpipe.rendering.bounce`: the I¹⁻ / I²⁺ split of Soler et al. 2018 §5.2.
 
 Small renders (48 × 36 or 64 × 48 pixels, the preview scene of
-:mod:`brdfpipe.scene`, ``llvm_ad_rgb``).  Statistical checks compare image
+:mod:`brdfpipe.rendering.scene`, ``llvm_ad_rgb``).  Statistical checks compare image
 means with a tolerance derived from the noise: pixels are independent
 (``independent`` sampler), so the standard error of the mean over ``N``
 pixels of a per-pixel difference ``d`` whose expectation is 0 in every pixel
@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from brdfpipe import bounce, merl, render, scene
+from brdfpipe.rendering import bounce, render, scene
+from brdfpipe.data import merl
 
 VARIANT = "llvm_ad_rgb"
 Z = 4.0
@@ -169,7 +170,7 @@ def test_missing_material_is_a_clear_error(mi: Any, envmap: Path) -> None:
 
 def test_render_material_writes_both_parts_from_one_render(mi: Any, envmap: Path, tables: dict[str, Path],
                                                            tmp_path: Path) -> None:
-    from brdfpipe.exr import read_exr, read_exr_attrs
+    from brdfpipe.core.exr import read_exr, read_exr_attrs
 
     kw = dict(envmap=envmap, variant=VARIANT, resolution=(32, 24), spp=8, max_depth=4, seed=2)
     whole = scene.render_material(tables["white"], tmp_path / "i.exr", out_one=tmp_path / "one.exr", **kw)

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe import cli, merl, store
+from brdfpipe import cli
+from brdfpipe.data import merl, store
 
 
 def test_synth_ingest_info_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -85,7 +86,7 @@ def test_missing_folder_and_store_are_clear_errors(
 
 
 def test_interpolate_between_and_at(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from brdfpipe import gplvm
+    from brdfpipe.manifold import gplvm
 
     out = tmp_path / "db"
     assert cli.main(["-q", "synth", "--count", "5", "--seed", "3", "--out", str(out), "--jobs", "2"]) == 0
@@ -121,7 +122,9 @@ def test_interpolate_between_and_at(tmp_path: Path, capsys: pytest.CaptureFixtur
 
 def test_render_writes_an_exr_and_rejects_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip("mitsuba")
-    from brdfpipe import exr, merl, render
+    from brdfpipe.core import exr
+    from brdfpipe.data import merl
+    from brdfpipe.rendering import render
 
     merl.write_merl(tmp_path / "grey.binary", render.lambertian_table(0.4))
     out = tmp_path / "grey.exr"

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from brdfpipe import database as db
+from brdfpipe.data import database as db
 
 
 def _touch_merl(folder: Path, names: list[str]) -> None:

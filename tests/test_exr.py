@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.exr`: round trips, attributes, and errors that name the file."""
+"""Tests of :mod:`brdfpipe.core.exr`: round trips, attributes, and errors that name the file."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe import exr
-from brdfpipe.exr import ExrError, read_exr, read_exr_attrs, write_exr
+from brdfpipe.core import exr
+from brdfpipe.core.exr import ExrError, read_exr, read_exr_attrs, write_exr
 
 
 def _image(h: int = 9, w: int = 13, seed: int = 0) -> np.ndarray:
@@ -175,6 +175,6 @@ def test_error_inside_the_writer_removes_the_temp_file(tmp_path: Path, monkeypat
 
 
 def test_importing_exr_blend_scene_does_not_import_mitsuba() -> None:
-    code = "import sys, brdfpipe.exr, brdfpipe.blend, brdfpipe.scene; print('mitsuba' in sys.modules)"
+    code = "import sys, brdfpipe.core.exr, brdfpipe.rendering.blend, brdfpipe.rendering.scene; print('mitsuba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -18,7 +18,8 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe import figures, filenames
+from brdfpipe import figures
+from brdfpipe.core import filenames
 from brdfpipe.figures import (
     FIG08_COLUMNS,
     FigureInputError,
@@ -29,7 +30,7 @@ from brdfpipe.figures import (
     make_acquisition_figures,
     read_errors,
 )
-from brdfpipe.filenames import FIGURE_STEMS
+from brdfpipe.core.filenames import FIGURE_STEMS
 from brdfpipe.sampling import DirectionSet, Setup, config_to_dict, read_directions, write_directions
 
 DB = "synthetic"
@@ -127,7 +128,7 @@ def write_dirs(root: Path, database: str = DB) -> tuple[dict[float, Path], list[
 
 
 def figure_map(out: Path, keys: "tuple[str, ...] | None" = None) -> dict[str, list[Path]]:
-    """The workflow's figure files (:func:`brdfpipe.filenames.figure_files`), under ``out`` instead of results/."""
+    """The workflow's figure files (:func:`brdfpipe.core.filenames.figure_files`), under ``out`` instead of results/."""
     return {k: [out / Path(f).name for f in filenames.figure_files(stem, table=(k == "fig08"))]
             for k, stem in FIGURE_STEMS.items() if keys is None or k in keys}
 

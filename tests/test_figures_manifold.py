@@ -1,9 +1,9 @@
 """Tests of the manifold-track figures of :mod:`brdfpipe.figures` (Soler 2018 analogues).
 
-The fixtures are small synthetic files in the formats ``brdfpipe.manifold``
+The fixtures are small synthetic files in the formats ``brdfpipe.manifold.analysis``
 writes: GPLVM models (q = 2 and 5) fitted to a random Gram matrix of
-N = 24 materials and saved with :func:`brdfpipe.gplvm.save_model`, their
-traces (:func:`brdfpipe.gplvm.write_trace`: Hooke–Jeeves sweeps, then an
+N = 24 materials and saved with :func:`brdfpipe.manifold.gplvm.save_model`, their
+traces (:func:`brdfpipe.manifold.gplvm.write_trace`: Hooke–Jeeves sweeps, then an
 L-BFGS polish), ``albedo.csv``, albedo maps for q = 2 and a q = 5 slice,
 ``paths.csv`` (three q = 5 paths and one q = 2 path, 21 points each) and
 ``reproduction.csv`` (PCA k = 2, 5, 20, 40; GPLVM q = 2, 5 at ~1e-16).
@@ -20,9 +20,10 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe import figures, gplvm
-from brdfpipe.filenames import MANIFOLD_FIGURE_STEMS
-from brdfpipe.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
+from brdfpipe import figures
+from brdfpipe.manifold import gplvm
+from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
+from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
 from brdfpipe.figures import (
     ALBEDO_COLUMNS,
     PATHS_COLUMNS,

@@ -1,4 +1,4 @@
-"""brdfpipe.gplvm: Gram matrix, rank-2 bookkeeping, Hooke–Jeeves fit, interpolation weights, saving."""
+"""brdfpipe.manifold.gplvm: Gram matrix, rank-2 bookkeeping, Hooke–Jeeves fit, interpolation weights, saving."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from brdfpipe import gplvm, logmap, merl, store, synth
-from brdfpipe.merl import N_CELLS
+from brdfpipe.manifold import gplvm
+from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.data.merl import N_CELLS
 
 
 # --------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Latent-space exploration (brdfpipe.latent): hull membership and sampling, neighbours, extrapolation, sampling."""
+"""Latent-space exploration (brdfpipe.manifold.latent): hull membership and sampling, neighbours, extrapolation, sampling."""
 
 from __future__ import annotations
 
@@ -12,7 +12,9 @@ import pytest
 import scipy.spatial
 import scipy.stats
 
-from brdfpipe import cli, gplvm, latent, manifold, merl, store, synth
+from brdfpipe import cli
+from brdfpipe.manifold import gplvm, latent, analysis
+from brdfpipe.data import merl, store, synth
 
 # --------------------------------------------------------------------------
 # hull_contains
@@ -274,7 +276,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
     names = list(store.open_store(zarr_path).materials)
     X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.4, 0.6]])
     return {"tmp": tmp, "store": zarr_path, "names": names, "X": X,
-            "albedos": manifold.material_albedos(zarr_path, names)}
+            "albedos": analysis.material_albedos(zarr_path, names)}
 
 
 def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -> None:
@@ -285,7 +287,7 @@ def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -
         for p, a in zip(pts, got):
             w = gplvm.blend_weights(gplvm.weights(m, p))
             table, clamped = gplvm.interpolate_table(tiny["store"], w, materials=m.names, space=space)
-            assert np.allclose(a, manifold.material_albedo(table), rtol=1e-9, atol=0), space
+            assert np.allclose(a, analysis.material_albedo(table), rtol=1e-9, atol=0), space
         assert np.allclose(got[2], tiny["albedos"][0], rtol=1e-6)  # a training point reproduces its material
         linear = latent.blend_weights_at(m, pts) @ tiny["albedos"]
         default = latent.latent_albedos(m, tiny["store"], pts)

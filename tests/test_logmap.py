@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.logmap`: the log-relative mapping and its Zarr output.
+"""Tests of :mod:`brdfpipe.data.logmap`: the log-relative mapping and its Zarr output.
 
 Two full-resolution stores are built once per module: six synthetic materials
 (``synth.synthesize``, ~5 s) for the comparison against a dense computation,
@@ -20,11 +20,11 @@ import zarr
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from brdfpipe import logmap, merl, store, synth
-from brdfpipe.atomic import OutputError
-from brdfpipe.database import folder_database
-from brdfpipe.logmap import EPS, LogmapError
-from brdfpipe.version import full_version
+from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.core.atomic import OutputError
+from brdfpipe.data.database import folder_database
+from brdfpipe.data.logmap import EPS, LogmapError
+from brdfpipe.core.version import full_version
 
 # --------------------------------------------------------------------------
 # Fixtures

@@ -1,4 +1,4 @@
-"""brdfpipe.manifold: albedo, albedo maps, paths, the eq. 7 bound, reproduction errors."""
+"""brdfpipe.manifold.analysis: albedo, albedo maps, paths, the eq. 7 bound, reproduction errors."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ import csv
 import numpy as np
 import pytest
 
-from brdfpipe import gplvm, manifold, merl, store, synth
-from brdfpipe.plan import ConfigError
+from brdfpipe.manifold import gplvm, analysis
+from brdfpipe.data import merl, store, synth
+from brdfpipe.core.plan import ConfigError
 
 
 @pytest.fixture(scope="module")
@@ -33,20 +34,20 @@ def small(tmp_path_factory: pytest.TempPathFactory) -> dict:
 def test_lambertian_albedo_is_its_reflectance() -> None:
     for a in (0.2, 0.75):
         table = np.full(merl.SHAPE, a / np.pi) * np.array([1.0, 0.5, 0.25])[:, None, None, None]
-        alb = manifold.material_albedo(table)
+        alb = analysis.material_albedo(table)
         # MERL's θh grid loses a sliver near grazing; 1 % is the discretisation
         assert np.allclose(alb, a * np.array([1.0, 0.5, 0.25]), rtol=1e-2)
     with pytest.raises(ValueError, match="shape"):
-        manifold.material_albedo(np.zeros((3, 9, 9, 9)))
+        analysis.material_albedo(np.zeros((3, 9, 9, 9)))
 
 
 def test_material_albedos_match_per_table(small: dict) -> None:
     names = small["names"]
-    A = manifold.material_albedos(small["store"], [names[3], names[0]])
+    A = analysis.material_albedos(small["store"], [names[3], names[0]])
     for k, i in enumerate((3, 0)):
-        assert np.allclose(A[k], manifold.material_albedo(small["brdf"][i].reshape(merl.SHAPE)), rtol=1e-12)
+        assert np.allclose(A[k], analysis.material_albedo(small["brdf"][i].reshape(merl.SHAPE)), rtol=1e-12)
     with pytest.raises(ValueError, match="unknown material"):
-        manifold.material_albedos(small["store"], ["nope"])
+        analysis.material_albedos(small["store"], ["nope"])
 
 
 def test_deviation_is_exact_norm_of_the_blend_difference(small: dict) -> None:
@@ -55,14 +56,14 @@ def test_deviation_is_exact_norm_of_the_blend_difference(small: dict) -> None:
     Z = small["brdf"][:, cols]
     w = np.array([0.5, 0.3, -0.1, 0.2, 0.0, 0.1])
     direct = np.linalg.norm(w @ Z - Z[2])
-    assert manifold.deviation(G, w, 2) == pytest.approx(direct, rel=1e-7)
+    assert analysis.deviation(G, w, 2) == pytest.approx(direct, rel=1e-7)
 
 
 def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
     model = gplvm.load_model(small["models"][3])
     G, _, _ = gplvm.load_gram(small["gram"])
     a, b = small["names"][0], small["names"][4]
-    rows = manifold.path_analysis(small["store"], model, G, a, b, steps=4)
+    rows = analysis.path_analysis(small["store"], model, G, a, b, steps=4)
     assert [r["step"] for r in rows] == list(range(5)) and rows[-1]["t"] == 1.0
     assert rows[0]["perceptual_a"] == 0.0 and rows[-1]["perceptual_b"] == 0.0
     assert rows[0]["perceptual_b"] == pytest.approx(rows[0]["perceptual_ab"]) and rows[0]["perceptual_ab"] > 0
@@ -71,32 +72,32 @@ def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
     assert rows[0]["nearest"] == a and rows[-1]["nearest"] == b
     assert rows[0]["bound"] == 0.0
     with pytest.raises(ValueError, match="unknown material 'zzz'"):
-        manifold.path_analysis(small["store"], model, G, a, "zzz")
+        analysis.path_analysis(small["store"], model, G, a, "zzz")
 
 
 def test_check_and_default_paths() -> None:
     names = [f"m{i}" for i in range(10)]
-    p1 = manifold.default_paths(names, seed=4)
-    assert p1 == manifold.default_paths(names, seed=4) and len(p1) == 3
+    p1 = analysis.default_paths(names, seed=4)
+    assert p1 == analysis.default_paths(names, seed=4) and len(p1) == 3
     assert len({m for pair in p1 for m in pair}) == 6
-    soler = [m for pair in manifold.SOLER_PATHS for m in pair] + ["x"]
-    assert manifold.default_paths(soler, seed=0) == list(manifold.SOLER_PATHS)
-    assert manifold.check_paths([["m1", "m2"]], names) == [("m1", "m2")]
+    soler = [m for pair in analysis.SOLER_PATHS for m in pair] + ["x"]
+    assert analysis.default_paths(soler, seed=0) == list(analysis.SOLER_PATHS)
+    assert analysis.check_paths([["m1", "m2"]], names) == [("m1", "m2")]
     # A path and its reverse are two paths.
-    assert manifold.check_paths([["m1", "m2"], ["m2", "m1"]], names) == [("m1", "m2"), ("m2", "m1")]
+    assert analysis.check_paths([["m1", "m2"], ["m2", "m1"]], names) == [("m1", "m2"), ("m2", "m1")]
     for bad, msg in [([["m1", "nope"]], "unknown material 'nope'"), ([["m1", "m1"]], "two different"),
                      ([["m1"]], "pair of material names"),
                      ([["m1", "m2"], ["m3", "m4"], ["m1", "m2"]], "listed more than once: m1--m2")]:
         with pytest.raises(ConfigError, match=msg):
-            manifold.check_paths(bad, names)
+            analysis.check_paths(bad, names)
     assert issubclass(ConfigError, ValueError)
-    assert manifold.path_name("m1", "m2") == "m1--m2"
+    assert analysis.path_name("m1", "m2") == "m1--m2"
 
 
 def test_albedo_map_is_the_weighted_albedo(small: dict) -> None:
     model = gplvm.load_model(small["models"][3])
     A = np.random.default_rng(0).uniform(0.1, 0.9, size=(6, 3))
-    amap = manifold.albedo_map(model, A, dims=(0, 2), n=8)
+    amap = analysis.albedo_map(model, A, dims=(0, 2), n=8)
     j, i = 5, 2
     x = amap["fixed"].copy()
     x[0], x[2] = amap["x"][i], amap["y"][j]
@@ -104,13 +105,13 @@ def test_albedo_map_is_the_weighted_albedo(small: dict) -> None:
     assert np.allclose(amap["albedo"][j, i], w @ A, rtol=1e-9)
     assert amap["albedo"].shape == (8, 8, 3) and int(amap["q"]) == 3
     with pytest.raises(ValueError, match="dims"):
-        manifold.albedo_map(model, A, dims=(0, 3))
+        analysis.albedo_map(model, A, dims=(0, 3))
 
 
 def test_reproduction_errors(small: dict) -> None:
     G, _, info = gplvm.load_gram(small["gram"])
     models = {q: gplvm.load_model(p) for q, p in small["models"].items()}
-    res = {(m, k): e for m, k, e in manifold.reproduction_errors(G, info.raw_gram, models, ks=(1, 5))}
+    res = {(m, k): e for m, k, e in analysis.reproduction_errors(G, info.raw_gram, models, ks=(1, 5))}
     assert set(res) == {("pca", 1), ("pca", 2), ("pca", 3), ("pca", 5), ("gplvm", 2), ("gplvm", 3)}
     assert np.all(res[("gplvm", 2)] < 1e-6) and np.all(res[("gplvm", 3)] < 1e-6)
     assert np.all(res[("pca", 5)] < 1e-6)  # N − 1 components of centred data: exact
@@ -132,7 +133,7 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
     outputs = {"albedo_out": out / "a" / "my-albedo.csv",
                "albedo_maps_out": {2: out / "maps" / "two.npz", 3: out / "maps" / "three.npz"},
                "paths_out": out / "my-paths.csv", "reproduction_out": out / "b" / "my-reproduction.csv"}
-    manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
+    analysis.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
                               paths=[[names[1], names[2]]], path_q=3, seed=0, steps=2, albedo_grid=6,
                               pca_ks=(2,), **outputs)
     written = sorted(p for p in out.rglob("*") if p.is_file())
@@ -140,7 +141,7 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
                               outputs["reproduction_out"]])
     with open(outputs["paths_out"]) as fh:
         rows = list(csv.DictReader(fh))
-    assert len(rows) == 3 and tuple(rows[0]) == manifold.PATH_COLUMNS and rows[0]["database"] == "synthetic"
+    assert len(rows) == 3 and tuple(rows[0]) == analysis.PATH_COLUMNS and rows[0]["database"] == "synthetic"
     with open(outputs["reproduction_out"]) as fh:
         rep = list(csv.DictReader(fh))
     assert {(r["method"], r["k"]) for r in rep} == {("pca", "2"), ("pca", "3"), ("gplvm", "2"), ("gplvm", "3")}
@@ -151,18 +152,18 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
         assert len(list(csv.DictReader(fh))) == 6
     # Only the albedo maps asked for are written.
     only = small["tmp"] / "only-q3"
-    manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
+    analysis.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
                               paths=[[names[1], names[2]]], path_q=3, seed=0, steps=2, albedo_grid=6,
                               pca_ks=(2,), albedo_out=only / "albedo.csv", albedo_maps_out={3: only / "q3.npz"},
                               paths_out=only / "paths.csv", reproduction_out=only / "reproduction.csv")
     assert sorted(p.name for p in only.iterdir()) == ["albedo.csv", "paths.csv", "q3.npz", "reproduction.csv"]
     fresh = small["tmp"] / "fresh"
     with pytest.raises(ValueError, match="no fitted model"):
-        manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"], paths=None,
+        analysis.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"], paths=None,
                                   path_q=7, seed=0, albedo_out=fresh / "albedo.csv", albedo_maps_out={},
                                   paths_out=fresh / "paths.csv", reproduction_out=fresh / "reproduction.csv")
     with pytest.raises(ValueError, match="no q = 5 model"):
-        manifold.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"], paths=None,
+        analysis.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"], paths=None,
                                   path_q=3, seed=0, albedo_out=fresh / "albedo.csv",
                                   albedo_maps_out={5: fresh / "q5.npz"}, paths_out=fresh / "paths.csv",
                                   reproduction_out=fresh / "reproduction.csv")
@@ -178,7 +179,7 @@ def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
     out = small["tmp"] / "points"
     merls = [out / f"p{k}.binary" for k in range(3)]
     jsons = [out / f"p{k}.json" for k in range(3)]
-    W = manifold.path_points_to_files(model=small["models"][2], store=small["store"], points=points,
+    W = analysis.path_points_to_files(model=small["models"][2], store=small["store"], points=points,
                                       merl_outs=merls, weights_outs=jsons)
     m = gplvm.load_model(small["models"][2])
     valid = np.tile(small["valid"], 3)  # per cell -> per column (3 channels)
@@ -197,5 +198,5 @@ def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
     first = np.maximum(small["brdf"][names.index(points[0][0])], 0.0)
     np.testing.assert_allclose(merl.read_merl(merls[0]).reshape(-1)[valid], first[valid], rtol=1e-6, atol=1e-9)
     with pytest.raises(ValueError, match="one MERL and one weights output per path point"):
-        manifold.path_points_to_files(model=small["models"][2], store=small["store"], points=points,
+        analysis.path_points_to_files(model=small["models"][2], store=small["store"], points=points,
                                       merl_outs=merls[:2], weights_outs=jsons)

@@ -1,11 +1,11 @@
-"""Geometry and derived quantities of brdfpipe.merl (format I/O: test_merl_format.py)."""
+"""Geometry and derived quantities of brdfpipe.data.merl (format I/O: test_merl_format.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from brdfpipe import merl
+from brdfpipe.data import merl
 
 
 def _random_dirs(rng: np.random.Generator, n: int) -> np.ndarray:

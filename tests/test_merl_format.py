@@ -1,4 +1,4 @@
-"""Tests of ``brdfpipe.merl`` against the independent reference implementation.
+"""Tests of ``brdfpipe.data.merl`` against the independent reference implementation.
 
 ``tests/reference_merl.py`` is a slow, scalar re-implementation of the MERL
 format written from the published description only; here the library's
@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import reference_merl as ref
-from brdfpipe import merl
+from brdfpipe.data import merl
 
 N = ref.N_PER_CHANNEL
 REF_SCALES = np.array(ref.SCALES, dtype=np.float64)

@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from brdfpipe import filenames, merl
+from brdfpipe.core import filenames
+from brdfpipe.data import merl
 from brdfpipe.sampling import (
     DIRECTIONS_FORMAT,
     DirectionSet,

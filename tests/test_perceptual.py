@@ -1,4 +1,4 @@
-"""brdfpipe.perceptual: the PR12 perceptual BRDF distance (RMS CIELAB ΔE over light/view pairs)."""
+"""brdfpipe.manifold.perceptual: the PR12 perceptual BRDF distance (RMS CIELAB ΔE over light/view pairs)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from brdfpipe import merl, perceptual, synth
+from brdfpipe.data import merl, synth
+from brdfpipe.manifold import perceptual
 
 # --------------------------------------------------------------------------
 # Independent reference: the continuous metric for constant-colour Lambertian BRDFs

@@ -1,4 +1,4 @@
-"""Parse-time planning (brdfpipe.plan), the DAG's file names (brdfpipe.filenames), code versions (brdfpipe.version)."""
+"""Parse-time planning (brdfpipe.core.plan), the DAG's file names (brdfpipe.core.filenames), code versions (brdfpipe.core.version)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from brdfpipe import filenames as fn
-from brdfpipe import plan, version
+from brdfpipe.core import filenames as fn
+from brdfpipe.core import plan, version
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -117,7 +117,7 @@ def test_file_names_keep_wildcards_and_format_numbers() -> None:
 def test_parsing_imports_no_heavy_library() -> None:
     """The modules the Snakefile imports at parse time stay light."""
     code = (
-        "import sys; import brdfpipe.filenames, brdfpipe.plan, brdfpipe.version; "
+        "import sys; import brdfpipe.core.filenames, brdfpipe.core.plan, brdfpipe.core.version; "
         "heavy = [m for m in ('numpy', 'scipy', 'zarr', 'matplotlib', 'mitsuba') if m in sys.modules]; "
         "print(','.join(heavy))"
     )
@@ -135,9 +135,11 @@ def copy_package(tmp_path: Path) -> Path:
 
 
 def test_module_closure_follows_imports() -> None:
-    closure = version.module_closure(["svd"])
-    assert {"brdfpipe", "brdfpipe.svd", "brdfpipe.store", "brdfpipe.merl"} <= set(closure)
-    assert "brdfpipe.figures" not in closure and "brdfpipe.render" not in closure
+    closure = version.module_closure(["acquisition.svd"])
+    assert {"brdfpipe", "brdfpipe.acquisition.svd", "brdfpipe.data.store", "brdfpipe.data.merl"} <= set(closure)
+    # importing a module runs its parent packages' __init__ first
+    assert {"brdfpipe.acquisition", "brdfpipe.data", "brdfpipe.core"} <= set(closure)
+    assert "brdfpipe.figures" not in closure and "brdfpipe.rendering.render" not in closure
     with pytest.raises(ValueError):
         version.module_closure(["no_such_module"])
 
@@ -171,13 +173,16 @@ def test_import_scan_finds_what_the_syntax_tree_has() -> None:
         expected = _ast_imports(source, base)
         assert expected <= scanned, f"{path}: missed {sorted(expected - scanned)}"
         own = ".".join([*base, path.stem]) if path.stem != "__init__" else ".".join(base)
-        # a docstring's usage example may mention its own module: harmless
-        spurious = {m for m in scanned - expected if m.startswith("brdfpipe") and m != own}
+        # a docstring's usage example may mention its own module (and so its
+        # parent packages, which the closure has anyway): harmless
+        parts = own.split(".")
+        harmless = {".".join(parts[:i]) for i in range(1, len(parts) + 1)}
+        spurious = {m for m in scanned - expected if m.startswith("brdfpipe") and m not in harmless}
         assert not spurious, f"{path}: spurious {sorted(spurious)}"
     tricky = (
         "def f():\n    from brdfpipe import (\n        svd,  # a comment\n        store as st,\n    )\n"
-        "import brdfpipe.merl as m, os\nfrom . import atomic\nfrom .. import x\n"
-        "from brdfpipe.zgroup import \\\n    open_group\n"
+        "import brdfpipe.data.merl as m, os\nfrom . import atomic\nfrom .. import x\n"
+        "from brdfpipe.core.zgroup import \\\n    open_group\n"
     )
     assert _ast_imports(tricky, ["brdfpipe", "sub"]) == version._import_names(tricky, ["brdfpipe", "sub"])
 
@@ -185,9 +190,9 @@ def test_import_scan_finds_what_the_syntax_tree_has() -> None:
 def test_digests_change_with_the_code_they_cover(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pkg = copy_package(tmp_path)
     script = tmp_path / "job.py"
-    script.write_text("from brdfpipe import svd\nfrom brdfpipe.logutil import log_to\n")
+    script.write_text("from brdfpipe.acquisition import svd\nfrom brdfpipe.core.logutil import log_to\n")
     other = tmp_path / "other.py"
-    other.write_text("from brdfpipe import scene\n")
+    other.write_text("from brdfpipe.rendering import scene\n")
 
     def digests() -> tuple[str, str, str]:
         version._imports.cache_clear()
@@ -198,7 +203,8 @@ def test_digests_change_with_the_code_they_cover(tmp_path: Path, monkeypatch: py
     before = digests()
     assert before == digests()  # deterministic
     assert before[2].startswith("0.1.0+src.")
-    (pkg / "svd.py").write_text((pkg / "svd.py").read_text() + "\n# an edit\n")
+    svd_py = pkg / "acquisition" / "svd.py"
+    svd_py.write_text(svd_py.read_text() + "\n# an edit\n")
     after = digests()
     assert after[0] != before[0]  # the job that runs svd changes
     assert after[1] == before[1]  # a job that does not is untouched

@@ -1,7 +1,7 @@
 """Provenance: a database folder's label comes from its files, names are safe, writes are atomic.
 
 Every test here failed on the code before the synthetic watermark and
-:func:`brdfpipe.database.database_from_folder`: a folder written by
+:func:`brdfpipe.data.database.database_from_folder`: a folder written by
 ``brdfpipe synth`` was labelled ``merl`` through ``merl_dir``, a mixed folder
 was labelled synthetic, an empty path fell back silently, ``*.BINARY`` files
 were skipped and any file stem became a material name.
@@ -18,15 +18,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe import atomic, merl, synth
-from brdfpipe import database as db
+from brdfpipe.core import atomic
+from brdfpipe.data import merl, synth
+from brdfpipe.data import database as db
 
 COUNT, SEED = 3, 5
 
 
 @pytest.fixture(scope="module")
 def synth_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A small database written by :func:`brdfpipe.synth.synthesize` (never modified)."""
+    """A small database written by :func:`brdfpipe.data.synth.synthesize` (never modified)."""
     out = tmp_path_factory.mktemp("synth") / "db"
     synth.synthesize(out, count=COUNT, seed=SEED, noise=0.01, jobs=1, progress=False)
     return out
@@ -211,13 +212,13 @@ def test_check_material_name() -> None:
 def test_write_splits_is_atomic_and_uses_no_fixed_tmp_name(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import brdfpipe.store
+    import brdfpipe.data.store
 
     class _Store:
         materials = ("a", "b", "c")
         database = "merl"
 
-    monkeypatch.setattr(brdfpipe.store, "open_store", lambda path: _Store())
+    monkeypatch.setattr(brdfpipe.data.store, "open_store", lambda path: _Store())
     out = tmp_path / "splits.json"
     other = tmp_path / ".splits.json.tmp"  # the old fixed name: another writer's file
     other.write_text("someone else's")
@@ -241,10 +242,10 @@ def test_write_merl_leaves_no_temporary_and_keeps_the_old_file_on_error(tmp_path
 
 def test_parse_time_modules_do_not_import_scipy_zarr_matplotlib() -> None:
     code = (
-        "import sys, brdfpipe.database as d; d.synthetic_database('x', 100, 1); "
+        "import sys, brdfpipe.data.database as d; d.synthetic_database('x', 100, 1); "
         "print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'zarr', 'matplotlib'}))"
     )
-    src = str(Path(db.__file__).resolve().parents[1])
+    src = str(Path(db.__file__).resolve().parents[2])
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          env={"PYTHONPATH": src, "PATH": "/usr/bin:/bin"})
     assert res.stdout.strip() == "[]"

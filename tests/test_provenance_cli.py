@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe import cli, merl
+from brdfpipe import cli
+from brdfpipe.data import merl
 
 
 def _one_error_line(capsys: pytest.CaptureFixture[str], command: str) -> str:
@@ -124,12 +125,12 @@ def test_synth_refuses_a_foreign_out_folder(tmp_path: Path, capsys: pytest.Captu
 
 
 def _reconstruct_raising(monkeypatch: pytest.MonkeyPatch, exc: BaseException) -> None:
-    import brdfpipe.reconstruct
+    import brdfpipe.acquisition.reconstruct
 
     def fail(*args: object, **kwargs: object) -> None:
         raise exc
 
-    monkeypatch.setattr(brdfpipe.reconstruct, "write_reconstruction", fail)
+    monkeypatch.setattr(brdfpipe.acquisition.reconstruct, "write_reconstruction", fail)
 
 
 def _reconstruct_argv(tmp_path: Path) -> list[str]:
@@ -201,12 +202,12 @@ def test_keyboard_interrupt_exits_130(
 def test_memory_error_in_render_names_the_settings(
     tmp_path: Path, material: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import brdfpipe.scene
+    import brdfpipe.rendering.scene
 
     def fail(*args: object, **kwargs: object) -> None:
         raise MemoryError
 
-    monkeypatch.setattr(brdfpipe.scene, "render_material", fail)
+    monkeypatch.setattr(brdfpipe.rendering.scene, "render_material", fail)
     envmap = tmp_path / "sky.exr"
     envmap.write_bytes(b"x")
     argv = ["-q", "render", str(material), "--envmap", str(envmap), "--out", str(tmp_path / "img.exr"),

@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.reconstruct`: reconstruction from observations and the leave-out evaluation.
+"""Tests of :mod:`brdfpipe.acquisition.reconstruct`: reconstruction from observations and the leave-out evaluation.
 
 One small real pipeline is built once per module: eight synthetic materials
 (``synth.synthesize``) → store → ``train`` log-map holding out two materials
@@ -19,10 +19,13 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from brdfpipe import filenames, logmap, merl, reconstruct, sampling, store, svd, synth
+from brdfpipe.core import filenames
+from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.acquisition import reconstruct, svd
+from brdfpipe import sampling
 from brdfpipe.cli import main as cli_main
-from brdfpipe.database import folder_database
-from brdfpipe.reconstruct import (
+from brdfpipe.data.database import folder_database
+from brdfpipe.acquisition.reconstruct import (
     CONSISTENCY_COLUMNS,
     ERROR_COLUMNS,
     TRAINING_SIZE_COLUMNS,
@@ -143,7 +146,7 @@ def test_table_layout_and_clamping(data: Data, caplog: pytest.LogCaptureFixture)
     rows = data.rows_of(data.dirs["point"], 3)
     cells = m.cells[rows]
     rgb = data.rho_test[3:6][:, rows].T
-    with caplog.at_level(logging.INFO, logger="brdfpipe.reconstruct"):
+    with caplog.at_level(logging.INFO, logger="brdfpipe.acquisition.reconstruct"):
         table = reconstruct.reconstruct_brdf(m, cells, rgb)
     assert table.shape == merl.SHAPE
     flat = table.reshape(3, merl.N_CELLS)

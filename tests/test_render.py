@@ -1,4 +1,4 @@
-"""The ``merl`` Mitsuba 3 BSDF of brdfpipe.render: lookup, sampling, rendering, errors.
+"""The ``merl`` Mitsuba 3 BSDF of brdfpipe.rendering.render: lookup, sampling, rendering, errors.
 
 Everything runs in the ``llvm_ad_rgb`` variant; the tests that need it are
 skipped (with the reason) where its backend (libLLVM) is unavailable.  MERL
@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from brdfpipe import merl, render, synth
+from brdfpipe.data import merl, synth
+from brdfpipe.rendering import render
 
 VARIANT = "llvm_ad_rgb"
 
@@ -148,7 +149,7 @@ def _unit(rng: np.random.Generator, n: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------
-# Evaluation = brdfpipe.merl.lookup
+# Evaluation = brdfpipe.data.merl.lookup
 # --------------------------------------------------------------------------
 
 
@@ -504,5 +505,5 @@ def test_plugin_class_registration_and_traverse(mi: Any, materials: _Materials) 
 
 
 def test_import_does_not_set_a_variant() -> None:
-    code = "import brdfpipe.render, mitsuba; assert mitsuba.variant() is None, mitsuba.variant()"
+    code = "import brdfpipe.rendering.render, mitsuba; assert mitsuba.variant() is None, mitsuba.variant()"
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)

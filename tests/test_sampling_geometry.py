@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from brdfpipe import merl
+from brdfpipe.data import merl
 from brdfpipe.sampling import (
     DEFAULT_GRID,
     SETUP_KINDS,

@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.scene`: env map convention, preview scene, deterministic renders.
+"""Tests of :mod:`brdfpipe.rendering.scene`: env map convention, preview scene, deterministic renders.
 
 Renders are tiny (32 × 24 pixels, 4–8 spp, max_depth 3) with Mitsuba's own
 ``diffuse`` / ``roughplastic`` bsdfs on the ``llvm_ad_rgb`` variant.
@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from brdfpipe import scene
-from brdfpipe.exr import read_exr, read_exr_attrs
+from brdfpipe.rendering import scene
+from brdfpipe.core.exr import read_exr, read_exr_attrs
 
 RES = (32, 24)
 PLASTIC = {"type": "roughplastic", "diffuse_reflectance": {"type": "rgb", "value": [0.6, 0.3, 0.1]}}
@@ -58,7 +58,7 @@ def test_bad_variant_names_it_and_the_allowed_set(bad: str) -> None:
 def test_unusable_backend_is_a_clear_error() -> None:
     # in a subprocess: a failed CUDA initialisation must not disturb this process's variant
     code = (
-        "from brdfpipe import scene\n"
+        "from brdfpipe.rendering import scene\n"
         "try:\n"
         "    scene.set_variant('cuda_ad_rgb')\n"
         "    print('OK')\n"
@@ -235,7 +235,8 @@ def test_preview_render_has_sky_above_ground(mi: Any, envmap: Path, tmp_path: Pa
 
 def test_render_material_uses_the_merl_plugin(mi: Any, envmap: Path, tmp_path: Path) -> None:
     """A Lambertian MERL table renders like Mitsuba's diffuse bsdf of the same albedo (same seed)."""
-    from brdfpipe import merl, render
+    from brdfpipe.data import merl
+    from brdfpipe.rendering import render
 
     table = render.lambertian_table(0.5)
     merl.write_merl(tmp_path / "lambert.binary", table)
@@ -266,11 +267,12 @@ def test_one_thread_render_finishes_and_equals_two_threads(mi: Any, envmap: Path
     Mitsuba 3.9 never finishes loading an environment map with Dr.Jit's worker
     pool disabled; run in a fresh process, with a timeout, so a hang fails.
     """
-    from brdfpipe import merl, render
+    from brdfpipe.data import merl
+    from brdfpipe.rendering import render
 
     merl.write_merl(tmp_path / "lambert.binary", render.lambertian_table(0.5))
     code = (
-        "import sys; from brdfpipe import scene\n"
+        "import sys; from brdfpipe.rendering import scene\n"
         "scene.render_material(sys.argv[1], sys.argv[2], envmap=sys.argv[3], variant='llvm_ad_rgb',"
         " resolution=(24, 18), spp=8, max_depth=3, seed=0, threads=int(sys.argv[4]))\n"
     )

@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.store`: the Zarr store of the materials × cells matrix.
+"""Tests of :mod:`brdfpipe.data.store`: the Zarr store of the materials × cells matrix.
 
 Three full-resolution materials (35 MB each) made from smooth analytic tables,
 each with its own extra unmeasured cells (some negative in one channel only),
@@ -21,11 +21,12 @@ import pytest
 import zarr
 from numpy.typing import NDArray
 
-from brdfpipe import gplvm, merl, store
-from brdfpipe.atomic import OutputError
-from brdfpipe.merl import N_CELLS, MerlFormatError
-from brdfpipe.store import N_COLS, StoreError
-from brdfpipe.version import full_version
+from brdfpipe.manifold import gplvm
+from brdfpipe.data import merl, store
+from brdfpipe.core.atomic import OutputError
+from brdfpipe.data.merl import N_CELLS, MerlFormatError
+from brdfpipe.data.store import N_COLS, StoreError
+from brdfpipe.core.version import full_version
 
 N_MATERIALS = 3
 
@@ -506,7 +507,7 @@ def test_same_sources_give_the_same_bytes(sources: dict[str, Path], tmp_path: Pa
         return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
     ta, tb = tree(a), tree(b)
-    assert json.loads(ta["zarr.json"])["attributes"]["format"] == "brdfpipe.merl-store/2"
+    assert json.loads(ta["zarr.json"])["attributes"]["format"] == "brdfpipe.data.merl-store/2"
     assert ta.keys() == tb.keys() and len(ta) > 4
     assert all(ta[k] == tb[k] for k in ta)
 
@@ -581,7 +582,7 @@ def test_damaged_valid_chunk_is_a_store_error(damage: str, built: Path, tmp_path
 
 def test_old_format_is_refused_with_a_reingest_hint(built: Path, tmp_path: Path) -> None:
     old = Path(shutil.copytree(built, tmp_path / "old.zarr"))
-    _edit_json(old / "zarr.json", lambda d: d["attributes"].update(format="brdfpipe.merl-store/1"))
+    _edit_json(old / "zarr.json", lambda d: d["attributes"].update(format="brdfpipe.data.merl-store/1"))
     with pytest.raises(StoreError, match=re.escape(str(old)) + ".*no longer supported.*re-ingest"):
         store.open_store(old)
     assert store.is_store(old)  # an ingest may replace it
@@ -608,12 +609,12 @@ def test_file_removing_many_cells_is_warned(
     table[2, measured[: measured.size // 20]] = -1.0  # 5 % of the measured cells
     holey = tmp_path / "holey.binary"
     merl.write_merl(holey, table.reshape(merl.SHAPE))
-    with caplog.at_level(logging.WARNING, logger="brdfpipe.store"):
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.data.store"):
         store.ingest({"a": sources["mat-0"], "holey": holey, "c": sources["mat-2"]},
                      tmp_path / "merl.zarr", database="synthetic", jobs=1)
     warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warned) == 1 and re.match(r"holey\.binary: material 'holey' leaves .* \(5\.\d%\)", warned[0])
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="brdfpipe.store"):
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.data.store"):
         store.ingest(sources, tmp_path / "fine.zarr", database="synthetic", jobs=1)
     assert not [r for r in caplog.records if r.levelno == logging.WARNING]  # 2000 of ~1 M cells: 0.2 %

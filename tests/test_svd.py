@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.svd`: the streamed PCA of a log-map against a dense SVD.
+"""Tests of :mod:`brdfpipe.acquisition.svd`: the streamed PCA of a log-map against a dense SVD.
 
 One store of six synthetic materials (~5 s) and its ``all`` log-map (m = 18,
 p ≈ 1.1 M, 80 MB float32) are built once; the dense reference is
@@ -18,11 +18,12 @@ import pytest
 import scipy.linalg
 import zarr
 
-from brdfpipe import logmap, store, svd, synth
-from brdfpipe.atomic import OutputError
-from brdfpipe.database import folder_database
-from brdfpipe.svd import ModelError
-from brdfpipe.version import full_version
+from brdfpipe.data import logmap, store, synth
+from brdfpipe.acquisition import svd
+from brdfpipe.core.atomic import OutputError
+from brdfpipe.data.database import folder_database
+from brdfpipe.acquisition.svd import ModelError
+from brdfpipe.core.version import full_version
 
 # --------------------------------------------------------------------------
 # Fixtures

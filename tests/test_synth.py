@@ -1,4 +1,4 @@
-"""Tests of brdfpipe.synth: the synthetic MERL-format database.
+"""Tests of brdfpipe.data.synth: the synthetic MERL-format database.
 
 Full-resolution tables cost ~0.5 s each, so the module generates one material
 per family once (fixture ``generated``) and reuses it.
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe import merl, synth
-from brdfpipe.version import full_version
+from brdfpipe.data import merl, synth
+from brdfpipe.core.version import full_version
 
 SEED = 11
 NOISE = 0.01
@@ -318,14 +318,14 @@ def test_synthesize_writes_files_and_manifest(
     tmp_path: Path, generated, specs5, caplog: pytest.LogCaptureFixture
 ) -> None:
     out = tmp_path / "db"
-    with caplog.at_level(logging.INFO, logger="brdfpipe.synth"):
+    with caplog.at_level(logging.INFO, logger="brdfpipe.data.synth"):
         manifest = synth.synthesize(out, count=5, seed=SEED, noise=NOISE, jobs=2)
     assert manifest == out / "manifest.json"
-    lines = [r.getMessage() for r in caplog.records if r.name == "brdfpipe.synth"]
+    lines = [r.getMessage() for r in caplog.records if r.name == "brdfpipe.data.synth"]
     for spec in specs5:
         assert sum(spec.name in m for m in lines) == 1, lines
     doc = json.loads(manifest.read_text())
-    assert doc["kind"] == "synthetic" and doc["generator"] == "brdfpipe.synth"
+    assert doc["kind"] == "synthetic" and doc["generator"] == "brdfpipe.data.synth"
     assert doc["version"] == full_version()
     assert (doc["seed"], doc["count"], doc["noise"]) == (SEED, 5, NOISE)
     assert [m["name"] for m in doc["materials"]] == [s.name for s in specs5]

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 import yaml
 
-from brdfpipe import filenames, merl, store
+from brdfpipe.core import filenames
+from brdfpipe.data import merl, store
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEFILE = ROOT / "workflow" / "Snakefile"
@@ -95,7 +96,8 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert (tmp_path / "logs" / "assemble_store.log").stat().st_size > 0
     assert len(list((tmp_path / "benchmarks" / "ingest_material").glob("*.tsv"))) == 12
     # acquisition track: models of both splits, direction sets of every setup
-    from brdfpipe import sampling, svd
+    from brdfpipe import sampling
+    from brdfpipe.acquisition import svd
 
     model = svd.open_model(tmp_path / "results" / "svd" / "train.zarr")
     assert model.database == "synthetic" and model.m == 27
@@ -122,7 +124,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert "manifold-spaces.png" in figures
     assert "manifold-fig09-paths.pdf" in figures and "render-fig13-errors.png" in figures
     # manifold track: one GPLVM fit per candidate (data space, mu) and latent dimension, with its trace
-    from brdfpipe import gplvm
+    from brdfpipe.manifold import gplvm
 
     for cand, space in (("standardised-mu1e-06", "standardised"), ("raw-mu0.0001", "raw")):
         for q in (2, 5):
@@ -165,7 +167,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
 
 def check_floor(workdir: Path, names: list[str]) -> None:
     """The tiny run's noise-floor check: both candidates, every path point, ratios recomputed from the images."""
-    from brdfpipe.exr import read_exr, read_exr_attrs
+    from brdfpipe.core.exr import read_exr, read_exr_attrs
 
     floor = workdir / "results" / "renders" / "preview-16x12-64spp"
     assert sorted(p.stem for p in (floor / "materials-one").glob("*.exr")) == sorted(names)
@@ -256,8 +258,8 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
 
 
 def declared_outputs(configfile: Path) -> set[str]:
-    """The files rule all asks for under ``configfile``, from brdfpipe.plan (as the Snakefile does)."""
-    from brdfpipe import plan
+    """The files rule all asks for under ``configfile``, from brdfpipe.core.plan (as the Snakefile does)."""
+    from brdfpipe.core import plan
 
     cfg = yaml.safe_load(configfile.read_text())
     files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
@@ -274,7 +276,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, shape: str) -> None:
     cosine space with q = 3. On tiny-point, an edit of one library module then
     plans exactly the jobs that run it and what depends on them.
     """
-    from brdfpipe import plan
+    from brdfpipe.core import plan
 
     config = ROOT / "tests" / "config" / f"{shape}.yaml"
     cfg = yaml.safe_load(config.read_text())
@@ -313,7 +315,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, shape: str) -> None:
     if shape != "tiny-point":
         return
     # Stale results: an edit of svd.py replans the jobs that run it and their dependents, nothing else.
-    svd_py = pkg / "brdfpipe" / "svd.py"
+    svd_py = pkg / "brdfpipe" / "acquisition" / "svd.py"
     svd_py.write_text(svd_py.read_text() + "\n# an edit\n")
     plan_run = subprocess.run([*cmd, "-n", "--quiet", "rules"], capture_output=True, text=True, cwd=work, env=env,
                               timeout=300)
@@ -359,7 +361,7 @@ def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
 
 
 def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None:
-    from brdfpipe import database
+    from brdfpipe.data import database
 
     names = database.synthetic_database("x", 12, 7).materials
     subset = [n for n in names if n.startswith(("metal-", "paint-"))]

@@ -2,9 +2,9 @@
 
 Library modules are pure functions with no Snakemake in them:
 
-* :mod:`brdfpipe.merl`  – the MERL ``.binary`` format, lookup and cell geometry;
-* :mod:`brdfpipe.synth` – a synthetic, physically based MERL-format database;
-* :mod:`brdfpipe.store` – the chunked Zarr store of the materials × cells matrix;
+* :mod:`brdfpipe.data.merl`  – the MERL ``.binary`` format, lookup and cell geometry;
+* :mod:`brdfpipe.data.synth` – a synthetic, physically based MERL-format database;
+* :mod:`brdfpipe.data.store` – the chunked Zarr store of the materials × cells matrix;
 * :mod:`brdfpipe.cli`   – the ``brdfpipe`` command line.
 """
 

@@ -16,7 +16,7 @@ Every subcommand exits non-zero with one line ``brdfpipe CMD: error: ...``
 naming the file and the problem on bad input or a failing environment (full
 disk, unreadable file, out of memory), never a traceback; an interrupt
 (Ctrl-C) exits 130.  No subcommand writes over one of its inputs
-(:func:`brdfpipe.atomic.check_not_input`), and every output is written
+(:func:`brdfpipe.core.atomic.check_not_input`), and every output is written
 atomically, so an error or interrupt leaves an earlier output as it was.
 """
 
@@ -29,9 +29,9 @@ import os
 import sys
 from collections.abc import Sequence
 
-from brdfpipe.atomic import check_not_input, is_out_of_space
-from brdfpipe.logutil import setup_console_logging
-from brdfpipe.version import full_version
+from brdfpipe.core.atomic import check_not_input, is_out_of_space
+from brdfpipe.core.logutil import setup_console_logging
+from brdfpipe.core.version import full_version
 
 __all__ = ["main", "build_parser"]
 
@@ -53,7 +53,7 @@ def _non_negative_float(text: str) -> float:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    from brdfpipe import synth
+    from brdfpipe.data import synth
 
     # synthesize() refuses an --out that holds anything it did not write itself
     # (synth.check_output_folder) before it writes a byte.
@@ -65,7 +65,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 
 
 def _cmd_ingest(args: argparse.Namespace) -> int:
-    from brdfpipe import database, store
+    from brdfpipe.data import database, store
 
     db = database.database_from_folder(args.folder, key="folder")
     check_not_input(args.out, [args.folder, *db.sources.values()])
@@ -80,7 +80,7 @@ def _cmd_ingest(args: argparse.Namespace) -> int:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from brdfpipe import store
+    from brdfpipe.data import store
 
     st = store.open_store(args.store, verify=args.verify)
     summary = {
@@ -105,7 +105,7 @@ def _positive_float(text: str) -> float:
 
 
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
-    from brdfpipe import reconstruct
+    from brdfpipe.acquisition import reconstruct
 
     check_not_input(args.out, [args.observations, args.model])
     reconstruct.write_reconstruction(args.model, args.observations, args.out, eta=args.eta)
@@ -121,7 +121,7 @@ def _latent_point(text: str) -> list[float]:
 
 
 def _cmd_interpolate(args: argparse.Namespace) -> int:
-    from brdfpipe import gplvm
+    from brdfpipe.manifold import gplvm
 
     check_not_input(args.out, [args.model, args.store])
     gplvm.interpolate_to_file(
@@ -133,7 +133,7 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
 
 
 def _cmd_nearest(args: argparse.Namespace) -> int:
-    from brdfpipe import gplvm, latent
+    from brdfpipe.manifold import gplvm, latent
 
     model = gplvm.load_model(args.model)
     if args.material is not None:
@@ -150,7 +150,8 @@ def _cmd_nearest(args: argparse.Namespace) -> int:
 
 
 def _cmd_extrapolate(args: argparse.Namespace) -> int:
-    from brdfpipe import gplvm, latent, merl
+    from brdfpipe.manifold import gplvm, latent
+    from brdfpipe.data import merl
 
     if args.out is not None:
         check_not_input(args.out, [args.model, args.store])
@@ -191,7 +192,9 @@ def _cmd_sample(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from brdfpipe import atomic, gplvm, latent, merl
+    from brdfpipe.core import atomic
+    from brdfpipe.manifold import gplvm, latent
+    from brdfpipe.data import merl
 
     out_dir = Path(args.out_dir)
     check_not_input(out_dir, [args.model, args.store], what="--out-dir")
@@ -237,7 +240,7 @@ def _cmd_sample(args: argparse.Namespace) -> int:
 def _cmd_render(args: argparse.Namespace) -> int:
     import tempfile
 
-    from brdfpipe import scene
+    from brdfpipe.rendering import scene
 
     check_not_input(args.out, [args.material, args.envmap])
     with tempfile.TemporaryDirectory(prefix="brdfpipe-render-") as tmp:
@@ -353,8 +356,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _render_errors() -> tuple[type[Exception], ...]:
     """The rendering track's error classes (their modules import Mitsuba lazily)."""
-    from brdfpipe.render import RenderError
-    from brdfpipe.scene import SceneError
+    from brdfpipe.rendering.render import RenderError
+    from brdfpipe.rendering.scene import SceneError
 
     return (RenderError, SceneError)
 

@@ -55,7 +55,7 @@ same matplotlib and FreeType.
 Manifold track
 --------------
 The second half of the module draws the Soler et al. 2018 analogues (Figs.
-5, 7, 8, 9, 10 and eq. 7) from the GPLVM fits and ``brdfpipe.manifold``'s
+5, 7, 8, 9, 10 and eq. 7) from the GPLVM fits and ``brdfpipe.manifold.analysis``'s
 tables: :func:`make_manifold_figures` (stems :data:`MANIFOLD_FIGURE_STEMS`),
 with the same style, atomic writing and determinism; there every input is
 read and checked first, and a missing file too raises
@@ -86,9 +86,9 @@ from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
-from .filenames import FIGURE_STEMS, MANIFOLD_FIGURE_STEMS, RENDER_FIGURE_STEMS, format_t
-from .version import full_version
-from .atomic import atomic_write as _atomic_write
+from brdfpipe.core.filenames import FIGURE_STEMS, MANIFOLD_FIGURE_STEMS, RENDER_FIGURE_STEMS, format_t
+from brdfpipe.core.version import full_version
+from brdfpipe.core.atomic import atomic_write as _atomic_write
 
 __all__ = [
     "ERRORS_COLUMNS",
@@ -849,7 +849,7 @@ class _ConfigRow:
 def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Sequence[float],
                          n_images: Sequence[int], setup: str, metric: str, splits: Sequence[str],
                          warn: _Warnings) -> tuple[list[_ConfigRow], str]:
-    from .sampling import read_directions  # noqa: PLC0415 (heavy import, only needed here)
+    from brdfpipe.sampling import read_directions  # noqa: PLC0415 (heavy import, only needed here)
 
     loaded = []
     for p in directions:
@@ -1105,9 +1105,9 @@ def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
 # Manifold track: Soler et al. 2018 figure analogues
 # ===========================================================================
 #
-# Inputs (written by brdfpipe.manifold and the fit_gplvm jobs):
+# Inputs (written by brdfpipe.manifold.analysis and the fit_gplvm jobs):
 #
-# * models ``gplvm/q{q}.npz`` (:func:`brdfpipe.gplvm.load_model`) and traces
+# * models ``gplvm/q{q}.npz`` (:func:`brdfpipe.manifold.gplvm.load_model`) and traces
 #   ``gplvm/q{q}-trace.csv`` (``step,stage,log_likelihood``; stage
 #   ``hooke-jeeves``, then ``lbfgs`` for the polish);
 # * ``manifold/albedo.csv`` (``database,material,r,g,b,luminance``);
@@ -1453,7 +1453,7 @@ def read_reproduction(path: str | os.PathLike[str]) -> ReproductionTable:
 
 
 def _read_model(path: str | os.PathLike[str], q: int) -> Any:
-    from . import gplvm  # noqa: PLC0415 (scipy import, only needed here)
+    from brdfpipe.manifold import gplvm  # noqa: PLC0415 (scipy import, only needed here)
 
     p = _input_file(path, "GPLVM model")
     if not zipfile.is_zipfile(p):
@@ -1482,7 +1482,7 @@ STABILITY_FIGURE_COLUMNS: tuple[str, ...] = ("database", "candidate", "q", "norm
 
 @dataclass(frozen=True)
 class SpacesTable:
-    """``spaces.csv`` and ``spaces-stability.csv`` of :mod:`brdfpipe.fidelity`."""
+    """``spaces.csv`` and ``spaces-stability.csv`` of :mod:`brdfpipe.manifold.fidelity`."""
 
     path: Path
     database: str
@@ -2478,7 +2478,7 @@ class RenderPoint:
 
 
 def _read_exr_checked(path: Path) -> NDArray[np.float64]:
-    from brdfpipe.exr import ExrError, read_exr
+    from brdfpipe.core.exr import ExrError, read_exr
 
     try:
         return read_exr(path).astype(np.float64)
@@ -2521,7 +2521,7 @@ def _image_axes(ax: Any, img: NDArray[np.uint8], title: str, fontsize: float = 6
 
 def render_fig01_prerenders(prerenders: Mapping[str, Path], stem: Path, database: str) -> FigureOutput:
     """Grid of every pre-rendered material (Soler Fig. 1 analogue), one common exposure."""
-    from brdfpipe.blend import tonemap
+    from brdfpipe.rendering.blend import tonemap
 
     warn = _Warnings(stem.name)
     names = sorted(prerenders)
@@ -2542,7 +2542,7 @@ def render_fig01_prerenders(prerenders: Mapping[str, Path], stem: Path, database
 def render_fig12_interpolation(prerenders: Mapping[str, Path], points: Sequence[RenderPoint], stem: Path,
                                database: str) -> FigureOutput:
     """Per path: A, blended images at each t, B (top); references at each t (bottom) (Soler Fig. 12)."""
-    from brdfpipe.blend import tonemap
+    from brdfpipe.rendering.blend import tonemap
 
     warn = _Warnings(stem.name)
     paths = list(dict.fromkeys(p.path for p in points))
@@ -2575,7 +2575,7 @@ def render_fig12_interpolation(prerenders: Mapping[str, Path], points: Sequence[
 def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[str, str], Mapping[str, str]],
                         stem: Path, database: str) -> FigureOutput:
     """Per path point: reference, blend and |blend − reference| with the relative RMSEs (Soler Fig. 13)."""
-    from brdfpipe.blend import tonemap
+    from brdfpipe.rendering.blend import tonemap
 
     warn = _Warnings(stem.name)
     refs = [_read_exr_checked(q.reference) for q in points]
@@ -2625,9 +2625,9 @@ def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
     """Write the requested rendering-track figures (keys of :data:`RENDER_FIGURE_STEMS`), PNG + PDF each.
 
     Per path point ``k``: ``weights[k]`` (its weights JSON,
-    :func:`brdfpipe.manifold.path_points_to_files`), ``references[k]`` (its
+    :func:`brdfpipe.manifold.analysis.path_points_to_files`), ``references[k]`` (its
     reference render), ``blended[k]`` and ``errors[k]`` (the blend and the
-    error EXR of :func:`brdfpipe.blend.error_maps`); ``summary``: the error
+    error EXR of :func:`brdfpipe.rendering.blend.error_maps`); ``summary``: the error
     maps' ``summary.csv`` (needed for ``fig13``).  ``figures``: key → its PNG
     and PDF paths.  A missing or corrupt input raises
     :class:`FigureInputError` naming it.
@@ -2683,7 +2683,7 @@ def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.
                      database: str) -> FigureOutput:
     """Blend error / noise floor of every candidate at every path point, whole image and I¹⁻ (PNG + PDF).
 
-    ``table`` is :func:`brdfpipe.blend.floor_check_table`'s CSV.  Left: the
+    ``table`` is :func:`brdfpipe.rendering.blend.floor_check_table`'s CSV.  Left: the
     whole image, right: its I¹⁻ part; one row of markers per candidate, one
     marker per path point, against the independent-seed reference
     (``ratio_seed2``, ``ratio_one_seed2``); lines at 1 (no error beyond the
@@ -2691,7 +2691,7 @@ def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.
     size, spp and the floor's range.  :class:`FigureInputError` for a
     missing table, a missing column or another database.
     """
-    from brdfpipe.blend import FLOOR_CHECK_COLUMNS
+    from brdfpipe.rendering.blend import FLOOR_CHECK_COLUMNS
 
     stem = figure_stem(files)
     rows = _read_csv_rows(Path(table), FLOOR_CHECK_COLUMNS)

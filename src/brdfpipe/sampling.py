@@ -83,8 +83,9 @@ import scipy.linalg
 import scipy.linalg.blas
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic, merl
-from brdfpipe.version import full_version
+from brdfpipe.core import atomic
+from brdfpipe.data import merl
+from brdfpipe.core.version import full_version
 
 __all__ = [
     "DEFAULT_ETA",
@@ -1460,7 +1461,7 @@ def centre_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
     """Light and camera unit vectors ``(wi, wo)``, each (3,), of a configuration's centre.
 
     point / nearfield: the centre of cell (iθh, iθd, iφd) with φh = 0
-    (:func:`brdfpipe.merl.directions_from_half_diff`); fixed_*: the shared
+    (:func:`brdfpipe.data.merl.directions_from_half_diff`); fixed_*: the shared
     direction at (i_shared°, azimuth 0) and the other one at
     (i_theta°, 2·i_phi°).  For nearfield and fixed_* ``wo`` is the direction
     from the disk centre to the camera.
@@ -1548,7 +1549,7 @@ def observation_cells(setup: Setup, config: ArrayLike, valid: ArrayLike | None =
     pixel (see the section comment), in lattice order; the centre pixel's
     cell is the configuration's centre cell.  Cells not in ``valid`` — a
     boolean mask over all ``merl.N_CELLS`` cells, default
-    :func:`brdfpipe.merl.measured_mask` (both directions of the cell centre
+    :func:`brdfpipe.data.merl.measured_mask` (both directions of the cell centre
     above the horizon) — are dropped; so are all pixels when the light is
     not above the horizon.
     """
@@ -1722,7 +1723,7 @@ _AXIS_NAMES = {
 
 
 class ModelLike(Protocol):
-    """What :func:`optimize` needs of a model (:class:`brdfpipe.svd.Model` has it)."""
+    """What :func:`optimize` needs of a model (:class:`brdfpipe.acquisition.svd.Model` has it)."""
 
     Q: Any  # (p, k) array-like (zarr or numpy), rows in ``cells`` order
     sigma: Any  # (k,)
@@ -2241,7 +2242,7 @@ def optimize(
     Parameters
     ----------
     model:
-        The PCA model (:func:`brdfpipe.svd.open_model`, or anything with
+        The PCA model (:func:`brdfpipe.acquisition.svd.open_model`, or anything with
         ``Q`` (p, k), ``sigma`` (k,), ``U`` (m, k) and ``cells`` (p,)).  ``Q``
         is read into memory as float32 (1.2 GB at p = 1.1 M, k = 270); E(S)
         averages over the m rows of ``U``.
@@ -2459,11 +2460,11 @@ def optimize_to_file(
     """Optimise the direction sets of one setup on a PCA model and write them as JSON.
 
     The workflow's ``optimize_directions`` job: opens the model written by
-    :func:`brdfpipe.svd.write_model`, runs :func:`optimize` (one log line per
+    :func:`brdfpipe.acquisition.svd.write_model`, runs :func:`optimize` (one log line per
     step) and writes :func:`write_directions`'s JSON to ``out``; the split
     and database recorded are the model's.
     """
-    from brdfpipe.svd import open_model
+    from brdfpipe.acquisition.svd import open_model
 
     model = open_model(model_path)
     kind_setup = Setup(setup, fov_deg=0.0 if setup == "point" else float(fov), grid=int(grid))

@@ -1,5 +1,5 @@
 # Shared definitions: which database this run uses, its materials, the split,
-# and every file name of the DAG (from brdfpipe.filenames). Everything that can
+# and every file name of the DAG (from brdfpipe.core.filenames). Everything that can
 # fail on bad configuration fails here, at parse time, before any job runs.
 # Parsing imports only light modules (no matplotlib, SciPy or Zarr).
 
@@ -8,10 +8,10 @@ from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
 
-from brdfpipe import database as brdf_db
-from brdfpipe import filenames as fn
-from brdfpipe import plan
-from brdfpipe.version import script_digest
+from brdfpipe.data import database as brdf_db
+from brdfpipe.core import filenames as fn
+from brdfpipe.core import plan
+from brdfpipe.core.version import script_digest
 
 SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
 
@@ -107,7 +107,7 @@ else:
 
 
 def mem(rule, outputs=1):
-    """A rule's mem_mb: measured peak for this many materials and outputs, growing by half per retry (brdfpipe.plan)."""
+    """A rule's mem_mb: measured peak for this many materials and outputs, growing by half per retry (brdfpipe.core.plan)."""
 
     def mem_mb(wildcards, attempt):
         return plan.mem_mb(rule, len(MATERIALS), attempt, outputs=outputs)

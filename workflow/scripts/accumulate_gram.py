@@ -1,7 +1,7 @@
 """One column block's share of the row Gram matrix (rule accumulate_gram)."""
 
-from brdfpipe import svd
-from brdfpipe.logutil import log_to
+from brdfpipe.acquisition import svd
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     svd.write_partial(

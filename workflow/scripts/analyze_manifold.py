@@ -1,10 +1,10 @@
 """Albedos, albedo maps, latent paths and reproduction errors of the GPLVM fits (rule analyze_manifold)."""
 
-from brdfpipe import manifold
-from brdfpipe.logutil import log_to
+from brdfpipe.manifold import analysis
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
-    manifold.analyze_manifold(
+    analysis.analyze_manifold(
         store=snakemake.input.store,
         gram=snakemake.input.gram,
         models=dict(zip(snakemake.params.latent_dims, snakemake.input.models)),

@@ -1,7 +1,7 @@
 """Predicted E(S) of a split's direction sets vs a direct recomputation (rule check_directions)."""
 
-from brdfpipe import reconstruct
-from brdfpipe.logutil import log_to
+from brdfpipe.acquisition import reconstruct
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     reconstruct.check_consistency(

@@ -1,7 +1,7 @@
 """Combine the Gram blocks, decompose and write the PCA model (rule decompose_svd)."""
 
-from brdfpipe import svd
-from brdfpipe.logutil import log_to
+from brdfpipe.acquisition import svd
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     svd.write_model(

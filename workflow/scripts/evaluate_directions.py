@@ -1,7 +1,7 @@
 """Leave-out evaluation of every training-split direction set (rule evaluate_directions)."""
 
-from brdfpipe import reconstruct
-from brdfpipe.logutil import log_to
+from brdfpipe.acquisition import reconstruct
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     reconstruct.write_evaluation(

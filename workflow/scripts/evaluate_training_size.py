@@ -1,7 +1,7 @@
 """Error vs number of training materials, Xu Fig. 7 (rule evaluate_training_size)."""
 
-from brdfpipe import reconstruct
-from brdfpipe.logutil import log_to
+from brdfpipe.acquisition import reconstruct
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     reconstruct.write_training_size(

@@ -1,7 +1,7 @@
 """GPLVM latent space of dimension q (rule fit_gplvm)."""
 
-from brdfpipe import gplvm
-from brdfpipe.logutil import log_to
+from brdfpipe.manifold import gplvm
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     gplvm.fit_to_files(

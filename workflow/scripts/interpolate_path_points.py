@@ -1,10 +1,10 @@
 """The interpolated materials at every point of the latent paths (rule interpolate_path_points)."""
 
-from brdfpipe import manifold
-from brdfpipe.logutil import log_to
+from brdfpipe.manifold import analysis
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
-    manifold.path_points_to_files(
+    analysis.path_points_to_files(
         model=snakemake.input.model,
         store=snakemake.input.store,
         points=snakemake.params.points,

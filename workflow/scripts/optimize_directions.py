@@ -1,7 +1,7 @@
 """Optimal acquisition directions for one setup, FOV, metric and split (rule optimize_directions)."""
 
 from brdfpipe import sampling
-from brdfpipe.logutil import log_to
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     sampling.optimize_to_file(

@@ -1,7 +1,7 @@
 """Xu 2016 figure analogues from the evaluation and the direction sets (rule plot_acquisition_figures)."""
 
 from brdfpipe import figures
-from brdfpipe.logutil import log_to
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     figures.make_acquisition_figures(

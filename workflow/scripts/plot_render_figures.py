@@ -1,7 +1,7 @@
 """Pre-render grid, interpolation strip and error panel of the rendering track (rule plot_render_figures)."""
 
 from brdfpipe import figures
-from brdfpipe.logutil import log_to
+from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
     figures.make_render_figures(

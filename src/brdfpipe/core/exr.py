@@ -40,7 +40,7 @@ import numpy as np
 import OpenEXR
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.atomic import atomic_path
+from brdfpipe.core.atomic import atomic_path
 
 __all__ = [
     "ExrError",

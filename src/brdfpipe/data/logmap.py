@@ -44,7 +44,7 @@ A Zarr v3 group holding
   fill value NaN.  Chunks span all rows, so a column block is one chunk read;
   36,450 columns keep a chunk at 39 MB for m = 270 (its float64 working copy
   79 MB) and give 31 chunks, i.e. up to 31 chunk-aligned column ranges for
-  the distributed SVD (:mod:`brdfpipe.svd`).
+  the distributed SVD (:mod:`brdfpipe.acquisition.svd`).
 * ``reference`` – float64 ``(p,)``: ρ_ref, the per-cell median of the training
   rows (sr⁻¹).
 * ``weight`` – float64 ``(p,)``: w.
@@ -61,12 +61,12 @@ store's source digests and ρ_ref, so it identifies this log-map's content
 inputs still give the same bytes.
 
 The output is built in a temporary sibling directory and swapped into place
-(:func:`brdfpipe.atomic.atomic_dir`): after any error or interrupt an earlier
+(:func:`brdfpipe.core.atomic.atomic_dir`): after any error or interrupt an earlier
 log-map at ``out`` is left exactly as it was, and an ``out`` that holds
 anything but a log-map (a store, another Zarr group, a folder) is refused
-before any work.  The store is opened with :func:`brdfpipe.store.open_store`,
+before any work.  The store is opened with :func:`brdfpipe.data.store.open_store`,
 which verifies every shard against its digest, so a damaged or missing shard
-is a :class:`~brdfpipe.store.StoreError` naming the material, never NaN in X.
+is a :class:`~brdfpipe.data.store.StoreError` naming the material, never NaN in X.
 
 Memory: the store is read in blocks of 145,800 cells (all three channels of
 the needed materials, float32: 175 MB for 100 materials) and mapped in float64
@@ -93,13 +93,13 @@ import numpy as np
 import zarr
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import merl
-from brdfpipe.atomic import atomic_dir, check_replaceable
-from brdfpipe.merl import N_CELLS
-from brdfpipe.store import CHUNK_COLS as STORE_CHUNK_COLS
-from brdfpipe.store import BrdfStore, iter_cell_blocks, material_indices, open_store
-from brdfpipe.version import full_version
-from brdfpipe.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
+from brdfpipe.data import merl
+from brdfpipe.core.atomic import atomic_dir, check_replaceable
+from brdfpipe.data.merl import N_CELLS
+from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
+from brdfpipe.data.store import BrdfStore, iter_cell_blocks, material_indices, open_store
+from brdfpipe.core.version import full_version
+from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
 
 __all__ = [
     "EPS",
@@ -121,7 +121,7 @@ __all__ = [
     "iter_columns",
 ]
 
-logger = logging.getLogger("brdfpipe.logmap")
+logger = logging.getLogger("brdfpipe.data.logmap")
 
 #: ε of the mapping (Xu et al. 2016 §3).
 EPS: Final = 1e-3
@@ -137,7 +137,7 @@ CHUNK_COLS: Final = STORE_CHUNK_COLS // 4  # 36,450
 LOGMAP_FORMAT: Final = "brdfpipe.logmap/1"
 #: Columns per float64 working sub-block while mapping.
 _SUB_COLS: Final = 8192
-#: ``replaceable`` predicate of :func:`brdfpipe.atomic.atomic_dir`: an earlier log-map (and nothing else).
+#: ``replaceable`` predicate of :func:`brdfpipe.core.atomic.atomic_dir`: an earlier log-map (and nothing else).
 is_logmap: Final = format_predicate((LOGMAP_FORMAT,))
 
 
@@ -319,11 +319,11 @@ def write_logmap(
     ``split`` or ``weighting``, an empty training set, unknown or duplicate
     materials, a training set inconsistent with ``split``, ε ≤ 0, or an
     ``out`` that exists and is not a log-map (a store or any other folder is
-    never replaced: :class:`brdfpipe.atomic.OutputError`, checked before the
-    store is read); and :class:`brdfpipe.store.StoreError` naming the store
+    never replaced: :class:`brdfpipe.core.atomic.OutputError`, checked before the
+    store is read); and :class:`brdfpipe.data.store.StoreError` naming the store
     and the material for a bad store, including a shard that is missing or
     does not match its digest (the store is verified when it is opened).
-    Atomic (:func:`brdfpipe.atomic.atomic_dir`): after any error or
+    Atomic (:func:`brdfpipe.core.atomic.atomic_dir`): after any error or
     interrupt an earlier log-map at ``out`` is left exactly as it was.
     """
     _check_weighting(weighting)

@@ -1,7 +1,7 @@
 """Blended images and their error maps (Soler et al. 2018 §5.2, Figs. 12, 13).
 
 A material on the manifold is ``z* = Σᵢ wᵢ zᵢ`` with the blend weights of
-:func:`brdfpipe.gplvm.blend_weights` (Σ wᵢ = 1; some wᵢ may be negative).
+:func:`brdfpipe.manifold.gplvm.blend_weights` (Σ wᵢ = 1; some wᵢ may be negative).
 Light paths that bounce at most once on the material are linear in it, so the
 image of ``z*`` is approximated by blending the pre-rendered images of the
 ``zᵢ`` with the same weights, ``I* ≈ Σᵢ wᵢ Iᵢ`` (eq. 13; the error comes from
@@ -40,11 +40,11 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .version import full_version
-from .atomic import atomic_write as _atomic_write
-from .atomic import check_not_input
-from .filenames import format_t
-from .exr import ExrError, read_exr, write_exr
+from brdfpipe.core.version import full_version
+from brdfpipe.core.atomic import atomic_write as _atomic_write
+from brdfpipe.core.atomic import check_not_input
+from brdfpipe.core.filenames import format_t
+from brdfpipe.core.exr import ExrError, read_exr, write_exr
 
 __all__ = [
     "SUMMARY_COLUMNS",
@@ -66,7 +66,7 @@ __all__ = [
     "floor_check_table",
 ]
 
-logger = logging.getLogger("brdfpipe.blend")
+logger = logging.getLogger("brdfpipe.rendering.blend")
 
 #: Columns of ``summary.csv`` written by :func:`error_maps`, in order (the ``_one``
 #: columns: the same for the I¹⁻ images; empty when no I¹⁻ images are given).
@@ -156,7 +156,7 @@ def blend_exr(
     :class:`BlendError` if the number of weights differs from the number of
     paths, a weight is not finite, or an image's shape differs from the first
     image's (naming the file and both shapes), and
-    :class:`~brdfpipe.exr.ExrError` naming the file for a missing or invalid
+    :class:`~brdfpipe.core.exr.ExrError` naming the file for a missing or invalid
     EXR.  ``progress`` gets one line per image read (default: the log).
     """
     paths = list(paths)
@@ -360,7 +360,7 @@ def error_maps(
     * ``mean_reference`` = mean of the reference over pixels and channels.
 
     With ``prerenders_one`` (each material's ``I¹⁻`` pre-render: light paths
-    with at most one scattering on the material, :mod:`brdfpipe.bounce`;
+    with at most one scattering on the material, :mod:`brdfpipe.rendering.bounce`;
     same materials as ``prerenders``), every point also needs
     ``reference_one`` and ``reference_one_seed2`` (the references' ``I¹⁻``
     images), the ``I¹⁻`` pre-renders are blended with the same weights, and
@@ -376,7 +376,7 @@ def error_maps(
     per point in input order, numbers as ``%.9g``, ``t`` as ``format_t``)
     atomically, and returns the rows (floats unrounded).  Each pre-render is
     read once for all points.  Any missing or corrupt pre-render or
-    reference raises (:class:`~brdfpipe.exr.ExrError` naming the file) and
+    reference raises (:class:`~brdfpipe.core.exr.ExrError` naming the file) and
     no ``summary`` is left (a stale one is removed first).
     """
     summary = Path(summary)
@@ -518,7 +518,7 @@ def error_maps_from_files(
     """:func:`error_maps` with each path point given by its weights JSON and two reference renders.
 
     The workflow's ``error_maps`` job.  ``weights[k]`` is the JSON written
-    by :func:`brdfpipe.manifold.path_points_to_files` (``path``, ``t``,
+    by :func:`brdfpipe.manifold.analysis.path_points_to_files` (``path``, ``t``,
     ``weights``); ``references[k]`` / ``references_noise[k]`` the renders of
     that interpolated material with the main and the second seed;
     ``blended[k]``, ``error_exrs[k]``, ``error_pngs[k]`` its output files.
@@ -566,8 +566,8 @@ def bounce_shares(
 
     The workflow's ``bounce_shares`` job.  ``images[m]`` is material ``m``'s
     whole pre-render ``I``, ``ones[m]`` its ``I¹⁻`` part (same render,
-    :func:`brdfpipe.scene.render_material`), ``mask`` the object mask EXR
-    (:func:`brdfpipe.scene.render_object_mask`; a pixel is the object's when
+    :func:`brdfpipe.rendering.scene.render_material`), ``mask`` the object mask EXR
+    (:func:`brdfpipe.rendering.scene.render_object_mask`; a pixel is the object's when
     its mask is ≥ 0.5).  Writes ``out`` (CSV, columns :data:`SHARE_COLUMNS`,
     one row per material in the order of ``images``, numbers ``%.9g``)
     atomically and returns the rows:
@@ -685,7 +685,7 @@ def floor_check_table(
     in ``candidates`` (label → (space, μ); ``default`` is the workflow's
     default candidate): ``summaries[c]`` is its :func:`error_maps` summary
     (rendered at the check's spp), ``weights[c]`` the weights JSONs of its
-    path points (:func:`brdfpipe.manifold.path_points_to_files`) and
+    path points (:func:`brdfpipe.manifold.analysis.path_points_to_files`) and
     ``references[c]`` the reference renders, both in the summary's row order.
     Each row carries the candidate, its space and μ, the renders' size and
     spp (read from the reference EXR, which must agree across the check),
@@ -698,7 +698,7 @@ def floor_check_table(
     database, its rows and the weights disagree on the points, or the renders
     differ in size or spp.
     """
-    from .exr import read_exr_attrs
+    from brdfpipe.core.exr import read_exr_attrs
 
     out = Path(out)
     labels = list(candidates)

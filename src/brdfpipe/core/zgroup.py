@@ -11,7 +11,7 @@ completion marker) is written last, after the writer checked its output.
   kind gets its own message, e.g. "re-ingest") and a missing marker.
 * :func:`group_format` reads the ``format`` attribute straight from
   ``zarr.json`` (no Zarr needed), and :func:`format_predicate` turns a set of
-  formats into the ``replaceable`` predicate of :func:`brdfpipe.atomic.atomic_dir`:
+  formats into the ``replaceable`` predicate of :func:`brdfpipe.core.atomic.atomic_dir`:
   a writer replaces only an earlier output of its own kind.
 * :func:`create_array` is the common way the writers create their
   (Blosc lz4 + shuffle, or uncompressed) arrays.

@@ -1,6 +1,6 @@
 """Reconstruction of a full BRDF from sparse observations, and the leave-out evaluation (Xu et al. 2016).
 
-Two parts, both built on a PCA model (:func:`brdfpipe.svd.open_model`:
+Two parts, both built on a PCA model (:func:`brdfpipe.acquisition.svd.open_model`:
 ``Q = VΣ`` (p × k), mean μ, and the log-relative mapping's reference ρ_ref
 and weight w at the model's p columns = MERL cells).
 
@@ -17,11 +17,11 @@ view direction pairs, read by :func:`load_observations` from
 * NPZ with arrays ``wi``, ``wo`` (n, 3) and ``rgb`` (n, 3), or ``theta_h``,
   ``theta_d``, ``phi_d`` (n,) and ``rgb`` (n, 3).
 
-Each observation is binned into its MERL cell (:func:`brdfpipe.merl.cell_index`,
+Each observation is binned into its MERL cell (:func:`brdfpipe.data.merl.cell_index`,
 or MERL's binning of the angles directly).  Repeated cells are kept as
 repeated observations.  Every channel is its own BRDF (paper §3):
 observations on cells that are not model columns are dropped, the rest are
-log-mapped (:func:`brdfpipe.logmap.forward` with the model's ρ_ref, w, ε),
+log-mapped (:func:`brdfpipe.data.logmap.forward` with the model's ρ_ref, w, ε),
 ``ỹ = x̃ − μ̃`` and
 
     c̄ = (Q̃ᵀQ̃ + ηI)⁻¹ Q̃ᵀ ỹ                  (eq. 4, η = 40)
@@ -98,7 +98,7 @@ directions set (default: the 2-image near-field 25° error-metric set).  One
 streamed pass accumulates X Xᵀ and X Y_testᵀ of the training and test rows,
 the row sums, and both at the observed columns (the *cross-Gram trick*); then
 for each N, with G_N the rows' Gram block, (U, σ) = svd.decompose(G_N)
-(exactly as :func:`brdfpipe.svd.fit` does), A = C U, Q_N = X_Nᵀ A and
+(exactly as :func:`brdfpipe.acquisition.svd.fit` does), A = C U, Q_N = X_Nᵀ A and
 μ_N = X_Nᵀ 1/m: Q̃_N, μ̃_N come from the observed columns, QᵀQ = AᵀG_N A,
 Qᵀy = Aᵀ(X_N x − G_N 1/m) and ‖y‖² = ‖x‖² − 2·1ᵀX_N x/m + 1ᵀG_N 1/m² — no
 p-space pass per N.  Two documented approximations: every N uses the
@@ -139,13 +139,16 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic, logmap, merl, sampling, svd
-from brdfpipe.logmap import Logmap, open_logmap
-from brdfpipe.merl import N_CELLS
+from brdfpipe.core import atomic
+from brdfpipe.data import logmap, merl
+from brdfpipe import sampling
+from brdfpipe.acquisition import svd
+from brdfpipe.data.logmap import Logmap, open_logmap
+from brdfpipe.data.merl import N_CELLS
 from brdfpipe.sampling import DEFAULT_ETA, Directions, read_directions, reconstruct_coefficients
-from brdfpipe.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
-from brdfpipe.store import CHUNK_COLS as STORE_CHUNK_COLS
-from brdfpipe.svd import Model, open_model
+from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
+from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
+from brdfpipe.acquisition.svd import Model, open_model
 
 __all__ = [
     "CHANNELS",
@@ -169,7 +172,7 @@ __all__ = [
     "write_training_size",
 ]
 
-logger = logging.getLogger("brdfpipe.reconstruct")
+logger = logging.getLogger("brdfpipe.acquisition.reconstruct")
 
 F64 = NDArray[np.float64]
 
@@ -496,7 +499,7 @@ def write_reconstruction(
 ) -> Path:
     """Reconstruct the material of ``observations_path`` and write it as a MERL file at ``out``.
 
-    :func:`load_observations` → :func:`reconstruct_brdf` → :func:`brdfpipe.merl.write_merl`
+    :func:`load_observations` → :func:`reconstruct_brdf` → :func:`brdfpipe.data.merl.write_merl`
     (atomic).  Parent folders are created.  Returns ``out``.
     """
     out = Path(out)
@@ -699,7 +702,7 @@ def _gram_pass(
     Returns QᵀQ (k × k, symmetrised), QᵀY (k × m), ‖y‖² per row, and Q and Y
     at the observed columns ``keep`` — everything the Gram identity
     ‖y − Qc‖² = ‖y‖² − 2cᵀQᵀy + cᵀQᵀQc needs.  Blocks are produced one ahead
-    in a thread (:func:`brdfpipe.store.read_ahead`).
+    in a thread (:func:`brdfpipe.data.store.read_ahead`).
     """
     k = mdl.k
     qtq = np.zeros((k, k))
@@ -1014,7 +1017,7 @@ def training_size_curve(
     put in the order ``numpy.random.default_rng(order_seed).permutation``;
     for each N in ``sizes`` (capped at their number, duplicates dropped) the
     PCA of the first N materials' rows (channels as rows; k ≤ 3N − 1, the
-    tolerance ``tol`` as :func:`brdfpipe.svd.fit`) reconstructs the held-out
+    tolerance ``tol`` as :func:`brdfpipe.acquisition.svd.fit`) reconstructs the held-out
     rows from the set with ``n_images`` configurations of
     ``directions_path`` (normally the near-field 25° error-metric file of
     the ``train`` optimisation).  Approximations (see the module docstring):

@@ -19,7 +19,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from brdfpipe import filenames
+from brdfpipe.core import filenames
 
 __all__ = [
     "ConfigError",

@@ -1,8 +1,8 @@
 """How faithful a GPLVM material manifold is, measured per data space (Soler et al. 2018 §3–§5).
 
-A fitted model (:class:`brdfpipe.gplvm.GplvmModel`) is judged here on what a
+A fitted model (:class:`brdfpipe.manifold.gplvm.GplvmModel`) is judged here on what a
 user of the manifold relies on, with the same numbers for every candidate data
-space (:data:`brdfpipe.gplvm.SPACES` × μ), so the default can be chosen by
+space (:data:`brdfpipe.manifold.gplvm.SPACES` × μ), so the default can be chosen by
 measurement (rule ``compare_spaces``, CSV :data:`SPACE_COLUMNS`):
 
 Weights
@@ -10,16 +10,16 @@ Weights
 ``w(x) = blend_weights(K⁻¹k(x))`` with ``k`` **without** the μδ term
 (:func:`smooth_weights`): the interpolant a hair away from a training point.
 At a training point exactly, the model's own convention adds μ to ``k`` and
-gives ``w = eᵢ`` (:func:`brdfpipe.gplvm.weights`).  The gap between the two,
+gives ``w = eᵢ`` (:func:`brdfpipe.manifold.gplvm.weights`).  The gap between the two,
 ``μ K⁻¹ eᵢ``, is what makes the interpolant jump at the training points.
 
 Measures
 --------
 * ``albedo_bad_hull``: share of latent points, drawn uniformly inside the
-  convex hull of the training points (:func:`brdfpipe.latent.sample_in_hull`),
+  convex hull of the training points (:func:`brdfpipe.manifold.latent.sample_in_hull`),
   whose interpolated material has an albedo outside [0, 1] in some channel;
   ``albedo_bad_map`` the same over the plotted albedo map (q = 2: the grid of
-  :func:`brdfpipe.manifold.latent_grid`, 15 % past the data).  In the linear
+  :func:`brdfpipe.manifold.analysis.latent_grid`, 15 % past the data).  In the linear
   spaces the albedo of the blend is ``w·A`` exactly (albedo is linear in the
   BRDF; the clamping of negative values before rendering is not applied); in
   the ``log`` space it is computed from the interpolated tables of
@@ -60,7 +60,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic, gplvm, latent, manifold, perceptual
+from brdfpipe.core import atomic
+from brdfpipe.manifold import gplvm, latent, analysis, perceptual
 
 __all__ = [
     "EPSILONS",
@@ -79,7 +80,7 @@ __all__ = [
     "combine_candidates",
 ]
 
-logger = logging.getLogger("brdfpipe.fidelity")
+logger = logging.getLogger("brdfpipe.manifold.fidelity")
 
 #: Offsets from the training points (ℓ units) of the stability measure.
 EPSILONS: Final = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
@@ -161,7 +162,7 @@ def albedo_outside(
     out = np.empty(W.shape[0], dtype=bool)
     for c0 in range(0, W.shape[0], 8):
         tables, _ = gplvm.interpolate_tables(store, W[c0 : c0 + 8], materials=model.names, space=model.space)
-        out[c0 : c0 + 8] = _outside(np.stack([manifold.material_albedo(t) for t in tables]))
+        out[c0 : c0 + 8] = _outside(np.stack([analysis.material_albedo(t) for t in tables]))
         del tables
     return out
 
@@ -222,7 +223,7 @@ def nearest_neighbour_spread(model: gplvm.GplvmModel) -> dict[str, float]:
 
 
 def path_uniformity(path_rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
-    """From :func:`brdfpipe.manifold.path_analysis` rows: largest ``|d(A, x)/d(A, B) − t|`` and decreasing steps."""
+    """From :func:`brdfpipe.manifold.analysis.path_analysis` rows: largest ``|d(A, x)/d(A, B) − t|`` and decreasing steps."""
     by_path: dict[str, list[Mapping[str, Any]]] = {}
     for r in path_rows:
         by_path.setdefault(str(r["path"]), []).append(r)
@@ -282,7 +283,7 @@ def measure_model(
         row["albedo_bad_hull"] = float(albedo_outside(model, pick, A, store=store).mean())
         row["hull_points"] = int(pick.shape[0])
     if q == 2 and linear:
-        xs, ys = manifold.latent_grid(model.X, (0, 1), albedo_grid)
+        xs, ys = analysis.latent_grid(model.X, (0, 1), albedo_grid)
         XX, YY = np.meshgrid(xs, ys)
         row["albedo_bad_map"] = float(albedo_outside(model, np.c_[XX.ravel(), YY.ravel()], A).mean())
     else:
@@ -349,7 +350,7 @@ def measure_candidate(
 ) -> list[dict[str, Any]]:
     """The workflow's ``measure_gplvm_candidate`` job: every measure for one candidate's fits.
 
-    ``grams``: data space → Gram file (:func:`brdfpipe.gplvm.save_gram`):
+    ``grams``: data space → Gram file (:func:`brdfpipe.manifold.gplvm.save_gram`):
     the ``raw`` one (raw-unit stability) and the candidate's own space;
     ``models``: {q: model file} of the candidate (:func:`candidate_label`
     must give ``candidate``); ``default``: the label of the configured
@@ -357,8 +358,8 @@ def measure_candidate(
     and ``stability_out`` (:data:`STABILITY_COLUMNS`).  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``).
     """
-    from brdfpipe.plan import check_paths, default_paths
-    from brdfpipe.store import open_store
+    from brdfpipe.core.plan import check_paths, default_paths
+    from brdfpipe.data.store import open_store
 
     if "raw" not in grams:
         raise ValueError("measure_candidate needs the raw Gram matrix (stability in raw units)")
@@ -367,7 +368,7 @@ def measure_candidate(
     names = list(loaded["raw"][2].materials)
     raw_gram = loaded["raw"][2].raw_gram
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
-    A = manifold.material_albedos(st, names)
+    A = analysis.material_albedos(st, names)
     rows: list[dict[str, Any]] = []
     stab: list[dict[str, Any]] = []
     for q, path in sorted(models.items()):
@@ -384,7 +385,7 @@ def measure_candidate(
             prow = []
             gram = loaded[model.space][0] if model.space in loaded else loaded["raw"][0]
             for a, b in pairs:
-                prow += manifold.path_analysis(st, model, gram, a, b, steps)
+                prow += analysis.path_analysis(st, model, gram, a, b, steps)
             row.update(path_uniformity(prow))
         else:
             row.update({"perceptual_max_deviation": float("nan"), "perceptual_decreasing_steps": -1})

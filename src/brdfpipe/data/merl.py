@@ -28,7 +28,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic
+from brdfpipe.core import atomic
 
 __all__ = [
     "N_THETA_H",
@@ -146,7 +146,7 @@ def write_merl(path: str | os.PathLike[str], table: ArrayLike) -> None:
     The table must have shape ``(3, 90, 90, 180)`` and be finite; negative
     (unmeasured) cells are written negative.  The file is written under a
     temporary name in the same folder and renamed into place, so a crash never
-    leaves a partial file under ``path`` (:func:`brdfpipe.atomic.write_bytes`:
+    leaves a partial file under ``path`` (:func:`brdfpipe.core.atomic.write_bytes`:
     fsync'ed, mode 0644, stale temporaries of killed writers removed).
     """
     arr = _check_table(table)

@@ -3,7 +3,7 @@
 The scene is the set-up of Soler et al. 2018 §5.2 (Figs. 12, 13): one
 preview object whose material changes, in a fixed environment, rendered with
 multi-bounce global illumination, so that images of measured materials can be
-pre-rendered once and blended (:mod:`brdfpipe.blend`).
+pre-rendered once and blended (:mod:`brdfpipe.rendering.blend`).
 
 Coordinates
 -----------
@@ -70,7 +70,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from .exr import write_exr
+from brdfpipe.core.exr import write_exr
 
 __all__ = [
     "VARIANTS",
@@ -90,7 +90,7 @@ __all__ = [
     "render_object_mask",
 ]
 
-logger = logging.getLogger("brdfpipe.scene")
+logger = logging.getLogger("brdfpipe.rendering.scene")
 
 #: Mitsuba variants this module renders with.
 VARIANTS: Final = ("llvm_ad_rgb", "cuda_ad_rgb", "scalar_rgb")
@@ -142,7 +142,7 @@ def _mitsuba() -> Any:
     variant = mi.variant()
     if variant is None:
         raise SceneError(
-            "no Mitsuba variant is set; call brdfpipe.scene.set_variant(...) with one of "
+            "no Mitsuba variant is set; call brdfpipe.rendering.scene.set_variant(...) with one of "
             + ", ".join(VARIANTS)
         )
     if variant not in VARIANTS:
@@ -411,7 +411,7 @@ def _render_passes(
     ``C`` is every channel ``mi.render`` returns (R, G, B, then the
     integrator's AOVs).  Non-finite values raise :class:`SceneError` naming ``out``.
     """
-    from brdfpipe import render
+    from brdfpipe.rendering import render
 
     mi = _mitsuba()
     spp = sum(n for _, n in passes)
@@ -467,7 +467,7 @@ def render_to_exr(
     uses sampler seed ``seed·1000 + p`` (:func:`pass_seeds`); the image is
     the sample-weighted mean of the passes (accumulated in float64, stored as
     float32), so it is an ``spp``-sample estimate.  One line per pass goes to
-    ``progress`` (or the ``brdfpipe.scene`` logger).  The EXR header records
+    ``progress`` (or the ``brdfpipe.rendering.scene`` logger).  The EXR header records
     ``spp``, ``seed``, ``pass_spp``, ``mitsuba_variant`` and
     ``mitsuba_version`` plus ``attrs`` (which may not override those).  The
     same scene, ``spp``, ``seed`` and ``pass_spp`` on the same variant give
@@ -501,7 +501,7 @@ def render_split_to_exr(
     """:func:`render_to_exr` for a scene with the ``bouncesplit`` integrator: one render, up to three EXRs.
 
     Writes the whole image ``I`` to ``out``, its ``I¹⁻`` part (light paths
-    with at most one scattering on the material, :mod:`brdfpipe.bounce`) to
+    with at most one scattering on the material, :mod:`brdfpipe.rendering.bounce`) to
     ``out_one`` and the object mask (coverage of the material's first hits,
     repeated in R, G, B) to ``out_mask``, each if given (at least one must
     be), from the **same** passes (one render).  Headers as :func:`render_to_exr`, plus ``image``
@@ -509,7 +509,7 @@ def render_split_to_exr(
     float32.  :class:`SceneError` if the scene's integrator gives no split
     (not ``bouncesplit``).
     """
-    from brdfpipe import bounce
+    from brdfpipe.rendering import bounce
 
     given = [Path(p) for p in (out, out_one, out_mask) if p is not None]
     if not given:
@@ -523,7 +523,7 @@ def render_split_to_exr(
     if img.shape[2] != 3 + len(bounce.AOV_NAMES):
         raise SceneError(f"{label}: the render has {img.shape[2]} channels, expected "
                          f"{3 + len(bounce.AOV_NAMES)}: the scene's integrator must be "
-                         f"{bounce.PLUGIN_NAME!r} (brdfpipe.bounce)")
+                         f"{bounce.PLUGIN_NAME!r} (brdfpipe.rendering.bounce)")
     whole = img[..., :3].astype(np.float32)
     one = img[..., 3:6].astype(np.float32)
     base = {**dict(attrs or {}), **auto}
@@ -557,19 +557,19 @@ def render_material(
     """Render the preview scene with a MERL material (the ``merl`` plugin) to an EXR.
 
     The workflow's ``prerender_material`` and ``render_path_point`` jobs.
-    The integrator is ``bouncesplit`` (:mod:`brdfpipe.bounce`: Mitsuba's
+    The integrator is ``bouncesplit`` (:mod:`brdfpipe.rendering.bounce`: Mitsuba's
     ``path`` with the same ``max_depth``, Russian roulette and sampler draws,
     so the whole image is ``path``'s), so one render gives the whole image
     ``I`` (written to ``out``) and its ``I¹⁻`` part (paths with at most one
     scattering on the material; written to ``out_one`` if given) — see
     :func:`render_split_to_exr`.  ``variant`` is validated by
-    :func:`brdfpipe.render.use_variant` (RenderError for an unknown or
+    :func:`brdfpipe.rendering.render.use_variant` (RenderError for an unknown or
     unavailable one); a missing or corrupt MERL file raises an error naming
     it before anything is rendered.  ``threads``: CPU threads of Dr.Jit's
     LLVM backend (the job's declared threads; ``None`` leaves Dr.Jit's
     default, every core of the machine).  Returns the whole image.
     """
-    from brdfpipe import bounce, render
+    from brdfpipe.rendering import bounce, render
 
     render.use_variant(variant)
     if threads is not None:
@@ -623,13 +623,13 @@ def render_object_mask(
     """The preview object's mask: per pixel, the fraction of camera rays whose first hit is the object.
 
     The workflow's ``object_mask`` job (the pixels over which
-    :func:`brdfpipe.blend.bounce_shares` measures the object's ``I²⁺``
+    :func:`brdfpipe.rendering.blend.bounce_shares` measures the object's ``I²⁺``
     share).  Rendered with the ``bouncesplit`` integrator (``max_depth`` 1)
     and the same camera sampling as the pre-renders (``spp``, ``seed``); the
     material is irrelevant (a grey ``diffuse``).  Written to ``out`` as an
     EXR with the mask in R, G and B; returns it, ``(H, W)``.
     """
-    from brdfpipe import bounce, render
+    from brdfpipe.rendering import bounce, render
 
     render.use_variant(variant)
     if threads is not None:
@@ -641,6 +641,6 @@ def render_object_mask(
     scene["integrator"] = bounce.bounce_integrator(1)
     render_split_to_exr(scene, None, out_mask=out, spp=spp, seed=seed,
                         attrs={"integrator": bounce.PLUGIN_NAME, **(attrs or {})})
-    from .exr import read_exr
+    from brdfpipe.core.exr import read_exr
 
     return read_exr(out)[..., 0]

@@ -1,6 +1,6 @@
 """Principal components of a log-map (Xu et al. 2016 eq. 1), streamed scatter/gather.
 
-With X the m × p log-map (:mod:`brdfpipe.logmap`: rows = material-channels,
+With X the m × p log-map (:mod:`brdfpipe.data.logmap`: rows = material-channels,
 columns = cells), μ its column mean over the m rows (a p-vector; μ̂ repeats μᵀ
 over the rows) and the thin SVD of the centred matrix
 
@@ -79,7 +79,7 @@ A Zarr v3 group holding
   largest magnitude of each column is positive), UᵀU = I, 1ᵀU = 0 (to rounding);
 * ``cells`` int32, ``reference`` float64, ``weight`` float64 ``(p,)``: copied
   from the log-map, so the model alone maps observations to x and back
-  (:func:`brdfpipe.logmap.forward` / :func:`~brdfpipe.logmap.inverse`).
+  (:func:`brdfpipe.data.logmap.forward` / :func:`~brdfpipe.data.logmap.inverse`).
 
 Attributes: ``format`` (``"brdfpipe.pca-model/1"``), ``rows``, ``materials``,
 ``train_materials``, ``split``, ``weighting``, ``epsilon``, ``database``
@@ -87,7 +87,7 @@ Attributes: ``format`` (``"brdfpipe.pca-model/1"``), ``rows``, ``materials``,
 the completion marker ``brdfpipe_complete`` = ``{"rows": m, "columns": p,
 "k": k, "logmap_id": …, "id": <hex digest>}`` (the id: sha256 of the
 log-map's id, the tolerance and Σ, so the same inputs give the same bytes).  Atomic like the log-map: built
-in a temporary sibling and swapped into place (:func:`brdfpipe.atomic.atomic_dir`);
+in a temporary sibling and swapped into place (:func:`brdfpipe.core.atomic.atomic_dir`);
 after any error an earlier model at ``out`` is left as it was, and an ``out``
 holding anything but a model is refused before any work.
 """
@@ -109,12 +109,12 @@ import numpy as np
 import zarr
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.atomic import atomic_dir, check_replaceable, save_npz
-from brdfpipe.logmap import Logmap, iter_columns, open_logmap
-from brdfpipe.merl import N_CELLS
-from brdfpipe.store import read_ahead
-from brdfpipe.version import full_version
-from brdfpipe.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
+from brdfpipe.core.atomic import atomic_dir, check_replaceable, save_npz
+from brdfpipe.data.logmap import Logmap, iter_columns, open_logmap
+from brdfpipe.data.merl import N_CELLS
+from brdfpipe.data.store import read_ahead
+from brdfpipe.core.version import full_version
+from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
 
 __all__ = [
     "TOL",
@@ -139,7 +139,7 @@ __all__ = [
     "open_model",
 ]
 
-logger = logging.getLogger("brdfpipe.svd")
+logger = logging.getLogger("brdfpipe.acquisition.svd")
 
 #: Relative singular-value tolerance: components with σ ≤ TOL·σ₁ are dropped.
 TOL: Final = 1e-5
@@ -147,7 +147,7 @@ MODEL_FORMAT: Final = "brdfpipe.pca-model/1"
 PARTIAL_FORMAT: Final = "brdfpipe.gram-partial/1"
 #: σ² must exceed this × m × 2⁻⁵³ × trace(G) (the rounding level of the centred Gram matrix).
 _FLOOR_FACTOR: Final = 16.0
-#: ``replaceable`` predicate of :func:`brdfpipe.atomic.atomic_dir`: an earlier model (and nothing else).
+#: ``replaceable`` predicate of :func:`brdfpipe.core.atomic.atomic_dir`: an earlier model (and nothing else).
 is_model: Final = format_predicate((MODEL_FORMAT,))
 
 
@@ -211,10 +211,10 @@ def _as_logmap(logmap_path: Logmap | str | os.PathLike[str]) -> Logmap:
 
 
 def _float64_blocks(lm: Logmap, start: int, stop: int) -> Iterator[tuple[int, int, NDArray[np.float64]]]:
-    """:func:`~brdfpipe.logmap.iter_columns` cast to float64, read one chunk ahead in a thread.
+    """:func:`~brdfpipe.data.logmap.iter_columns` cast to float64, read one chunk ahead in a thread.
 
     Decoding (single-threaded Blosc) and the cast overlap the BLAS work on the
-    previous chunk (:func:`brdfpipe.store.read_ahead`).
+    previous chunk (:func:`brdfpipe.data.store.read_ahead`).
     """
     return read_ahead((a, b, x32.astype(np.float64)) for a, b, x32 in iter_columns(lm, start, stop))
 
@@ -436,7 +436,7 @@ def decompose(
 def _write_model(
     lm: Logmap, gram: NDArray[np.float64], colsum: NDArray[np.float64], p: int, out: Path, tol: float
 ) -> None:
-    """Decompose and write the model of ``lm`` at ``out`` (:func:`brdfpipe.atomic.atomic_dir`:
+    """Decompose and write the model of ``lm`` at ``out`` (:func:`brdfpipe.core.atomic.atomic_dir`:
     an earlier model at ``out`` is replaced only on success)."""
     if gram.shape != (lm.m, lm.m) or p != lm.p:
         raise ModelError(f"{lm.path}: Gram matrix {gram.shape} over {p} columns does not match X {lm.X.shape}")
@@ -507,7 +507,7 @@ def write_model(
     The partials must all come from this log-map (same id), share one
     ``n_blocks`` and cover each block exactly once; :class:`ModelError`
     otherwise (raised before ``out`` is touched).  An ``out`` holding anything
-    but a model is refused (:class:`brdfpipe.atomic.OutputError`) before any
+    but a model is refused (:class:`brdfpipe.core.atomic.OutputError`) before any
     work.  Atomic: after any error or interrupt an earlier model at ``out``
     is left exactly as it was.
     """
@@ -541,7 +541,7 @@ def fit(
     """All of it in this process: Gram partials over ``n_blocks`` blocks, combine, decompose, write.
 
     An ``out`` holding anything but a model is refused
-    (:class:`brdfpipe.atomic.OutputError`) before any work.  Atomic: after
+    (:class:`brdfpipe.core.atomic.OutputError`) before any work.  Atomic: after
     any error or interrupt an earlier model at ``out`` is left exactly as it
     was.
     """

@@ -1,13 +1,13 @@
 """A path tracer that splits the image into I¹⁻ and I²⁺ (Soler et al. 2018 §5.2).
 
-Blending pre-rendered images with the manifold's weights (:mod:`brdfpipe.blend`)
+Blending pre-rendered images with the manifold's weights (:mod:`brdfpipe.rendering.blend`)
 is exact only for the light paths that scatter **at most once** on the edited
 material: the image is affine in the BRDF for those paths (``I¹⁻``) and
 quadratic or worse for paths with two or more scatterings on it (``I²⁺``, the
 object's inter-reflections on itself).  The ``bouncesplit`` integrator renders
 both at once::
 
-    from brdfpipe import bounce, render
+    from brdfpipe.rendering import bounce, render
     render.use_variant("llvm_ad_rgb")
     render.register_merl_bsdf()
     bounce.register_bounce_integrator()
@@ -36,7 +36,7 @@ independent seeds, within the noise).  ``hide_emitters`` is supported as in
 Counting scatterings on the material
 ------------------------------------
 The material is the BSDF whose id is ``material_id`` (default ``"material"``,
-the shared bsdf of :func:`brdfpipe.scene.scene_dict`); a vertex is on the
+the shared bsdf of :func:`brdfpipe.rendering.scene.scene_dict`); a vertex is on the
 material when ``si.bsdf()`` is that BSDF (pointer comparison, so every shape
 that references it counts).  ``n`` is the number of scatterings on the
 material so far (vertices where the path was continued by BSDF sampling).
@@ -53,9 +53,9 @@ scattering on the material, and it is exactly affine in the material's BRDF
 values (importance sampling only changes the variance).  With
 ``max_depth ≤ 2`` there is at most one scattering vertex, so ``I²⁺`` is 0.
 
-Like :mod:`brdfpipe.render`, the plugin class is created for the current
+Like :mod:`brdfpipe.rendering.render`, the plugin class is created for the current
 variant on first use (:func:`register_bounce_integrator` after
-:func:`brdfpipe.render.use_variant`); importing this module does not import
+:func:`brdfpipe.rendering.render.use_variant`); importing this module does not import
 Mitsuba.
 """
 
@@ -78,7 +78,7 @@ PLUGIN_NAME: Final = "bouncesplit"
 #: AOV channels (after R, G, B in ``mi.render``'s output): the I¹⁻ image, then the
 #: object mask (fraction of a pixel's camera rays whose first hit is on the material).
 AOV_NAMES: Final = ("one.R", "one.G", "one.B", "object")
-#: Default id of the edited material's BSDF (see :func:`brdfpipe.scene.scene_dict`).
+#: Default id of the edited material's BSDF (see :func:`brdfpipe.rendering.scene.scene_dict`).
 MATERIAL_ID: Final = "material"
 
 _registered: set[str] = set()
@@ -94,11 +94,11 @@ def bounce_integrator(max_depth: int, *, rr_depth: int = 5, material_id: str = M
 def register_bounce_integrator() -> None:
     """Register the ``bouncesplit`` integrator with Mitsuba for the current variant.
 
-    Call after :func:`brdfpipe.render.use_variant`.  Idempotent per variant.
+    Call after :func:`brdfpipe.rendering.render.use_variant`.  Idempotent per variant.
     """
     import mitsuba as mi
 
-    from . import render
+    from brdfpipe.rendering import render
 
     variant = render._current_variant()
     with _lock:
@@ -122,7 +122,7 @@ def _bounce_class(variant: str) -> type:
     import drjit as dr
     import mitsuba as mi
 
-    from . import render
+    from brdfpipe.rendering import render
 
     RenderError = render.RenderError
     if mi.variant() != variant:

@@ -1,10 +1,10 @@
 """A ``merl`` BSDF for Mitsuba 3: measured (MERL-format) BRDFs in a path tracer.
 
-The plugin renders any table of :mod:`brdfpipe.merl` (a ``.binary`` file read
-with :func:`brdfpipe.merl.read_merl`) in Mitsuba 3's JIT variants
+The plugin renders any table of :mod:`brdfpipe.data.merl` (a ``.binary`` file read
+with :func:`brdfpipe.data.merl.read_merl`) in Mitsuba 3's JIT variants
 (:data:`VARIANTS`)::
 
-    from brdfpipe import render
+    from brdfpipe.rendering import render
     render.use_variant("llvm_ad_rgb")      # or "cuda_ad_rgb" on a GPU
     render.register_merl_bsdf()
     scene = mi.load_dict({..., "shape": {"type": "sphere",
@@ -16,7 +16,7 @@ The table lives on the device as one flat ``Float`` array of 3 × 1,458,000
 values in physical units (sr⁻¹), *cell-major* (the three channels of a cell
 are adjacent, so one :func:`drjit.gather` of a ``Color3f`` fetches them);
 unmeasured (negative) cells are stored as 0, so they evaluate to black.
-The lookup reproduces :func:`brdfpipe.merl.lookup` exactly (nearest cell;
+The lookup reproduces :func:`brdfpipe.data.merl.lookup` exactly (nearest cell;
 half vector, rotation of the incident direction into the half-vector frame,
 square-root binning of θh, φd folded to [0, π), clamped indices); θh and θd
 are computed with ``atan2`` rather than ``acos``, which keeps single
@@ -52,7 +52,7 @@ sampling only); an all-zero table falls back to it.
 
 Measured relative variance (mean over the six angles; 0 is perfect
 importance sampling; printed by ``benches/bench_render.py`` [4]; tabulated
-Mitsuba BSDFs and ``brdfpipe.synth.plan_database(100, 0)`` materials):
+Mitsuba BSDFs and ``brdfpipe.data.synth.plan_database(100, 0)`` materials):
 
 ==============================  =======  ========  ==========  ===========  ========================
 table                           cosine   best GGX  fit 1 lobe  fit 2 lobes  used
@@ -78,7 +78,7 @@ at 16 spp, and runs at 0.78–0.82× the throughput of ``roughplastic`` (2 share
 cores; the gap is the cell index — three ``atan2`` — and cache misses in
 the 17.5 MB table, which a built-in BSDF's closed form does not have).
 
-The plugin class, ``brdfpipe.render.MerlBSDF`` (a subclass of the current
+The plugin class, ``brdfpipe.rendering.render.MerlBSDF`` (a subclass of the current
 variant's ``mi.BSDF``), is created on first access after :func:`use_variant`,
 so importing this module never touches a Mitsuba backend; it is therefore
 not in ``__all__``.
@@ -86,7 +86,7 @@ not in ``__all__``.
 Tabulation
 ----------
 :func:`tabulate_bsdf` evaluates any Mitsuba BSDF at the cell centres
-(:func:`brdfpipe.merl.cell_directions`) and divides out cos θo, giving a MERL
+(:func:`brdfpipe.data.merl.cell_directions`) and divides out cos θo, giving a MERL
 table of it (cells with a direction below the horizon are negative, like
 MERL's unmeasured cells); :func:`lambertian_table` is an exact Lambertian
 table (a/π in every cell) for furnace tests.
@@ -107,7 +107,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import merl
+from brdfpipe.data import merl
 
 __all__ = [
     "VARIANTS",
@@ -240,7 +240,7 @@ def _current_variant() -> str:
     if variant not in VARIANTS:
         now = "no Mitsuba variant is set" if variant is None else f"the current Mitsuba variant is {variant!r}"
         raise _NoVariantError(
-            f"{now}; call brdfpipe.render.use_variant() with one of {', '.join(VARIANTS)} first"
+            f"{now}; call brdfpipe.rendering.render.use_variant() with one of {', '.join(VARIANTS)} first"
         )
     return variant
 
@@ -600,7 +600,7 @@ def _resolve(filename: str) -> Path:
 
 
 def _cell_index_jit(mi: Any, dr: Any, wi: Any, wo: Any) -> Any:
-    """Flat MERL cell index (UInt32) of direction pairs, as :func:`brdfpipe.merl.cell_index`."""
+    """Flat MERL cell index (UInt32) of direction pairs, as :func:`brdfpipe.data.merl.cell_index`."""
     h = dr.normalize(wi + wo)
     sin_h = dr.sqrt(dr.fma(h.x, h.x, h.y * h.y))
     theta_h = dr.atan2(sin_h, h.z)
@@ -634,7 +634,7 @@ def _merl_class(variant: str) -> type:
         raise RenderError(f"variant {variant!r} is not the current Mitsuba variant ({mi.variant()!r})")
 
     class MerlBSDF(mi.BSDF):
-        """Mitsuba BSDF ``merl``: a measured MERL-format BRDF (see :mod:`brdfpipe.render`).
+        """Mitsuba BSDF ``merl``: a measured MERL-format BRDF (see :mod:`brdfpipe.rendering.render`).
 
         Properties: ``filename`` (string) – a MERL ``.binary`` file.  Parameters
         exposed by ``traverse``: ``table`` (flat cell-major RGB Float, physical
@@ -775,7 +775,7 @@ def tabulate_bsdf(bsdf: Any, chunk: int = 1 << 18) -> NDArray[np.float64]:
     ``bsdf`` is a :func:`mitsuba.load_dict` dictionary or a ``mi.BSDF``
     instance (the current variant must be one of :data:`VARIANTS`).  Each cell
     holds ``eval(wi, wo) / cos θo`` at its centre directions
-    (:func:`brdfpipe.merl.cell_directions`, ``si.wi`` = MERL's light direction);
+    (:func:`brdfpipe.data.merl.cell_directions`, ``si.wi`` = MERL's light direction);
     cells with a direction at or below the horizon hold ``-SCALES[c]``
     (raw −1, like MERL's unmeasured cells).
     """

@@ -13,14 +13,14 @@ behaviour.  Every material is
    measured cells, then gains, not losses, are soft-limited:
    ``g → L·tanh(g/L)`` for ``g > 0``, ``L = 0.25``);
 3. rescaled uniformly if its directional albedo
-   (:func:`brdfpipe.merl.directional_albedo`, 46 incident angles 0 … 89.5°,
+   (:func:`brdfpipe.data.merl.directional_albedo`, 46 incident angles 0 … 89.5°,
    before noise) exceeds :data:`ALBEDO_BOUND`; the scale is the record's
    ``energy_scale`` (:func:`generate_material`);
 4. times log-normal measurement noise ``exp(noise·z − noise²/2)``, z ~ N(0, 1)
    independent per cell and channel (relative standard deviation ≈ ``noise``,
    mean 1);
 
-and every cell outside :func:`brdfpipe.merl.measured_mask` holds
+and every cell outside :func:`brdfpipe.data.merl.measured_mask` holds
 ``-SCALES[c]`` (raw value −1 in the file), like MERL's unmeasured cells, except
 the eight watermark cells (:data:`WATERMARK_CELLS`), which hold other negative
 values that mark the file as synthetic (:func:`is_synthetic_file`).
@@ -155,8 +155,9 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic, merl
-from brdfpipe.version import full_version
+from brdfpipe.core import atomic
+from brdfpipe.data import merl
+from brdfpipe.core.version import full_version
 
 __all__ = [
     "FAMILIES",
@@ -187,7 +188,7 @@ __all__ = [
     "synthesize",
 ]
 
-log = logging.getLogger("brdfpipe.synth")
+log = logging.getLogger("brdfpipe.data.synth")
 
 #: Material families, in the order of their blocks in a planned database.
 FAMILIES: Final[tuple[str, ...]] = ("metal", "paint", "metallic-paint", "fabric", "phenolic")
@@ -924,7 +925,7 @@ def _clean_values(spec: MaterialSpec) -> NDArray[np.float64]:
 def _watermark_table_values() -> NDArray[np.float64]:
     """Physical values ``(3, 8)`` of the watermark cells that write back as exactly :data:`WATERMARK_RAW`.
 
-    :func:`brdfpipe.merl.write_merl` divides by the channel scale; ``raw ·
+    :func:`brdfpipe.data.merl.write_merl` divides by the channel scale; ``raw ·
     scale`` does not always divide back to ``raw`` exactly, so the nearest
     float that does is taken (one exists for every value of
     :data:`WATERMARK_RAW` in every channel; not for every float).
@@ -994,7 +995,7 @@ def generate_material(
 def generate_table(spec: MaterialSpec, noise: float = DEFAULT_NOISE) -> NDArray[np.float64]:
     """The material's MERL table, ``(3, 90, 90, 180)`` in physical units.
 
-    Measured cells (:func:`brdfpipe.merl.measured_mask`) hold model ×
+    Measured cells (:func:`brdfpipe.data.merl.measured_mask`) hold model ×
     deviation × energy scale × noise (finite, ≥ 0); the others ``-SCALES[c]``,
     except the watermark cells (:data:`WATERMARK_CELLS`, raw values
     :data:`WATERMARK_RAW`, also negative).
@@ -1093,7 +1094,7 @@ def write_manifest(
         materials.append(entry)
     doc = {
         "kind": "synthetic",
-        "generator": "brdfpipe.synth",
+        "generator": "brdfpipe.data.synth",
         "version": full_version(),
         "seed": seed,
         "count": len(specs),
@@ -1172,7 +1173,7 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
     generator wrote before (a synthetic ``manifest.json``), whose ``*.binary``
     files are all watermarked materials of ``specs`` (regenerated in place).
     Anything else — a file, a folder of other data, a real MERL file or a
-    material of another plan — raises :class:`brdfpipe.atomic.OutputError`
+    material of another plan — raises :class:`brdfpipe.core.atomic.OutputError`
     naming the path, before anything is written.  Nothing is ever deleted.
     """
     out = Path(out)
@@ -1236,7 +1237,7 @@ def synthesize(
     ``jobs > 1`` generates in a process pool.  An existing ``out_dir`` is
     checked first (:func:`check_output_folder`): only an empty folder or an
     earlier output of this generator for the same plan is written into.  One log line per material
-    (logger ``brdfpipe.synth``; INFO if ``progress`` else DEBUG).
+    (logger ``brdfpipe.data.synth``; INFO if ``progress`` else DEBUG).
     """
     count = _check_int(count, "count", 1)
     seed = _check_int(seed, "seed", 0)

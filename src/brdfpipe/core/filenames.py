@@ -192,7 +192,7 @@ def gram(space: str) -> str:
 
 
 def gplvm_model(candidate: str, q: int | str) -> str:
-    """A GPLVM fit of one candidate (``<space>-mu<μ>``, :func:`brdfpipe.plan.candidate_label`)."""
+    """A GPLVM fit of one candidate (``<space>-mu<μ>``, :func:`brdfpipe.core.plan.candidate_label`)."""
     return f"{RESULTS}/gplvm/{candidate}/q{q}.npz"
 
 
@@ -201,7 +201,7 @@ def gplvm_trace(candidate: str, q: int | str) -> str:
 
 
 def spaces_csv() -> str:
-    """Every fidelity measure of every candidate data space (:mod:`brdfpipe.fidelity`)."""
+    """Every fidelity measure of every candidate data space (:mod:`brdfpipe.manifold.fidelity`)."""
     return f"{RESULTS}/manifold/spaces.csv"
 
 

@@ -1,8 +1,8 @@
 """Exploring a fitted GPLVM latent space: the hull of the materials, neighbours, extrapolation, sampling.
 
 Soler et al. 2018 (§4) navigate the latent space of a fitted GPLVM
-(:mod:`brdfpipe.gplvm`): every latent point ``x`` gives a material
-``Σ wᵢ(x) zᵢ`` (:func:`brdfpipe.gplvm.blend_weights`).  Inside the convex hull
+(:mod:`brdfpipe.manifold.gplvm`): every latent point ``x`` gives a material
+``Σ wᵢ(x) zᵢ`` (:func:`brdfpipe.manifold.gplvm.blend_weights`).  Inside the convex hull
 of the training points the interpolant is backed by data; outside it the
 weights drift towards the mean and can go strongly negative, and the
 material can stop being physically plausible.  This module gives:
@@ -52,9 +52,9 @@ Albedo at a latent point
 In the linear data spaces (anything but ``log``) the interpolated table is
 ``Σ wᵢ zᵢ`` and the albedo is linear in the table, so the albedo at ``x``
 is ``w(x)·A`` with ``A`` the materials' albedos
-(:func:`brdfpipe.manifold.material_albedos`); the clamping of negative
-interpolated values to 0 by :func:`brdfpipe.gplvm.interpolate_table` is
-ignored (as in :func:`brdfpipe.manifold.albedo_map`).  That is exact only
+(:func:`brdfpipe.manifold.analysis.material_albedos`); the clamping of negative
+interpolated values to 0 by :func:`brdfpipe.manifold.gplvm.interpolate_table` is
+ignored (as in :func:`brdfpipe.manifold.analysis.albedo_map`).  That is exact only
 where no interpolated value is negative: far from the data or between
 dissimilar materials the weights go negative and the clamping can change
 the albedo by ten percent or more (measured: 0.169 by w·A vs 0.193 of the
@@ -62,8 +62,8 @@ clamped table, red channel, 1.0 M clamped values, in
 ``tests/test_latent.py``); ``exact=True`` forms the table in every space.
 In the ``log`` space
 the blend is of log-mapped values, so the table itself is formed
-(:func:`brdfpipe.gplvm.interpolate_tables`) and its albedo computed
-(:func:`brdfpipe.manifold.material_albedo`) — exact, one pass over the store per 4 points.
+(:func:`brdfpipe.manifold.gplvm.interpolate_tables`) and its albedo computed
+(:func:`brdfpipe.manifold.analysis.material_albedo`) — exact, one pass over the store per 4 points.
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ import scipy.optimize
 import scipy.spatial
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import gplvm, manifold
-from brdfpipe.store import BrdfStore, open_store
+from brdfpipe.manifold import gplvm, analysis
+from brdfpipe.data.store import BrdfStore, open_store
 
 __all__ = [
     "MIN_ACCEPTANCE",
@@ -99,7 +99,7 @@ __all__ = [
     "sample_material",
 ]
 
-logger = logging.getLogger("brdfpipe.latent")
+logger = logging.getLogger("brdfpipe.manifold.latent")
 
 #: Below this acceptance rate (hull volume / box volume) :func:`sample_in_hull` samples cones of the hull.
 MIN_ACCEPTANCE: Final = 0.05
@@ -368,7 +368,7 @@ def nearest_materials(
 def blend_weights_at(model: gplvm.GplvmModel, points: ArrayLike) -> NDArray[np.float64]:
     """Blend weights ``w`` ``(P, N)`` at many latent points (one triangular solve; Σw = 1 per row).
 
-    The same as :func:`brdfpipe.gplvm.blend_weights` of :func:`brdfpipe.gplvm.weights`
+    The same as :func:`brdfpipe.manifold.gplvm.blend_weights` of :func:`brdfpipe.manifold.gplvm.weights`
     row by row, δ convention included: a point equal (bitwise) to a training
     point gets that material's weight 1.
     """
@@ -400,7 +400,7 @@ class _Albedo:
         if isinstance(source, (BrdfStore, str, os.PathLike)):
             st = source if isinstance(source, BrdfStore) else open_store(source)
             if _is_linear(model.space) and not exact:
-                return cls(model, manifold.material_albedos(st, list(model.names)), None)
+                return cls(model, analysis.material_albedos(st, list(model.names)), None)
             unknown = [m for m in model.names if m not in st.materials]
             if unknown:
                 raise ValueError(f"{st.path}: unknown material(s) {', '.join(unknown)} of the model")
@@ -427,7 +427,7 @@ class _Albedo:
             tables, _ = gplvm.interpolate_tables(self.store, W[a : a + _LOG_BATCH], materials=self.model.names,
                                                  space=self.model.space)
             for j, t in enumerate(tables):
-                out[a + j] = manifold.material_albedo(t)
+                out[a + j] = analysis.material_albedo(t)
         return out
 
 
@@ -437,7 +437,7 @@ def latent_albedos(
     """White-sky albedo ``(P, 3)`` of the interpolated material at each latent point.
 
     ``source``: the materials' albedos ``(N, 3)`` in model order
-    (:func:`brdfpipe.manifold.material_albedos`; linear data spaces only) or
+    (:func:`brdfpipe.manifold.analysis.material_albedos`; linear data spaces only) or
     the store (any space; in the log space the tables are formed, one store pass per 4
     points).  ``exact``: form the table in every space (needs the store), so
     the clamping of negative interpolated values counts.  See the module

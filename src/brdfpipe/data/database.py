@@ -2,14 +2,14 @@
 
 The workflow reads the real MERL BRDF database from a folder named in the
 config when a user has it; otherwise it generates a synthetic MERL-format
-database (:mod:`brdfpipe.synth`).  This module resolves either into a
+database (:mod:`brdfpipe.data.synth`).  This module resolves either into a
 :class:`Database` (material names → source files) and resolves the held-out
 ``test_materials`` against it, with clear errors for a missing folder or an
 unknown name.
 
 A folder's label (``merl`` or ``synthetic``) is decided in one place,
 :func:`database_from_folder`, from the files' own bytes (the synthetic
-watermark of :mod:`brdfpipe.synth`), never from a manifest alone; material
+watermark of :mod:`brdfpipe.data.synth`), never from a manifest alone; material
 names are checked by :func:`check_material_name`.
 """
 
@@ -23,9 +23,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from brdfpipe import atomic, synth
-from brdfpipe.version import full_version
-from brdfpipe.synth import default_test_count
+from brdfpipe.core import atomic
+from brdfpipe.data import synth
+from brdfpipe.core.version import full_version
+from brdfpipe.data.synth import default_test_count
 
 __all__ = [
     "XU2016_TEST_MATERIALS",
@@ -147,8 +148,8 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     database or a synthetic one (the workflow's ``merl_dir`` and ``brdfpipe
     ingest`` both use it).  Every ``*.binary`` file is a material named by
     its stem (:func:`check_material_name`).  A file written by
-    :mod:`brdfpipe.synth` carries a watermark in cells no measurement can
-    fill (:func:`brdfpipe.synth.is_synthetic_file`, 64 bytes read per file):
+    :mod:`brdfpipe.data.synth` carries a watermark in cells no measurement can
+    fill (:func:`brdfpipe.data.synth.is_synthetic_file`, 64 bytes read per file):
 
     * all files watermarked → ``kind == "synthetic"`` (with or without
       ``manifest.json``; the manifest only supplies the default held-out
@@ -164,7 +165,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     (``.BINARY``), an entry that is not a file, an unsafe material name, a
     file that cannot be read, a mixed folder, or a ``manifest.json`` that
     disagrees with the files.  The files' contents are validated at ingest
-    (:func:`brdfpipe.store.ingest_material`).
+    (:func:`brdfpipe.data.store.ingest_material`).
     """
     text = os.fspath(folder)
     if isinstance(text, bytes):
@@ -256,7 +257,7 @@ def folder_database(folder: str | os.PathLike[str], *, key: str = "folder") -> D
 
 
 def synthetic_database(out_dir: str | os.PathLike[str], count: int, seed: int) -> Database:
-    """The synthetic database that :mod:`brdfpipe.synth` generates into ``out_dir``."""
+    """The synthetic database that :mod:`brdfpipe.data.synth` generates into ``out_dir``."""
     specs = synth.plan_database(count, seed)
     sources = {s.name: Path(out_dir) / f"{s.name}{MERL_SUFFIX}" for s in specs}
     default = tuple(synth.default_test_materials(specs, n=default_test_count(count)))
@@ -331,9 +332,9 @@ def write_splits(
     The material names and the database kind are read from the validated
     store, so the split always describes the data downstream stages see.
     Raises :class:`DatabaseError` if a test material is not in the store.
-    Written atomically (:func:`brdfpipe.atomic.write_text`).
+    Written atomically (:func:`brdfpipe.core.atomic.write_text`).
     """
-    from brdfpipe.store import open_store
+    from brdfpipe.data.store import open_store
 
     st = open_store(store)
     materials = list(st.materials)

@@ -15,7 +15,7 @@ A Zarr v3 group holding
 * ``valid`` – bool ``(1_458_000,)``: the cell is measured (≥ 0 in all three
   channels, judged on the float64 source values) in *every* material.
 
-Group attributes: ``format`` (``"brdfpipe.merl-store/2"``), ``materials``
+Group attributes: ``format`` (``"brdfpipe.data.merl-store/2"``), ``materials``
 (row order), ``database`` (``"merl"`` or ``"synthetic"``), ``sources``
 (sha256 of each source file, by material name), ``source_files`` (file
 names, by material name), ``channel_scales``, ``layout`` (human-readable
@@ -143,17 +143,17 @@ the mandatory sha256 alone costs more than 1.5× a warm read.  Peak RSS:
 materials (1.72× vs float32, 3.44× vs the float64 sources).
 
 Checks at ingest: a file without any measured cell is a
-:class:`~brdfpipe.merl.MerlFormatError` naming it (it would empty ``valid``
+:class:`~brdfpipe.data.merl.MerlFormatError` naming it (it would empty ``valid``
 for the whole store), and the assembly logs a warning naming the source file
 of any material that alone leaves more than 1 % of the cells measured by all
 the others unmeasured.
 
 Every writer builds its output in a temporary sibling directory and swaps it
-into place (:func:`brdfpipe.atomic.atomic_dir`): after any error or
+into place (:func:`brdfpipe.core.atomic.atomic_dir`): after any error or
 interrupt (a bad file, Ctrl-C, a kill) an earlier store or row store at the
 output is left exactly as it was.  An output that exists and is not an
 output of the same kind (a folder, a Zarr group without the store's
-``format`` attribute) is refused with :class:`brdfpipe.atomic.OutputError`
+``format`` attribute) is refused with :class:`brdfpipe.core.atomic.OutputError`
 before any work.  A process killed with SIGKILL can leave a
 ``.NAME.tmp-PID-*`` (or ``.NAME.rows-PID-*``, the ingest's row stores)
 sibling behind; the next run writing the same output removes those whose
@@ -189,11 +189,11 @@ from zarr.codecs import BloscCodec
 from zarr.core.buffer import default_buffer_prototype
 from zarr.core.group import GroupMetadata
 
-from brdfpipe import merl
-from brdfpipe.atomic import atomic_dir, check_replaceable, clean_stale_siblings, remove_tree, tmp_sibling
-from brdfpipe.merl import DIMS, FILE_SIZE, HEADER_BYTES, N_CELLS, SCALES, MerlFormatError
-from brdfpipe.version import full_version
-from brdfpipe.zgroup import COMPLETE_ATTR, format_predicate, open_finished_group
+from brdfpipe.data import merl
+from brdfpipe.core.atomic import atomic_dir, check_replaceable, clean_stale_siblings, remove_tree, tmp_sibling
+from brdfpipe.data.merl import DIMS, FILE_SIZE, HEADER_BYTES, N_CELLS, SCALES, MerlFormatError
+from brdfpipe.core.version import full_version
+from brdfpipe.core.zgroup import COMPLETE_ATTR, format_predicate, open_finished_group
 
 __all__ = [
     "read_ahead",
@@ -221,7 +221,7 @@ __all__ = [
     "iter_valid_blocks",
 ]
 
-logger = logging.getLogger("brdfpipe.store")
+logger = logging.getLogger("brdfpipe.data.store")
 
 #: Columns of the matrix: the R, G, B blocks of all cells.
 N_COLS: Final = 3 * N_CELLS  # 4,374,000
@@ -248,12 +248,12 @@ _SHUFFLE: Final = {"noshuffle": Blosc.NOSHUFFLE, "shuffle": Blosc.SHUFFLE, "bits
 #: Allowed values of the ``database`` attribute.
 DATABASES: Final = ("merl", "synthetic")
 #: ``format`` attribute of a store.  /2: shard digests bound to the material names, ``valid`` digest.
-STORE_FORMAT: Final = "brdfpipe.merl-store/2"
+STORE_FORMAT: Final = "brdfpipe.data.merl-store/2"
 #: Earlier store formats: recognised (an ingest may replace them) but refused by :func:`open_store`.
 RETIRED_STORE_FORMATS: Final = {
-    "brdfpipe.merl-store/1": "its shard digests do not cover the material names; re-ingest the store",
+    "brdfpipe.data.merl-store/1": "its shard digests do not cover the material names; re-ingest the store",
 }
-ROW_FORMAT: Final = "brdfpipe.merl-row/1"
+ROW_FORMAT: Final = "brdfpipe.data.merl-row/1"
 #: Algorithm of the ``digests`` attribute (recorded in it, checked on open).
 DIGEST_ALGORITHM: Final = "crc32c(utf8(name) NUL shard file)"
 #: Share of the cells measured by all other materials that one file may leave unmeasured without a warning.
@@ -266,7 +266,7 @@ LAYOUT: Final = (
     "material attrs['materials'][i]; column k = channel k // 1458000 (0=R, 1=G, 2=B) "
     "of cell k % 1458000 in MERL file order, cell = i_theta_h*16200 + i_theta_d*180 "
     "+ i_phi_d (90 x 90 x 180, square-root theta_h binning); row i == "
-    "brdfpipe.merl.read_merl(file).reshape(-1).astype(float32). valid[cell]: the cell "
+    "brdfpipe.data.merl.read_merl(file).reshape(-1).astype(float32). valid[cell]: the cell "
     "is >= 0 in all three channels of every material. Chunks 1 x 145800 columns "
     "(blosc lz4 + byte shuffle), one shard file per row."
 )
@@ -356,7 +356,7 @@ def _shard_key(row: int) -> str:
     return f"c/{row}/0"
 
 
-#: ``replaceable`` predicate of :func:`brdfpipe.atomic.atomic_dir` for a store (any version).
+#: ``replaceable`` predicate of :func:`brdfpipe.core.atomic.atomic_dir` for a store (any version).
 is_store: Final[Callable[[Path], bool]] = format_predicate((STORE_FORMAT, *RETIRED_STORE_FORMATS))
 _is_row_store: Final[Callable[[Path], bool]] = format_predicate((ROW_FORMAT,))
 
@@ -404,7 +404,7 @@ def _format_error(path: Path, fallback: str) -> MerlFormatError:
     """The canonical :class:`MerlFormatError` for a bad file (from ``merl``), else ``fallback``.
 
     The fast streaming reader only detects that something is wrong; the
-    message comes from :func:`brdfpipe.merl.read_merl_raw`, so both readers
+    message comes from :func:`brdfpipe.data.merl.read_merl_raw`, so both readers
     report bad files identically.
     """
     try:
@@ -511,12 +511,12 @@ def ingest_material(src: str | os.PathLike[str], out: str | os.PathLike[str], *,
     A file without any measured cell is a :class:`MerlFormatError` too.
 
     The store is built in a temporary sibling directory and renamed into
-    place (:func:`brdfpipe.atomic.atomic_dir`), replacing an earlier row
+    place (:func:`brdfpipe.core.atomic.atomic_dir`), replacing an earlier row
     store at ``out`` only on success: after any error (or an interrupt) an
     earlier row store is left exactly as it was and nothing else is left
     behind.  An ``out`` that exists and is not a row store (a folder, a
     store, another Zarr group) is refused with
-    :class:`brdfpipe.atomic.OutputError` before the file is read.
+    :class:`brdfpipe.core.atomic.OutputError` before the file is read.
     """
     src = Path(src)
     out = Path(out)
@@ -653,12 +653,12 @@ def assemble_store(
     The finished store is then validated as a whole (shape, dtype, layout,
     every shard present with its size, row order = names, attributes, the
     ``valid`` digest), the completion marker is written last, and the store
-    is swapped into place (:func:`brdfpipe.atomic.atomic_dir`).
+    is swapped into place (:func:`brdfpipe.core.atomic.atomic_dir`).
 
     Raises :class:`StoreError` naming the offending row store for a missing,
     incomplete or damaged row, duplicate names or a mismatched layout,
     :class:`ValueError` for an unknown ``database`` and
-    :class:`brdfpipe.atomic.OutputError` (before reading any row) for an
+    :class:`brdfpipe.core.atomic.OutputError` (before reading any row) for an
     ``out`` that exists and is not a brdfpipe store.  After any error (or an
     interrupt) an earlier store at ``out`` is left exactly as it was.
     ``threads`` threads copy rows concurrently.
@@ -1198,7 +1198,7 @@ def _mp_context() -> multiprocessing.context.BaseContext:
         return multiprocessing.get_context("fork")
     if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["brdfpipe.store"])
+        ctx.set_forkserver_preload(["brdfpipe.data.store"])
         return ctx
     return multiprocessing.get_context("spawn")
 
@@ -1223,12 +1223,12 @@ def ingest(
     Row stores go to ``workdir`` (kept afterwards) or to a temporary sibling
     ``.NAME.rows-PID-RANDOM`` of ``out`` (removed afterwards; one left by a
     killed run is removed by the next run, see
-    :func:`brdfpipe.atomic.clean_stale_siblings`).  The first failing
+    :func:`brdfpipe.core.atomic.clean_stale_siblings`).  The first failing
     material aborts the ingest with its error (naming the file).  An earlier
     store at ``out`` is replaced only when the new one is complete: after any
     error or interrupt it is left exactly as it was.  An ``out`` that exists
     and is not a brdfpipe store is refused
-    (:class:`brdfpipe.atomic.OutputError`) before any file is read.
+    (:class:`brdfpipe.core.atomic.OutputError`) before any file is read.
     """
     database = _normalise_database(database)
     out = Path(out)

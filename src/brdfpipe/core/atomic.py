@@ -53,7 +53,7 @@ __all__ = [
     "is_out_of_space",
 ]
 
-logger = logging.getLogger("brdfpipe.atomic")
+logger = logging.getLogger("brdfpipe.core.atomic")
 
 #: Temporary sibling tags used by the library (``.NAME.TAG-PID-RANDOM``).
 _TAGS = ("tmp", "old", "rows")

@@ -6,7 +6,7 @@ ends of the path.  [PR12] is T. Pereira and S. Rusinkiewicz, "Gamut Mapping
 Spatially Varying Reflectance with an Improved BRDF Similarity Metric",
 Computer Graphics Forum 31(4) (Proc. EGSR 2012).  This module implements that
 distance for ``(3, 90, 90, 180)`` MERL tables in physical units
-(:mod:`brdfpipe.merl`).
+(:mod:`brdfpipe.data.merl`).
 
 .. warning:: **Reconstruction, not a verified transcription.**
    Only the title, abstract and first paragraph of [PR12] could be read when this
@@ -74,26 +74,26 @@ measure on MERL's grid — square-root θh bins with edges ``(i/90)² π/2``, un
 
     w_ijk = 8π · [cos θh,i − cos θh,i+1] · ½[sin² θd,j+1 − sin² θd,j] · π/180
 
-and carries the value at its centre (:func:`brdfpipe.merl.cell_directions`), a
+and carries the value at its centre (:func:`brdfpipe.data.merl.cell_directions`), a
 midpoint rule.  MERL folds φd and φd + π onto one cell (reciprocity:
 swapping ωi and ωo maps φd → φd + π).  The BRDF is the same on both branches
 but the compared radiance is not (``cos θi`` on one, ``cos θo`` on the other),
 so every cell contributes two integration points, ``(ωi, ωo)`` and
 ``(ωo, ωi)``, each with weight ``w_ijk``.  Summed over all cells and both
 branches the weights give exactly 8π² (all pairs with θh ≤ π/2); summed over
-the cells of :func:`brdfpipe.merl.measured_mask` (both directions above the
+the cells of :func:`brdfpipe.data.merl.measured_mask` (both directions above the
 horizon, tested at the cell centre) they give ≈ 4π² = (2π)², the measure of
 the integration domain.
 
 Unmeasured cells
 ----------------
-The integration domain is the cells of :func:`brdfpipe.merl.measured_mask`;
+The integration domain is the cells of :func:`brdfpipe.data.merl.measured_mask`;
 values outside it (below the horizon) are never read.  A domain cell holding a
 negative value in any channel is *unmeasured*: its features are NaN, and a
 pair of tables is compared over the domain cells measured in both, the
 normaliser being the measure of those cells (the RMS is over the pairs actually
 compared).  When both tables are measured over the whole domain — every table
-written by :mod:`brdfpipe.synth` — the distance is exactly the Euclidean norm
+written by :mod:`brdfpipe.data.synth` — the distance is exactly the Euclidean norm
 ``‖F(a) − F(b)‖`` of the features.  Tables with different unmeasured cells
 are compared on different domains, so the triangle inequality is only
 guaranteed among tables that share their unmeasured cells.
@@ -137,7 +137,7 @@ from typing import Final, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import merl
+from brdfpipe.data import merl
 
 __all__ = [
     "RGB_TO_XYZ",
@@ -243,7 +243,7 @@ def pr12_features(table: ArrayLike) -> NDArray[np.float64]:
     """Per-table features whose Euclidean differences give :func:`pr12_distance`.
 
     ``table`` is a ``(3, 90, 90, 180)`` MERL table in physical units (as
-    :func:`brdfpipe.merl.read_merl` returns; unmeasured cells negative).
+    :func:`brdfpipe.data.merl.read_merl` returns; unmeasured cells negative).
     Returns a 1-D float64 array of length :func:`pr12_n_features`, laid out
     ``(branch, [L*, a*, b*], domain cell)``: the CIELAB values of
     ``π ρ cos θi`` at every integration point times the square root of its

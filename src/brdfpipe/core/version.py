@@ -27,8 +27,9 @@ from brdfpipe import __version__
 
 __all__ = ["PACKAGE_DIR", "module_closure", "code_digest", "script_digest", "full_version"]
 
-#: The folder of the installed package (its ``*.py`` files are what is hashed).
-PACKAGE_DIR = Path(__file__).resolve().parent
+#: The folder of the installed package (its ``*.py`` files, subpackages
+#: included, are what is hashed); this module lives in its ``core`` subpackage.
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
 _PKG = "brdfpipe"
 
 
@@ -97,11 +98,20 @@ def _imports(name: str) -> frozenset[str]:
     return frozenset(m for m in found if m.split(".")[0] == _PKG and _module_file(m) is not None)
 
 
+def _parents(name: str) -> list[str]:
+    """The packages Python imports before module ``name``: ``brdfpipe.a.b`` → ``brdfpipe``, ``brdfpipe.a``."""
+    parts = name.split(".")
+    return [".".join(parts[:i]) for i in range(1, len(parts))]
+
+
 def module_closure(modules: Iterable[str]) -> list[str]:
     """The named modules and every ``brdfpipe`` module they import, transitively (sorted).
 
-    Names may be given with or without the ``brdfpipe.`` prefix.  The
-    package's ``__init__`` is always included (it is imported first).
+    Names may be given with or without the ``brdfpipe.`` prefix
+    (``acquisition.svd`` or ``brdfpipe.acquisition.svd``).  Importing a module
+    runs its parent packages' ``__init__`` first, so every module reached
+    brings its parents too (``brdfpipe.manifold.gplvm`` brings ``brdfpipe``
+    and ``brdfpipe.manifold``); the package's ``__init__`` is always included.
     """
     todo = [m if m.startswith(f"{_PKG}.") or m == _PKG else f"{_PKG}.{m}" for m in modules]
     todo.append(_PKG)
@@ -114,6 +124,7 @@ def module_closure(modules: Iterable[str]) -> list[str]:
             raise ValueError(f"no module {m} in {PACKAGE_DIR}")
         seen.add(m)
         todo.extend(_imports(m) - seen)
+        todo.extend(p for p in _parents(m) if p not in seen)
     return sorted(seen)
 
 
@@ -133,7 +144,13 @@ def code_digest(modules: Iterable[str]) -> str:
 
 @lru_cache(maxsize=1)
 def full_version() -> str:
-    """``__version__`` plus a digest of every module of the package, e.g. ``0.1.0+src.1a2b3c4d5e6f``."""
+    """``__version__`` plus a digest of every module of the package, e.g. ``0.1.0+src.1a2b3c4d5e6f``.
+
+    Every ``*.py`` under :data:`PACKAGE_DIR`, subpackages included, named by
+    its path relative to the package (``acquisition/svd.py``) and hashed in
+    sorted order, so the digest does not depend on the file system's listing
+    order or on where the package is installed.
+    """
     files = [(p.relative_to(PACKAGE_DIR).as_posix(), p) for p in PACKAGE_DIR.rglob("*.py")]
     return f"{__version__}+src.{_digest(files)[:12]}"
 

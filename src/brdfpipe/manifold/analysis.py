@@ -1,7 +1,7 @@
 """Analyses of a fitted GPLVM material manifold (Soler et al. 2018 §4, Figs. 7–10).
 
 Everything here starts from the store, the centred Gram matrix of
-:func:`brdfpipe.gplvm.gram_matrix` and the saved fits; the figures are drawn
+:func:`brdfpipe.manifold.gplvm.gram_matrix` and the saved fits; the figures are drawn
 by :mod:`brdfpipe.figures` from the files written by :func:`analyze_manifold`.
 
 Albedo (§4.2, Fig. 7)
@@ -10,11 +10,11 @@ The albedo of a BRDF is the ratio of the radiance it reflects under a
 uniform incident distribution to that distribution's irradiance:
 ``A = (1/π) ∫∫ f(ωi, ωo) cos θi cos θo dωi dωo`` (the white-sky albedo).
 With the directional albedo ``a(θi) = ∫ f cos θo dωo``
-(:func:`brdfpipe.merl.directional_albedo`) and ``u = sin²θi``,
+(:func:`brdfpipe.data.merl.directional_albedo`) and ``u = sin²θi``,
 ``A = ∫₀¹ a(θi(u)) du``; :func:`material_albedo` takes the midpoint rule with
 :data:`ALBEDO_NODES` nodes in ``u``.  A is linear in f, so the albedo of the
 interpolated BRDF at a latent point is ``Σ wᵢ Aᵢ`` with the blend weights of
-:func:`brdfpipe.gplvm.blend_weights` (each material's albedo is computed once,
+:func:`brdfpipe.manifold.gplvm.blend_weights` (each material's albedo is computed once,
 over its own measured cells; the clamping of negative interpolated values,
 which makes the map slightly non-linear, is ignored).
 
@@ -22,9 +22,9 @@ Paths (§4.3, Fig. 9) and the bound of eq. 7
 -------------------------------------------
 A path from material A to material B is the straight latent segment
 ``x(t) = (1 − t)x_A + t x_B`` at ``t = k/steps``.  At each point the
-interpolated BRDF is formed (:func:`brdfpipe.gplvm.interpolate_tables`) and its
+interpolated BRDF is formed (:func:`brdfpipe.manifold.gplvm.interpolate_tables`) and its
 perceptual distance to both ends is measured with
-:mod:`brdfpipe.perceptual`.  The actual deviation from the nearest training
+:mod:`brdfpipe.manifold.perceptual`.  The actual deviation from the nearest training
 material ``j`` (in latent space) is exact from the Gram matrix:
 ``z* − z_j = Σ (wᵢ − δᵢⱼ) zᵢ`` with weights summing to 0, so
 ``‖z* − z_j‖² = (w − e_j)ᵀ G_c (w − e_j)``.  Eq. 7 bounds it by
@@ -56,10 +56,12 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic, gplvm, latent, merl, perceptual
-from brdfpipe.filenames import path_name
-from brdfpipe.plan import SOLER_PATHS, check_paths, default_paths
-from brdfpipe.store import BrdfStore, iter_column_blocks, open_store
+from brdfpipe.core import atomic
+from brdfpipe.manifold import gplvm, latent, perceptual
+from brdfpipe.data import merl
+from brdfpipe.core.filenames import path_name
+from brdfpipe.core.plan import SOLER_PATHS, check_paths, default_paths
+from brdfpipe.data.store import BrdfStore, iter_column_blocks, open_store
 
 __all__ = [
     "ALBEDO_NODES",
@@ -82,7 +84,7 @@ __all__ = [
     "path_points_to_files",
 ]
 
-logger = logging.getLogger("brdfpipe.manifold")
+logger = logging.getLogger("brdfpipe.manifold.analysis")
 
 #: Midpoint nodes in u = sin²θi for the albedo integral.
 ALBEDO_NODES: Final = 16
@@ -170,7 +172,7 @@ def albedo_map(
     Returns the arrays of an ``albedo-map-q{q}.npz``: ``x``, ``y``, ``albedo``
     (H, W, 3), ``luminance`` (H, W), ``dims``, ``fixed`` (q,), ``q``,
     ``inside_hull`` (H, W: the grid point lies inside the convex hull of the
-    q-dimensional training points, :func:`brdfpipe.latent.hull_contains`),
+    q-dimensional training points, :func:`brdfpipe.manifold.latent.hull_contains`),
     ``bad_inside`` / ``bad_outside`` (share of grid points inside / outside
     the hull whose albedo leaves [0, 1] in some channel) and
     ``training_gap_median`` / ``_max`` (luminance |A_map(xᵢ) − Aᵢ| of the map's
@@ -404,7 +406,7 @@ def path_points_to_files(
 
     The workflow's ``interpolate_path_points`` job (the rendering track blends
     pre-rendered images with the same weights).  All points are blended in one
-    pass over the store (:func:`brdfpipe.gplvm.interpolate_tables`): the store
+    pass over the store (:func:`brdfpipe.manifold.gplvm.interpolate_tables`): the store
     is read once, not once per point.  ``merl_outs[k]`` and
     ``weights_outs[k]`` belong to ``points[k]``.  Each JSON holds ``path``,
     ``t``, ``q``, the latent point ``x``, ``clamped`` (values of measured cells

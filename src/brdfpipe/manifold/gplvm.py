@@ -13,7 +13,7 @@ N × d matrix is never held in float64).  Data spaces:
 * ``raw``: the stored values (the paper);
 * ``cosine``: each cell × cos θi · cos θo of its centre (``merl.cell_directions``);
 * ``log``: ``ln((ρw + ε)/(ρ_ref w + ε))`` like the acquisition track
-  (:func:`brdfpipe.logmap.forward`, ``w`` = :func:`brdfpipe.logmap.cell_weights`
+  (:func:`brdfpipe.data.logmap.forward`, ``w`` = :func:`brdfpipe.data.logmap.cell_weights`
   "product", ρ_ref = per-cell median over all channels of the materials used);
 * ``relative``: each cell × ``cos θi · cos θo / max(ρ_ref, 1e-3)`` (ρ_ref as
   for ``log``): a per-cell weighted inner product on the raw values;
@@ -157,9 +157,10 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe import atomic, logmap, merl
-from brdfpipe.merl import N_CELLS
-from brdfpipe.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
+from brdfpipe.core import atomic
+from brdfpipe.data import logmap, merl
+from brdfpipe.data.merl import N_CELLS
+from brdfpipe.data.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
 
 __all__ = [
     "SPACES",
@@ -193,7 +194,7 @@ __all__ = [
     "interpolate_to_file",
 ]
 
-logger = logging.getLogger("brdfpipe.gplvm")
+logger = logging.getLogger("brdfpipe.manifold.gplvm")
 
 #: Data spaces of :func:`gram_matrix` (see the module docstring).
 SPACES: Final = ("raw", "cosine", "log", "relative", "standardised")
@@ -208,7 +209,7 @@ MEAN_HANDLING: Final = "mean subtracted"
 #: Optimisers of :func:`fit` (see the module docstring, "Optimisation").
 METHODS: Final = ("hybrid", "hooke-jeeves")
 MODEL_FORMAT: Final = "brdfpipe.gplvm/1"
-GRAM_FORMAT: Final = "brdfpipe.gplvm.gram/1"
+GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/1"
 _SUB_COLS: Final = 16384
 
 
@@ -1031,7 +1032,7 @@ def interpolate_tables(
     per value, so blending before or after it is the same).
     In the ``log`` space the blend is taken of the log-mapped values, with the
     same ρ_ref (median of ``materials``) and weights as :func:`gram_matrix`,
-    and mapped back with :func:`brdfpipe.logmap.inverse`.  Cells not valid in
+    and mapped back with :func:`brdfpipe.data.logmap.inverse`.  Cells not valid in
     every material of the store are written as −1 (unmeasured, like MERL);
     values that come out negative in valid cells are clamped to 0 and
     counted (logged as a warning).  Streamed by column blocks of the store;

@@ -1,0 +1,16 @@
+"""Shared infrastructure at the bottom of the library: no science, no stage.
+
+Every other subpackage may import these modules; they import nothing of
+``brdfpipe`` above ``brdfpipe.core`` (``tests/test_layout.py`` checks it).
+The light ones (:mod:`~brdfpipe.core.filenames`, :mod:`~brdfpipe.core.plan`,
+:mod:`~brdfpipe.core.version`) are imported by the Snakefile at parse time, so
+this ``__init__`` imports nothing.
+
+* :mod:`brdfpipe.core.atomic`    – atomic outputs (temporary sibling, then rename);
+* :mod:`brdfpipe.core.exr`       – OpenEXR images that are data (renders, blends, error maps);
+* :mod:`brdfpipe.core.filenames` – every file name of the workflow's DAG;
+* :mod:`brdfpipe.core.logutil`   – logging set-up of the command line and the workflow scripts;
+* :mod:`brdfpipe.core.plan`      – what the workflow plans from its configuration;
+* :mod:`brdfpipe.core.version`   – content digests of the library's source (provenance, reruns);
+* :mod:`brdfpipe.core.zgroup`    – opening finished brdfpipe Zarr groups.
+"""

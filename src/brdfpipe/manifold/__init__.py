@@ -1,0 +1,12 @@
+"""The manifold track: GPLVM material manifolds after Soler et al. 2018.
+
+Fitting the GPLVM, exploring and analysing its latent space, measuring how
+faithful it is per data space, and the track's figures.  Imports
+:mod:`brdfpipe.data` and :mod:`brdfpipe.core`.
+
+* :mod:`brdfpipe.manifold.gplvm`      – the GPLVM over measured materials (§2.1–§3);
+* :mod:`brdfpipe.manifold.latent`     – the latent space: hull, neighbours, extrapolation, sampling;
+* :mod:`brdfpipe.manifold.perceptual` – perceptual BRDF distance (Pereira & Rusinkiewicz 2012);
+* :mod:`brdfpipe.manifold.fidelity`   – how faithful a manifold is, per data space (§3–§5);
+* :mod:`brdfpipe.manifold.analysis`   – analyses of a fitted manifold (§4, Figs. 7–10).
+"""
