@@ -1,9 +1,9 @@
 #!/usr/bin/env python
 """Speed and agreement of the fast expected error (Xu et al. 2016, eq. 15).
 
-Targets (from the sampling issue): one :func:`brdfpipe.sampling.expected_error`
+Targets (from the sampling issue): one :func:`brdfpipe.acquisition.metrics.expected_error`
 evaluation from a selection's sufficient statistics is ≥ 1000× faster than the
-literal p-space formula (:func:`brdfpipe.sampling.expected_error_literal`) on
+literal p-space formula (:func:`brdfpipe.acquisition.metrics.expected_error_literal`) on
 the same selection, and gives the same value to 1e-8 relative.
 
 What it does
@@ -64,12 +64,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from brdfpipe.sampling import (
-    ErrorModel,
-    expected_error,
-    expected_error_literal,
-    selection_stats,
-)
+from brdfpipe.acquisition.metrics import ErrorModel, expected_error, expected_error_literal, selection_stats
 
 #: Measured MERL cells (``merl.measured_mask().sum()``): the real p.
 P_MERL = 1_096_216

@@ -16,7 +16,7 @@ What it does
    with :func:`brdfpipe.data.logmap.write_logmap`, then :func:`brdfpipe.acquisition.svd.fit`.
    Not timed (its time is printed); the folder is removed at the end unless
    ``--keep``.
-2. Runs :func:`brdfpipe.sampling.optimize` once, timed as a whole — reading Q
+2. Runs :func:`brdfpipe.acquisition.optimize.optimize` once, timed as a whole — reading Q
    (float32) into memory included — and prints the time to the first log
    line (= model loading), the log (``--quiet``: greedy adds and convergence
    lines only, which give each n's time and number of metric evaluations),
@@ -95,7 +95,7 @@ def fit_model(store_path: Path, splits: Path, work: Path) -> Path:
     return model_path
 
 
-def run_baseline(sampling, model, setup, args: argparse.Namespace) -> None:  # type: ignore[no-untyped-def]
+def run_baseline(optimize, model, setup, args: argparse.Namespace) -> None:  # type: ignore[no-untyped-def]
     """Time n = 1..N with the direct and the fast candidate evaluation; print both and the ratio.
 
     Times exclude reading the model (until optimize's first log line), which
@@ -106,7 +106,7 @@ def run_baseline(sampling, model, setup, args: argparse.Namespace) -> None:  # t
     results = {}
     for evaluation in ("direct", "fast"):
         first: list[float] = []
-        results[evaluation] = sampling.optimize(
+        results[evaluation] = optimize.optimize(
             model, setup, metric=args.metric, n_max=n, candidates=args.candidates, seed=args.seed,
             log=lambda line: first.append(time.perf_counter()) if not first else None, evaluation=evaluation)
         times[evaluation] = time.perf_counter() - first[0]
@@ -146,7 +146,7 @@ def main() -> None:
         for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ[var] = str(args.blas_threads)
 
-    from brdfpipe import sampling  # numpy is imported here, after the thread settings
+    from brdfpipe.acquisition import geometry, optimize  # numpy is imported here, after the thread settings
     from brdfpipe.acquisition import svd
 
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; BLAS threads: "
@@ -169,10 +169,10 @@ def main() -> None:
         model = svd.open_model(model_path)
         print(f"model {model_path}: p = {model.p}, k = {model.k}, m = {model.m} "
               f"({len(model.materials)} materials, split {model.split})", flush=True)
-        setup = sampling.Setup(args.setup, args.fov if args.setup != "point" else 0.0, args.grid)
+        setup = geometry.Setup(args.setup, args.fov if args.setup != "point" else 0.0, args.grid)
 
         if args.baseline > 0:
-            run_baseline(sampling, model, setup, args)
+            run_baseline(optimize, model, setup, args)
 
         t0 = time.perf_counter()
         first: list[float] = []
@@ -184,7 +184,7 @@ def main() -> None:
                 print(f"  [{time.perf_counter() - t0:7.1f} s] {line}", flush=True)
 
         load0 = os.getloadavg()[0]
-        sets = sampling.optimize(model, setup, metric=args.metric, n_max=args.n, candidates=args.candidates,
+        sets = optimize.optimize(model, setup, metric=args.metric, n_max=args.n, candidates=args.candidates,
                                  seed=args.seed, log=log, evaluation=args.evaluation)
         wall = time.perf_counter() - t0
         load1 = os.getloadavg()[0]

@@ -4,7 +4,7 @@ The fixtures are written here: an errors.csv with 2 near-field FOVs (15° and
 25°), fixed camera / fixed light at 25°, point sampling, n = 1…3, both
 metrics, 3 held-out materials × 3 channels (+ ``all`` and ``mean`` rows) and
 the deviation floor; a training_size.csv with two material orders; directions
-files written by :func:`brdfpipe.sampling.write_directions`.
+files written by :func:`brdfpipe.acquisition.optimize.write_directions`.
 """
 
 from __future__ import annotations
@@ -31,7 +31,8 @@ from brdfpipe.figures import (
     read_errors,
 )
 from brdfpipe.core.filenames import FIGURE_STEMS
-from brdfpipe.sampling import DirectionSet, Setup, config_to_dict, read_directions, write_directions
+from brdfpipe.acquisition.geometry import Setup, config_to_dict
+from brdfpipe.acquisition.optimize import DirectionSet, read_directions, write_directions
 
 DB = "synthetic"
 MATERIALS = ("blue-acrylic", "gold-metallic-paint", "white-fabric")

@@ -1,4 +1,4 @@
-"""Tests of the optimiser section of :mod:`brdfpipe.sampling` (Xu et al. 2016 §5).
+"""Tests of :mod:`brdfpipe.acquisition.optimize`, the direction optimiser (Xu et al. 2016 §5).
 
 The model is a fake, built with numpy in a few seconds: m = 24 "material
 channels" that are random mixtures of r = 16 smooth functions of the cell
@@ -23,21 +23,9 @@ from numpy.typing import NDArray
 
 from brdfpipe.core import filenames
 from brdfpipe.data import merl
-from brdfpipe.sampling import (
-    DIRECTIONS_FORMAT,
-    DirectionSet,
-    ErrorModel,
-    Setup,
-    condition_number,
-    config_to_dict,
-    direct_training_error,
-    expected_error,
-    observation_cells,
-    optimize,
-    read_directions,
-    selection_stats,
-    write_directions,
-)
+from brdfpipe.acquisition.geometry import Setup, config_to_dict, observation_cells
+from brdfpipe.acquisition.metrics import ErrorModel, condition_number, direct_training_error, expected_error, selection_stats
+from brdfpipe.acquisition.optimize import DIRECTIONS_FORMAT, DirectionSet, optimize, read_directions, write_directions
 
 T = 40  # candidates per greedy add (the paper's 500 is the default; small here for speed)
 
@@ -326,7 +314,7 @@ def test_log_lines(caplog: pytest.LogCaptureFixture) -> None:
     assert len(moves) == sum(s.moves for s in sets)  # type: ignore[misc]
     assert all("E = " in line for line in lines[1:])
     assert sum("step 3 -> 2" in line for line in lines) == 2
-    with caplog.at_level(logging.INFO, logger="brdfpipe.sampling"):
+    with caplog.at_level(logging.INFO, logger="brdfpipe.acquisition.optimize"):
         optimize(full_model(), setup_of("point"), n_max=1, candidates=5, seed=0)
     assert any("greedy add" in r.getMessage() for r in caplog.records)
     condition_lines: list[str] = []

@@ -1,4 +1,4 @@
-"""Tests of :class:`brdfpipe.sampling.FactoredSelection`: E(S) of many candidates by low-rank updates.
+"""Tests of :class:`brdfpipe.acquisition.metrics.FactoredSelection`: E(S) of many candidates by low-rank updates.
 
 The property: for a base selection (G0, qsum0), an optional removed block
 and any candidate block R (r rows, each with a multiplicity),
@@ -16,13 +16,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from brdfpipe.sampling import (
-    ErrorModel,
-    FactoredSelection,
-    RowBlock,
-    expected_error,
-    selection_stats,
-)
+from brdfpipe.acquisition.metrics import ErrorModel, FactoredSelection, RowBlock, expected_error, selection_stats
 
 K, M, P = 40, 30, 600
 REL = 1e-10

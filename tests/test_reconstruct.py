@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from brdfpipe.core import filenames
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.acquisition import reconstruct, svd
-from brdfpipe import sampling
+from brdfpipe.acquisition import geometry, metrics, optimize
 from brdfpipe.cli import main as cli_main
 from brdfpipe.data.database import folder_database
 from brdfpipe.acquisition.reconstruct import (
@@ -32,7 +32,7 @@ from brdfpipe.acquisition.reconstruct import (
     ConsistencyError,
     ObservationError,
 )
-from brdfpipe.sampling import Setup
+from brdfpipe.acquisition.geometry import Setup
 
 # --------------------------------------------------------------------------
 # Fixtures
@@ -69,19 +69,19 @@ class Data:
         self.dirs: dict[str, Path] = {}
         for kind, fov, n_max in (("point", 0.0, 3), ("nearfield", 25.0, 2)):
             setup = Setup(kind, fov, 16)
-            sets = sampling.optimize(m, setup, metric="error", n_max=n_max, candidates=6, steps=(1,), seed=3,
+            sets = optimize.optimize(m, setup, metric="error", n_max=n_max, candidates=6, steps=(1,), seed=3,
                                      log=lambda line: None)
-            self.dirs[kind] = sampling.write_directions(
+            self.dirs[kind] = optimize.write_directions(
                 d / filenames.directions("train", kind, fov, "error"), sets, setup=setup, metric="error",
                 split="train", model_path=self.model_path, seed=3, eta=40.0, beta=0.0, database=m.database)
 
     def rows_of(self, path: Path, n: int) -> NDArray[np.intp]:
         """Model columns observed by set n of a directions file (recomputed independently)."""
-        d = sampling.read_directions(path)
+        d = optimize.read_directions(path)
         lut = np.full(merl.N_CELLS, -1, dtype=np.intp)
         lut[self.model.cells] = np.arange(self.model.p)
         (s,) = [s for s in d.sets if s.n == n]
-        cells = np.concatenate([sampling.observation_cells(d.setup, c, lut >= 0) for c in s.configurations])
+        cells = np.concatenate([geometry.observation_cells(d.setup, c, lut >= 0) for c in s.configurations])
         return lut[cells]
 
 
@@ -303,7 +303,7 @@ def test_gram_trick_equals_dense_p_space(data: Data, evaluation: list[dict[str, 
     for kind, path in data.dirs.items():
         setup = "point" if kind == "point" else "nearfield"
         fov = 0 if kind == "point" else 25
-        for s in sampling.read_directions(path).sets:
+        for s in optimize.read_directions(path).sets:
             rows = data.rows_of(path, s.n)
             c = _dense_coef(data.Q[rows], Y[:, rows].T, 40.0)
             R = Y - (data.Q @ c).T
@@ -403,26 +403,26 @@ def test_consistency_check_passes(data: Data, tmp_path: Path) -> None:
     with open(out, newline="") as fh:
         back = list(csv.reader(fh))
     assert tuple(back[0]) == CONSISTENCY_COLUMNS and len(back) == 1 + len(rows)
-    # The Gram-style direct value equals sampling.direct_training_error in p-space.
+    # The Gram-style direct value equals metrics.direct_training_error in p-space.
     m = data.model
     for r in rows:
         path = data.dirs[r["setup"]]
-        direct = sampling.direct_training_error(data.Q, m.U, m.sigma, m.mean, data.X, data.rows_of(path, r["n"]))
+        direct = metrics.direct_training_error(data.Q, m.U, m.sigma, m.mean, data.X, data.rows_of(path, r["n"]))
         assert r["direct"] == pytest.approx(direct, rel=1e-9)
         assert r["predicted"] == pytest.approx(direct, rel=1e-6)
     # With noise β > 0 the recorded E includes β‖Q(Q̃ᵀQ̃ + ηI)⁻¹Q̃ᵀ1‖, and so does the direct value.
     setup = Setup("point")
-    sets = sampling.optimize(m, setup, metric="error", n_max=2, candidates=4, steps=(1,), seed=1, beta=0.5,
+    sets = optimize.optimize(m, setup, metric="error", n_max=2, candidates=4, steps=(1,), seed=1, beta=0.5,
                              log=lambda line: None)
-    noisy = sampling.write_directions(tmp_path / "noisy" / "point-fov0-error.json", sets, setup=setup,
+    noisy = optimize.write_directions(tmp_path / "noisy" / "point-fov0-error.json", sets, setup=setup,
                                       metric="error", split="train", model_path=data.model_path, seed=1, eta=40.0,
                                       beta=0.5, database=m.database)
     noisy_rows = reconstruct.check_consistency(data.logmap, data.model_path, [noisy])
     assert len(noisy_rows) == 2 and max(r["rel_diff"] for r in noisy_rows) <= 1e-6
-    em0 = sampling.ErrorModel(m.sigma, m.U, eta=40.0)  # β = 0
+    em0 = metrics.ErrorModel(m.sigma, m.U, eta=40.0)  # β = 0
     for r in noisy_rows:
-        G, qsum = sampling.selection_stats(data.Q[data.rows_of(noisy, r["n"])])
-        assert r["direct"] > 1.001 * sampling.expected_error(em0, G, qsum)  # the noise term counts
+        G, qsum = metrics.selection_stats(data.Q[data.rows_of(noisy, r["n"])])
+        assert r["direct"] > 1.001 * metrics.expected_error(em0, G, qsum)  # the noise term counts
 
 
 def test_consistency_check_detects_tampering(data: Data, tmp_path: Path) -> None:

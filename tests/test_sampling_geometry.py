@@ -1,9 +1,9 @@
-"""Tests of the acquisition-geometry section of :mod:`brdfpipe.sampling`.
+"""Tests of :mod:`brdfpipe.acquisition.geometry`.
 
 Setups: point (one cell per configuration), nearfield (a pinhole camera over a
 disk, every pixel its own view direction), fixed_camera / fixed_light (images
 sharing the camera / light direction).  See the section comment in
-``sampling.py`` for the pixel model and the fixed_* parametrisation.
+``brdfpipe/acquisition/geometry.py`` for the pixel model and the fixed_* parametrisation.
 """
 
 from __future__ import annotations
@@ -14,16 +14,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.data import merl
-from brdfpipe.sampling import (
-    DEFAULT_GRID,
-    SETUP_KINDS,
-    Setup,
-    centre_directions,
-    config_from_dict,
-    config_to_dict,
-    observation_cells,
-    pixel_directions,
-)
+from brdfpipe.acquisition.geometry import DEFAULT_GRID, SETUP_KINDS, Setup, centre_directions, config_from_dict, config_to_dict, observation_cells, pixel_directions
 
 MEASURED = merl.measured_mask()
 MEASURED_CELLS = np.flatnonzero(MEASURED.ravel())
@@ -323,14 +314,14 @@ def test_fixed_images_share_the_direction(kind: str) -> None:
 def test_rotation_about_z_does_not_change_the_cells() -> None:
     """Isotropy + a rotationally symmetric disk: only relative directions matter."""
     setup = Setup("fixed_camera", 25.0, 24)
-    from brdfpipe import sampling
+    from brdfpipe.acquisition import geometry
 
     c = (50, 35, 70)
     wi, wo = centre_directions(setup, c)
-    base = merl.cell_index(np.broadcast_to(wi, (1, 3)), sampling._pixel_views(setup, wo)).tolist()
+    base = merl.cell_index(np.broadcast_to(wi, (1, 3)), geometry._pixel_views(setup, wo)).tolist()
     for rot in (0.3, 1.7, -2.5):
         rz = np.array([[math.cos(rot), -math.sin(rot), 0], [math.sin(rot), math.cos(rot), 0], [0, 0, 1]])
-        views = sampling._pixel_views(setup, rz @ wo)
+        views = geometry._pixel_views(setup, rz @ wo)
         cells = merl.cell_index(np.broadcast_to(rz @ wi, views.shape), views)
         # rounding may move a pixel sitting on a bin edge
         assert len(cells) == len(base) and np.mean(cells == np.array(base)) > 0.97

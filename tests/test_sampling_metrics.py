@@ -1,4 +1,4 @@
-"""Tests of the metrics section of :mod:`brdfpipe.sampling` (Xu et al. 2016, eqs. 4–15).
+"""Tests of :mod:`brdfpipe.acquisition.metrics` (Xu et al. 2016, eqs. 4–15).
 
 The reference problem is a small synthetic low-rank "database": m = 12 rows,
 p = 3000 smooth-but-random columns (a 1-D stand-in for the cell space, so
@@ -25,20 +25,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
-from brdfpipe import sampling
-from brdfpipe.sampling import (
-    ErrorModel,
-    add_rows,
-    condition_number,
-    direct_training_error,
-    empty_stats,
-    expected_error,
-    expected_error_literal,
-    expected_error_terms,
-    reconstruct_coefficients,
-    remove_rows,
-    selection_stats,
-)
+from brdfpipe.acquisition import metrics
+from brdfpipe.acquisition.metrics import ErrorModel, add_rows, condition_number, direct_training_error, empty_stats, expected_error, expected_error_literal, expected_error_terms, reconstruct_coefficients, remove_rows, selection_stats
 
 M_ROWS = 12
 P_COLS = 3000
@@ -552,5 +540,5 @@ def test_metric_input_validation() -> None:
 
 
 def test_default_eta_is_papers() -> None:
-    assert sampling.DEFAULT_ETA == 40.0
+    assert metrics.DEFAULT_ETA == 40.0
     assert ErrorModel(np.ones(2), np.ones((1, 2))).eta == 40.0

@@ -96,7 +96,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert (tmp_path / "logs" / "assemble_store.log").stat().st_size > 0
     assert len(list((tmp_path / "benchmarks" / "ingest_material").glob("*.tsv"))) == 12
     # acquisition track: models of both splits, direction sets of every setup
-    from brdfpipe import sampling
+    from brdfpipe.acquisition import optimize
     from brdfpipe.acquisition import svd
 
     model = svd.open_model(tmp_path / "results" / "svd" / "train.zarr")
@@ -104,7 +104,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     files = sorted((tmp_path / "results" / "directions" / "train").glob("*.json"))
     assert len(files) == 8
     for f in files:
-        d = sampling.read_directions(f)
+        d = optimize.read_directions(f)
         assert [s.n for s in d.sets] == list(range(1, len(d.sets) + 1))
     assert (tmp_path / "results" / "directions" / "all" / "nearfield-fov25-error.json").is_file()
     # evaluation: every predicted E(S) matched its direct recomputation (else the rule fails)

@@ -16,7 +16,7 @@ channel ``all``.  Setups: ``point`` (fov 0), ``nearfield``, ``fixed_camera``,
 kind, value`` (+ mean rows).
 
 Directions files ``{directions_dir}/{split}/{setup}-fov{fov}-{metric}.json``
-(:func:`brdfpipe.sampling.read_directions`).
+(:func:`brdfpipe.acquisition.optimize.read_directions`).
 
 Outputs
 -------
@@ -849,7 +849,7 @@ class _ConfigRow:
 def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Sequence[float],
                          n_images: Sequence[int], setup: str, metric: str, splits: Sequence[str],
                          warn: _Warnings) -> tuple[list[_ConfigRow], str]:
-    from brdfpipe.sampling import read_directions  # noqa: PLC0415 (heavy import, only needed here)
+    from brdfpipe.acquisition.optimize import read_directions  # noqa: PLC0415 (heavy import, only needed here)
 
     loaded = []
     for p in directions:

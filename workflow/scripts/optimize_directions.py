@@ -1,10 +1,10 @@
 """Optimal acquisition directions for one setup, FOV, metric and split (rule optimize_directions)."""
 
-from brdfpipe import sampling
+from brdfpipe.acquisition import optimize
 from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
-    sampling.optimize_to_file(
+    optimize.optimize_to_file(
         snakemake.input.model,
         snakemake.output.directions,
         setup=snakemake.wildcards.setup,

@@ -38,7 +38,7 @@ Leave-out evaluation (issue §6)
 store, log-mapped with the *train* model's ρ_ref and w) from simulated
 acquisitions: for every directions file (setup, fov, metric; optimised on the
 ``train`` split) and every n, the observations are the values at
-:func:`brdfpipe.sampling.observation_cells` of the set's configurations
+:func:`brdfpipe.acquisition.geometry.observation_cells` of the set's configurations
 (pixels on cells that are not model columns dropped, repeated cells
 repeated), c̄ by eq. 4 and x̂ = μ + Q c̄.  Reported per material-channel and as
 the mean over them (material ``mean``, channel ``all``):
@@ -141,11 +141,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
 from brdfpipe.data import logmap, merl
-from brdfpipe import sampling
+from brdfpipe.acquisition import geometry, metrics
 from brdfpipe.acquisition import svd
 from brdfpipe.data.logmap import Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.sampling import DEFAULT_ETA, Directions, read_directions, reconstruct_coefficients
+from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
+from brdfpipe.acquisition.optimize import Directions, read_directions
 from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
 from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
 from brdfpipe.acquisition.svd import Model, open_model
@@ -658,7 +659,7 @@ def _combos(paths: Sequence[str | os.PathLike[str]], mdl: Model) -> list[_Combo]
             if key in seen:
                 raise ValueError(f"{path}: set {key} also comes from {seen[key]}; give each (setup, fov, metric) once")
             seen[key] = path
-            parts = [sampling.observation_cells(d.setup, c, valid) for c in s.configurations]
+            parts = [geometry.observation_cells(d.setup, c, valid) for c in s.configurations]
             cells = np.concatenate(parts) if parts else np.zeros(0, dtype=np.intp)
             out.append(_Combo(path, d.setup.kind, fov, d.metric, s.n, lut[cells], s.expected_error, d.eta, d.beta))
     return out
@@ -741,9 +742,9 @@ def evaluate(
     model_path:
         The PCA model of the training split (ρ_ref, w, μ, Q).
     directions_paths:
-        Directions files (:func:`brdfpipe.sampling.write_directions`) of the
+        Directions files (:func:`brdfpipe.acquisition.optimize.write_directions`) of the
         model's split and database; each (setup, fov, metric) once.  The
-        observations of a set are :func:`brdfpipe.sampling.observation_cells`
+        observations of a set are :func:`brdfpipe.acquisition.geometry.observation_cells`
         of its configurations with the model's columns as the valid cells.
     test_materials:
         The held-out materials (None: the store's materials that are not
@@ -801,7 +802,7 @@ def _evaluate(
     eta: float,
     linear: bool,
 ) -> list[dict[str, Any]]:
-    eta = sampling.check_eta(eta)
+    eta = metrics.check_eta(eta)
     t0 = time.perf_counter()
     st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
     if st.database != mdl.database:
@@ -930,7 +931,7 @@ def check_consistency(
     file's η, and ``direct = mean_i ‖x_i − μ − Q c̄_i‖ (+ β‖Q(Q̃ᵀQ̃ + ηI)⁻¹Q̃ᵀ1‖
     when the file's β > 0)``, by the Gram identity with QᵀQ, QᵀY and ‖y_i‖²
     from one streamed pass over the log-map and Q (the p-space error of
-    :func:`brdfpipe.sampling.direct_training_error`, without assuming
+    :func:`brdfpipe.acquisition.metrics.direct_training_error`, without assuming
     y_i = Q u_i).  ``rel_diff = |direct − predicted|/|predicted|`` with
     ``predicted`` the file's ``expected_error``.
 
@@ -1026,7 +1027,7 @@ def training_size_curve(
     Returns rows with keys :data:`TRAINING_SIZE_COLUMNS` (kind ``rms_log``,
     per material-channel and ``mean``/``all``).
     """
-    eta = sampling.check_eta(eta)
+    eta = metrics.check_eta(eta)
     t0 = time.perf_counter()
     st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
     lm = logmap_path if isinstance(logmap_path, Logmap) else open_logmap(logmap_path)
@@ -1046,7 +1047,7 @@ def training_size_curve(
     if not chosen:
         raise ValueError(f"{directions_path}: no set with n = {n_images}")
     lut = _lookup(lm.cells)
-    cells = np.concatenate([sampling.observation_cells(d.setup, c, lut >= 0) for c in chosen[0].configurations])
+    cells = np.concatenate([geometry.observation_cells(d.setup, c, lut >= 0) for c in chosen[0].configurations])
     obs_rows = lut[cells]
     mats = list(lm.materials)
     n_mat = len(mats)
