@@ -318,7 +318,8 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
     """The workflow's entry points: weights JSON files → summary, then the three render figures."""
     import json
 
-    from brdfpipe import figures
+    from brdfpipe.core.plot import FigureInputError
+    from brdfpipe.rendering import figures
     from brdfpipe.rendering.blend import error_maps_from_files
 
     prerenders, points, _ = _setup(tmp_path)
@@ -363,7 +364,7 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
                               blended=[p["blended"] for p in mapped], error_exrs=[p["error_exr"] for p in mapped],
                               error_pngs=[mapped[0]["error_png"]], summary=summary, database="synthetic")
     summary.unlink(missing_ok=True)
-    with pytest.raises(figures.FigureInputError, match="table.csv"):
+    with pytest.raises(FigureInputError, match="table.csv"):
         figures.make_render_figures(prerenders=prerenders, weights=wfiles,
                                     references=[p["reference"] for p in points],
                                     blended=[p["blended"] for p in mapped],
@@ -527,7 +528,8 @@ def test_floor_check_table_refuses_mixed_renders_and_other_databases(tmp_path: P
 
 
 def test_floor_check_figure(tmp_path: Path) -> None:
-    from brdfpipe import figures
+    from brdfpipe.core.plot import FigureInputError
+    from brdfpipe.rendering import figures
 
     inp = _floor_inputs(tmp_path)
     table = tmp_path / "floor-check.csv"
@@ -535,5 +537,5 @@ def test_floor_check_figure(tmp_path: Path) -> None:
     res = figures.plot_floor_check(table=table, files=[tmp_path / "f.png", tmp_path / "f.pdf"], database="synthetic")
     assert (tmp_path / "f.png").stat().st_size > 0 and "synthetic database" in res.title
     assert any("I¹⁻" in t for t in res.panel_titles)
-    with pytest.raises(figures.FigureInputError, match="this run's is 'merl'"):
+    with pytest.raises(FigureInputError, match="this run's is 'merl'"):
         figures.plot_floor_check(table=table, files=[tmp_path / "g.png", tmp_path / "g.pdf"], database="merl")

@@ -18,12 +18,11 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe import figures
+from brdfpipe.acquisition import figures
 from brdfpipe.core import filenames
-from brdfpipe.figures import (
+from brdfpipe.core.plot import FigureInputError, database_label, figure_stem
+from brdfpipe.acquisition.figures import (
     FIG08_COLUMNS,
-    FigureInputError,
-    database_label,
     fig05_error_vs_images,
     fig08_optimal_configurations,
     fig18_per_material,
@@ -255,7 +254,7 @@ def test_deterministic(inputs: dict[str, Path], outputs: tuple[Path, list[Path]]
 
 def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: Path,
                                             caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level(logging.WARNING, logger="brdfpipe.figures"):
+    with caplog.at_level(logging.WARNING, logger="brdfpipe"):
         files = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"],
                                          directions=inputs["dirs"], figures=figure_map(tmp_path),
                                          fovs=(15, 25, 35), n_point=7, fov_fixed=30)
@@ -408,10 +407,10 @@ def test_bad_figures_mapping_is_refused_before_writing(inputs: dict[str, Path], 
 
 def test_figure_stem(tmp_path: Path) -> None:
     a, b = tmp_path / "a", tmp_path / "b"
-    assert figures.figure_stem([a / "x.png", a / "x.pdf"]) == a / "x"
-    assert figures.figure_stem([str(b / f"y.{e}") for e in ("png", "pdf", "csv", "md")], table=True) == b / "y"
+    assert figure_stem([a / "x.png", a / "x.pdf"]) == a / "x"
+    assert figure_stem([str(b / f"y.{e}") for e in ("png", "pdf", "csv", "md")], table=True) == b / "y"
     for files, table in ((["x.pdf", "x.png"], False), (["x.png", "x.pdf"], True), (["x.png"], False),
                          (["x.png", "y.pdf"], False), (["x.png", "x.pdf", "x.md", "x.csv"], True)):
         with pytest.raises(ValueError):
-            figures.figure_stem([tmp_path / "c" / f for f in files], table=table)
+            figure_stem([tmp_path / "c" / f for f in files], table=table)
     assert files_under(tmp_path) == [] and not (tmp_path / "c").exists()

@@ -1,4 +1,4 @@
-"""Tests of the manifold-track figures of :mod:`brdfpipe.figures` (Soler 2018 analogues).
+"""Tests of the :mod:`brdfpipe.manifold.figures` (Soler 2018 analogues).
 
 The fixtures are small synthetic files in the formats ``brdfpipe.manifold.analysis``
 writes: GPLVM models (q = 2 and 5) fitted to a random Gram matrix of
@@ -20,16 +20,16 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe import figures
+from brdfpipe.manifold import figures
 from brdfpipe.manifold import gplvm
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
-from brdfpipe.figures import (
+from brdfpipe.core.plot import FigureInputError
+from brdfpipe.manifold.figures import (
     ALBEDO_COLUMNS,
     PATHS_COLUMNS,
     REPRODUCTION_COLUMNS,
     TRACE_COLUMNS,
-    FigureInputError,
     make_manifold_figures,
     manifold_eq7_bound,
     manifold_fig10_latent_q2,
@@ -370,7 +370,7 @@ def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     with Path(kw["paths_csv"]).open(encoding="utf-8", newline="") as fh:  # type: ignore[arg-type]
         recs = [r for r in csv.DictReader(fh) if r["q"] == "2"]
     paths = _write_csv(tmp_path / "paths-q2.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
-    with caplog.at_level(logging.WARNING, logger="brdfpipe.figures"):
+    with caplog.at_level(logging.WARNING, logger="brdfpipe"):
         files = make_manifold_figures(**{**kw, "models": {2: kw["models"][2]}, "traces": {}, "albedo_maps": {},  # type: ignore[index]
                                          "paths_csv": paths}, figures=figure_map(tmp_path / "out"))
     assert len(files) == 16 and all(p.is_file() for p in files)

@@ -1,6 +1,6 @@
 """Xu 2016 figure analogues from the evaluation and the direction sets (rule plot_acquisition_figures)."""
 
-from brdfpipe import figures
+from brdfpipe.acquisition import figures
 from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):

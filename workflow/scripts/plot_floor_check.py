@@ -1,6 +1,6 @@
 """The candidates' blends against the noise floor, per path point (rule plot_floor_check)."""
 
-from brdfpipe import figures
+from brdfpipe.rendering import figures
 from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):

@@ -1,6 +1,6 @@
 """Soler 2018 figure analogues of the manifold track (rule plot_manifold_figures)."""
 
-from brdfpipe import figures
+from brdfpipe.manifold import figures
 from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):

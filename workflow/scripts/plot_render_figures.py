@@ -1,6 +1,6 @@
 """Pre-render grid, interpolation strip and error panel of the rendering track (rule plot_render_figures)."""
 
-from brdfpipe import figures
+from brdfpipe.rendering import figures
 from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):

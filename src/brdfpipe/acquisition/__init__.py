@@ -9,5 +9,6 @@ and the track's figures.  Imports :mod:`brdfpipe.data` and :mod:`brdfpipe.core`.
 * :mod:`brdfpipe.acquisition.metrics`     – the expected error E(S) (eq. 15), condition number (eq. 6), eq. 4;
 * :mod:`brdfpipe.acquisition.geometry`    – setups and the MERL cells a configuration observes;
 * :mod:`brdfpipe.acquisition.optimize`    – the greedy few-to-many optimiser (§5.1) and directions files;
-* :mod:`brdfpipe.acquisition.reconstruct` – reconstruction from sparse observations, leave-out evaluation.
+* :mod:`brdfpipe.acquisition.reconstruct` – reconstruction from sparse observations, leave-out evaluation;
+* :mod:`brdfpipe.acquisition.figures`     – the Xu et al. 2016 figure analogues.
 """

@@ -2,7 +2,7 @@
 
 Everything here starts from the store, the centred Gram matrix of
 :func:`brdfpipe.manifold.gplvm.gram_matrix` and the saved fits; the figures are drawn
-by :mod:`brdfpipe.figures` from the files written by :func:`analyze_manifold`.
+by :mod:`brdfpipe.manifold.figures` from the files written by :func:`analyze_manifold`.
 
 Albedo (§4.2, Fig. 7)
 ---------------------

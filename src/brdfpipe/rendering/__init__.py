@@ -5,8 +5,9 @@ blended images and their error maps (the noise-floor check included), and
 the track's figures.  Imports :mod:`brdfpipe.data` and :mod:`brdfpipe.core`
 (the manifold's path points reach it as MERL files, not as imports).
 
-* :mod:`brdfpipe.rendering.render` – the ``merl`` BSDF for Mitsuba 3;
+* :mod:`brdfpipe.rendering.render`  – the ``merl`` BSDF for Mitsuba 3;
 * :mod:`brdfpipe.rendering.scene`  – the preview scene and its renders;
-* :mod:`brdfpipe.rendering.bounce` – a path tracer splitting I¹⁻ and I²⁺;
-* :mod:`brdfpipe.rendering.blend`  – blended images, error maps, the noise-floor check.
+* :mod:`brdfpipe.rendering.bounce`  – a path tracer splitting I¹⁻ and I²⁺;
+* :mod:`brdfpipe.rendering.blend`   – blended images, error maps, the noise-floor check;
+* :mod:`brdfpipe.rendering.figures` – pre-render grid, interpolation strip, error panel, floor-check plot.
 """

@@ -1,0 +1,880 @@
+"""Figure analogues of Xu et al. 2016 ("Minimal BRDF Sampling for Two-Shot
+Near-Field Reflectance Acquisition"), drawn from the evaluation stage's tables
+and the optimiser's directions files.
+
+Inputs
+------
+``errors.csv`` (tidy): ``database, split, setup, fov, metric, n, material,
+channel, kind, value``.  ``kind`` is ``rms_log`` (RMS error in log-mapped
+space, the papers' measure), ``relrms_linear`` or ``deviation`` (the
+E_deviation floor: rows with setup ``all``, fov 0, metric ``none``, n 0).
+Averages over the held-out materials are the rows with material ``mean`` and
+channel ``all``.  Setups: ``point`` (fov 0), ``nearfield``, ``fixed_camera``,
+``fixed_light``; metrics ``error`` (E(S), eq. 15) and ``condition`` (κ).
+
+``training_size.csv``: ``database, n_train, order_seed, material, channel,
+kind, value`` (+ mean rows).
+
+Directions files ``{directions_dir}/{split}/{setup}-fov{fov}-{metric}.json``
+(:func:`brdfpipe.acquisition.optimize.read_directions`).
+
+Outputs
+-------
+One public function per figure; each takes its input path(s) and an output
+*stem* and writes ``<stem>.png`` and ``<stem>.pdf`` (Fig. 8 also
+``<stem>.csv`` and ``<stem>.md``), each atomically (temporary sibling, then
+:func:`os.replace`), and returns a :class:`FigureOutput`.
+:func:`make_acquisition_figures` writes them all.
+
+=============================  ================================================
+``fig05-error-vs-images``      near-field error vs n, one panel per FOV,
+                               E(S) vs condition-number directions
+``fig06-fov-vs-point``         near-field (each FOV) vs point sampling
+``fig07-training-size``        error vs number of training materials
+``fig08-optimal-configurations``  table + 3-D sketch of the 1-/2-image
+                               near-field configurations per FOV (Figs. 8, 9)
+``fig13-fixed-camera-light``   fixed camera / fixed light / near-field / point
+``fig18-per-material``         per-material error of n point samples, with
+                               the E_deviation floor
+``fig19-error-vs-n``           point sampling error vs n, with the floor
+=============================  ================================================
+
+Every title names the database, read from the input (the CSV's ``database``
+column, the JSON's ``database`` key).  Missing combinations (a FOV, a metric,
+a set size) are skipped with a logged warning (a panel with no data says
+so); a missing, empty or malformed input *file* raises
+:class:`FigureInputError` (or :class:`FileNotFoundError`) naming the file.
+
+Style, determinism and atomic writing are :mod:`brdfpipe.core.plot`'s.  The
+manifold track's figures are :mod:`brdfpipe.manifold.figures`, the rendering
+track's :mod:`brdfpipe.rendering.figures`.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import math
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.ticker import LogFormatter, MaxNLocator
+
+from brdfpipe.core.atomic import atomic_write
+from brdfpipe.core.filenames import FIGURE_STEMS
+from brdfpipe.core.plot import (
+    COLOURS,
+    FigureInputError,
+    FigureOutput,
+    Warnings,
+    check_keys,
+    database_label,
+    figure_stem,
+    finish,
+    new_figure,
+    no_data,
+    parse_float,
+    parse_int,
+    read_csv,
+    single_database,
+    style,
+)
+
+__all__ = [
+    "ERRORS_COLUMNS",
+    "TRAINING_COLUMNS",
+    "FIGURE_STEMS",
+    "ErrorTable",
+    "TrainingTable",
+    "read_errors",
+    "read_training_size",
+    "fig05_error_vs_images",
+    "fig06_fov_vs_point",
+    "fig07_training_size",
+    "fig08_optimal_configurations",
+    "fig13_fixed_camera_light",
+    "fig18_per_material",
+    "fig19_error_vs_n",
+    "make_acquisition_figures",
+]
+
+logger = logging.getLogger("brdfpipe.acquisition.figures")
+
+#: Required columns of ``errors.csv`` (extra columns are ignored).
+ERRORS_COLUMNS: tuple[str, ...] = (
+    "database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value",
+)
+#: Required columns of ``training_size.csv``.
+TRAINING_COLUMNS: tuple[str, ...] = ("database", "n_train", "order_seed", "material", "channel", "kind", "value")
+
+_FOV_COLOURS = ("#1f77b4", "#2ca02c", "#9467bd", "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22")
+_IMAGE_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
+_METRIC_STYLE = {
+    "error": dict(label="min E(S) (eq. 15)", linestyle="-", marker="o"),
+    "condition": dict(label="min condition number κ", linestyle="--", marker="s"),
+}
+_KIND_LABEL = {
+    "rms_log": "RMS error (log-mapped BRDF)",
+    "relrms_linear": "relative RMS error (cosine-weighted BRDF)",
+    "deviation": "E_deviation (log-mapped BRDF)",
+}
+_SETUP_LABEL = {
+    "point": "point samples",
+    "nearfield": "near-field",
+    "fixed_camera": "fixed camera, moving light",
+    "fixed_light": "fixed light, moving camera",
+}
+_FOV_TOL = 1e-6
+
+
+# ---------------------------------------------------------------------------
+# Inputs
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ErrorTable:
+    """``errors.csv``, parsed: one value per (split, setup, fov, metric, n, material, channel, kind)."""
+
+    path: Path
+    database: str
+    values: dict[tuple[str, str, float, str, int, str, str, str], float]
+
+    def splits(self) -> list[str]:
+        return sorted({k[0] for k in self.values})
+
+    def fovs(self, split: str, setup: str, metric: str | None = None, kind: str | None = None) -> list[float]:
+        return sorted({k[2] for k in self.values if k[0] == split and k[1] == setup
+                       and (metric is None or k[3] == metric) and (kind is None or k[7] == kind)})
+
+    def series(self, split: str, setup: str, fov: float, metric: str, kind: str,
+               material: str = "mean", channel: str = "all") -> tuple[np.ndarray, np.ndarray]:
+        """(n, value) sorted by n, finite values only (empty arrays if none)."""
+        pts = sorted((k[4], v) for k, v in self.values.items()
+                     if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
+                     and k[5] == material and k[6] == channel and k[7] == kind and math.isfinite(v))
+        return (np.array([p[0] for p in pts], dtype=np.int64), np.array([p[1] for p in pts], dtype=np.float64))
+
+    def materials(self, split: str, setup: str, fov: float, metric: str, n: int, kind: str) -> list[str]:
+        return sorted({k[5] for k in self.values
+                       if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
+                       and k[4] == n and k[7] == kind and k[5] != "mean"})
+
+    def material_value(self, split: str, setup: str, fov: float, metric: str, n: int, kind: str,
+                       material: str) -> float:
+        """A material's value averaged over channels: its ``all`` row, else the mean of its channel rows."""
+        vals = {k[6]: v for k, v in self.values.items()
+                if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
+                and k[4] == n and k[7] == kind and k[5] == material}
+        if "all" in vals and math.isfinite(vals["all"]):
+            return vals["all"]
+        chans = [v for c, v in sorted(vals.items()) if c != "all" and math.isfinite(v)]
+        return float(np.mean(chans)) if chans else math.nan
+
+
+def read_errors(path: str | os.PathLike[str]) -> ErrorTable:
+    """Read and check ``errors.csv`` (:class:`FigureInputError` naming the file if it is malformed)."""
+    p, rows = read_csv(path, ERRORS_COLUMNS)
+    values: dict[tuple[str, str, float, str, int, str, str, str], float] = {}
+    for r in rows:
+        i = int(r["__line__"])
+        for c in ("split", "setup", "metric", "material", "channel", "kind"):
+            if not r[c]:
+                raise FigureInputError(f"{p}: line {i}: empty {c!r}")
+        key = (r["split"], r["setup"], parse_float(p, i, "fov", r["fov"]), r["metric"],
+               parse_int(p, i, "n", r["n"]), r["material"], r["channel"], r["kind"])
+        if key in values:
+            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(ERRORS_COLUMNS[1:9], key))}")
+        values[key] = parse_float(p, i, "value", r["value"])
+    return ErrorTable(p, single_database(p, (r["database"] for r in rows)), values)
+
+
+@dataclass(frozen=True)
+class TrainingTable:
+    """``training_size.csv``, parsed: value per (n_train, order_seed, material, channel, kind)."""
+
+    path: Path
+    database: str
+    values: dict[tuple[int, str, str, str, str], float]
+
+    def seeds(self, kind: str) -> list[str]:
+        return sorted({k[1] for k in self.values if k[4] == kind},
+                      key=lambda s: (0, int(s), s) if s.lstrip("-").isdigit() else (1, 0, s))
+
+    def series(self, seed: str, kind: str, material: str = "mean", channel: str = "all") -> tuple[np.ndarray, np.ndarray]:
+        pts = sorted((k[0], v) for k, v in self.values.items()
+                     if k[1] == seed and k[2] == material and k[3] == channel and k[4] == kind and math.isfinite(v))
+        return (np.array([p[0] for p in pts], dtype=np.int64), np.array([p[1] for p in pts], dtype=np.float64))
+
+
+def read_training_size(path: str | os.PathLike[str]) -> TrainingTable:
+    """Read and check ``training_size.csv`` (:class:`FigureInputError` naming the file if it is malformed)."""
+    p, rows = read_csv(path, TRAINING_COLUMNS)
+    values: dict[tuple[int, str, str, str, str], float] = {}
+    for r in rows:
+        i = int(r["__line__"])
+        for c in ("order_seed", "material", "channel", "kind"):
+            if not r[c]:
+                raise FigureInputError(f"{p}: line {i}: empty {c!r}")
+        key = (parse_int(p, i, "n_train", r["n_train"]), r["order_seed"], r["material"], r["channel"], r["kind"])
+        if key in values:
+            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(TRAINING_COLUMNS[1:6], key))}")
+        values[key] = parse_float(p, i, "value", r["value"])
+    return TrainingTable(p, single_database(p, (r["database"] for r in rows)), values)
+
+
+# ---------------------------------------------------------------------------
+# Drawing helpers
+# ---------------------------------------------------------------------------
+
+
+def _fov_text(fov: float) -> str:
+    return f"{fov:g}°"
+
+
+def _split_text(split: str) -> str:
+    if split == "train":
+        return "held-out materials (model and directions from the training split)"
+    if split == "all":
+        return "all materials (model and directions from every material: in-sample)"
+    return f"split '{split}'"
+
+
+def _choose_split(table: ErrorTable, split: str, warn: Warnings) -> str:
+    have = table.splits()
+    if split in have:
+        return split
+    other = [s for s in have if s != "all"] or have
+    warn(f"no rows for split {split!r} in {table.path}; using split {other[0]!r}")
+    return other[0]
+
+
+def _integer_x(ax: Any) -> None:
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
+class _PlainLogFormatter(LogFormatter):
+    """LogFormatter's choice of which ticks to label, written as plain numbers (0.3, 1, 20)."""
+
+    def __call__(self, x: float, pos: int | None = None) -> str:
+        return f"{x:.3g}" if super().__call__(x, pos) else ""
+
+
+def _auto_log_y(axes: Sequence[Any], values: Iterable[float]) -> None:
+    """Log y on all ``axes`` when the positive values span more than a factor of 8."""
+    v = np.array([x for x in values if math.isfinite(x)], dtype=np.float64)
+    if v.size and np.all(v > 0) and v.max() / v.min() > 8.0:
+        for ax in axes:
+            ax.set_yscale("log")
+            # plain numbers (0.3, 1, 2) rather than 3×10⁻¹; minor ticks labelled while the range is short
+            ax.yaxis.set_major_formatter(_PlainLogFormatter(labelOnlyBase=False, minor_thresholds=(2, 0.6)))
+            ax.yaxis.set_minor_formatter(_PlainLogFormatter(labelOnlyBase=False, minor_thresholds=(2, 0.6)))
+
+
+def _plot_series(ax: Any, n: np.ndarray, v: np.ndarray, **style: Any) -> None:
+    ax.plot(n, v, **style)
+
+
+# ---------------------------------------------------------------------------
+# Figures from errors.csv
+# ---------------------------------------------------------------------------
+
+
+def fig05_error_vs_images(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+                          fovs: Sequence[float] | None = None, split: str = "train",
+                          kind: str = "rms_log") -> FigureOutput:
+    """Xu Fig. 5: mean error over the held-out materials vs number of near-field images.
+
+    One panel per FOV (``fovs``, default every near-field FOV in the table);
+    curves for directions optimised with E(S) (eq. 15) and with the condition
+    number.  Absent FOVs / metrics are skipped with a warning.
+    """
+    table = read_errors(errors_csv)
+    warn = Warnings("fig05")
+    split = _choose_split(table, split, warn)
+    fov_list = list(fovs) if fovs is not None else table.fovs(split, "nearfield", kind=kind)
+    present = []
+    for fov in fov_list:
+        if any(abs(fov - f) < _FOV_TOL for f in table.fovs(split, "nearfield", kind=kind)):
+            present.append(float(fov))
+        else:
+            warn(f"no near-field rows for FOV {_fov_text(fov)} (split {split}, kind {kind}); panel skipped")
+    with style():
+        ncols = max(1, min(len(present), 4))
+        nrows = max(1, math.ceil(len(present) / ncols))
+        fig = new_figure(2.9 * ncols + 0.4, 2.7 * nrows + 0.7)
+        axes = fig.subplots(nrows, ncols, sharey=True, squeeze=False).ravel()
+        used, allv = [], []
+        for ax, fov in zip(axes, present):
+            ax.set_title(f"near-field, FOV {_fov_text(fov)}")
+            for metric in ("error", "condition"):
+                n, v = table.series(split, "nearfield", fov, metric, kind)
+                if n.size == 0:
+                    warn(f"no mean {kind} rows for near-field FOV {_fov_text(fov)}, metric {metric}")
+                    continue
+                st = _METRIC_STYLE[metric]
+                _plot_series(ax, n, v, color=COLOURS[0] if metric == "error" else COLOURS[3], **st)
+                allv.extend(v.tolist())
+            ax.set_xlabel("number of images n")
+            _integer_x(ax)
+            used.append(ax)
+        for ax in axes[len(present):]:
+            if not present and ax is axes[0]:
+                no_data(ax, "no near-field rows for the requested FOVs")
+            else:
+                ax.set_visible(False)
+        if used:
+            _auto_log_y(used, allv)
+            for ax in axes[::ncols]:
+                ax.set_ylabel(f"mean {_KIND_LABEL.get(kind, kind)}")
+            if used[0].get_legend_handles_labels()[0]:
+                used[0].legend(loc="best")
+        title = f"Near-field error vs number of images ({database_label(table.database)})"
+        return finish(fig, stem, title, "Xu 2016 Fig. 5 analogue: directions optimised with E(S) vs with the "
+                       f"condition number; mean over {_split_text(split)}", table.database, warn)
+
+
+def _nearfield_and_point(ax: Any, table: ErrorTable, split: str, kind: str, fovs: Sequence[float],
+                         warn: Warnings, allv: list[float]) -> None:
+    for i, fov in enumerate(fovs):
+        n, v = table.series(split, "nearfield", fov, "error", kind)
+        if n.size == 0:
+            warn(f"no mean {kind} rows for near-field FOV {_fov_text(fov)}, metric error; curve skipped")
+            continue
+        _plot_series(ax, n, v, color=_FOV_COLOURS[i % len(_FOV_COLOURS)], marker="o",
+                     label=f"near-field images, FOV {_fov_text(fov)}, min E(S)")
+        allv.extend(v.tolist())
+
+
+def _point_curves(ax: Any, table: ErrorTable, split: str, kind: str, warn: Warnings, allv: list[float]) -> None:
+    for metric, colour, label in (("error", COLOURS[1], "point samples, min E(S)"),
+                                  ("condition", COLOURS[3], "point samples, min κ (Xu eq. 6)")):
+        n, v = table.series(split, "point", 0.0, metric, kind)
+        if n.size == 0:
+            warn(f"no mean {kind} rows for point sampling, metric {metric}; curve skipped")
+            continue
+        _plot_series(ax, n, v, color=colour, marker="^" if metric == "error" else "v",
+                     linestyle="-" if metric == "error" else "--", label=label)
+        allv.extend(v.tolist())
+
+
+def fig06_fov_vs_point(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+                       fovs: Sequence[float] | None = None, split: str = "train",
+                       kind: str = "rms_log") -> FigureOutput:
+    """Xu Fig. 6: near-field error vs n for each FOV (E(S) directions) against point sampling vs n."""
+    table = read_errors(errors_csv)
+    warn = Warnings("fig06")
+    split = _choose_split(table, split, warn)
+    fov_list = [float(f) for f in fovs] if fovs is not None else table.fovs(split, "nearfield", "error", kind)
+    with style():
+        fig = new_figure(8.2, 4.3)
+        ax = fig.subplots()
+        allv: list[float] = []
+        _nearfield_and_point(ax, table, split, kind, fov_list, warn, allv)
+        _point_curves(ax, table, split, kind, warn, allv)
+        if allv:
+            _auto_log_y([ax], allv)
+            ax.set_xlabel("number of images (near-field) / point samples n")
+            ax.set_ylabel(f"mean {_KIND_LABEL.get(kind, kind)}")
+            _integer_x(ax)
+            ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+        else:
+            no_data(ax, "no near-field or point rows")
+        ax.set_title("near-field images vs point samples")
+        title = f"Near-field acquisition per field of view vs point sampling ({database_label(table.database)})"
+        return finish(fig, stem, title, f"Xu 2016 Fig. 6 analogue; mean over {_split_text(split)}",
+                       table.database, warn)
+
+
+def fig13_fixed_camera_light(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+                             fov: float = 25.0, split: str = "train", kind: str = "rms_log",
+                             include_condition: bool = True) -> FigureOutput:
+    """Xu Fig. 13: error vs n for fixed camera, fixed light and near-field (at ``fov``) and point sampling.
+
+    Solid: directions optimised with E(S); dashed (``include_condition``): with κ.
+    """
+    table = read_errors(errors_csv)
+    warn = Warnings("fig13")
+    split = _choose_split(table, split, warn)
+    curves = (("fixed_camera", fov, COLOURS[0]), ("fixed_light", fov, COLOURS[4]),
+              ("nearfield", fov, COLOURS[2]), ("point", 0.0, COLOURS[1]))
+    metrics = ("error", "condition") if include_condition else ("error",)
+    with style():
+        fig = new_figure(8.8, 4.5)
+        ax = fig.subplots()
+        allv: list[float] = []
+        for setup, f, colour in curves:
+            for metric in metrics:
+                n, v = table.series(split, setup, f, metric, kind)
+                where = f"{setup}" + ("" if setup == "point" else f" FOV {_fov_text(f)}")
+                if n.size == 0:
+                    warn(f"no mean {kind} rows for {where}, metric {metric}; curve skipped")
+                    continue
+                label = _SETUP_LABEL[setup] + ("" if setup == "point" else f" ({_fov_text(f)})")
+                label += ", min E(S)" if metric == "error" else ", min κ"
+                _plot_series(ax, n, v, color=colour, marker="o" if metric == "error" else "s",
+                             linestyle="-" if metric == "error" else "--",
+                             alpha=1.0 if metric == "error" else 0.6, label=label)
+                allv.extend(v.tolist())
+        if allv:
+            _auto_log_y([ax], allv)
+            ax.set_xlabel("number of images / point samples n")
+            ax.set_ylabel(f"mean {_KIND_LABEL.get(kind, kind)}")
+            _integer_x(ax)
+            ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+        else:
+            no_data(ax, f"no fixed-camera/light, near-field or point rows at {_fov_text(fov)}")
+        ax.set_title(f"image setups at FOV {_fov_text(fov)}; solid: min E(S), dashed: min κ")
+        title = (f"Fixed camera / fixed light vs near-field and point sampling "
+                 f"({database_label(table.database)})")
+        return finish(fig, stem, title, f"Xu 2016 Fig. 13 analogue; mean over {_split_text(split)}",
+                       table.database, warn)
+
+
+def _deviation_split(table: ErrorTable, split: str) -> str | None:
+    for s in (split, *table.splits()):
+        if any(k[0] == s and k[1] == "all" and k[7] == "deviation" for k in table.values):
+            return s
+    return None
+
+
+def _mean_deviation(table: ErrorTable, split: str, warn: Warnings) -> float | None:
+    s = _deviation_split(table, split)
+    if s is None:
+        warn(f"no deviation rows (setup all, kind deviation) in {table.path}; E_deviation floor omitted")
+        return None
+    if s != split:
+        warn(f"deviation rows only for split {s!r}; using them")
+    n, v = table.series(s, "all", 0.0, "none", "deviation")
+    if v.size:
+        return float(v[0])
+    mats = table.materials(s, "all", 0.0, "none", 0, "deviation")
+    vals = [table.material_value(s, "all", 0.0, "none", 0, "deviation", m) for m in mats]
+    vals = [x for x in vals if math.isfinite(x)]
+    if not vals:
+        warn("no finite deviation values; E_deviation floor omitted")
+        return None
+    warn("no mean deviation row; using the average of the per-material deviations")
+    return float(np.mean(vals))
+
+
+def fig19_error_vs_n(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+                     split: str = "train", kind: str = "rms_log") -> FigureOutput:
+    """Xu Fig. 19: point sampling error vs number of samples n (E(S) and κ directions), with the E_deviation floor."""
+    table = read_errors(errors_csv)
+    warn = Warnings("fig19")
+    split = _choose_split(table, split, warn)
+    with style():
+        fig = new_figure(6.0, 4.0)
+        ax = fig.subplots()
+        allv: list[float] = []
+        _point_curves(ax, table, split, kind, warn, allv)
+        floor = _mean_deviation(table, split, warn) if kind == "rms_log" else None
+        if allv:
+            if floor is not None:
+                ax.axhline(floor, color="black", linestyle=":", linewidth=1.4,
+                           label=f"E_deviation floor (mean, {floor:.3g})")
+                allv.append(floor)
+            _auto_log_y([ax], allv)
+            ax.set_xlabel("number of point samples n")
+            ax.set_ylabel(f"mean {_KIND_LABEL.get(kind, kind)}")
+            _integer_x(ax)
+            ax.legend(loc="best")
+        else:
+            no_data(ax, "no point-sampling rows")
+        ax.set_title("point sampling")
+        title = f"Point-sampling error vs number of samples ({database_label(table.database)})"
+        return finish(fig, stem, title, f"Xu 2016 Fig. 19 analogue; mean over {_split_text(split)}",
+                       table.database, warn)
+
+
+def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+                       n: int = 5, split: str = "train", kind: str = "rms_log") -> FigureOutput:
+    """Xu Fig. 18: per-material error of ``n`` point samples (E(S) and κ directions), with E_deviation markers.
+
+    Each material's value is its channel ``all`` row, else the mean of its
+    channel rows; materials are the held-out ones present in the table, in
+    name order.
+    """
+    table = read_errors(errors_csv)
+    warn = Warnings("fig18")
+    split = _choose_split(table, split, warn)
+    mats = sorted(set(table.materials(split, "point", 0.0, "error", n, kind))
+                  | set(table.materials(split, "point", 0.0, "condition", n, kind)))
+    dev_split = _deviation_split(table, split) if kind == "rms_log" else None
+    width = max(7.0, min(16.0, 1.4 + 0.45 * len(mats)))
+    with style():
+        fig = new_figure(width, 4.6)
+        ax = fig.subplots()
+        if not mats:
+            warn(f"no per-material point rows at n = {n} (split {split}, kind {kind})")
+            no_data(ax, f"no per-material point-sampling rows at n = {n}")
+        else:
+            x = np.arange(len(mats), dtype=np.float64)
+            bw = 0.38
+            bars = (("error", COLOURS[2], "directions: min E(S)"),
+                    ("condition", COLOURS[0], "directions: min κ (Xu eq. 6)"))
+            for j, (metric, colour, label) in enumerate(bars):
+                vals = np.array([table.material_value(split, "point", 0.0, metric, n, kind, m) for m in mats])
+                if not np.isfinite(vals).any():
+                    warn(f"no per-material point rows at n = {n} for metric {metric}; bars skipped")
+                    continue
+                ax.bar(x + (j - 0.5) * bw, np.where(np.isfinite(vals), vals, 0.0), width=bw, color=colour,
+                       label=label, zorder=2)
+            if dev_split is not None:
+                dev = np.array([table.material_value(dev_split, "all", 0.0, "none", 0, "deviation", m) for m in mats])
+                ok = np.isfinite(dev)
+                if ok.any():
+                    ax.plot(x[ok], dev[ok], linestyle="none", marker="_", markersize=16, markeredgewidth=2.2,
+                            color="black", label="E_deviation floor", zorder=3)
+                if not ok.all():
+                    warn(f"no deviation rows for {', '.join(m for m, o in zip(mats, ok) if not o)}")
+            elif kind == "rms_log":
+                warn(f"no deviation rows in {table.path}; E_deviation markers omitted")
+            ax.set_xticks(x, mats, rotation=45, ha="right", rotation_mode="anchor")
+            ax.set_xlim(-0.6, len(mats) - 0.4)
+            ax.set_xlabel("held-out material" if split == "train" else "material")
+            ax.set_ylabel(f"{_KIND_LABEL.get(kind, kind)}\n(average over colour channels)")
+            ax.grid(axis="x", visible=False)
+            fig.legend(loc="outside lower center", ncols=3)  # under the plot, clear of the bars
+        ax.set_title(f"point sampling, n = {n}, per material")
+        title = f"Per-material error of {n} point samples ({database_label(table.database)})"
+        return finish(fig, stem, title, f"Xu 2016 Fig. 18 analogue, with the E_deviation floor; {_split_text(split)}",
+                       table.database, warn)
+
+
+# ---------------------------------------------------------------------------
+# Fig. 7 (training_size.csv)
+# ---------------------------------------------------------------------------
+
+
+def fig07_training_size(training_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+                        kind: str = "rms_log", fov: float = 25.0, n_images: int = 2) -> FigureOutput:
+    """Xu Fig. 7: mean error over the held-out materials vs number of training materials.
+
+    One thin curve per material order (``order_seed``) and, when there are
+    several (or a ``mean`` order row exists), their average in bold.
+    ``fov`` and ``n_images`` only label the figure (the table has no such
+    columns; the evaluation stage computes it for 2-image near-field at 25°).
+    """
+    table = read_training_size(training_csv)
+    warn = Warnings("fig07")
+    seeds = table.seeds(kind)
+    with style():
+        fig = new_figure(6.0, 4.0)
+        ax = fig.subplots()
+        curves = [(s, *table.series(s, kind)) for s in seeds]
+        curves = [c for c in curves if c[1].size]
+        if not curves:
+            warn(f"no mean {kind} rows (material mean, channel all) in {table.path}")
+            no_data(ax, f"no mean {kind} rows")
+        else:
+            explicit = [c for c in curves if c[0] == "mean"]
+            orders = [c for c in curves if c[0] != "mean"]
+            many = len(orders) > 1
+            for i, (s, n, v) in enumerate(orders):
+                ax.plot(n, v, color=COLOURS[0] if not many else "#9ab7d3",
+                        linewidth=1.6 if not many else 0.9, marker="o" if not many else None,
+                        label=(f"material order {s}" if not many else ("individual material orders" if i == 0 else None)))
+            if explicit:
+                _, n, v = explicit[0]
+                ax.plot(n, v, color=COLOURS[0], linewidth=2.2, marker="o", label="average over material orders")
+            elif many:
+                ns = sorted(set.intersection(*(set(c[1].tolist()) for c in orders)))
+                if ns:
+                    avg = [np.mean([c[2][list(c[1]).index(k)] for c in orders]) for k in ns]
+                    ax.plot(ns, avg, color=COLOURS[0], linewidth=2.2, marker="o",
+                            label=f"average over {len(orders)} material orders")
+            ax.set_xlabel("number of training materials in the database")
+            ax.set_ylabel(f"mean {_KIND_LABEL.get(kind, kind)}")
+            _integer_x(ax)
+            ax.legend(loc="best")
+        ax.set_title(f"{n_images}-image near-field acquisition, FOV {_fov_text(fov)}")
+        title = f"Error vs number of training materials ({database_label(table.database)})"
+        return finish(fig, stem, title, "Xu 2016 Fig. 7 analogue; mean over the held-out materials; "
+                       "training materials added in random order", table.database, warn)
+
+
+# ---------------------------------------------------------------------------
+# Fig. 8 / 9 (directions files)
+# ---------------------------------------------------------------------------
+
+#: Columns of the Fig. 8 table (CSV and Markdown).
+FIG08_COLUMNS: tuple[str, ...] = (
+    "fov_deg", "n_images", "image", "theta_h_deg", "theta_d_deg", "phi_d_deg",
+    "light_theta_deg", "light_phi_deg", "camera_theta_deg", "camera_phi_deg",
+    "expected_error", "split", "database",
+)
+
+
+def _spherical_deg(v: Sequence[float]) -> tuple[float, float]:
+    x, y, z = (float(c) for c in v)
+    theta = math.degrees(math.acos(max(-1.0, min(1.0, z))))
+    phi = math.degrees(math.atan2(y, x)) % 360.0 if math.hypot(x, y) > 1e-9 else 0.0
+    if phi >= 360.0 - 1e-9:
+        phi = 0.0
+    return theta, phi
+
+
+@dataclass
+class _ConfigRow:
+    fov: float
+    n_images: int
+    image: int
+    theta_h: float
+    theta_d: float
+    phi_d: float
+    light: tuple[float, float, float]
+    camera: tuple[float, float, float]
+    expected_error: float
+    split: str
+    database: str
+    light_sph: tuple[float, float] = field(init=False)
+    camera_sph: tuple[float, float] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.light_sph = _spherical_deg(self.light)
+        self.camera_sph = _spherical_deg(self.camera)
+
+    def csv_values(self) -> list[str]:
+        return [f"{self.fov:g}", str(self.n_images), str(self.image),
+                f"{self.theta_h:.6f}", f"{self.theta_d:.6f}", f"{self.phi_d:.6f}",
+                f"{self.light_sph[0]:.6f}", f"{self.light_sph[1]:.6f}",
+                f"{self.camera_sph[0]:.6f}", f"{self.camera_sph[1]:.6f}",
+                f"{self.expected_error:.10g}", self.split, self.database]
+
+
+def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Sequence[float],
+                         n_images: Sequence[int], setup: str, metric: str, splits: Sequence[str],
+                         warn: Warnings) -> tuple[list[_ConfigRow], str]:
+    from brdfpipe.acquisition.optimize import read_directions  # noqa: PLC0415 (heavy import, only needed here)
+
+    loaded = []
+    for p in directions:
+        path = Path(p)
+        if not path.is_file():
+            raise FigureInputError(f"{path}: directions file not found")
+        loaded.append((path, read_directions(path)))  # ValueError naming the file if malformed
+    rows: list[_ConfigRow] = []
+    databases: dict[str, Path] = {}
+    for fov in fovs:
+        found = None
+        for split in splits:
+            found = next(((p, d) for p, d in loaded if d.split == split and d.setup.kind == setup
+                          and d.metric == metric and abs(d.setup.fov_deg - float(fov)) <= _FOV_TOL), None)
+            if found is not None:
+                break
+        if found is None:
+            warn(f"no {setup} {metric} directions file for FOV {_fov_text(fov)} among the inputs "
+                 f"(splits tried: {', '.join(splits)}); skipped")
+            continue
+        path, d = found
+        if not d.database:
+            raise FigureInputError(f"{path}: empty 'database'")
+        databases.setdefault(d.database, path)
+        by_n = {s.n: s for s in d.sets}
+        for n in n_images:
+            s = by_n.get(n)
+            if s is None:
+                warn(f"{path}: no set of {n} image(s); skipped")
+                continue
+            for i, rec in enumerate(s.records, start=1):
+                rows.append(_ConfigRow(
+                    fov=float(fov), n_images=n, image=i,
+                    theta_h=float(rec["theta_h_deg"]), theta_d=float(rec["theta_d_deg"]),
+                    phi_d=float(rec["phi_d_deg"]),
+                    light=tuple(float(c) for c in rec["light"]),  # type: ignore[arg-type]
+                    camera=tuple(float(c) for c in rec["camera"]),  # type: ignore[arg-type]
+                    expected_error=s.expected_error, split=d.split, database=d.database))
+    if len(databases) > 1:
+        raise FigureInputError("directions files from different databases: "
+                               + "; ".join(f"{db!r} ({p})" for db, p in sorted(databases.items())))
+    return rows, next(iter(databases), "")
+
+
+def _markdown(rows: Sequence[_ConfigRow], database: str, setup: str, metric: str) -> str:
+    lines = [
+        f"# Optimal {'- and '.join(sorted({str(r.n_images) for r in rows})) or '1- and 2'}-image "
+        f"{_SETUP_LABEL.get(setup, setup)} configurations (Xu 2016 Fig. 8 analogue), {database_label(database)}",
+        "",
+        f"Directions optimised with {'E(S) (eq. 15)' if metric == 'error' else 'the condition number'}; "
+        "angles in degrees at the centre of the sample (θh, θd, φd: Rusinkiewicz half/difference angles; "
+        "light and camera as (θ, φ) spherical angles from the sample normal). "
+        "E(S) is the expected error of the whole set.",
+        "",
+    ]
+    if not rows:
+        lines.append("No directions files were found for the requested fields of view.")
+        return "\n".join(lines) + "\n"
+    lines += [
+        "| FOV | images | image | θh | θd | φd | light (θ, φ) | camera (θ, φ) | E(S) | split |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r.fov:g}° | {r.n_images} | {r.image} | {r.theta_h:.1f} | {r.theta_d:.1f} | {r.phi_d:.1f} "
+            f"| ({r.light_sph[0]:.1f}, {r.light_sph[1]:.1f}) | ({r.camera_sph[0]:.1f}, {r.camera_sph[1]:.1f}) "
+            f"| {r.expected_error:.4g} | {r.split} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _draw_configuration(ax: Any, rows: Sequence[_ConfigRow], fov: float) -> None:
+    """3-D sketch: hemisphere, sample disk (radius tan(fov/2)), light arrows and camera positions."""
+    t = np.linspace(0.0, 2.0 * np.pi, 73)
+    for el in (0.0, 30.0, 60.0):  # parallels
+        r, z = math.cos(math.radians(el)), math.sin(math.radians(el))
+        ax.plot(r * np.cos(t), r * np.sin(t), np.full_like(t, z), color="#c8c8c8", linewidth=0.6)
+    s = np.linspace(0.0, 0.5 * np.pi, 25)
+    for az in range(0, 360, 45):  # meridians
+        a = math.radians(az)
+        ax.plot(np.cos(s) * math.cos(a), np.cos(s) * math.sin(a), np.sin(s), color="#dddddd", linewidth=0.5)
+    nu = math.tan(math.radians(fov) / 2.0)
+    ax.plot_trisurf(np.concatenate([[0.0], nu * np.cos(t)]), np.concatenate([[0.0], nu * np.sin(t)]),
+                    np.zeros(t.size + 1), color="#9e9e9e", alpha=0.55, linewidth=0, shade=False)
+    ax.plot(nu * np.cos(t), nu * np.sin(t), np.zeros_like(t), color="#555555", linewidth=0.8)
+    ax.plot([0, 0], [0, 0], [0, 1.05], color="#888888", linewidth=0.7, linestyle=":")
+    rim = np.stack([nu * np.cos(t[::9]), nu * np.sin(t[::9]), np.zeros(t[::9].size)], axis=1)
+    for r in rows:
+        colour = _IMAGE_COLOURS[(r.image - 1) % len(_IMAGE_COLOURS)]
+        li = np.asarray(r.light, dtype=np.float64)
+        ca = np.asarray(r.camera, dtype=np.float64)
+        start = 1.25 * li
+        ax.quiver(start[0], start[1], start[2], -start[0] * 0.88, -start[1] * 0.88, -start[2] * 0.88,
+                  color=colour, linewidth=1.8, arrow_length_ratio=0.18)
+        ax.text(*(1.34 * li), f"L{r.image}", color=colour, fontsize=8.5, fontweight="bold",
+                ha="center", va="center")
+        for p in rim:  # viewing cone to the disk rim
+            ax.plot([ca[0], p[0]], [ca[1], p[1]], [ca[2], p[2]], color=colour, linewidth=0.5, alpha=0.6)
+        ax.scatter([ca[0]], [ca[1]], [ca[2]], color=colour, marker="s", s=30, depthshade=False,
+                   label=(f"image {r.image}: L ({r.light_sph[0]:.0f}, {r.light_sph[1]:.0f}), "
+                          f"C ({r.camera_sph[0]:.0f}, {r.camera_sph[1]:.0f}); θh {r.theta_h:.0f}, "
+                          f"θd {r.theta_d:.0f}, φd {r.phi_d:.0f}"))
+        ax.text(*(1.14 * ca), f"C{r.image}", color=colour, fontsize=8.5, fontweight="bold",
+                ha="center", va="center")
+    ax.set_xlim(-1.05, 1.05)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_zlim(0.0, 1.1)
+    ax.set_box_aspect((1.0, 1.0, 0.55), zoom=1.3)
+    ax.view_init(elev=24, azim=-62)
+    ax.set_axis_off()
+
+
+def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], stem: str | os.PathLike[str], *,
+                                 fovs: Sequence[float], n_images: Sequence[int] = (1, 2),
+                                 setup: str = "nearfield", metric: str = "error",
+                                 splits: Sequence[str] = ("all", "train")) -> FigureOutput:
+    """Xu Figs. 8 and 9: table and sketch of the optimal 1- and 2-image configurations per FOV.
+
+    ``directions``: the direction files to choose from; for each FOV the
+    first of ``splits`` with a ``setup``/``metric`` file at that FOV is used
+    (``all``, the full database, as Xu's Fig. 8; else ``train``).  Writes
+    ``<stem>.csv`` (columns :data:`FIG08_COLUMNS`, one row per image),
+    ``<stem>.md`` and the sketch ``<stem>.png``/``.pdf`` (one 3-D panel per
+    FOV and set size: the hemisphere, the sample disk, light arrows L and
+    camera positions C with their viewing cones).
+    """
+    warn = Warnings("fig08")
+    rows, database = _load_configurations(directions, [float(f) for f in fovs], list(n_images), setup,
+                                          metric, list(splits), warn)
+    stem = Path(stem)
+    csv_path = stem.with_name(stem.name + ".csv")
+    md_path = stem.with_name(stem.name + ".md")
+
+    def write_csv(fh: Any) -> None:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(FIG08_COLUMNS)
+        for r in rows:
+            w.writerow(r.csv_values())
+
+    atomic_write(csv_path, write_csv, binary=False)
+    md = _markdown(rows, database, setup, metric)
+    atomic_write(md_path, lambda fh: fh.write(md), binary=False)
+
+    present = sorted({r.fov for r in rows})
+    sizes = [n for n in n_images if any(r.n_images == n for r in rows)]
+    with style():
+        ncols = max(1, len(sizes))
+        nrows = max(1, len(present))
+        fig = new_figure(4.2 * ncols + 0.2, 3.9 * nrows + 0.9)
+        if not rows:
+            ax = fig.subplots()
+            no_data(ax, "no directions files for the requested FOVs")
+        else:
+            # per FOV: a row of 3-D sketches and, under each, a strip holding its legend
+            gs = fig.add_gridspec(2 * nrows, ncols, height_ratios=[6.0, 1.0] * nrows)
+            for i, fov in enumerate(present):
+                for j, n in enumerate(sizes):
+                    ax = fig.add_subplot(gs[2 * i, j], projection="3d")
+                    key = fig.add_subplot(gs[2 * i + 1, j])
+                    key.set_axis_off()
+                    sel = [r for r in rows if r.fov == fov and r.n_images == n]
+                    if not sel:
+                        ax.set_axis_off()
+                        ax.set_title(f"FOV {_fov_text(fov)}, {n} image{'s' if n > 1 else ''}: no set")
+                        continue
+                    _draw_configuration(ax, sel, fov)
+                    ax.set_title(f"FOV {_fov_text(fov)}, {n} image{'s' if n > 1 else ''}, "
+                                 f"E(S) = {sel[0].expected_error:.3g}")
+                    handles, labels = ax.get_legend_handles_labels()
+                    key.legend(handles, labels, loc="upper center", fontsize=7.5, frameon=False,
+                               handletextpad=0.3, borderaxespad=0.0,
+                               title="L: light, C: camera as (θ, φ); angles in degrees", title_fontsize=7.5)
+        title = (f"Optimal {_SETUP_LABEL.get(setup, setup)} configurations per field of view "
+                 f"({database_label(database) if database else 'no directions files found'})")
+        splits_used = sorted({r.split for r in rows})
+        subtitle = ("Xu 2016 Figs. 8-9 analogue; arrows L: light, squares C: camera with its view cone "
+                    f"to the sample disk; directions from split {', '.join(splits_used) or '-'}")
+        return finish(fig, stem, title, subtitle, database, warn, extra=(csv_path, md_path))
+
+
+# ---------------------------------------------------------------------------
+# All figures
+# ---------------------------------------------------------------------------
+
+
+def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
+                             training_csv: str | os.PathLike[str] | None,
+                             directions: Sequence[str | os.PathLike[str]],
+                             figures: Mapping[str, Sequence[str | os.PathLike[str]]],
+                             fovs: Sequence[float], n_point: int, fov_fixed: float = 25.0,
+                             split: str = "train", kind: str = "rms_log") -> list[Path]:
+    """Write the requested Xu 2016 figure analogues; return the files written.
+
+    ``figures``: figure key (of :data:`FIGURE_STEMS`) → its output files
+    (PNG, PDF; Fig. 8 also CSV and Markdown), exactly as the workflow
+    declares them; only these figures are drawn.  ``training_csv`` is needed
+    for ``fig07``, ``directions`` (the direction files to tabulate) for
+    ``fig08``.  ``fovs``: near-field FOVs of Figs. 5, 6 and 8; ``n_point``:
+    number of point samples of Fig. 18; ``fov_fixed``: the FOV of Figs. 7
+    (label) and 13; ``split``: the errors.csv split whose rows are plotted
+    (``train``: directions from the training split, evaluated on the
+    held-out materials).
+    """
+    check_keys(figures, FIGURE_STEMS, "make_acquisition_figures")
+    stems = {k: figure_stem(v, table=(k == "fig08")) for k, v in figures.items()}
+    # Check every input before writing anything: a bad file stops the run with no partial output.
+    read_errors(errors_csv)
+    if "fig07" in stems:
+        if training_csv is None:
+            raise ValueError("fig07 needs the training-size table (training_csv)")
+        read_training_size(training_csv)
+    fovs = [float(f) for f in fovs]
+    draw = {
+        "fig05": lambda st: fig05_error_vs_images(errors_csv, st, fovs=fovs, split=split, kind=kind),
+        "fig06": lambda st: fig06_fov_vs_point(errors_csv, st, fovs=fovs, split=split, kind=kind),
+        "fig07": lambda st: fig07_training_size(training_csv, st, kind=kind, fov=fov_fixed),  # type: ignore[arg-type]
+        "fig08": lambda st: fig08_optimal_configurations(directions, st, fovs=fovs),
+        "fig13": lambda st: fig13_fixed_camera_light(errors_csv, st, fov=fov_fixed, split=split, kind=kind),
+        "fig18": lambda st: fig18_per_material(errors_csv, st, n=n_point, split=split, kind=kind),
+        "fig19": lambda st: fig19_error_vs_n(errors_csv, st, split=split, kind=kind),
+    }
+    results = [draw[k](stems[k]) for k in FIGURE_STEMS if k in stems]
+    dbs = {r.database for r in results if r.database}
+    if len(dbs) > 1:
+        logger.warning("figures: inputs name different databases: %s", ", ".join(sorted(dbs)))
+    return [p for r in results for p in r.files]
