@@ -209,6 +209,11 @@ def test_digests_change_with_the_code_they_cover(tmp_path: Path, monkeypatch: py
     assert after[0] != before[0]  # the job that runs svd changes
     assert after[1] == before[1]  # a job that does not is untouched
     assert after[2] != before[2]  # and the version of every output tells the two apart
+    # importing brdfpipe.rendering.scene runs brdfpipe/rendering/__init__.py: an edit there reruns it
+    init = pkg / "rendering" / "__init__.py"
+    init.write_text(init.read_text() + "\n# an edit\n")
+    again = digests()
+    assert again[1] != after[1] and again[0] == after[0]
     version._imports.cache_clear()
     version.full_version.cache_clear()
 

@@ -100,7 +100,7 @@ def register_bounce_integrator() -> None:
 
     from brdfpipe.rendering import render
 
-    variant = render._current_variant()
+    variant = render.current_variant()
     with _lock:
         if variant in _registered:
             return

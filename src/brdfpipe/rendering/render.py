@@ -113,6 +113,7 @@ __all__ = [
     "VARIANTS",
     "RenderError",
     "use_variant",
+    "current_variant",
     "set_cpu_threads",
     "register_merl_bsdf",
     "merl_bsdf",
@@ -233,7 +234,8 @@ class _NoVariantError(RenderError, AttributeError):
     """No supported variant is set (an AttributeError too, for ``render.MerlBSDF``)."""
 
 
-def _current_variant() -> str:
+def current_variant() -> str:
+    """The Mitsuba variant now set, if it is one of :data:`VARIANTS`; otherwise an error saying to call :func:`use_variant`."""
     import mitsuba as mi
 
     variant = mi.variant()
@@ -254,7 +256,7 @@ def register_merl_bsdf() -> None:
     """
     import mitsuba as mi
 
-    variant = _current_variant()
+    variant = current_variant()
     with _lock:
         if variant in _registered:
             return
@@ -272,7 +274,7 @@ def __getattr__(name: str) -> Any:
     # ``MerlBSDF`` subclasses the current variant's ``mi.BSDF``, so it is
     # created on first access (after use_variant), not at import.
     if name == "MerlBSDF":
-        return _merl_class(_current_variant())
+        return _merl_class(current_variant())
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -782,7 +784,7 @@ def tabulate_bsdf(bsdf: Any, chunk: int = 1 << 18) -> NDArray[np.float64]:
     import drjit as dr
     import mitsuba as mi
 
-    _current_variant()
+    current_variant()
     obj = mi.load_dict(dict(bsdf)) if isinstance(bsdf, dict) else bsdf
     if not isinstance(obj, mi.BSDF):
         raise TypeError(f"expected a BSDF dictionary or instance, got {type(obj).__name__}")
