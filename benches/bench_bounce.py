@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfpipe.rendering import blend, bounce, render, scene
 from brdfpipe.data import merl, synth
+from brdfpipe.rendering import blend, bounce, render, scene
 
 
 def main() -> None:

@@ -78,8 +78,8 @@ TARGET_S = 600.0
 
 def fit_model(store_path: Path, splits: Path, work: Path) -> Path:
     """Write the train log-map and fit the model in ``work``; returns the model path."""
-    from brdfpipe.data import logmap
     from brdfpipe.acquisition import svd
+    from brdfpipe.data import logmap
 
     st, train = training_materials(store_path, splits)
     split = "train" if set(train) != set(st.materials) else "all"

@@ -67,9 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", type=Path, help="folder for the generated data (default: a temporary one)")
     args = ap.parse_args(argv)
 
-    from brdfpipe.manifold import gplvm
     from brdfpipe.data import logmap, store, synth
     from brdfpipe.data.database import folder_database
+    from brdfpipe.manifold import gplvm
 
     work = Path(tempfile.mkdtemp(prefix="bench-verify-", dir=args.work))
     try:

@@ -10,8 +10,8 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe.rendering import blend
 from brdfpipe.core import filenames
+from brdfpipe.rendering import blend
 from brdfpipe.rendering.blend import (
     SUMMARY_COLUMNS,
     BlendError,

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from brdfpipe.rendering import bounce, render, scene
 from brdfpipe.data import merl
+from brdfpipe.rendering import bounce, render, scene
 
 VARIANT = "llvm_ad_rgb"
 Z = 4.0

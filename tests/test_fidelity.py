@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import scipy.spatial
 
-from brdfpipe.manifold import fidelity, gplvm, latent, analysis
 from brdfpipe.data import merl, store, synth
 from brdfpipe.data.merl import N_CELLS
+from brdfpipe.manifold import analysis, fidelity, gplvm, latent
 
 N = 8
 

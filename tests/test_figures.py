@@ -1,4 +1,4 @@
-"""Tests of :mod:`brdfpipe.figures` (Xu 2016 figure analogues) on small fixtures.
+"""Tests of :mod:`brdfpipe.acquisition.figures` (Xu 2016 figure analogues) on small fixtures.
 
 The fixtures are written here: an errors.csv with 2 near-field FOVs (15° and
 25°), fixed camera / fixed light at 25°, point sampling, n = 1…3, both
@@ -20,7 +20,7 @@ import pytest
 
 from brdfpipe.acquisition import figures
 from brdfpipe.core import filenames
-from brdfpipe.core.plot import FigureInputError, database_label, figure_stem
+from brdfpipe.core.plot import database_label, figure_stem, FigureInputError
 from brdfpipe.acquisition.figures import (
     FIG08_COLUMNS,
     fig05_error_vs_images,
@@ -29,9 +29,9 @@ from brdfpipe.acquisition.figures import (
     make_acquisition_figures,
     read_errors,
 )
-from brdfpipe.core.filenames import FIGURE_STEMS
-from brdfpipe.acquisition.geometry import Setup, config_to_dict
+from brdfpipe.acquisition.geometry import config_to_dict, Setup
 from brdfpipe.acquisition.optimize import DirectionSet, read_directions, write_directions
+from brdfpipe.core.filenames import FIGURE_STEMS
 
 DB = "synthetic"
 MATERIALS = ("blue-acrylic", "gold-metallic-paint", "white-fabric")

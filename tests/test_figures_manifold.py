@@ -20,11 +20,10 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe.manifold import figures
-from brdfpipe.manifold import gplvm
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
-from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
 from brdfpipe.core.plot import FigureInputError
+from brdfpipe.manifold import figures, gplvm
+from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
 from brdfpipe.manifold.figures import (
     ALBEDO_COLUMNS,
     PATHS_COLUMNS,

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from brdfpipe.manifold import gplvm
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
+from brdfpipe.manifold import gplvm
 
 
 # --------------------------------------------------------------------------

@@ -13,8 +13,8 @@ import scipy.spatial
 import scipy.stats
 
 from brdfpipe import cli
-from brdfpipe.manifold import gplvm, latent, analysis
 from brdfpipe.data import merl, store, synth
+from brdfpipe.manifold import analysis, gplvm, latent
 
 # --------------------------------------------------------------------------
 # hull_contains

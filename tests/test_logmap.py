@@ -20,11 +20,11 @@ import zarr
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.core.atomic import OutputError
+from brdfpipe.core.version import full_version
+from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.data.logmap import EPS, LogmapError
-from brdfpipe.core.version import full_version
 
 # --------------------------------------------------------------------------
 # Fixtures

@@ -7,9 +7,9 @@ import csv
 import numpy as np
 import pytest
 
-from brdfpipe.manifold import gplvm, analysis
-from brdfpipe.data import merl, store, synth
 from brdfpipe.core.plan import ConfigError
+from brdfpipe.data import merl, store, synth
+from brdfpipe.manifold import analysis, gplvm
 
 
 @pytest.fixture(scope="module")

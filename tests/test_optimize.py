@@ -21,11 +21,11 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from brdfpipe.core import filenames
-from brdfpipe.data import merl
-from brdfpipe.acquisition.geometry import Setup, config_to_dict, observation_cells
+from brdfpipe.acquisition.geometry import config_to_dict, observation_cells, Setup
 from brdfpipe.acquisition.metrics import ErrorModel, condition_number, direct_training_error, expected_error, selection_stats
 from brdfpipe.acquisition.optimize import DIRECTIONS_FORMAT, DirectionSet, optimize, read_directions, write_directions
+from brdfpipe.core import filenames
+from brdfpipe.data import merl
 
 T = 40  # candidates per greedy add (the paper's 500 is the default; small here for speed)
 

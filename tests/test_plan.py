@@ -11,8 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from brdfpipe.core import filenames as fn
-from brdfpipe.core import plan, version
+from brdfpipe.core import filenames as fn, plan, version
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())

@@ -19,8 +19,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.core import atomic
-from brdfpipe.data import merl, synth
-from brdfpipe.data import database as db
+from brdfpipe.data import database as db, merl, synth
 
 COUNT, SEED = 3, 5
 

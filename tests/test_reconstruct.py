@@ -19,11 +19,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from brdfpipe.acquisition import geometry, metrics, optimize, reconstruct, svd
+from brdfpipe.cli import main as cli_main
 from brdfpipe.core import filenames
 from brdfpipe.data import logmap, merl, store, synth
-from brdfpipe.acquisition import reconstruct, svd
-from brdfpipe.acquisition import geometry, metrics, optimize
-from brdfpipe.cli import main as cli_main
 from brdfpipe.data.database import folder_database
 from brdfpipe.acquisition.reconstruct import (
     CONSISTENCY_COLUMNS,

@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from brdfpipe.data import merl
 from brdfpipe.acquisition.geometry import DEFAULT_GRID, SETUP_KINDS, Setup, centre_directions, config_from_dict, config_to_dict, observation_cells, pixel_directions
+from brdfpipe.data import merl
 
 MEASURED = merl.measured_mask()
 MEASURED_CELLS = np.flatnonzero(MEASURED.ravel())

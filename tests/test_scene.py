@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from brdfpipe.rendering import scene
 from brdfpipe.core.exr import read_exr, read_exr_attrs
+from brdfpipe.rendering import scene
 
 RES = (32, 24)
 PLASTIC = {"type": "roughplastic", "diffuse_reflectance": {"type": "rgb", "value": [0.6, 0.3, 0.1]}}

@@ -21,12 +21,12 @@ import pytest
 import zarr
 from numpy.typing import NDArray
 
-from brdfpipe.manifold import gplvm
-from brdfpipe.data import merl, store
 from brdfpipe.core.atomic import OutputError
-from brdfpipe.data.merl import N_CELLS, MerlFormatError
-from brdfpipe.data.store import N_COLS, StoreError
 from brdfpipe.core.version import full_version
+from brdfpipe.data import merl, store
+from brdfpipe.data.merl import MerlFormatError, N_CELLS
+from brdfpipe.data.store import N_COLS, StoreError
+from brdfpipe.manifold import gplvm
 
 N_MATERIALS = 3
 

@@ -18,12 +18,12 @@ import pytest
 import scipy.linalg
 import zarr
 
-from brdfpipe.data import logmap, store, synth
 from brdfpipe.acquisition import svd
-from brdfpipe.core.atomic import OutputError
-from brdfpipe.data.database import folder_database
 from brdfpipe.acquisition.svd import ModelError
+from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
+from brdfpipe.data import logmap, store, synth
+from brdfpipe.data.database import folder_database
 
 # --------------------------------------------------------------------------
 # Fixtures

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe.data import merl, synth
 from brdfpipe.core.version import full_version
+from brdfpipe.data import merl, synth
 
 SEED = 11
 NOISE = 0.01

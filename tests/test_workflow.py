@@ -96,8 +96,7 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert (tmp_path / "logs" / "assemble_store.log").stat().st_size > 0
     assert len(list((tmp_path / "benchmarks" / "ingest_material").glob("*.tsv"))) == 12
     # acquisition track: models of both splits, direction sets of every setup
-    from brdfpipe.acquisition import optimize
-    from brdfpipe.acquisition import svd
+    from brdfpipe.acquisition import optimize, svd
 
     model = svd.open_model(tmp_path / "results" / "svd" / "train.zarr")
     assert model.database == "synthetic" and model.m == 27

@@ -150,8 +150,8 @@ def _cmd_nearest(args: argparse.Namespace) -> int:
 
 
 def _cmd_extrapolate(args: argparse.Namespace) -> int:
-    from brdfpipe.manifold import gplvm, latent
     from brdfpipe.data import merl
+    from brdfpipe.manifold import gplvm, latent
 
     if args.out is not None:
         check_not_input(args.out, [args.model, args.store])
@@ -193,8 +193,8 @@ def _cmd_sample(args: argparse.Namespace) -> int:
     import numpy as np
 
     from brdfpipe.core import atomic
-    from brdfpipe.manifold import gplvm, latent
     from brdfpipe.data import merl
+    from brdfpipe.manifold import gplvm, latent
 
     out_dir = Path(args.out_dir)
     check_not_input(out_dir, [args.model, args.store], what="--out-dir")

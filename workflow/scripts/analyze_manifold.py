@@ -1,7 +1,7 @@
 """Albedos, albedo maps, latent paths and reproduction errors of the GPLVM fits (rule analyze_manifold)."""
 
-from brdfpipe.manifold import analysis
 from brdfpipe.core.logutil import log_to
+from brdfpipe.manifold import analysis
 
 with log_to(snakemake.log[0]):
     analysis.analyze_manifold(

@@ -1,7 +1,7 @@
 """Assemble and validate the whole materials x cells Zarr store (rule assemble_store)."""
 
-from brdfpipe.data import store
 from brdfpipe.core.logutil import log_to
+from brdfpipe.data import store
 
 with log_to(snakemake.log[0]):
     store.assemble_store(

@@ -1,7 +1,7 @@
 """Share of I²⁺ (≥ 2 scatterings on the material) in each pre-render (rule bounce_shares)."""
 
-from brdfpipe.rendering import blend
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import blend
 
 with log_to(snakemake.log[0]):
     blend.bounce_shares(

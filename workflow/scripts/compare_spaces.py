@@ -1,7 +1,7 @@
 """The GPLVM candidates' fidelity tables in one table each (rule compare_spaces)."""
 
-from brdfpipe.manifold import fidelity
 from brdfpipe.core.logutil import log_to
+from brdfpipe.manifold import fidelity
 
 with log_to(snakemake.log[0]):
     fidelity.combine_candidates(

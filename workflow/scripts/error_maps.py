@@ -1,7 +1,7 @@
 """Blended pre-renders vs reference renders along the latent paths (rule error_maps)."""
 
-from brdfpipe.rendering import blend
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import blend
 
 with log_to(snakemake.log[0]):
     blend.error_maps_from_files(

@@ -1,7 +1,7 @@
 """GPLVM latent space of dimension q (rule fit_gplvm)."""
 
-from brdfpipe.manifold import gplvm
 from brdfpipe.core.logutil import log_to
+from brdfpipe.manifold import gplvm
 
 with log_to(snakemake.log[0]):
     gplvm.fit_to_files(

@@ -1,7 +1,7 @@
 """Validate one MERL file and write it as a one-row Zarr store (rule ingest_material)."""
 
-from brdfpipe.data import store
 from brdfpipe.core.logutil import log_to
+from brdfpipe.data import store
 
 with log_to(snakemake.log[0]):
     store.ingest_material(

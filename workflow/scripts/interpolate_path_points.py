@@ -1,7 +1,7 @@
 """The interpolated materials at every point of the latent paths (rule interpolate_path_points)."""
 
-from brdfpipe.manifold import analysis
 from brdfpipe.core.logutil import log_to
+from brdfpipe.manifold import analysis
 
 with log_to(snakemake.log[0]):
     analysis.path_points_to_files(

@@ -1,7 +1,7 @@
 """The scene's sky + sun environment map (rule make_envmap)."""
 
-from brdfpipe.rendering import scene
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import scene
 
 with log_to(snakemake.log[0]):
     scene.make_envmap(

@@ -1,7 +1,7 @@
 """Log-relative mapping of one split's training rows (rule map_logrelative)."""
 
-from brdfpipe.data import logmap
 from brdfpipe.core.logutil import log_to
+from brdfpipe.data import logmap
 
 with log_to(snakemake.log[0]):
     logmap.write_logmap(

@@ -1,7 +1,7 @@
 """Every fidelity measure of one GPLVM candidate (data space, mu) (rule measure_gplvm_candidate)."""
 
-from brdfpipe.manifold import fidelity
 from brdfpipe.core.logutil import log_to
+from brdfpipe.manifold import fidelity
 
 with log_to(snakemake.log[0]):
     fidelity.measure_candidate(

@@ -1,7 +1,7 @@
 """The candidates' blends against the noise floor, per path point (rule plot_floor_check)."""
 
-from brdfpipe.rendering import figures
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import figures
 
 with log_to(snakemake.log[0]):
     figures.plot_floor_check(

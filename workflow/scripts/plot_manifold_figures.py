@@ -1,7 +1,7 @@
 """Soler 2018 figure analogues of the manifold track (rule plot_manifold_figures)."""
 
-from brdfpipe.manifold import figures
 from brdfpipe.core.logutil import log_to
+from brdfpipe.manifold import figures
 
 with log_to(snakemake.log[0]):
     q = snakemake.params.latent_dims

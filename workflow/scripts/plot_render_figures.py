@@ -1,7 +1,7 @@
 """Pre-render grid, interpolation strip and error panel of the rendering track (rule plot_render_figures)."""
 
-from brdfpipe.rendering import figures
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import figures
 
 with log_to(snakemake.log[0]):
     figures.make_render_figures(

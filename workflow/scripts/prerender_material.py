@@ -1,7 +1,7 @@
 """Global-illumination pre-render of one material and its I¹⁻ part, one render (rule prerender_material)."""
 
-from brdfpipe.rendering import scene
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import scene
 
 with log_to(snakemake.log[0]):
     scene.render_material(

@@ -1,7 +1,7 @@
 """The preview object's pixel mask (rule render_object_mask)."""
 
-from brdfpipe.rendering import scene
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import scene
 
 with log_to(snakemake.log[0]):
     scene.render_object_mask(

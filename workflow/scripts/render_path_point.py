@@ -1,7 +1,7 @@
 """Reference renders of an interpolated material with two seeds, and their I¹⁻ parts (rule render_path_point)."""
 
-from brdfpipe.rendering import scene
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import scene
 
 with log_to(snakemake.log[0]):
     scene.render_material_seeds(

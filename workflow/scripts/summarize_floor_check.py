@@ -1,7 +1,7 @@
 """Every candidate's blends against the noise floor in one table (rule summarize_floor_check)."""
 
-from brdfpipe.rendering import blend
 from brdfpipe.core.logutil import log_to
+from brdfpipe.rendering import blend
 
 
 def _per_candidate(files, candidates, points):

@@ -1,7 +1,7 @@
 """Generate one synthetic MERL-format material (rule synthesize_material)."""
 
-from brdfpipe.data import synth
 from brdfpipe.core.logutil import log_to
+from brdfpipe.data import synth
 
 with log_to(snakemake.log[0]):
     synth.write_named_material(

@@ -1,7 +1,7 @@
 """Write the synthetic database's manifest (rule write_manifest)."""
 
-from brdfpipe.data import synth
 from brdfpipe.core.logutil import log_to
+from brdfpipe.data import synth
 
 with log_to(snakemake.log[0]):
     synth.write_database_manifest(

@@ -1,7 +1,7 @@
 """Write the train/test split of the stored materials (rule write_splits)."""
 
-from brdfpipe.data import database
 from brdfpipe.core.logutil import log_to
+from brdfpipe.data import database
 
 with log_to(snakemake.log[0]):
     database.write_splits(

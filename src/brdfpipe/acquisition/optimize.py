@@ -681,7 +681,7 @@ def optimize(
         Seed of the ``numpy.random.Generator`` (candidates, sweep order).
     log:
         A callable taking one line, a :class:`logging.Logger`, or None (the
-        ``brdfpipe.sampling`` logger, INFO): one line per greedy add, accepted
+        ``brdfpipe.acquisition.optimize`` logger, INFO): one line per greedy add, accepted
         move, step change and convergence, with the metric value.
     evaluation:
         How candidates' E(S) is computed: ``"fast"`` (default) by low-rank

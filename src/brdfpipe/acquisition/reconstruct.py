@@ -139,17 +139,16 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
-from brdfpipe.data import logmap, merl
-from brdfpipe.acquisition import geometry, metrics
-from brdfpipe.acquisition import svd
-from brdfpipe.data.logmap import Logmap, open_logmap
-from brdfpipe.data.merl import N_CELLS
+from brdfpipe.acquisition import geometry, metrics, svd
 from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import Directions, read_directions
+from brdfpipe.acquisition.svd import Model, open_model
+from brdfpipe.core import atomic
+from brdfpipe.data import logmap, merl
+from brdfpipe.data.logmap import Logmap, open_logmap
+from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
 from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
-from brdfpipe.acquisition.svd import Model, open_model
 
 __all__ = [
     "CHANNELS",

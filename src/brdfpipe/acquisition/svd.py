@@ -110,11 +110,11 @@ import zarr
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core.atomic import atomic_dir, check_replaceable, save_npz
-from brdfpipe.data.logmap import Logmap, iter_columns, open_logmap
-from brdfpipe.data.merl import N_CELLS
-from brdfpipe.data.store import read_ahead
 from brdfpipe.core.version import full_version
 from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
+from brdfpipe.data.logmap import iter_columns, Logmap, open_logmap
+from brdfpipe.data.merl import N_CELLS
+from brdfpipe.data.store import read_ahead
 
 __all__ = [
     "TOL",

@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Literal
 
 from brdfpipe.core import atomic
-from brdfpipe.data import synth
 from brdfpipe.core.version import full_version
+from brdfpipe.data import synth
 from brdfpipe.data.synth import default_test_count
 
 __all__ = [

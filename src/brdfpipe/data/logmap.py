@@ -93,13 +93,13 @@ import numpy as np
 import zarr
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.data import merl
 from brdfpipe.core.atomic import atomic_dir, check_replaceable
+from brdfpipe.core.version import full_version
+from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
+from brdfpipe.data import merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, material_indices, open_store
-from brdfpipe.core.version import full_version
-from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
 
 __all__ = [
     "EPS",

@@ -189,11 +189,11 @@ from zarr.codecs import BloscCodec
 from zarr.core.buffer import default_buffer_prototype
 from zarr.core.group import GroupMetadata
 
-from brdfpipe.data import merl
 from brdfpipe.core.atomic import atomic_dir, check_replaceable, clean_stale_siblings, remove_tree, tmp_sibling
-from brdfpipe.data.merl import DIMS, FILE_SIZE, HEADER_BYTES, N_CELLS, SCALES, MerlFormatError
 from brdfpipe.core.version import full_version
 from brdfpipe.core.zgroup import COMPLETE_ATTR, format_predicate, open_finished_group
+from brdfpipe.data import merl
+from brdfpipe.data.merl import DIMS, FILE_SIZE, HEADER_BYTES, MerlFormatError, N_CELLS, SCALES
 
 __all__ = [
     "read_ahead",

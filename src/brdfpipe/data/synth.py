@@ -156,8 +156,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
-from brdfpipe.data import merl
 from brdfpipe.core.version import full_version
+from brdfpipe.data import merl
 
 __all__ = [
     "FAMILIES",

@@ -57,11 +57,11 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
-from brdfpipe.manifold import gplvm, latent, perceptual
-from brdfpipe.data import merl
 from brdfpipe.core.filenames import path_name
-from brdfpipe.core.plan import SOLER_PATHS, check_paths, default_paths
+from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
+from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, iter_column_blocks, open_store
+from brdfpipe.manifold import gplvm, latent, perceptual
 
 __all__ = [
     "ALBEDO_NODES",

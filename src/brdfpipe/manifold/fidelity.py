@@ -61,7 +61,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
-from brdfpipe.manifold import gplvm, latent, analysis, perceptual
+from brdfpipe.manifold import analysis, gplvm, latent, perceptual
 
 __all__ = [
     "EPSILONS",

@@ -81,8 +81,8 @@ import scipy.optimize
 import scipy.spatial
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.manifold import gplvm, analysis
 from brdfpipe.data.store import BrdfStore, open_store
+from brdfpipe.manifold import analysis, gplvm
 
 __all__ = [
     "MIN_ACCEPTANCE",

@@ -40,11 +40,10 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core.version import full_version
-from brdfpipe.core.atomic import atomic_write as _atomic_write
-from brdfpipe.core.atomic import check_not_input
-from brdfpipe.core.filenames import format_t
+from brdfpipe.core.atomic import atomic_write as _atomic_write, check_not_input
 from brdfpipe.core.exr import ExrError, read_exr, write_exr
+from brdfpipe.core.filenames import format_t
+from brdfpipe.core.version import full_version
 
 __all__ = [
     "SUMMARY_COLUMNS",
