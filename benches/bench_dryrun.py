@@ -6,7 +6,8 @@ directory, nothing built yet):
 * ``snakemake --version``: Snakemake's own start-up (the baseline);
 * ``snakemake -n`` on ``tests/config/tiny.yaml``: the whole dry run;
 * importing the modules the workflow's Snakefile imports at parse time
-  (``brdfpipe.data.database``, ``.plan``, ``.filenames``, ``.version``), measured
+  (``brdfpipe.data.database`` and ``brdfpipe.core``'s ``plan``, ``filenames``,
+  ``version``), measured
   inside one fresh interpreter;
 
 with the cluster issue's targets (dry run ≤ 1.5 s, own imports ≤ 0.2 s) and
