@@ -31,6 +31,7 @@ REPORT_FILES = [
     fn.stage_times_rst(),
 ] + REPORT_CAPTIONS
 
+
 report: "../report/workflow.rst"
 
 
@@ -54,7 +55,9 @@ rule write_claims:
         splits=fn.splits(),
         errors=fn.errors(),
         training_size=fn.training_size() if CURVE_DIRECTIONS else [],
-        fig08_table=[f for f in ACQUISITION_FIGURES.get("fig08", []) if f.endswith(".csv")],
+        fig08_table=[
+            f for f in ACQUISITION_FIGURES.get("fig08", []) if f.endswith(".csv")
+        ],
         reproduction=fn.reproduction(),
         spaces=fn.spaces_csv(),
         paths=fn.paths_csv(),
@@ -92,7 +95,9 @@ rule write_claims:
 
 rule summarize_stage_times:
     input:
-        targets=[f for v in TARGETS.values() for f in (v if isinstance(v, list) else [v])],
+        targets=[
+            f for v in TARGETS.values() for f in (v if isinstance(v, list) else [v])
+        ],
         claims=fn.claims_csv(),
     output:
         csv=fn.stage_times_csv(),
