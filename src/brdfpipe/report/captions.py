@@ -78,6 +78,11 @@ _EXR_NOTE = ("The error maps' data are EXR files (float32, not shown: browsers c
              "PNG shown here.")
 
 
+def _bars(text: str) -> str:
+    """``|x|`` in the descriptions is an absolute value, not an rst substitution."""
+    return text.replace("|", "\\|")
+
+
 def _raw(text: str) -> str:
     """Protect ``text`` from Snakemake's Jinja2 pass over captions."""
     return "{% raw %}" + text.replace("{% endraw %}", "{ % endraw % }") + "{% endraw %}"
@@ -94,14 +99,14 @@ def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequ
     if key not in DESCRIPTIONS:
         raise KeyError(f"no caption description for {key!r}")
     mine = [c for c in claims if key in c.figures]
-    lines = [f"**{FIGURE_NUMBERS[key]}** analogue — database: **{database}**", "", DESCRIPTIONS[key], ""]
+    lines = [f"**{FIGURE_NUMBERS[key]}** analogue — database: **{database}**", "", _bars(DESCRIPTIONS[key]), ""]
     if mine:
         lines += ["Claims (paper value vs this run):", ""] + [_claim_item(c) for c in mine] + [""]
     else:
         lines += ["The paper makes no quantitative claim about this figure; it is shown for comparison.", ""]
     if key == "render-errormap":
         prefixes = sorted({f[: -len("-error.png")] for f in files if f.endswith("-error.png")})
-        lines += [_EXR_NOTE.format(prefix=prefixes[0] if len(prefixes) == 1 else "<path>-t<t>"), ""]
+        lines += [_bars(_EXR_NOTE.format(prefix=prefixes[0] if len(prefixes) == 1 else "<path>-t<t>")), ""]
     pdfs = [f[:-4] + ".pdf" for f in files if f.endswith(".png") and key != "render-errormap"]
     if pdfs:
         lines += ["Vector version: " + ", ".join(f"``{p}``" for p in pdfs) + ".", ""]

@@ -146,6 +146,11 @@ def _database(p: Path, rows: Iterable[Mapping[str, str]]) -> str:
     return names[0]
 
 
+def _true(text: str) -> bool:
+    """A CSV boolean: ``true`` (spaces.csv) or ``1`` (floor-check.csv)."""
+    return text.strip().lower() in ("true", "1", "yes")
+
+
 def _g(x: float) -> str:
     """A measured number as the report prints it (3 significant digits)."""
     return "–" if not math.isfinite(x) else f"{x:.3g}"
@@ -436,7 +441,7 @@ def albedo_in_unit_interval(path: str | os.PathLike[str]) -> Claim:
     claim = "albedo of interpolated BRDFs in [0, 1] at every sampled point of the latent hull (default data space)"
     paper_value = "\"observed to be limited to [0, 1]\" (q = 2, whole MERL)"
     p, rows = _rows(path, ("database", "candidate", "q", "default", "albedo_bad_hull", "albedo_bad_map"))
-    mine = [r for r in rows if r["default"] == "true"]
+    mine = [r for r in rows if _true(r["default"])]
     if not mine:
         return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no default candidate", str(p), figs)
     database = _database(p, mine)
@@ -568,7 +573,7 @@ def blend_vs_noise_floor(path: str | os.PathLike[str], *, floor_check: bool) -> 
     paper_value = "differences \"well below the numerical error between the two images\""
     p, rows = _rows(path, required)
     if floor_check:
-        rows = [r for r in rows if r["default"] == "true"]
+        rows = [r for r in rows if _true(r["default"])]
     if not rows:
         return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no path point", str(p), figs)
     database = _database(p, rows)
