@@ -385,3 +385,23 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         worst = max(float(r["ratio_seed2"]) for r in csv.DictReader(fh))
     row = next(r for r in rows if r["key"] == "soler-blend-vs-noise-floor")
     assert float(row["value"]) == pytest.approx(worst, rel=1e-8) and row["holds"] == ("yes" if worst <= 1 else "no")
+
+
+def test_header_only_csvs_give_not_measured_claims(tmp_path: Path) -> None:
+    """A configuration whose tables are empty (no path, no curve point) reports "not measured", never fails."""
+    def empty(name: str, cols: Sequence[str]) -> Path:
+        return write_csv(tmp_path / name, cols, [])
+
+    found = claims.compute_claims(claims.ClaimInputs(
+        errors=empty("errors.csv", ERR_COLS),
+        training_size=empty("ts.csv", ("database", "n_train", "order_seed", "material", "channel", "kind", "value")),
+        fig08_table=empty("f8.csv", ("fov_deg", "n_images", "image", "theta_h_deg", "light_theta_deg", "split",
+                                     "database")),
+        reproduction=empty("rep.csv", ("database", "space", "material", "method", "k", "relative_error")),
+        spaces=empty("sp.csv", ("database", "candidate", "q", "default", "albedo_bad_hull", "albedo_bad_map")),
+        paths=empty("pa.csv", ("database", "path", "t", "perceptual_a", "perceptual_b", "perceptual_ab",
+                               "deviation", "bound")),
+        bounce_shares=empty("bs.csv", ("database", "material", "share_object")),
+        errormap_summary=empty("su.csv", ("database", "path", "t", "ratio_seed2", "ratio_one_seed2")),
+    ))
+    assert found and {c.holds for c in found} == {"not measured"}

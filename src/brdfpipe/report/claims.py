@@ -140,7 +140,10 @@ def _num(p: Path, r: Mapping[str, str], column: str) -> float:
 
 
 def _database(p: Path, rows: Iterable[Mapping[str, str]]) -> str:
+    """The one database of ``rows`` ("" for no rows: the claim then says "not measured")."""
     names = sorted({r["database"] for r in rows})
+    if not names:
+        return ""
     if len(names) != 1 or not names[0]:
         raise ClaimsInputError(f"{p}: expected one database in column 'database', got {names or 'no rows'}")
     return names[0]
