@@ -16,7 +16,7 @@ SLURM_STAMP   := $(SLURM_PLUGINS)/.installed
 CONFIG ?= config/config.yaml
 CORES  ?= all
 
-.PHONY: run test bench setup llvm dryrun lint clean slurm-test slurm-plugins
+.PHONY: run test bench setup llvm dryrun lint clean slurm-test slurm-plugins report
 
 setup: $(STAMP) llvm
 
@@ -51,6 +51,11 @@ $(SLURM_STAMP): pyproject.toml $(STAMP)
 
 run: setup
 	$(SMK) --cores $(CORES) --configfile $(CONFIG)
+
+# The Snakemake report of a finished run (make run first, same CONFIG): every
+# figure, table and error map with captions holding the run's claims and numbers.
+report: setup
+	$(SMK) --configfile $(CONFIG) --report results/report.zip
 
 test: setup lint $(SLURM_STAMP)
 	$(PY) -m pytest -q -n 2

@@ -59,4 +59,5 @@ def test_workflow_on_slurm_matches_local_run(tmp_path: Path) -> None:
     # the localrules stay in the main process; everything else ran inside Slurm jobs
     assert set(summary["local_rules"]) <= {"all", "write_manifest", "write_splits", "make_envmap",
                                            "plot_acquisition_figures", "plot_manifold_figures",
-                                           "plot_render_figures", "compare_spaces"}
+                                           "plot_render_figures", "compare_spaces", "write_claims",
+                                           "summarize_stage_times"}

@@ -159,6 +159,10 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert sorted(r["material"] for r in shares) == sorted(names)
     assert all(-1e-3 <= float(r["share_image"]) < 0.5 and int(r["object_pixels"]) > 0 for r in shares)
     check_floor(tmp_path, names)
+    # the Snakemake report of this run: every declared figure with its caption, the claims (test_report.py)
+    from test_report import check_tiny_report
+
+    check_tiny_report(tmp_path, snakemake)
     # a second run has nothing to do
     again = snakemake(tmp_path, "-n")
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr

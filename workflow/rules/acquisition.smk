@@ -185,7 +185,7 @@ rule plot_acquisition_figures:
         training_size=fn.training_size() if "fig07" in ACQUISITION_FIGURES else [],
         directions=DIRECTIONS["all"] + DIRECTIONS["train"],
     output:
-        **ACQUISITION_FIGURES,
+        **reported_figures(ACQUISITION_FIGURES),
     log:
         "logs/plot_acquisition_figures.log",
     benchmark:

@@ -124,7 +124,7 @@ rule compare_spaces:
         spaces=expand(fn.candidate_spaces_csv("{c}"), c=CANDIDATES),
         stability=expand(fn.candidate_stability_csv("{c}"), c=CANDIDATES),
     output:
-        spaces=fn.spaces_csv(),
+        spaces=reported(fn.spaces_csv()),
         stability=fn.spaces_stability_csv(),
     log:
         "logs/compare_spaces.log",
@@ -151,7 +151,7 @@ rule plot_manifold_figures:
         paths=fn.paths_csv(),
         reproduction=fn.reproduction(),
     output:
-        **MANIFOLD_FIGURES,
+        **reported_figures(MANIFOLD_FIGURES),
     log:
         "logs/plot_manifold_figures.log",
     benchmark:

@@ -188,10 +188,10 @@ if PATH_POINTS:
             references_one=path_point_files("one"),
             references_one_noise=path_point_files("one_noise"),
         output:
-            summary=fn.errormap_summary(SCENE),
+            summary=reported(fn.errormap_summary(SCENE)),
             blended=errormap_files("blended.exr"),
             error_exrs=errormap_files("error.exr"),
-            error_pngs=errormap_files("error.png"),
+            error_pngs=[reported(f) for f in errormap_files("error.png")],
         log:
             f"logs/error_maps/{SCENE}.log",
         benchmark:
@@ -219,7 +219,7 @@ rule plot_render_figures:
         errors=errormap_files("error.exr"),
         summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
     output:
-        **RENDER_FIGURES,
+        **reported_figures(RENDER_FIGURES),
     log:
         f"logs/plot_render_figures/{SCENE}.log",
     benchmark:
@@ -363,7 +363,7 @@ if FLOOR_CANDIDATES:
                 f for c in FLOOR_CANDIDATES for f in candidate_point_files(c, "image")
             ],
         output:
-            table=fn.floor_check_csv(FLOOR_SCENE),
+            table=reported(fn.floor_check_csv(FLOOR_SCENE)),
         log:
             f"logs/summarize_floor_check/{FLOOR_SCENE}.log",
         conda:
@@ -385,7 +385,7 @@ if FLOOR_CANDIDATES:
         input:
             table=fn.floor_check_csv(FLOOR_SCENE),
         output:
-            figure=FLOOR_FIGURE,
+            figure=[reported(f) for f in FLOOR_FIGURE],
         log:
             f"logs/plot_floor_check/{FLOOR_SCENE}.log",
         benchmark:

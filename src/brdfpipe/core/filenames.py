@@ -61,6 +61,14 @@ __all__ = [
     "candidate_errormap_summary",
     "candidate_errormap",
     "floor_check_csv",
+    "REPORT",
+    "claims_csv",
+    "claims_json",
+    "claims_rst",
+    "front_rst",
+    "stage_times_csv",
+    "stage_times_rst",
+    "caption",
 ]
 
 #: Root folder of every output.
@@ -314,3 +322,42 @@ def candidate_errormap(scene: str, candidate: str, path: str, t: float | str, ki
 def floor_check_csv(scene: str) -> str:
     """Every candidate's blends against the noise floor, one row per path point."""
     return f"{RESULTS}/errormaps/{scene}/floor-check.csv"
+
+
+# -- the report (snakemake --report): claims, captions and the front page ------
+
+#: Folder of the report's generated files (read by ``snakemake --report``).
+REPORT = f"{RESULTS}/report"
+
+
+def claims_csv() -> str:
+    """Every quantitative claim of both papers: paper value, this run's value, holds or not."""
+    return f"{REPORT}/claims.csv"
+
+
+def claims_json() -> str:
+    return f"{REPORT}/claims.json"
+
+
+def claims_rst() -> str:
+    """The claims table as reStructuredText (included in the report's front page)."""
+    return f"{REPORT}/claims.rst"
+
+
+def front_rst() -> str:
+    """The front page's body: what ran, database, the claims table, versions, configuration."""
+    return f"{REPORT}/front.rst"
+
+
+def stage_times_csv() -> str:
+    """Wall time per stage (rule) from the jobs' benchmark files; differs from run to run."""
+    return f"{REPORT}/stage-times.csv"
+
+
+def stage_times_rst() -> str:
+    return f"{REPORT}/stage-times.rst"
+
+
+def caption(name: str) -> str:
+    """A generated report caption (reStructuredText) for one figure, table or set of error maps."""
+    return f"{REPORT}/captions/{name}.rst"

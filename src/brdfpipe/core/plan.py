@@ -332,6 +332,9 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "summarize_floor_check": (120.0, 0.0),  # one small CSV per candidate
     "plot_floor_check": (240.0, 0.0),  # as plot_render_figures, without the images
     "plot_render_figures": (240.0, 1.0),
+    # the report
+    "write_claims": (60.0, 0.0),  # as compare_spaces (small CSVs); the library alone peaks at 24 MB (tiny run)
+    "summarize_stage_times": (60.0, 0.0),  # as write_claims: one small TSV per job
 }
 #: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every
 #: output in memory: ``interpolate_path_points`` holds one float64 MERL table

@@ -1,0 +1,21 @@
+"""The Snakemake report (``snakemake --report results/report.zip``, ``make report``).
+
+How the run's numbers reach the report.  Snakemake's ``report()`` flag marks
+each figure, table and error map in the rule that writes it, with a
+category per track, labels (figure number, database) and a caption file.
+Snakemake reads a caption, and the workflow-level ``report:`` page, when it
+builds the report, not when it parses the workflow (Snakemake 9.27:
+``FileRecord.render`` opens ``raw_caption`` then).  So the captions are
+files the run writes: rule ``write_claims`` reads the run's CSVs, computes
+every claim of the two papers (:mod:`.claims`), and writes
+``results/report/claims.{csv,json,rst}``, one caption per report entry
+(:mod:`.captions`) and the front page's body (:mod:`.runinfo`); rule
+``summarize_stage_times`` sums the jobs' benchmark files per stage.  Rule
+``all`` requests both, so ``make run`` writes them and ``make report`` only
+packs.  The alternative, a static caption that computes numbers in Jinja2,
+cannot read files (Snakemake passes only the job's input, output, params,
+wildcards and config), and a number typed into a caption would go stale.
+
+Modules: :mod:`.items` (which files the report holds: parse time, standard
+library only), :mod:`.claims`, :mod:`.captions`, :mod:`.runinfo` (job time).
+"""

@@ -1,0 +1,128 @@
+"""Report captions: what each figure shows, and the paper's claims it carries, with this run's numbers.
+
+A caption is reStructuredText written by rule ``write_claims`` from the
+run's claims (:mod:`brdfpipe.report.claims`), one file per figure, table or
+set of error maps (:func:`brdfpipe.filenames.caption`).  Snakemake reads a
+caption file when it builds the report (``snakemake --report``), not when
+it parses the workflow, so the captions can hold numbers computed by a job.
+Snakemake renders captions as Jinja2 templates first: the text is wrapped
+in a ``raw`` block so no measured text is ever read as template syntax.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+
+from brdfpipe import atomic
+from brdfpipe.report.claims import Claim, rst_cell
+from brdfpipe.report.items import FIGURE_NUMBERS
+
+__all__ = ["DESCRIPTIONS", "caption_rst", "write_captions"]
+
+#: Caption key → what the figure or table shows (the claims follow it).
+DESCRIPTIONS: dict[str, str] = {
+    "xu-fig05": "Mean RMS error of the log-mapped BRDF over the held-out materials vs the number of near-field "
+                "images, one panel per field of view: direction sets chosen by min E(S) (eq. 15) and by "
+                "min κ (Xu eq. 6, over all k components).",
+    "xu-fig06": "Mean RMS error vs the number of images (near-field, every FOV) or point samples, min E(S); "
+                "point samples chosen by min κ dashed.",
+    "xu-fig07": "Mean RMS error of 2-image near-field acquisition vs the number of training materials "
+                "(materials added in seeded random order).",
+    "xu-fig08": "The optimal near-field configurations (1 and 2 images) per FOV, optimised on all materials: light "
+                "and camera directions over the sample. The CSV/Markdown table next to it lists the angles.",
+    "xu-fig08-table": "Xu Fig. 8's table: per FOV and set size, each image's (θh, θd, φd), light and camera "
+                      "directions and the predicted E(S).",
+    "xu-fig13": "Mean RMS error vs the number of images for the image setups at one FOV: near-field (both move), "
+                "fixed camera with moving lights, fixed light with moving cameras; solid min E(S), dashed min κ.",
+    "xu-fig18": "Per held-out material RMS error of point sampling with 5 samples (or fewer when n_max_point is "
+                "smaller): min E(S) vs min κ, and the deviation floor (all cells observed).",
+    "xu-fig19": "Mean RMS error of point sampling vs the number of samples n: min E(S) vs min κ, with the "
+                "deviation floor.",
+    "soler-fig05": "GPLVM log-likelihood over the optimiser's steps (start, L-BFGS, Hooke–Jeeves), default "
+                   "candidate, each latent dimension q.",
+    "soler-fig10_q2": "The 2-D latent space of the default candidate: every material at its latent point, "
+                      "coloured by its albedo.",
+    "soler-fig10_q5": "Slices of the 5-D latent space (pairs of dimensions) of the default candidate.",
+    "soler-fig07": "Albedo of the interpolated BRDF over a latent plane (q = 2 and a slice of q = 5) with iso-lines "
+                   "and the training materials; values outside [0, 1] marked.",
+    "soler-fig09": "Perceptual distance of the interpolated materials to A and to B along the latent paths, "
+                   "normalised by d(A, B) and the latent distance; dashed: perceptually uniform.",
+    "soler-fig08": "Relative reproduction error of every training material by PCA-k and by the GPLVM (each q).",
+    "soler-eq7": "Actual deviation ‖z* − z_j‖ of the interpolant from the nearest training material vs the "
+                 "eq. 7 bound, along the latent paths.",
+    "soler-spaces": "Every GPLVM candidate (data space, μ) measured the same way: κ(K), albedo outside [0, 1], "
+                    "Σ|w|, stability near the training points, perceptual uniformity.",
+    "soler-spaces-table": "``spaces.csv``: every candidate's measures (one row per candidate and q).",
+    "render-fig01": "Global-illumination pre-renders of every material (Mitsuba 3, the ``merl`` BSDF), the "
+                    "images the blends are made of.",
+    "render-fig12": "Interpolation along each latent path: the blend of pre-renders Σ wᵢ Iᵢ next to the true "
+                    "render of the interpolated material.",
+    "render-fig13": "Error panel: blend, reference and their difference at each rendered path point, with the "
+                    "two-seed noise floor.",
+    "render-errormap": "False-colour map of |blend − reference| at one rendered path point (labels: path, t), "
+                       "with a colour bar.",
+    "render-summary": "``summary.csv``: per path point the relative RMSE of the blend vs the reference (same and "
+                      "second seed), the two-seed noise floor and their ratios, for the whole image and its I¹⁻ part.",
+    "render-floor-check": "The noise-floor check: blends vs the noise floor of every checked candidate's path "
+                          "points, rendered small with many samples (render.floor_check).",
+    "render-floor-check-table": "``floor-check.csv``: per candidate and path point Σ|w|, ‖w‖₂, the clamped share, "
+                                "the two-seed noise floor and the blend / floor ratios.",
+    "claims": "Every quantitative claim of both papers: the paper's value, this run's value computed from its "
+              "CSVs, and whether it holds (also on the front page).",
+}
+
+#: Extra note for the EXR error maps, which browsers cannot show.
+_EXR_NOTE = ("The error maps' data are EXR files (float32, not shown: browsers cannot display EXR): "
+             "``{prefix}-error.exr`` (|blend − reference|) and ``{prefix}-blended.exr`` (the blend), next to each "
+             "PNG shown here.")
+
+
+def _bars(text: str) -> str:
+    """``|x|`` in the descriptions is an absolute value, not an rst substitution."""
+    return text.replace("|", "\\|")
+
+
+def _raw(text: str) -> str:
+    """Protect ``text`` from Snakemake's Jinja2 pass over captions."""
+    return "{% raw %}" + text.replace("{% endraw %}", "{ % endraw % }") + "{% endraw %}"
+
+
+def _claim_item(c: Claim) -> str:
+    mark = {"yes": "**holds**", "no": "**does not hold**", "not measured": "not measured"}[c.holds]
+    return (f"- {rst_cell(c.paper)}, {rst_cell(c.where)}: {rst_cell(c.claim)}. Paper: {rst_cell(c.paper_value)}. "
+            f"This run: {rst_cell(c.measured)}. {mark}.")
+
+
+def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequence[str] = ()) -> str:
+    """The caption of one report entry: title with database, description, its claims, the files it covers."""
+    if key not in DESCRIPTIONS:
+        raise KeyError(f"no caption description for {key!r}")
+    mine = [c for c in claims if key in c.figures]
+    lines = [f"**{FIGURE_NUMBERS[key]}** analogue — database: **{database}**", "", _bars(DESCRIPTIONS[key]), ""]
+    if mine:
+        lines += ["Claims (paper value vs this run):", ""] + [_claim_item(c) for c in mine] + [""]
+    else:
+        lines += ["The paper makes no quantitative claim about this figure; it is shown for comparison.", ""]
+    if key == "render-errormap":
+        prefixes = sorted({f[: -len("-error.png")] for f in files if f.endswith("-error.png")})
+        lines += [_bars(_EXR_NOTE.format(prefix=prefixes[0] if len(prefixes) == 1 else "<path>-t<t>")), ""]
+    pdfs = [f[:-4] + ".pdf" for f in files if f.endswith(".png") and key != "render-errormap"]
+    if pdfs:
+        lines += ["Vector version: " + ", ".join(f"``{p}``" for p in pdfs) + ".", ""]
+    return _raw("\n".join(lines))
+
+
+def write_captions(items: Sequence[Mapping[str, str]], claims: Sequence[Claim], *, database: str) -> list[Path]:
+    """One caption file per distinct ``caption`` of ``items`` (dicts with ``key``, ``path``, ``caption``)."""
+    by_caption: dict[str, tuple[str, list[str]]] = {}
+    for it in items:
+        key, files = by_caption.setdefault(it["caption"], (it["key"], []))
+        if key != it["key"]:
+            raise ValueError(f"caption {it['caption']} is shared by {key!r} and {it['key']!r}")
+        files.append(it["path"])
+    out = []
+    for cap, (key, files) in by_caption.items():
+        atomic.write_text(cap, caption_rst(key, claims, database=database, files=files))
+        out.append(Path(cap))
+    return out

@@ -1,0 +1,684 @@
+"""The two papers' quantitative claims, checked against this run's own CSVs.
+
+Every :class:`Claim` holds the paper's statement (with section / figure),
+the paper's value, the value measured in this run, whether the claim holds
+here (``yes``, ``no`` or ``not measured``, with the reason) and the database,
+read from the ``database`` column of the CSV it was computed from (never
+from the configuration).  Nothing here is typed in: each measured number is
+computed from ``errors.csv``, ``training_size.csv``, Xu Fig. 8's table, the
+manifold CSVs, the GPLVM traces, the error-map summaries and the bounce
+shares.  Where the paper is qualitative ("comparable", "nearly best", "well
+below") the criterion used is written into the claim's text.
+
+Standard library only: these are small tables.  Bad input (missing file
+or column, a number that does not parse, two databases) raises
+:class:`ClaimsInputError` naming the file.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import statistics
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from brdfpipe import atomic
+
+__all__ = [
+    "ClaimsInputError",
+    "Claim",
+    "ClaimInputs",
+    "CLAIM_COLUMNS",
+    "HOLDS",
+    "point_vs_images",
+    "metric_vs_condition",
+    "error_vs_fov",
+    "fov25_nearly_best",
+    "fixed_vs_nearfield",
+    "training_size_decreasing",
+    "one_shot_optimum",
+    "reproduction_vs_pca",
+    "albedo_in_unit_interval",
+    "perceptual_uniformity",
+    "eq7_bound",
+    "likelihood_increases",
+    "second_bounce_share",
+    "blend_vs_noise_floor",
+    "compute_claims",
+    "write_claims",
+    "read_claims",
+    "claims_table_rst",
+    "rst_cell",
+]
+
+#: Columns of ``claims.csv``.
+CLAIM_COLUMNS: tuple[str, ...] = (
+    "key", "paper", "where", "claim", "paper_value", "measured", "value", "holds", "database", "source",
+)
+#: The values of :attr:`Claim.holds`.
+HOLDS: tuple[str, ...] = ("yes", "no", "not measured")
+#: Relative tolerance of "at most" comparisons between two measured errors (ties count as holding).
+TIE: float = 1e-9
+
+
+class ClaimsInputError(ValueError):
+    """A CSV a claim is computed from is missing or malformed; the message names the file."""
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of a paper and what this run measured."""
+
+    key: str
+    paper: str  #: ``Xu 2016`` or ``Soler 2018``
+    where: str  #: section / figure of the paper value
+    claim: str  #: the claim as checked here (criterion included)
+    paper_value: str
+    measured: str  #: this run's numbers, in words
+    value: float  #: the primary measured number (NaN when not measured)
+    holds: str  #: one of :data:`HOLDS`
+    database: str  #: from the CSV's ``database`` column ("" when not measured)
+    source: str  #: the file(s) it was computed from
+    figures: tuple[str, ...] = field(default=(), compare=False)  #: caption keys it belongs to
+
+    def row(self) -> dict[str, str]:
+        """The ``claims.csv`` row (``value`` with 9 significant digits, empty when not measured)."""
+        d = {c: str(getattr(self, c)) for c in CLAIM_COLUMNS}
+        d["value"] = "" if not math.isfinite(self.value) else f"{self.value:.9g}"
+        return d
+
+
+@dataclass(frozen=True)
+class ClaimInputs:
+    """The CSVs the claims read; None for an output this configuration does not produce."""
+
+    errors: str | os.PathLike[str] | None = None
+    training_size: str | os.PathLike[str] | None = None
+    fig08_table: str | os.PathLike[str] | None = None
+    reproduction: str | os.PathLike[str] | None = None
+    spaces: str | os.PathLike[str] | None = None
+    paths: str | os.PathLike[str] | None = None
+    traces: Mapping[int, str | os.PathLike[str]] = field(default_factory=dict)
+    bounce_shares: str | os.PathLike[str] | None = None
+    errormap_summary: str | os.PathLike[str] | None = None
+    floor_check: str | os.PathLike[str] | None = None
+
+
+# -- reading ------------------------------------------------------------------
+
+
+def _rows(path: str | os.PathLike[str], required: Sequence[str]) -> tuple[Path, list[dict[str, str]]]:
+    p = Path(path)
+    if not p.is_file():
+        raise ClaimsInputError(f"{p}: no such file")
+    with open(p, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        missing = [c for c in required if c not in header]
+        if missing:
+            raise ClaimsInputError(f"{p}: missing column(s) {', '.join(missing)} (header: {', '.join(header) or 'none'})")
+        rows = []
+        for i, r in enumerate(reader, start=2):
+            r = {k.strip(): (v or "").strip() for k, v in r.items() if k is not None}
+            r["__line__"] = str(i)
+            rows.append(r)
+    return p, rows
+
+
+def _num(p: Path, r: Mapping[str, str], column: str) -> float:
+    text = r[column]
+    if text == "":
+        return math.nan
+    try:
+        return float(text)
+    except ValueError:
+        raise ClaimsInputError(f"{p}: line {r['__line__']}: column {column!r} is not a number: {text!r}") from None
+
+
+def _database(p: Path, rows: Iterable[Mapping[str, str]]) -> str:
+    """The one database of ``rows`` ("" for no rows: the claim then says "not measured")."""
+    names = sorted({r["database"] for r in rows})
+    if not names:
+        return ""
+    if len(names) != 1 or not names[0]:
+        raise ClaimsInputError(f"{p}: expected one database in column 'database', got {names or 'no rows'}")
+    return names[0]
+
+
+def _true(text: str) -> bool:
+    """A CSV boolean: ``true`` (spaces.csv) or ``1`` (floor-check.csv)."""
+    return text.strip().lower() in ("true", "1", "yes")
+
+
+def _g(x: float) -> str:
+    """A measured number as the report prints it (3 significant digits)."""
+    return "–" if not math.isfinite(x) else f"{x:.3g}"
+
+
+def _pct(x: float) -> str:
+    return "–" if not math.isfinite(x) else f"{100 * x:.3g} %"
+
+
+def _deg(x: float) -> str:
+    return f"{x:g}°"
+
+
+def _le(a: float, b: float) -> bool:
+    return a <= b + TIE * abs(b)
+
+
+def _verdict(ok: bool) -> str:
+    return "yes" if ok else "no"
+
+
+def _not_measured(key: str, paper: str, where: str, claim: str, paper_value: str, reason: str,
+                  source: str = "", figures: Sequence[str] = ()) -> Claim:
+    return Claim(key, paper, where, claim, paper_value, f"not measured in this run: {reason}", math.nan,
+                 "not measured", "", source, tuple(figures))
+
+
+# -- Xu 2016 --------------------------------------------------------------------
+
+_XU = "Xu 2016"
+_SOLER = "Soler 2018"
+_METRIC_TEXT = {"error": "min E(S) (eq. 15)", "condition": "min κ (Xu eq. 6)"}
+
+
+@dataclass(frozen=True)
+class _Errors:
+    path: Path
+    database: str
+    values: dict[tuple[str, float, str, int], float]  #: (setup, fov, metric, n) → mean RMS log error
+
+    def get(self, setup: str, fov: float, metric: str, n: int) -> float | None:
+        v = self.values.get((setup, float(fov), metric, int(n)))
+        return v if v is not None and math.isfinite(v) else None
+
+    def fovs(self, setup: str, metric: str | None = None) -> list[float]:
+        return sorted({k[1] for k in self.values if k[0] == setup and (metric is None or k[2] == metric)})
+
+    def ns(self, setup: str, fov: float, metric: str) -> list[int]:
+        return sorted(k[3] for k in self.values if k[:3] == (setup, float(fov), metric))
+
+    def nearfield_fov(self) -> float | None:
+        """25° when evaluated (the paper's comparisons), else the first near-field FOV."""
+        fovs = self.fovs("nearfield", "error")
+        return 25.0 if 25.0 in fovs else (fovs[0] if fovs else None)
+
+
+def read_errors(path: str | os.PathLike[str]) -> _Errors:
+    """The mean RMS error of the log-mapped BRDF (``kind rms_log``, material ``mean``) of ``errors.csv``.
+
+    Rows of the ``train`` split: direction sets optimised on the training
+    materials, evaluated on the held-out ones (Xu §6).
+    """
+    p, rows = _rows(path, ("database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value"))
+    database = _database(p, rows)
+    values: dict[tuple[str, float, str, int], float] = {}
+    for r in rows:
+        if r["split"] != "train" or r["material"] != "mean" or r["channel"] != "all" or r["kind"] != "rms_log":
+            continue
+        values[(r["setup"], _num(p, r, "fov"), r["metric"], int(_num(p, r, "n")))] = _num(p, r, "value")
+    return _Errors(p, database, values)
+
+
+def point_vs_images(errors: _Errors, images: int, points: int, baseline: str) -> Claim:
+    """``images`` near-field images (FOV 25°, min E(S)) at least as accurate as ``points`` point samples.
+
+    ``baseline``: the point sets' metric (``error`` = eq. 15, ``condition`` = κ).
+    Holds when the images' mean error is at most the point samples'.
+    """
+    key = f"xu-{images}-image{'s' if images > 1 else ''}-vs-{points}-points-{'eq15' if baseline == 'error' else 'kappa'}"
+    if images == 1:
+        where, paper_value = "§6, Fig. 2, Fig. 6", f"1 image ≈ 5 point samples of Nielsen 2015 (min κ): \"similar accuracy as about 5 samples\""
+    else:
+        where = "Abstract, §1, §6, Fig. 2, Fig. 6"
+        paper_value = "2 images ≈ 20 point samples of Nielsen 2015 (min κ): \"essentially the same accuracy as 20 samples\""
+        if points < 20:
+            paper_value += f"; so better than {points}"
+    fov = errors.nearfield_fov()
+    claim = (f"{images} near-field image{'s' if images > 1 else ''} (FOV {_deg(fov if fov is not None else 25)}, "
+             f"min E(S)) at most the error of {points} point samples chosen by {_METRIC_TEXT[baseline]}")
+    figs = ("xu-fig06", "xu-fig19")
+    a = errors.get("nearfield", fov, "error", images) if fov is not None else None
+    b = errors.get("point", 0.0, baseline, points)
+    if a is None or b is None:
+        what = []
+        if a is None:
+            what.append(f"no near-field error set with n = {images}")
+        if b is None:
+            what.append(f"no point set of {_METRIC_TEXT[baseline]} with n = {points}")
+        return _not_measured(key, _XU, where, claim, paper_value, f"{errors.path.name} has {' and '.join(what)}",
+                             str(errors.path), figs)
+    ok = _le(a, b)
+    measured = f"{_g(a)} ({images} image{'s' if images > 1 else ''}) {'≤' if ok else '>'} {_g(b)} ({points} points)"
+    return Claim(key, _XU, where, claim, paper_value, measured, a / b, _verdict(ok), errors.database,
+                 str(errors.path), figs)
+
+
+def metric_vs_condition(errors: _Errors, setup: str) -> Claim:
+    """Direction sets of min E(S) at most as wrong as those of min κ, at every FOV and n evaluated.
+
+    ``setup`` ``nearfield`` (Xu §6, Fig. 5: "significant advantages") or
+    ``point`` (appendix B, Figs. 18, 19: "somewhat lower error").
+    value: the smallest ratio error(κ) / error(E(S)) over the pairs.
+    """
+    if setup == "nearfield":
+        key, where, figs = "xu-eq15-vs-kappa-nearfield", "§3.1, §6, Fig. 5", ("xu-fig05", "xu-fig13")
+        paper_value = "min E(S) clearly below min κ for near-field images at every FOV (κ \"breaks down\")"
+    else:
+        key, where, figs = "xu-eq15-vs-kappa-point", "appendix B, Figs. 18, 19", ("xu-fig18", "xu-fig19")
+        paper_value = "min E(S) \"somewhat lower\" than min κ for point samples"
+    claim = f"{setup} sets of min E(S) (eq. 15) have at most the error of min κ (Xu eq. 6) at every FOV and n"
+    pairs = []
+    for fov in errors.fovs(setup):
+        for n in errors.ns(setup, fov, "error"):
+            a, b = errors.get(setup, fov, "error", n), errors.get(setup, fov, "condition", n)
+            if a is not None and b is not None:
+                pairs.append((fov, n, a, b))
+    if not pairs:
+        return _not_measured(key, _XU, where, claim, paper_value,
+                             f"{errors.path.name} lacks {setup} sets of both metrics", str(errors.path), figs)
+    good = [p for p in pairs if _le(p[2], p[3])]
+    ratios = [b / a for _, _, a, b in pairs]
+    worst = min(pairs, key=lambda p: p[3] / p[2])
+    fov_text = f"FOV {_deg(worst[0])}, " if setup == "nearfield" else ""
+    measured = (f"E(S) ≤ κ in {len(good)} of {len(pairs)} (FOV, n); error(κ)/error(E(S)) from {_g(min(ratios))} "
+                f"({fov_text}n = {worst[1]}: {_g(worst[2])} vs {_g(worst[3])}) to {_g(max(ratios))}")
+    return Claim(key, _XU, where, claim, paper_value, measured, min(ratios), _verdict(len(good) == len(pairs)),
+                 errors.database, str(errors.path), figs)
+
+
+def error_vs_fov(errors: _Errors) -> Claim:
+    """Near-field error (min E(S)) does not increase with the FOV, for 1 and 2 images."""
+    key, where, figs = "xu-error-vs-fov", "§6, Fig. 6", ("xu-fig06", "xu-fig05")
+    claim = "near-field error (min E(S)) does not grow with the FOV, at 1 and at 2 images"
+    paper_value = "\"larger fields of view help\"; error falls from 15° to 45°"
+    fovs = errors.fovs("nearfield", "error")
+    if len(fovs) < 2:
+        return _not_measured(key, _XU, where, claim, paper_value,
+                             f"{len(fovs)} near-field FOV evaluated (need 2)", str(errors.path), figs)
+    parts, worst, ok = [], 0.0, True
+    for n in (1, 2):
+        series = [(f, errors.get("nearfield", f, "error", n)) for f in fovs]
+        series = [(f, v) for f, v in series if v is not None]
+        if len(series) < 2:
+            continue
+        parts.append(f"n = {n}: " + ", ".join(f"{_deg(f)} {_g(v)}" for f, v in series))
+        for (_, v0), (_, v1) in zip(series, series[1:]):
+            worst = max(worst, v1 / v0)
+            ok = ok and _le(v1, v0)
+    if not parts:
+        return _not_measured(key, _XU, where, claim, paper_value, "no n with two FOVs", str(errors.path), figs)
+    measured = "; ".join(parts) + f" (largest ratio of consecutive FOVs {_g(worst)})"
+    return Claim(key, _XU, where, claim, paper_value, measured, worst, _verdict(ok), errors.database,
+                 str(errors.path), figs)
+
+
+#: "25° is already nearly best" read as: within this factor of the best FOV's error at 2 images.
+NEARLY_BEST: float = 1.10
+
+
+def fov25_nearly_best(errors: _Errors) -> Claim:
+    """Xu §6: "25° is already nearly best": 2-image error at 25° within :data:`NEARLY_BEST` × the best FOV's."""
+    key, where, figs = "xu-fov25-nearly-best", "§6, Fig. 6", ("xu-fig06",)
+    claim = f"2 near-field images at 25° are within {NEARLY_BEST:g}× the error of the best FOV (our reading of \"nearly best\")"
+    paper_value = "\"25° is already nearly best\""
+    fovs = errors.fovs("nearfield", "error")
+    vals = {f: errors.get("nearfield", f, "error", 2) for f in fovs}
+    vals = {f: v for f, v in vals.items() if v is not None}
+    if 25.0 not in vals or len(vals) < 2:
+        return _not_measured(key, _XU, where, claim, paper_value,
+                             "needs 2-image near-field sets at 25° and another FOV", str(errors.path), figs)
+    best = min(vals, key=lambda f: vals[f])
+    ratio = vals[25.0] / vals[best]
+    measured = f"25°: {_g(vals[25.0])}, best {_deg(best)}: {_g(vals[best])} (ratio {_g(ratio)})"
+    return Claim(key, _XU, where, claim, paper_value, measured, ratio, _verdict(ratio <= NEARLY_BEST),
+                 errors.database, str(errors.path), figs)
+
+
+def fixed_vs_nearfield(errors: _Errors) -> Claim:
+    """Xu §8: a fixed camera (or light) gives higher error than near-field images where both move, at 2 images."""
+    key, where, figs = "xu-fixed-vs-nearfield", "§8, Fig. 13", ("xu-fig13",)
+    claim = "2 images with a fixed camera (or fixed light) have at least the error of 2 near-field images where both move"
+    paper_value = "fixed camera: \"higher error in Fig. 13, compared to the near-field case\""
+    rows = []
+    for setup in ("fixed_camera", "fixed_light"):
+        for fov in errors.fovs(setup, "error"):
+            a, b = errors.get(setup, fov, "error", 2), errors.get("nearfield", fov, "error", 2)
+            if a is not None and b is not None:
+                rows.append((setup, fov, a, b))
+    if not rows:
+        return _not_measured(key, _XU, where, claim, paper_value,
+                             "no 2-image fixed-camera/light set with a near-field set at its FOV", str(errors.path), figs)
+    ok = all(_le(b, a) for _, _, a, b in rows)
+    measured = "; ".join(f"{s.replace('_', ' ')} {_g(a)} vs near-field {_g(b)} (FOV {_deg(f)})" for s, f, a, b in rows)
+    value = min(a / b for _, _, a, b in rows)
+    return Claim(key, _XU, where, claim, paper_value, measured, value, _verdict(ok), errors.database,
+                 str(errors.path), figs)
+
+
+def training_size_decreasing(path: str | os.PathLike[str]) -> Claim:
+    """Xu Fig. 7: the 2-image error does not grow as training materials are added (mean over orders)."""
+    key, where, figs = "xu-training-size", "§6, Fig. 7", ("xu-fig07",)
+    claim = "mean error of the training-size curve does not grow with the number of training materials"
+    paper_value = "\"a steady decrease\" of the error with more training materials"
+    p, rows = _rows(path, ("database", "n_train", "order_seed", "material", "channel", "kind", "value"))
+    database = _database(p, rows)
+    by_n: dict[int, list[float]] = {}
+    for r in rows:
+        if r["material"] == "mean" and r["channel"] == "all" and r["kind"] == "rms_log":
+            by_n.setdefault(int(_num(p, r, "n_train")), []).append(_num(p, r, "value"))
+    if len(by_n) < 2:
+        return _not_measured(key, _XU, where, claim, paper_value, f"{p.name} has {len(by_n)} training size(s)",
+                             str(p), figs)
+    series = [(n, statistics.fmean(v)) for n, v in sorted(by_n.items())]
+    ok = all(_le(v1, v0) for (_, v0), (_, v1) in zip(series, series[1:]))
+    measured = ", ".join(f"{n}: {_g(v)}" for n, v in series)
+    return Claim(key, _XU, where, claim, paper_value, measured, series[-1][1] / series[0][1], _verdict(ok),
+                 database, str(p), figs)
+
+
+#: Xu §6: the optimal single image, θh = 3° at ~50° incidence; "about" read as these tolerances.
+ONE_SHOT = {"theta_h": 3.0, "theta_h_tol": 5.0, "incidence": 50.0, "incidence_tol": 10.0}
+
+
+def one_shot_optimum(path: str | os.PathLike[str]) -> Claim:
+    """Xu §6, Fig. 8: the optimal single image is slightly off-specular (θh 3°) at about 50° incidence."""
+    key, where, figs = "xu-one-shot-optimum", "§6, Fig. 8", ("xu-fig08", "xu-fig08-table")
+    o = ONE_SHOT
+    claim = (f"the optimal single near-field image has θh within {o['theta_h_tol']:g}° of {o['theta_h']:g}° and light "
+             f"incidence within {o['incidence_tol']:g}° of {o['incidence']:g}°, at every FOV")
+    paper_value = "θh = 3° at an angle of incidence of about 50°"
+    p, rows = _rows(path, ("fov_deg", "n_images", "image", "theta_h_deg", "light_theta_deg", "split", "database"))
+    splits = {r["split"] for r in rows}
+    split = "all" if "all" in splits else sorted(splits)[0] if splits else ""
+    ones = [r for r in rows if r["split"] == split and r["n_images"] == "1"]
+    if not ones:
+        return _not_measured(key, _XU, where, claim, paper_value, f"{p.name} has no 1-image set", str(p), figs)
+    database = _database(p, ones)
+    pts = sorted((_num(p, r, "fov_deg"), _num(p, r, "theta_h_deg"), _num(p, r, "light_theta_deg")) for r in ones)
+    ok = all(abs(th - o["theta_h"]) <= o["theta_h_tol"] and abs(ti - o["incidence"]) <= o["incidence_tol"]
+             for _, th, ti in pts)
+    measured = "; ".join(f"FOV {_deg(f)}: θh {th:.1f}°, incidence {ti:.1f}°" for f, th, ti in pts) + f" (split {split})"
+    value = next((th for f, th, _ in pts if f == 25.0), pts[0][1])
+    return Claim(key, _XU, where, claim, paper_value, measured, value, _verdict(ok), database, str(p), figs)
+
+
+# -- Soler 2018 -----------------------------------------------------------------
+
+
+def reproduction_vs_pca(path: str | os.PathLike[str]) -> Claim:
+    """Soler §4.2, Fig. 8: the GPLVM reproduces every training material, PCA with k ≤ 40 does not.
+
+    Holds when the largest GPLVM error (any q, any material) is below the
+    median PCA-k error of every k in the table.  value: that largest error.
+    """
+    key, where, figs = "soler-reproduction-vs-pca", "§4.2, Fig. 8", ("soler-fig08",)
+    claim = "largest GPLVM reproduction error (any q, any material) below the median PCA-k error for every k"
+    paper_value = "GPLVM \"always perfectly reproduces\" the materials at any q; PCA with 20 and 40 components does not"
+    p, rows = _rows(path, ("database", "material", "method", "k", "relative_error"))
+    database = _database(p, rows)
+    gp: dict[int, list[float]] = {}
+    pca: dict[int, list[float]] = {}
+    for r in rows:
+        (gp if r["method"] == "gplvm" else pca if r["method"] == "pca" else {}).setdefault(
+            int(_num(p, r, "k")), []).append(_num(p, r, "relative_error"))
+    if not gp or not pca:
+        return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} lacks GPLVM or PCA rows", str(p), figs)
+    worst = max(max(v) for v in gp.values())
+    medians = {k: statistics.median(v) for k, v in sorted(pca.items())}
+    ok = all(worst < m for m in medians.values())
+    measured = (", ".join(f"GPLVM q = {q}: max {_pct(max(v))}" for q, v in sorted(gp.items())) + "; "
+                + ", ".join(f"PCA-{k}: median {_pct(m)}" for k, m in medians.items()))
+    return Claim(key, _SOLER, where, claim, paper_value, measured, worst, _verdict(ok), database, str(p), figs)
+
+
+def albedo_in_unit_interval(path: str | os.PathLike[str]) -> Claim:
+    """Soler §4.2, Fig. 7: interpolated albedo stays in [0, 1] (default candidate; share of hull points outside)."""
+    key, where, figs = "soler-albedo", "§4.2, Fig. 7", ("soler-fig07", "soler-spaces", "soler-spaces-table")
+    claim = "albedo of interpolated BRDFs in [0, 1] at every sampled point of the latent hull (default data space)"
+    paper_value = "\"observed to be limited to [0, 1]\" (q = 2, whole MERL)"
+    p, rows = _rows(path, ("database", "candidate", "q", "default", "albedo_bad_hull", "albedo_bad_map"))
+    mine = [r for r in rows if _true(r["default"])]
+    if not mine:
+        return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no default candidate", str(p), figs)
+    database = _database(p, mine)
+    parts, worst = [], 0.0
+    for r in sorted(mine, key=lambda r: int(_num(p, r, "q"))):
+        hull, amap = _num(p, r, "albedo_bad_hull"), _num(p, r, "albedo_bad_map")
+        worst = max(worst, hull, amap if math.isfinite(amap) else 0.0)
+        parts.append(f"q = {r['q']}: {_pct(hull)} of the hull" + (f", {_pct(amap)} of the map" if math.isfinite(amap) else ""))
+    measured = f"outside [0, 1] ({mine[0]['candidate']}): " + "; ".join(parts)
+    return Claim(key, _SOLER, where, claim, paper_value, measured, worst, _verdict(worst == 0.0), database,
+                 str(p), figs)
+
+
+def _paths(path: str | os.PathLike[str]) -> tuple[Path, str, dict[str, list[dict[str, float]]]]:
+    p, rows = _rows(path, ("database", "path", "t", "perceptual_a", "perceptual_b", "perceptual_ab", "deviation", "bound"))
+    database = _database(p, rows)
+    out: dict[str, list[dict[str, float]]] = {}
+    for r in rows:
+        out.setdefault(r["path"], []).append({c: _num(p, r, c) for c in
+                                              ("t", "perceptual_a", "perceptual_b", "perceptual_ab", "deviation", "bound")})
+    for v in out.values():
+        v.sort(key=lambda d: d["t"])
+    return p, database, out
+
+
+def perceptual_uniformity(path: str | os.PathLike[str]) -> Claim:
+    """Soler §4.3, Fig. 9: along latent paths the perceptual distance to A grows and to B falls, steadily.
+
+    Holds when both are monotone on every path; value: the largest
+    ``|d(A, x)/d(A, B) − t|`` (0 = perceptually uniform).
+    """
+    key, where, figs = "soler-perceptual-uniformity", "§4.3, Fig. 9", ("soler-fig09",)
+    claim = "perceptual distance to A never decreases and to B never increases along any latent path"
+    paper_value = "distances close to the ideal (uniform) dashed lines, for 3 paths of 20 steps"
+    p, database, paths = _paths(path)
+    if not paths:
+        return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no path", str(p), figs)
+    dev, bad = 0.0, 0
+    for pts in paths.values():
+        dab = pts[-1]["perceptual_a"] or pts[0]["perceptual_ab"] or 1.0
+        dev = max(dev, max(abs(d["perceptual_a"] / dab - d["t"]) for d in pts))
+        bad += sum(b["perceptual_a"] < a["perceptual_a"] for a, b in zip(pts, pts[1:]))
+        bad += sum(b["perceptual_b"] > a["perceptual_b"] for a, b in zip(pts, pts[1:]))
+    steps = sum(len(v) - 1 for v in paths.values())
+    measured = (f"{len(paths)} paths, {steps} steps: {bad} non-monotone step(s) of 2×{steps}; largest "
+                f"|d(A, x)/d(A, B) − t| = {_g(dev)}")
+    return Claim(key, _SOLER, where, claim, paper_value, measured, dev, _verdict(bad == 0), database, str(p), figs)
+
+
+def eq7_bound(path: str | os.PathLike[str]) -> Claim:
+    """Soler eq. 7: the interpolant's deviation ‖z* − z_j‖ stays below the bound, at every path point."""
+    key, where, figs = "soler-eq7-bound", "§4.1, eq. 7", ("soler-eq7",)
+    claim = "actual deviation ‖z* − z_j‖ ≤ the eq. 7 bound at every latent-path point"
+    paper_value = "eq. 7 bounds the deviation from the nearest training material"
+    p, database, paths = _paths(path)
+    pts = [d for v in paths.values() for d in v if math.isfinite(d["bound"]) and d["bound"] > 0]
+    if not pts:
+        return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no bounded point", str(p), figs)
+    worst = max(d["deviation"] / d["bound"] for d in pts)
+    ok = all(_le(d["deviation"], d["bound"]) for d in pts)
+    measured = f"largest deviation / bound {_g(worst)} over {len(pts)} points"
+    return Claim(key, _SOLER, where, claim, paper_value, measured, worst, _verdict(ok), database, str(p), figs)
+
+
+def likelihood_increases(traces: Mapping[int, str | os.PathLike[str]], database: str) -> Claim:
+    """Soler §3, Fig. 5: fitting raises the log-likelihood from its start (each q of the default candidate).
+
+    The traces carry no database column; ``database`` comes from the run's other CSVs.
+    """
+    key, where, figs = "soler-likelihood", "§3, Fig. 5", ("soler-fig05",)
+    claim = "the final log-likelihood of each fit is at least its starting value"
+    paper_value = "L rises over the iterations and levels off (q = 2, whole MERL)"
+    if not traces:
+        return _not_measured(key, _SOLER, where, claim, paper_value, "no GPLVM trace", "", figs)
+    parts, ok, gains, srcs = [], True, [], []
+    for q, path in sorted(traces.items()):
+        p, rows = _rows(path, ("step", "stage", "log_likelihood"))
+        if not rows:
+            raise ClaimsInputError(f"{p}: no data rows")
+        first, last = _num(p, rows[0], "log_likelihood"), _num(p, rows[-1], "log_likelihood")
+        ok = ok and last >= first
+        gains.append(last - first)
+        parts.append(f"q = {q}: {first:.6g} → {last:.6g}")
+        srcs.append(str(p))
+    return Claim(key, _SOLER, where, claim, paper_value, "; ".join(parts), min(gains), _verdict(ok), database,
+                 ", ".join(srcs), figs)
+
+
+#: "L₂₊ ≪ L₁₋" read as: the I²⁺ share of every pre-render's object pixels at most this.
+SECOND_BOUNCE_MAX: float = 0.10
+
+
+def second_bounce_share(path: str | os.PathLike[str]) -> Claim:
+    """Soler §5.2: paths with ≥ 2 scatterings on the material carry little light (I²⁺ share over the object)."""
+    key, where, figs = "soler-second-bounce", "§5.2", ("render-fig01",)
+    claim = f"I²⁺ share of every pre-render over the object at most {SECOND_BOUNCE_MAX:.0%} (our reading of \"≪\")"
+    paper_value = "\"we expect L2+ ≪ L1−\" (not measured in the paper)"
+    p, rows = _rows(path, ("database", "material", "share_object"))
+    if not rows:
+        return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no rows", str(p), figs)
+    database = _database(p, rows)
+    shares = {r["material"]: _num(p, r, "share_object") for r in rows}
+    worst = max(shares, key=lambda m: shares[m])
+    measured = (f"median {_pct(statistics.median(shares.values()))}, largest {_pct(shares[worst])} ({worst}) "
+                f"over {len(shares)} materials")
+    return Claim(key, _SOLER, where, claim, paper_value, measured, shares[worst],
+                 _verdict(shares[worst] <= SECOND_BOUNCE_MAX), database, str(p), figs)
+
+
+def blend_vs_noise_floor(path: str | os.PathLike[str], *, floor_check: bool) -> Claim:
+    """Soler §5.2, Fig. 13: blended pre-renders are as close to a reference as a second render is.
+
+    Ratio RMSE(blend, reference of the second seed) / RMSE(the two seeds'
+    references); holds when its largest value over the path points is ≤ 1
+    for the whole image (what the paper blends).  ``floor_check``: read
+    ``floor-check.csv`` (default candidate, small many-sample renders)
+    instead of the configured render's ``summary.csv``.
+    """
+    if floor_check:
+        key, where = "soler-blend-vs-floor-check", "§5.2, Fig. 13 (noise-floor check)"
+        figs: tuple[str, ...] = ("render-floor-check", "render-floor-check-table")
+        required = ("database", "candidate", "default", "path", "t", "spp", "ratio_seed2", "ratio_one_seed2")
+    else:
+        key, where = "soler-blend-vs-noise-floor", "§5.2, Fig. 13"
+        figs = ("render-fig12", "render-fig13", "render-errormap", "render-summary")
+        required = ("database", "path", "t", "ratio_seed2", "ratio_one_seed2")
+    claim = ("blend of pre-renders vs a reference: RMSE at most that between two seeds of the reference "
+             "(largest over the path points, whole image)")
+    paper_value = "differences \"well below the numerical error between the two images\""
+    p, rows = _rows(path, required)
+    if floor_check:
+        rows = [r for r in rows if _true(r["default"])]
+    if not rows:
+        return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no path point", str(p), figs)
+    database = _database(p, rows)
+    whole = [_num(p, r, "ratio_seed2") for r in rows]
+    one = [_num(p, r, "ratio_one_seed2") for r in rows]
+    what = f"{rows[0]['candidate']}, {rows[0]['spp']} spp, " if floor_check else ""
+    measured = (f"{what}{len(rows)} points: blend / floor {_g(min(whole))}–{_g(max(whole))} (whole image), "
+                f"{_g(min(one))}–{_g(max(one))} (I¹⁻ part)")
+    return Claim(key, _SOLER, where, claim, paper_value, measured, max(whole), _verdict(max(whole) <= 1.0),
+                 database, str(p), figs)
+
+
+# -- all ------------------------------------------------------------------------
+
+
+def compute_claims(inputs: ClaimInputs) -> list[Claim]:
+    """Every claim this run's outputs allow, in report order; the others as ``not measured``.
+
+    :class:`ClaimsInputError` when the CSVs name different databases.
+    """
+    out: list[Claim] = []
+    nm = _not_measured
+    if inputs.errors is not None:
+        e = read_errors(inputs.errors)
+        for images, points in ((1, 5), (2, 10), (2, 20)):
+            for baseline in ("error", "condition"):
+                out.append(point_vs_images(e, images, points, baseline))
+        out += [metric_vs_condition(e, "nearfield"), metric_vs_condition(e, "point"), error_vs_fov(e),
+                fov25_nearly_best(e), fixed_vs_nearfield(e)]
+    out.append(training_size_decreasing(inputs.training_size) if inputs.training_size is not None else
+               nm("xu-training-size", _XU, "§6, Fig. 7", "error does not grow with the training set",
+                  "a steady decrease", "this configuration has no training-size curve", figures=("xu-fig07",)))
+    out.append(one_shot_optimum(inputs.fig08_table) if inputs.fig08_table is not None else
+               nm("xu-one-shot-optimum", _XU, "§6, Fig. 8", "optimal single image slightly off-specular at ~50°",
+                  "θh = 3° at about 50° incidence", "this configuration has no near-field sets", figures=("xu-fig08",)))
+    if inputs.reproduction is not None:
+        out.append(reproduction_vs_pca(inputs.reproduction))
+    if inputs.spaces is not None:
+        out.append(albedo_in_unit_interval(inputs.spaces))
+    if inputs.paths is not None:
+        out += [perceptual_uniformity(inputs.paths), eq7_bound(inputs.paths)]
+    databases = {c.database for c in out if c.database}
+    if inputs.traces:
+        out.append(likelihood_increases(inputs.traces, next(iter(databases)) if len(databases) == 1 else ""))
+    if inputs.bounce_shares is not None:
+        out.append(second_bounce_share(inputs.bounce_shares))
+    out.append(blend_vs_noise_floor(inputs.errormap_summary, floor_check=False) if inputs.errormap_summary is not None
+               else nm("soler-blend-vs-noise-floor", _SOLER, "§5.2, Fig. 13", "blend within the noise floor",
+                       "well below the numerical error", "this configuration renders no path point",
+                       figures=("render-fig13",)))
+    out.append(blend_vs_noise_floor(inputs.floor_check, floor_check=True) if inputs.floor_check is not None
+               else nm("soler-blend-vs-floor-check", _SOLER, "§5.2, Fig. 13 (noise-floor check)",
+                       "blend within the noise floor at many samples", "well below the numerical error",
+                       "render.floor_check is off or there is no path point", figures=("render-floor-check",)))
+    databases = {c.database for c in out if c.database}
+    if len(databases) > 1:
+        by_db = {d: sorted({c.source for c in out if c.database == d}) for d in sorted(databases)}
+        raise ClaimsInputError(f"the run's CSVs name different databases: {by_db}")
+    return out
+
+
+def write_claims(claims: Sequence[Claim], *, csv_path: str | os.PathLike[str], json_path: str | os.PathLike[str],
+                 rst_path: str | os.PathLike[str]) -> None:
+    """``claims.csv`` (:data:`CLAIM_COLUMNS`), ``claims.json`` (with the figures of each claim) and the rst table."""
+    def write_csv(fh) -> None:  # type: ignore[no-untyped-def]
+        w = csv.DictWriter(fh, fieldnames=list(CLAIM_COLUMNS), lineterminator="\n")
+        w.writeheader()
+        for c in claims:
+            w.writerow(c.row())
+
+    atomic.atomic_write(csv_path, write_csv, binary=False)
+    records = [{**c.row(), "value": None if not math.isfinite(c.value) else c.value, "figures": list(c.figures)}
+               for c in claims]
+    atomic.write_text(json_path, json.dumps(records, indent=1, ensure_ascii=False) + "\n")
+    atomic.write_text(rst_path, claims_table_rst(claims))
+
+
+def read_claims(path: str | os.PathLike[str]) -> list[dict[str, str]]:
+    """The rows of a ``claims.csv``."""
+    p, rows = _rows(path, CLAIM_COLUMNS)
+    return [{c: r[c] for c in CLAIM_COLUMNS} for r in rows]
+
+
+def rst_cell(text: str) -> str:
+    """Table-cell text safe for reStructuredText (no markup, no line breaks)."""
+    text = " ".join(str(text).split())
+    for ch in ("\\", "*", "`", "|", "_"):
+        text = text.replace(ch, "\\" + ch)
+    return text or "–"
+
+
+_MARK = {"yes": "**yes**", "no": "**NO**", "not measured": "not measured"}
+
+
+def claims_table_rst(claims: Sequence[Claim]) -> str:
+    """The claims table: paper, where, claim, paper value, this run, holds, database (a ``list-table``)."""
+    lines = [".. list-table::", "   :header-rows: 1", "   :widths: 8 10 26 20 26 6 8", "",
+             "   * - paper", "     - where", "     - claim (as checked)", "     - paper value", "     - this run",
+             "     - holds", "     - database"]
+    for c in claims:
+        cells = [rst_cell(c.paper), rst_cell(c.where), rst_cell(c.claim), rst_cell(c.paper_value), rst_cell(c.measured),
+                 _MARK[c.holds], rst_cell(c.database)]
+        lines.append(f"   * - {cells[0]}")
+        lines += [f"     - {x}" for x in cells[1:]]
+    return "\n".join(lines) + "\n"

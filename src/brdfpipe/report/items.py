@@ -1,0 +1,134 @@
+"""What the Snakemake report holds: one entry per figure, table and error map.
+
+Parse-time planning, standard library only (the Snakefile calls
+:func:`report_items` while it builds the DAG).  Each :class:`Item` names the
+file a rule's ``report()`` flag marks, its category (one per track), its
+subcategory, its labels (figure number and database) and the generated
+caption file that rule ``write_claims`` writes (:mod:`brdfpipe.report.captions`).
+The same list is what the tests check the built ``report.zip`` against.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+from brdfpipe import filenames
+
+__all__ = [
+    "ACQUISITION",
+    "MANIFOLD",
+    "RENDERING",
+    "CLAIMS",
+    "FIGURE_NUMBERS",
+    "Item",
+    "report_items",
+]
+
+#: Report categories: one per track, and the claims table.
+ACQUISITION = "Acquisition — Xu 2016"
+MANIFOLD = "Manifold — Soler 2018"
+RENDERING = "Rendering"
+CLAIMS = "Claims"
+
+#: Caption key → the paper figure (or equation) the output is an analogue of.
+FIGURE_NUMBERS: dict[str, str] = {
+    "xu-fig05": "Xu Fig. 5",
+    "xu-fig06": "Xu Fig. 6",
+    "xu-fig07": "Xu Fig. 7",
+    "xu-fig08": "Xu Fig. 8",
+    "xu-fig08-table": "Xu Fig. 8 (table)",
+    "xu-fig13": "Xu Fig. 13",
+    "xu-fig18": "Xu Fig. 18",
+    "xu-fig19": "Xu Fig. 19",
+    "soler-fig05": "Soler Fig. 5",
+    "soler-fig10_q2": "Soler Fig. 10 (q = 2)",
+    "soler-fig10_q5": "Soler Fig. 10 (q = 5 slices)",
+    "soler-fig07": "Soler Fig. 7",
+    "soler-fig09": "Soler Fig. 9",
+    "soler-fig08": "Soler Fig. 8",
+    "soler-eq7": "Soler eq. 7",
+    "soler-spaces": "Soler §4.1-4.3 (data spaces)",
+    "soler-spaces-table": "Soler §4.1-4.3 (table)",
+    "render-fig01": "Soler Fig. 1",
+    "render-fig12": "Soler Fig. 12",
+    "render-fig13": "Soler Fig. 13",
+    "render-errormap": "Soler Fig. 13 (error map)",
+    "render-summary": "Soler Fig. 13 (table)",
+    "render-floor-check": "Soler Fig. 13 (noise-floor check)",
+    "render-floor-check-table": "Soler Fig. 13 (noise-floor check, table)",
+    "claims": "all claims",
+}
+
+
+@dataclass(frozen=True)
+class Item:
+    """One file of the report: ``path`` (as the rule declares it) and how it is shown."""
+
+    key: str  #: caption key (:data:`FIGURE_NUMBERS`, :data:`brdfpipe.report.captions.CAPTIONS`)
+    path: str
+    category: str
+    subcategory: str
+    caption: str  #: generated caption file (:func:`brdfpipe.filenames.caption`)
+    labels: dict[str, str] = field(default_factory=dict)
+
+    def report_kwargs(self, caption_path: str) -> dict[str, object]:
+        """Keyword arguments of Snakemake's ``report()`` (``caption_path``: the caption as the rule sees it)."""
+        return {"caption": caption_path, "category": self.category, "subcategory": self.subcategory,
+                "labels": dict(self.labels)}
+
+
+def _png(files: Sequence[str]) -> str:
+    pngs = [f for f in files if f.endswith(".png")]
+    if len(pngs) != 1:
+        raise ValueError(f"a figure needs exactly one PNG, got {list(files)}")
+    return pngs[0]
+
+
+def report_items(
+    *,
+    database: str,
+    acquisition_figures: Mapping[str, Sequence[str]],
+    manifold_figures: Mapping[str, Sequence[str]],
+    render_figures: Mapping[str, Sequence[str]],
+    floor_figure: Sequence[str] = (),
+    spaces_table: str | None = None,
+    errormaps: Sequence[tuple[str, str, str]] = (),
+    errormap_summary: str | None = None,
+    floor_check_table: str | None = None,
+) -> list[Item]:
+    """Every report entry of a configuration, in report order.
+
+    Figures: the PNG of each figure of ``*_figures`` (``brdfpipe.plan``; the
+    PDF next to it is the same figure); Xu Fig. 8's CSV table;
+    ``errormaps``: ``(path, t, error.png)`` per rendered path point (the EXR
+    maps are data: browsers cannot show them, the captions name them);
+    the summary tables when the configuration writes them; the claims table.
+    ``database``: ``merl`` or ``synthetic`` (a label of every entry).
+    """
+    items: list[Item] = []
+
+    def add(key: str, file: str, category: str, sub: str, caption: str | None = None, **labels: str) -> None:
+        lab = {"figure": FIGURE_NUMBERS[key], **labels, "database": database}
+        items.append(Item(key, file, category, sub, filenames.caption(caption or key), lab))
+
+    for k, files in acquisition_figures.items():
+        add(f"xu-{k}", _png(files), ACQUISITION, "Figures")
+        if k == "fig08":
+            add("xu-fig08-table", next(f for f in files if f.endswith(".csv")), ACQUISITION, "Tables")
+    for k, files in manifold_figures.items():
+        add(f"soler-{k}", _png(files), MANIFOLD, "Figures")
+    if spaces_table:
+        add("soler-spaces-table", spaces_table, MANIFOLD, "Tables")
+    for k, files in render_figures.items():
+        add(f"render-{k}", _png(files), RENDERING, "Figures")
+    for path, t, png in errormaps:
+        add("render-errormap", png, RENDERING, "Error maps", caption="render-errormaps", path=path, t=t)
+    if errormap_summary:
+        add("render-summary", errormap_summary, RENDERING, "Tables")
+    if floor_figure:
+        add("render-floor-check", _png(floor_figure), RENDERING, "Noise-floor check")
+    if floor_check_table:
+        add("render-floor-check-table", floor_check_table, RENDERING, "Noise-floor check")
+    add("claims", filenames.claims_csv(), CLAIMS, "Claims")
+    return items

@@ -1,0 +1,407 @@
+"""The report: claims computed from small hand-made CSVs, captions, front page, stage times.
+
+Each claim is checked on numbers where it holds and flipped to "does not
+hold" by the numbers alone.  :func:`check_tiny_report` builds the Snakemake
+report of the tiny run (called by ``test_tiny_run_builds_a_valid_store`` in
+test_workflow.py, so the tiny run is not repeated) and opens the archive.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import json
+import math
+import re
+import subprocess
+import zipfile
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import pytest
+
+from brdfpipe import filenames, plan
+from brdfpipe.report import captions, claims, items, runinfo
+
+
+def write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, object]]) -> Path:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(columns), lineterminator="\n")
+        w.writeheader()
+        for r in rows:
+            w.writerow(r)
+    return path
+
+
+ERR_COLS = ("database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value")
+
+
+def errors_csv(path: Path, values: Mapping[tuple[str, float, str, int], float], database: str = "synthetic") -> Path:
+    rows = []
+    for (setup, fov, metric, n), v in values.items():
+        base = {"database": database, "split": "train", "setup": setup, "fov": fov, "metric": metric, "n": n}
+        rows.append({**base, "material": "mean", "channel": "all", "kind": "rms_log", "value": v})
+        # per-material rows and other kinds must not enter the means
+        rows.append({**base, "material": "m1", "channel": "R", "kind": "rms_log", "value": 99.0})
+        rows.append({**base, "material": "mean", "channel": "all", "kind": "relrms_linear", "value": 99.0})
+    return write_csv(path, ERR_COLS, rows)
+
+
+# README's numbers (default synthetic run): the claims the issue names, with their sign.
+README = {
+    ("point", 0.0, "error", 5): 0.278, ("point", 0.0, "condition", 5): 0.337,
+    ("point", 0.0, "error", 10): 0.206, ("point", 0.0, "condition", 10): 0.26,
+    ("point", 0.0, "error", 20): 0.171, ("point", 0.0, "condition", 20): 0.186,
+    ("point", 0.0, "error", 1): 0.776, ("point", 0.0, "condition", 1): 0.776,
+    ("nearfield", 25.0, "error", 1): 0.321, ("nearfield", 25.0, "error", 2): 0.250,
+    ("nearfield", 25.0, "condition", 1): 0.899, ("nearfield", 25.0, "condition", 2): 0.687,
+    ("nearfield", 45.0, "error", 1): 0.260, ("nearfield", 45.0, "error", 2): 0.158,
+    ("nearfield", 45.0, "condition", 1): 0.7, ("nearfield", 45.0, "condition", 2): 0.6,
+    ("fixed_camera", 25.0, "error", 2): 0.246,
+}
+
+
+def by_key(found: Sequence[claims.Claim]) -> dict[str, claims.Claim]:
+    return {c.key: c for c in found}
+
+
+def test_near_field_images_vs_point_samples_take_the_sign_from_the_numbers(tmp_path: Path) -> None:
+    e = claims.read_errors(errors_csv(tmp_path / "errors.csv", README))
+    one_vs_5_eq15 = claims.point_vs_images(e, 1, 5, "error")
+    assert one_vs_5_eq15.holds == "no" and one_vs_5_eq15.value == pytest.approx(0.321 / 0.278)
+    assert "0.321" in one_vs_5_eq15.measured and "0.278" in one_vs_5_eq15.measured and ">" in one_vs_5_eq15.measured
+    assert claims.point_vs_images(e, 1, 5, "condition").holds == "yes"  # 0.321 < 0.337
+    assert claims.point_vs_images(e, 2, 10, "error").holds == "no"  # 0.250 > 0.206
+    assert claims.point_vs_images(e, 2, 20, "condition").holds == "no"  # 0.250 > 0.186
+    assert {c.database for c in (one_vs_5_eq15,)} == {"synthetic"}
+    # the same claim flips when the numbers do
+    e2 = claims.read_errors(errors_csv(tmp_path / "e2.csv", {**README, ("point", 0.0, "error", 5): 0.35}))
+    assert claims.point_vs_images(e2, 1, 5, "error").holds == "yes"
+    # a point set the run did not make: not measured, with the reason
+    e3 = claims.read_errors(errors_csv(tmp_path / "e3.csv", {k: v for k, v in README.items() if k[3] != 20}))
+    c = claims.point_vs_images(e3, 2, 20, "error")
+    assert c.holds == "not measured" and "n = 20" in c.measured and math.isnan(c.value) and c.database == ""
+
+
+def test_eq15_vs_condition_number_holds_only_at_every_fov_and_n(tmp_path: Path) -> None:
+    e = claims.read_errors(errors_csv(tmp_path / "e.csv", README))
+    c = claims.metric_vs_condition(e, "nearfield")
+    assert c.holds == "yes" and "4 of 4" in c.measured
+    assert c.value == pytest.approx(min(0.899 / 0.321, 0.687 / 0.250, 0.7 / 0.260, 0.6 / 0.158))
+    assert claims.metric_vs_condition(e, "point").holds == "yes"  # ties (n = 1) count as holding
+    bad = claims.read_errors(errors_csv(tmp_path / "b.csv", {**README, ("nearfield", 45.0, "condition", 2): 0.15}))
+    c = claims.metric_vs_condition(bad, "nearfield")
+    assert c.holds == "no" and "3 of 4" in c.measured and c.value == pytest.approx(0.15 / 0.158)
+    bad = claims.read_errors(errors_csv(tmp_path / "p.csv", {**README, ("point", 0.0, "condition", 20): 0.17}))
+    assert claims.metric_vs_condition(bad, "point").holds == "no"
+
+
+def test_error_vs_fov_nearly_best_and_fixed_setups(tmp_path: Path) -> None:
+    e = claims.read_errors(errors_csv(tmp_path / "e.csv", README))
+    assert claims.error_vs_fov(e).holds == "yes"
+    best = claims.fov25_nearly_best(e)  # 0.250 vs 0.158: 1.58 > 1.10
+    assert best.holds == "no" and best.value == pytest.approx(0.250 / 0.158)
+    close = claims.read_errors(errors_csv(tmp_path / "c.csv", {**README, ("nearfield", 45.0, "error", 2): 0.24}))
+    assert claims.fov25_nearly_best(close).holds == "yes"
+    worse = claims.read_errors(errors_csv(tmp_path / "w.csv", {**README, ("nearfield", 45.0, "error", 1): 0.4}))
+    assert claims.error_vs_fov(worse).holds == "no"
+    fixed = claims.fixed_vs_nearfield(e)  # fixed camera 0.246 < near-field 0.250: the paper says higher
+    assert fixed.holds == "no"
+    higher = claims.read_errors(errors_csv(tmp_path / "h.csv", {**README, ("fixed_camera", 25.0, "error", 2): 0.3}))
+    assert claims.fixed_vs_nearfield(higher).holds == "yes"
+    one_fov = claims.read_errors(errors_csv(tmp_path / "o.csv", {k: v for k, v in README.items() if k[1] != 45.0}))
+    assert claims.error_vs_fov(one_fov).holds == "not measured"
+
+
+def test_training_size_and_one_shot_optimum(tmp_path: Path) -> None:
+    cols = ("database", "n_train", "order_seed", "material", "channel", "kind", "value")
+
+    def curve(name: str, values: Sequence[float]) -> Path:
+        rows = [{"database": "merl", "n_train": n, "order_seed": s, "material": "mean", "channel": "all",
+                 "kind": "rms_log", "value": v + 0.01 * s} for n, v in zip((30, 60, 90), values) for s in (0, 1)]
+        return write_csv(tmp_path / name, cols, rows)
+
+    c = claims.training_size_decreasing(curve("a.csv", [0.5, 0.4, 0.3]))
+    assert c.holds == "yes" and c.database == "merl" and c.value == pytest.approx(0.305 / 0.505)
+    assert claims.training_size_decreasing(curve("b.csv", [0.5, 0.3, 0.4])).holds == "no"
+
+    fcols = ("fov_deg", "n_images", "image", "theta_h_deg", "light_theta_deg", "split", "database")
+
+    def fig08(name: str, th: float, ti: float) -> Path:
+        rows = [{"fov_deg": 25, "n_images": 1, "image": 1, "theta_h_deg": th, "light_theta_deg": ti,
+                 "split": "all", "database": "synthetic"},
+                {"fov_deg": 25, "n_images": 1, "image": 1, "theta_h_deg": 40, "light_theta_deg": 10,
+                 "split": "train", "database": "synthetic"},  # the train split's set is not the paper's table
+                {"fov_deg": 25, "n_images": 2, "image": 1, "theta_h_deg": 40, "light_theta_deg": 10,
+                 "split": "all", "database": "synthetic"}]
+        return write_csv(tmp_path / name, fcols, rows)
+
+    c = claims.one_shot_optimum(fig08("ok.csv", 5.0, 52.0))
+    assert c.holds == "yes" and c.value == 5.0 and "θh 5.0°" in c.measured
+    assert claims.one_shot_optimum(fig08("far.csv", 12.0, 60.0)).holds == "no"
+
+
+def test_soler_claims_flip_with_the_numbers(tmp_path: Path) -> None:
+    rcols = ("database", "space", "material", "method", "k", "relative_error")
+
+    def rep(name: str, gp: float) -> Path:
+        rows = [{"database": "synthetic", "space": "raw", "material": m, "method": meth, "k": k, "relative_error": v}
+                for m in ("a", "b", "c") for meth, k, v in (("pca", 20, 0.1), ("pca", 40, 0.05), ("gplvm", 2, gp))]
+        return write_csv(tmp_path / name, rcols, rows)
+
+    assert claims.reproduction_vs_pca(rep("r1.csv", 1e-6)).holds == "yes"
+    c = claims.reproduction_vs_pca(rep("r2.csv", 0.06))
+    assert c.holds == "no" and c.value == 0.06
+
+    scols = ("database", "candidate", "q", "default", "albedo_bad_hull", "albedo_bad_map")
+
+    def spaces(name: str, bad: float) -> Path:
+        return write_csv(tmp_path / name, scols, [
+            {"database": "synthetic", "candidate": "std", "q": 2, "default": "true", "albedo_bad_hull": 0,
+             "albedo_bad_map": 0},
+            {"database": "synthetic", "candidate": "std", "q": 5, "default": "true", "albedo_bad_hull": bad,
+             "albedo_bad_map": ""},
+            {"database": "synthetic", "candidate": "raw", "q": 2, "default": "false", "albedo_bad_hull": 0.5,
+             "albedo_bad_map": 0.5}])
+
+    assert claims.albedo_in_unit_interval(spaces("s1.csv", 0.0)).holds == "yes"  # other candidates do not count
+    c = claims.albedo_in_unit_interval(spaces("s2.csv", 0.0033))
+    assert c.holds == "no" and c.value == 0.0033 and "0.33 %" in c.measured
+
+    pcols = ("database", "path", "t", "perceptual_a", "perceptual_b", "perceptual_ab", "deviation", "bound")
+
+    def paths(name: str, mid_a: float, dev: float) -> Path:
+        rows = [{"database": "synthetic", "path": "a--b", "t": t, "perceptual_a": da, "perceptual_b": 2 - da,
+                 "perceptual_ab": 2, "deviation": dev, "bound": 1.0}
+                for t, da in ((0.0, 0.0), (0.5, mid_a), (0.75, 1.5), (1.0, 2.0))]
+        return write_csv(tmp_path / name, pcols, rows)
+
+    c = claims.perceptual_uniformity(paths("p1.csv", 1.2, 0.5))
+    assert c.holds == "yes" and c.value == pytest.approx(0.1)
+    assert claims.perceptual_uniformity(paths("p2.csv", 1.7, 0.5)).holds == "no"  # d(A) falls from t 0.5 to 0.75
+    assert claims.eq7_bound(paths("p3.csv", 1.2, 0.5)).holds == "yes"
+    assert claims.eq7_bound(paths("p4.csv", 1.2, 1.5)).holds == "no"
+
+    tr = write_csv(tmp_path / "q2-trace.csv", ("step", "stage", "log_likelihood"),
+                   [{"step": 0, "stage": "start", "log_likelihood": 10}, {"step": 1, "stage": "lbfgs", "log_likelihood": 20}])
+    down = write_csv(tmp_path / "q5-trace.csv", ("step", "stage", "log_likelihood"),
+                     [{"step": 0, "stage": "start", "log_likelihood": 10}, {"step": 1, "stage": "lbfgs", "log_likelihood": 5}])
+    assert claims.likelihood_increases({2: tr}, "synthetic").holds == "yes"
+    assert claims.likelihood_increases({2: tr, 5: down}, "synthetic").holds == "no"
+
+    bcols = ("database", "material", "share_object")
+    ok = write_csv(tmp_path / "b1.csv", bcols, [{"database": "synthetic", "material": "a", "share_object": 0.05}])
+    big = write_csv(tmp_path / "b2.csv", bcols, [{"database": "synthetic", "material": "a", "share_object": 0.05},
+                                                 {"database": "synthetic", "material": "b", "share_object": 0.2}])
+    assert claims.second_bounce_share(ok).holds == "yes"
+    c = claims.second_bounce_share(big)
+    assert c.holds == "no" and "(b)" in c.measured
+
+    ecols = ("database", "path", "t", "ratio_seed2", "ratio_one_seed2")
+    fine = write_csv(tmp_path / "e1.csv", ecols, [{"database": "synthetic", "path": "a--b", "t": 0.5,
+                                                   "ratio_seed2": 0.95, "ratio_one_seed2": 1.3}])
+    over = write_csv(tmp_path / "e2.csv", ecols, [{"database": "synthetic", "path": "a--b", "t": 0.5,
+                                                   "ratio_seed2": 1.07, "ratio_one_seed2": 0.9}])
+    assert claims.blend_vs_noise_floor(fine, floor_check=False).holds == "yes"  # the whole image is the claim
+    assert claims.blend_vs_noise_floor(over, floor_check=False).holds == "no"
+    fcols = ("database", "candidate", "default", "path", "t", "spp", "ratio_seed2", "ratio_one_seed2")
+    floor = write_csv(tmp_path / "f.csv", fcols, [
+        {"database": "synthetic", "candidate": "std", "default": "true", "path": "a--b", "t": 0.5, "spp": 4096,
+         "ratio_seed2": 0.9, "ratio_one_seed2": 0.9},
+        {"database": "synthetic", "candidate": "raw", "default": "false", "path": "a--b", "t": 0.5, "spp": 4096,
+         "ratio_seed2": 29.0, "ratio_one_seed2": 29.0}])
+    c = claims.blend_vs_noise_floor(floor, floor_check=True)
+    assert c.holds == "yes" and c.value == 0.9 and "std, 4096 spp" in c.measured
+
+
+def test_bad_input_names_the_file_and_two_databases_are_refused(tmp_path: Path) -> None:
+    bad = write_csv(tmp_path / "errors.csv", ERR_COLS[:-1], [])
+    with pytest.raises(claims.ClaimsInputError, match=r"errors\.csv: missing column\(s\) value"):
+        claims.read_errors(bad)
+    with pytest.raises(claims.ClaimsInputError, match="nothing.csv: no such file"):
+        claims.read_errors(tmp_path / "nothing.csv")
+    text = errors_csv(tmp_path / "t.csv", {("point", 0.0, "error", 1): 0.5})
+    text.write_text(text.read_text().replace("0.5", "zero", 1))
+    with pytest.raises(claims.ClaimsInputError, match=r"t\.csv: line 2: column 'value' is not a number"):
+        claims.read_errors(text)
+    e = errors_csv(tmp_path / "e.csv", README, database="synthetic")
+    b = write_csv(tmp_path / "b.csv", ("database", "material", "share_object"),
+                  [{"database": "merl", "material": "a", "share_object": 0.05}])
+    with pytest.raises(claims.ClaimsInputError, match="different databases"):
+        claims.compute_claims(claims.ClaimInputs(errors=e, bounce_shares=b))
+
+
+def test_claims_files_and_rst_render_through_jinja_and_docutils(tmp_path: Path) -> None:
+    jinja2 = pytest.importorskip("jinja2")
+    docutils_core = pytest.importorskip("docutils.core")
+    found = claims.compute_claims(claims.ClaimInputs(errors=errors_csv(tmp_path / "e.csv", README)))
+    keys = [c.key for c in found]
+    assert len(keys) == len(set(keys)) and "xu-1-image-vs-5-points-eq15" in keys
+    out = {k: tmp_path / f"claims.{k}" for k in ("csv", "json", "rst")}
+    claims.write_claims(found, csv_path=out["csv"], json_path=out["json"], rst_path=out["rst"])
+    rows = claims.read_claims(out["csv"])
+    assert [r["key"] for r in rows] == keys
+    row = next(r for r in rows if r["key"] == "xu-1-image-vs-5-points-eq15")
+    assert row["holds"] == "no" and float(row["value"]) == pytest.approx(0.321 / 0.278, rel=1e-8)
+    assert json.loads(out["json"].read_text())[0]["figures"]
+
+    def publish(text: str) -> str:  # what Snakemake does with a caption: Jinja2, then docutils
+        rendered = jinja2.Environment().from_string(text).render(snakemake=None)
+        return docutils_core.publish_parts(rendered, writer_name="html",
+                                           settings_overrides={"halt_level": 2, "report_level": 5})["body"]
+
+    page = publish(out["rst"].read_text())
+    assert page.count("<tr>") == len(found) + 1 and "NO" in page
+    cap = captions.caption_rst("xu-fig06", found, database="synthetic",
+                               files=["results/figures/fig06-fov-vs-point.png"])
+    body = publish(cap)
+    assert "Xu Fig. 6" in body and "synthetic" in body and "does not hold" in body and "0.321" in body
+    assert "fig06-fov-vs-point.pdf" in body
+    for key in captions.DESCRIPTIONS:  # every caption is valid rst (halt_level 2: no warning)
+        assert items.FIGURE_NUMBERS[key] in publish(captions.caption_rst(
+            key, found, database="synthetic", files=["results/errormaps/p/a--b-t0.5-error.png"]))
+    # measured text that looks like a template is kept as text
+    weird = claims.Claim("k", "Xu 2016", "§1", "{{ x }} {% if %}", "p", "m", 1.0, "yes", "synthetic", "s",
+                         ("xu-fig05",))
+    assert "{{ x }} {% if %}" in publish(captions.caption_rst("xu-fig05", [weird], database="synthetic"))
+
+
+def test_report_items_cover_every_planned_figure() -> None:
+    import yaml
+
+    cfg = yaml.safe_load((Path(__file__).parent / "config" / "tiny.yaml").read_text())
+    acq, man = plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"])
+    ren = plan.render_figures(3)
+    floor = filenames.figure_files(filenames.FLOOR_CHECK_STEM)
+    pts = [("a--b", "0.5", filenames.errormap("preview", "a--b", "0.5", "error.png"))]
+    its = items.report_items(database="synthetic", acquisition_figures=acq, manifold_figures=man,
+                             render_figures=ren, floor_figure=floor, spaces_table=filenames.spaces_csv(),
+                             errormaps=pts, errormap_summary=filenames.errormap_summary("preview"),
+                             floor_check_table=filenames.floor_check_csv("x"))
+    paths = [it.path for it in its]
+    pngs = [f for figs in (acq, man, ren) for files in figs.values() for f in files if f.endswith(".png")]
+    assert set(pngs + [floor[0], pts[0][2]]) <= set(paths) and len(paths) == len(set(paths))
+    assert {it.category for it in its} == {items.ACQUISITION, items.MANIFOLD, items.RENDERING, items.CLAIMS}
+    assert all(it.labels["database"] == "synthetic" and it.labels["figure"] for it in its)
+    assert all(it.key in captions.DESCRIPTIONS for it in its)
+    emap = next(it for it in its if it.path == pts[0][2])
+    assert emap.labels["path"] == "a--b" and emap.labels["t"] == "0.5" and emap.subcategory == "Error maps"
+
+
+def test_stage_times_sum_the_benchmark_files(tmp_path: Path) -> None:
+    head = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+    (tmp_path / "fit_gplvm" / "c").mkdir(parents=True)
+    (tmp_path / "fit_gplvm" / "c" / "q2.tsv").write_text(head + "1.5\t0:00:01\t100\t0\t0\t0\t0\t0\t0\t1.0\n")
+    (tmp_path / "fit_gplvm" / "c" / "q5.tsv").write_text(head + "2.5\t0:00:02\t150\t0\t0\t0\t0\t0\t0\t2.0\n")
+    (tmp_path / "evaluate_directions.tsv").write_text(head + "4.0\t0:00:04\tNA\t0\t0\t0\t0\t0\t0\t3.5\n")
+    stages = runinfo.write_stage_times(tmp_path, csv_path=tmp_path / "st.csv", rst_path=tmp_path / "st.rst")
+    by = {s.rule: s for s in stages}
+    assert [s.rule for s in stages] == ["evaluate_directions", "fit_gplvm"]  # track order: acquisition, manifold
+    assert by["fit_gplvm"].jobs == 2 and by["fit_gplvm"].wall_s == 4.0 and by["fit_gplvm"].max_wall_s == 2.5
+    assert by["fit_gplvm"].max_rss_mb == 150 and math.isnan(by["evaluate_directions"].max_rss_mb)
+    assert "all 8.0 s over 3 jobs" in (tmp_path / "st.rst").read_text()
+    (tmp_path / "broken.tsv").write_text("x\ty\n1\t2\n")
+    with pytest.raises(ValueError, match="broken.tsv: not a Snakemake benchmark file"):
+        runinfo.read_benchmarks(tmp_path)
+
+
+# -- the report of the tiny run ------------------------------------------------------
+
+
+def _js_value(page: str, name: str) -> object:
+    """The JSON value of ``var <name> = …`` in the report's HTML page."""
+    m = re.search(rf"var {name} = (?=[\[{{\"])", page)
+    assert m, f"no data 'var {name}' in the report page"
+    return json.JSONDecoder().raw_decode(page[m.end():])[0]
+
+
+def _text(fragment: str) -> str:
+    """HTML as plain text (tags dropped, entities decoded, whitespace collapsed)."""
+    return " ".join(html.unescape(re.sub(r"<[^>]+>", " ", fragment)).split())
+
+
+def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.CompletedProcess]) -> None:
+    """Build ``results/report.zip`` of a finished tiny run in ``workdir`` and check what it holds.
+
+    Every figure, table and error map the workflow declares for the report
+    is in the archive with its labels and its caption (the caption's claims
+    with this run's numbers); the front page has the claims table, whose
+    numbers are the claims CSV's, the versions and the stage times; two
+    claims are recomputed here from the run's own CSVs.
+    """
+    import yaml
+
+    results = workdir / "results"
+    r = snakemake(workdir, "--report", "results/report.zip")
+    assert r.returncode == 0, r.stderr[-4000:]
+    assert "ERROR/" not in r.stderr, r.stderr[-4000:]  # docutils complains on stderr without failing
+    with zipfile.ZipFile(results / "report.zip") as z:
+        names = z.namelist()
+        page = z.read("report/report.html").decode("utf-8")
+    stored = {Path(n).name for n in names if n.startswith("report/data/raw/")}
+    entries = _js_value(page, "results")
+    front = _text(str(_js_value(page, "workflow_desc")))
+    # what the workflow declares (as rules/report_common.smk plans it)
+    cfg = yaml.safe_load((Path(__file__).parent / "config" / "tiny.yaml").read_text())
+    emaps = sorted(p.name for p in (results / "errormaps" / "preview").glob("*-error.png"))
+    declared = items.report_items(
+        database="synthetic", acquisition_figures=plan.acquisition_figures(cfg["acquisition"]),
+        manifold_figures=plan.manifold_figures(cfg["manifold"]), render_figures=plan.render_figures(len(emaps)),
+        floor_figure=filenames.figure_files(filenames.FLOOR_CHECK_STEM), spaces_table=filenames.spaces_csv(),
+        errormaps=[(n.split("-t")[0], "0.5", f"{filenames.RESULTS}/errormaps/preview/{n}") for n in emaps],
+        errormap_summary=filenames.errormap_summary("preview"),
+        floor_check_table=filenames.floor_check_csv("preview-16x12-64spp"))
+    pngs = [it for it in declared if it.path.endswith(".png")]
+    assert len(emaps) == 3 and len(pngs) == 19 + 3  # 19 figures, 3 error maps
+    assert set(entries) == {it.path for it in declared}, set(entries) ^ {it.path for it in declared}
+    rows = claims.read_claims(results / "report" / "claims.csv")
+    figs_of = {c["key"]: c["figures"] for c in json.loads((results / "report" / "claims.json").read_text())}
+    for it in declared:
+        e = entries[it.path]
+        assert Path(it.path).name in stored, it.path
+        assert e["labels"] == it.labels, (it.path, e["labels"])
+        cap = _text(e["caption"])
+        assert cap.startswith(f"{items.FIGURE_NUMBERS[it.key]} analogue — database: synthetic"), (it.path, cap)
+        for row in rows:  # each claim of this entry, with this run's numbers and verdict
+            if it.key in figs_of[row["key"]]:
+                assert " ".join(row["measured"].split()) in cap, (it.path, row["key"])
+    # the front page: the claims table with the CSV's numbers, versions, stage times
+    assert rows and {r["database"] for r in rows if r["holds"] != "not measured"} == {"synthetic"}
+    for row in rows:
+        assert " ".join(row["measured"].split()) in front, row["key"]
+    for needle in ("Claims", "Versions", "Wall time per stage", "Database: synthetic", "0.1.0+src."):
+        assert needle in front, needle
+    n_bench = len(list((workdir / "benchmarks").rglob("*.tsv")))
+    assert f"over {n_bench} jobs." in front
+    # two claims recomputed from the run's CSVs, independently of brdfpipe.report
+    with open(results / "evaluation" / "errors.csv", newline="") as fh:
+        mean = {(r["setup"], r["metric"], r["n"]): float(r["value"]) for r in csv.DictReader(fh)
+                if r["split"] == "train" and r["material"] == "mean" and r["kind"] == "rms_log" and r["fov"] in ("25", "25.0")}
+    row = next(r for r in rows if r["key"] == "xu-eq15-vs-kappa-nearfield")
+    want = min(mean[("nearfield", "condition", n)] / mean[("nearfield", "error", n)] for n in ("1", "2"))
+    assert float(row["value"]) == pytest.approx(want, rel=1e-8)
+    assert row["holds"] == ("yes" if want >= 1 else "no")
+    with open(results / "errormaps" / "preview" / "summary.csv", newline="") as fh:
+        worst = max(float(r["ratio_seed2"]) for r in csv.DictReader(fh))
+    row = next(r for r in rows if r["key"] == "soler-blend-vs-noise-floor")
+    assert float(row["value"]) == pytest.approx(worst, rel=1e-8) and row["holds"] == ("yes" if worst <= 1 else "no")
+
+
+def test_header_only_csvs_give_not_measured_claims(tmp_path: Path) -> None:
+    """A configuration whose tables are empty (no path, no curve point) reports "not measured", never fails."""
+    def empty(name: str, cols: Sequence[str]) -> Path:
+        return write_csv(tmp_path / name, cols, [])
+
+    found = claims.compute_claims(claims.ClaimInputs(
+        errors=empty("errors.csv", ERR_COLS),
+        training_size=empty("ts.csv", ("database", "n_train", "order_seed", "material", "channel", "kind", "value")),
+        fig08_table=empty("f8.csv", ("fov_deg", "n_images", "image", "theta_h_deg", "light_theta_deg", "split",
+                                     "database")),
+        reproduction=empty("rep.csv", ("database", "space", "material", "method", "k", "relative_error")),
+        spaces=empty("sp.csv", ("database", "candidate", "q", "default", "albedo_bad_hull", "albedo_bad_map")),
+        paths=empty("pa.csv", ("database", "path", "t", "perceptual_a", "perceptual_b", "perceptual_ab",
+                               "deviation", "bound")),
+        bounce_shares=empty("bs.csv", ("database", "material", "share_object")),
+        errormap_summary=empty("su.csv", ("database", "path", "t", "ratio_seed2", "ratio_one_seed2")),
+    ))
+    assert found and {c.holds for c in found} == {"not measured"}

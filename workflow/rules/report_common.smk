@@ -1,0 +1,43 @@
+# What the report (snakemake --report results/report.zip; make report) holds:
+# every figure, table and error map (brdfpipe.report.items), with category,
+# labels and a generated caption. The rules that write them wrap those outputs
+# in reported(); rules/report.smk writes the captions and the front page.
+
+from brdfpipe.report import items as report_plan
+
+REPORT_ITEMS = report_plan.report_items(
+    database=DATABASE.kind,
+    acquisition_figures=ACQUISITION_FIGURES,
+    manifold_figures=MANIFOLD_FIGURES,
+    render_figures=RENDER_FIGURES,
+    floor_figure=FLOOR_FIGURE,
+    spaces_table=fn.spaces_csv(),
+    errormaps=[(p, t, fn.errormap(SCENE, p, t, "error.png")) for p, t in PATH_POINTS],
+    errormap_summary=fn.errormap_summary(SCENE) if PATH_POINTS else None,
+    floor_check_table=fn.floor_check_csv(FLOOR_SCENE) if FLOOR_CANDIDATES else None,
+)
+_REPORTED = {item.path: item for item in REPORT_ITEMS}
+REPORT_CAPTIONS = sorted({item.caption for item in REPORT_ITEMS})
+REPORT_FILES = [
+    fn.claims_csv(),
+    fn.claims_json(),
+    fn.claims_rst(),
+    fn.front_rst(),
+    fn.stage_times_csv(),
+    fn.stage_times_rst(),
+] + REPORT_CAPTIONS
+
+
+def reported(path):
+    """``path``, flagged for the report (category, labels, caption) when the report holds it."""
+    item = _REPORTED.get(path)
+    if item is None:
+        return path
+    # the generated caption, by absolute path: Snakemake resolves a relative
+    # caption against this file's folder, while results/ lies in the working directory
+    return report(path, **item.report_kwargs(os.path.abspath(item.caption)))
+
+
+def reported_figures(figures):
+    """A {key: [files]} figure mapping with its report files flagged (see reported)."""
+    return {key: [reported(f) for f in files] for key, files in figures.items()}

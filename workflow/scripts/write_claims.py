@@ -1,0 +1,41 @@
+"""The papers' claims from the run's CSVs, the report's captions and front page (rule write_claims)."""
+
+import json
+
+from brdfpipe.logutil import log_to
+from brdfpipe.report import captions, claims, runinfo
+
+with log_to(snakemake.log[0]):
+    inp = snakemake.input
+    found = claims.compute_claims(
+        claims.ClaimInputs(
+            errors=inp.errors,
+            training_size=inp.training_size or None,
+            fig08_table=inp.fig08_table[0] if inp.fig08_table else None,
+            reproduction=inp.reproduction,
+            spaces=inp.spaces,
+            paths=inp.paths,
+            traces=dict(zip(snakemake.params.latent_dims, inp.traces)),
+            bounce_shares=inp.bounce_shares,
+            errormap_summary=inp.errormap_summary or None,
+            floor_check=inp.floor_check or None,
+        )
+    )
+    claims.write_claims(
+        found,
+        csv_path=snakemake.output.claims,
+        json_path=snakemake.output.json,
+        rst_path=snakemake.output.rst,
+    )
+    with open(inp.splits, encoding="utf-8") as fh:
+        splits = json.load(fh)
+    captions.write_captions(snakemake.params.entries, found, database=splits["database"])
+    runinfo.write_front(
+        snakemake.output.front,
+        claims=found,
+        splits=splits,
+        config=snakemake.params.config,
+        configfiles=snakemake.params.configfiles,
+        targets=snakemake.params.targets,
+        versions=runinfo.versions(),
+    )
