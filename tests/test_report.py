@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from brdfpipe import filenames, plan
+from brdfpipe.core import filenames, plan
 from brdfpipe.report import captions, claims, items, runinfo
 
 

@@ -1,6 +1,6 @@
 """Wall time per stage from the jobs' benchmark files (rule summarize_stage_times)."""
 
-from brdfpipe.logutil import log_to
+from brdfpipe.core.logutil import log_to
 from brdfpipe.report import runinfo
 
 with log_to(snakemake.log[0]):

@@ -2,7 +2,7 @@
 
 import json
 
-from brdfpipe.logutil import log_to
+from brdfpipe.core.logutil import log_to
 from brdfpipe.report import captions, claims, runinfo
 
 with log_to(snakemake.log[0]):

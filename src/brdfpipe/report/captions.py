@@ -2,7 +2,7 @@
 
 A caption is reStructuredText written by rule ``write_claims`` from the
 run's claims (:mod:`brdfpipe.report.claims`), one file per figure, table or
-set of error maps (:func:`brdfpipe.filenames.caption`).  Snakemake reads a
+set of error maps (:func:`brdfpipe.core.filenames.caption`).  Snakemake reads a
 caption file when it builds the report (``snakemake --report``), not when
 it parses the workflow, so the captions can hold numbers computed by a job.
 Snakemake renders captions as Jinja2 templates first: the text is wrapped
@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
-from brdfpipe import atomic
+from brdfpipe.core import atomic
 from brdfpipe.report.claims import Claim, rst_cell
 from brdfpipe.report.items import FIGURE_NUMBERS
 

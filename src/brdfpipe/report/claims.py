@@ -26,7 +26,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from brdfpipe import atomic
+from brdfpipe.core import atomic
 
 __all__ = [
     "ClaimsInputError",

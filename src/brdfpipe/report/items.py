@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from brdfpipe import filenames
+from brdfpipe.core import filenames
 
 __all__ = [
     "ACQUISITION",
@@ -69,7 +69,7 @@ class Item:
     path: str
     category: str
     subcategory: str
-    caption: str  #: generated caption file (:func:`brdfpipe.filenames.caption`)
+    caption: str  #: generated caption file (:func:`brdfpipe.core.filenames.caption`)
     labels: dict[str, str] = field(default_factory=dict)
 
     def report_kwargs(self, caption_path: str) -> dict[str, object]:
@@ -99,7 +99,7 @@ def report_items(
 ) -> list[Item]:
     """Every report entry of a configuration, in report order.
 
-    Figures: the PNG of each figure of ``*_figures`` (``brdfpipe.plan``; the
+    Figures: the PNG of each figure of ``*_figures`` (``brdfpipe.core.plan``; the
     PDF next to it is the same figure); Xu Fig. 8's CSV table;
     ``errormaps``: ``(path, t, error.png)`` per rendered path point (the EXR
     maps are data: browsers cannot show them, the captions name them);

@@ -23,7 +23,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from brdfpipe import atomic, version
+from brdfpipe.core import atomic, version
 from brdfpipe.report.claims import Claim, claims_table_rst, rst_cell
 
 __all__ = [
