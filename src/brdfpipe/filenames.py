@@ -61,6 +61,7 @@ __all__ = [
     "candidate_errormap_summary",
     "candidate_errormap",
     "floor_check_csv",
+    "explorer_dir",
 ]
 
 #: Root folder of every output.
@@ -314,3 +315,11 @@ def candidate_errormap(scene: str, candidate: str, path: str, t: float | str, ki
 def floor_check_csv(scene: str) -> str:
     """Every candidate's blends against the noise floor, one row per path point."""
     return f"{RESULTS}/errormaps/{scene}/floor-check.csv"
+
+
+# -- the explorer (a static page over the manifold and the pre-renders) -----
+
+
+def explorer_dir() -> str:
+    """Folder of the in-browser material explorer (:mod:`brdfpipe.explorer`): open its ``index.html``."""
+    return f"{RESULTS}/explorer"

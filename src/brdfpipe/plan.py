@@ -332,6 +332,8 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "summarize_floor_check": (120.0, 0.0),  # one small CSV per candidate
     "plot_floor_check": (240.0, 0.0),  # as plot_render_figures, without the images
     "plot_render_figures": (240.0, 1.0),
+    # the explorer: pre-renders in float32 and float64 (SVD), their half floats and base64 text
+    "write_explorer": (250.0, 6.0),
 }
 #: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every
 #: output in memory: ``interpolate_path_points`` holds one float64 MERL table
