@@ -25,8 +25,8 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
     yy, xx = np.mgrid[0:height, 0:width] / max(width, height)
     patterns = np.stack([np.ones_like(xx), xx, yy, np.sin(6 * xx) ** 2, np.exp(-20 * ((xx - .5) ** 2 + (yy - .4) ** 2))])
     mix = rng.uniform(0.05, 1.0, size=(n, 3, patterns.shape[0]))
-    images = np.einsum("ncp,phw->nhwc", mix, patterns) * (1 + 0.05 * rng.standard_normal((n, height, width, 3)))
-    images = np.abs(images).astype(np.float32)
+    images = np.einsum("ncp,phw->nhwc", mix, patterns) * (1 + 0.01 * rng.standard_normal((n, height, width, 3)))
+    images = (0.3 * np.abs(images)).astype(np.float32)
     prerenders = {}
     for name, img in zip(names, images):
         prerenders[name] = str(root / f"{name}.exr")
@@ -38,7 +38,7 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
     s = gplvm.gram_scale(G, 400)
     models = []
     for q in qs:
-        res = gplvm.fit(G / s, 400, q=q, mu=1e-4, seed=seed, max_sweeps=30)
+        res = gplvm.fit(G / s, 400, q=q, mu=1e-4, seed=seed, max_sweeps=20, method="hooke-jeeves")
         path = root / f"q{q}.npz"
         gplvm.save_model(path, res, names, space=space, gram_scale=s)
         models.append(str(path))
