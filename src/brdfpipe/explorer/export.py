@@ -97,6 +97,7 @@ FALLBACK_TARGET: Final = 0.01
 PER_TEXEL: Final = 8
 _GLOBAL: Final = "BRDF_EXPLORER_DATA"
 _HALF_MAX: Final = 65504.0
+_ROWS: Final = 16
 
 
 class ExplorerError(ValueError):
@@ -160,9 +161,13 @@ def reduced_basis(images: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.fl
     n = a.shape[0]
     a = a.reshape(n, -1)
     mean = a.mean(axis=0)
-    u, s, vt = np.linalg.svd(a - mean, full_matrices=False)
+    a = a - mean
+    # through the N x N Gram matrix (N << 3HW): A = U S V^T, A A^T = U S^2 U^T, S V^T = U^T A
+    lam, u = np.linalg.eigh(a @ a.T)
+    order = np.argsort(lam)[::-1]
+    u = u[:, order]
     root = math.sqrt(n)
-    return mean, (s[:, None] * vt) / root, u * root
+    return mean, (u.T @ a) / root, u * root
 
 
 def truncation_errors(
@@ -174,15 +179,20 @@ def truncation_errors(
     (:func:`brdfpipe.blend.relative_rmse`).  ``basis`` may be half-rounded
     (what the page shows).
     """
-    a = np.asarray(images, dtype=np.float64)
+    a = np.asarray(images, dtype=np.float32)
     a = a.reshape(a.shape[0], -1)
     W = np.atleast_2d(np.asarray(weights, dtype=np.float64))
-    exact = W @ a
-    coef = W @ np.asarray(cu, dtype=np.float64)[:, :k]
-    approx = W.sum(axis=1, keepdims=True) * np.asarray(mean, dtype=np.float64) + coef @ np.asarray(
-        basis, dtype=np.float64)[:k]
-    rmse = np.sqrt(np.mean(np.square(approx - exact), axis=1))
-    return rmse / np.abs(exact.mean(axis=1))
+    mean = np.asarray(mean, dtype=np.float64)
+    B = np.asarray(basis)[:k]
+    Cu = np.asarray(cu, dtype=np.float64)[:, :k]
+    out = np.empty(W.shape[0])
+    for r0 in range(0, W.shape[0], _ROWS):  # a few rows at a time: P x 3HW float64 would be GBs
+        w = W[r0:r0 + _ROWS]
+        exact = w @ a
+        approx = w.sum(axis=1, keepdims=True) * mean + (w @ Cu) @ B
+        rmse = np.sqrt(np.mean(np.square(approx - exact), axis=1))
+        out[r0:r0 + _ROWS] = rmse / np.abs(exact.mean(axis=1))
+    return out
 
 
 def _choose_rank(
@@ -194,8 +204,8 @@ def _choose_rank(
     The residual of a blend is ``Σ_{j>k} (wᵀCu)_j B_j`` and the rows of ``B``
     are orthogonal, so its squared norm is ``Σ_{j>k} (wᵀCu)_j² ‖B_j‖²``.
     """
-    a = images.reshape(images.shape[0], -1).astype(np.float64)
-    means = np.abs((W @ a).mean(axis=1))
+    a = images.reshape(images.shape[0], -1)
+    means = np.abs(W @ a.mean(axis=1, dtype=np.float64))
     size = a.shape[1]
     norms2 = np.einsum("ij,ij->i", basis, basis)
     parts = np.square(W @ cu) * norms2  # (P, r)

@@ -148,12 +148,41 @@
     void main() {
       ivec2 p = pixel();
       vec3 acc = vec3(0.0);
-      for (int g = 0; g < G; ++g) {
-        vec4 w0 = u_w[2 * g], w1 = u_w[2 * g + 1];
-        acc.r += channel(p, g, w0, w1);
-        acc.g += channel(p, G + g, w0, w1);
-        acc.b += channel(p, 2 * G + g, w0, w1);
-      }
+      ${unrolled(groups, 'w0', 'w1')}
+      emit(acc);
+    }`;
+  }
+  // The loop over groups written out: constant texture layers and uniform indices (SwiftShader runs a
+  // loop with a dynamic uniform index markedly slower).
+  function unrolled(groups, a, b) {
+    let src = '';
+    for (let g = 0; g < groups; g++) {
+      src += `{ vec4 ${a} = u_w[${2 * g}], ${b} = u_w[${2 * g + 1}];
+        acc.r += channel(p, ${g}, ${a}, ${b}); acc.g += channel(p, ${groups + g}, ${a}, ${b});
+        acc.b += channel(p, ${2 * groups + g}, ${a}, ${b}); }\n`;
+    }
+    return src;
+  }
+  // Packed, converted by bit operations: a half h is the float with bits ((h & 0x7fff) << 13 | sign << 31)
+  // times 2^112 (exact for normal halves; halves below 6.1e-5 may be flushed to 0 by the GPU); the factor
+  // 2^112 is folded into the weights, which come as (even images, odd images) of each group of eight.
+  function bitsFS(groups) {
+    return `#version 300 es
+    precision highp float; precision highp int; precision highp usampler2DArray;
+    #define G ${groups}
+    uniform usampler2DArray u_tex;
+    uniform vec4 u_w[2 * G];
+    ${TONEMAP}
+    float channel(ivec2 p, int layer, vec4 we, vec4 wo) {
+      uvec4 t = texelFetch(u_tex, ivec3(p, layer), 0);
+      vec4 lo = uintBitsToFloat(((t << 16u) & 0x80000000u) | ((t << 13u) & 0x0FFFE000u));
+      vec4 hi = uintBitsToFloat((t & 0x80000000u) | ((t >> 3u) & 0x0FFFE000u));
+      return dot(lo, we) + dot(hi, wo);
+    }
+    void main() {
+      ivec2 p = pixel();
+      vec3 acc = vec3(0.0);
+      ${unrolled(groups, 'we', 'wo')}
       emit(acc);
     }`;
   }
@@ -223,6 +252,11 @@
     fail('WebGL set-up failed: ' + e.message);
     return;
   }
+  function bitsProg(name) {
+    const s = SETS[name];
+    if (!s.bits) s.bits = program(bitsFS(s.layers / 3));
+    return s.bits;
+  }
   function naiveSet(name) {
     const s = SETS[name];
     if (!s.naive) {
@@ -251,7 +285,7 @@
   let fbo = null, fboTex = null;
   function draw(name, imageWeights, { linear = false, shader = 'packed', target = null } = {}) {
     const s = SETS[name];
-    const prog = shader === 'naive' ? naiveSet(name).prog : s.prog;
+    const prog = shader === 'naive' ? naiveSet(name).prog : shader === 'bits' ? bitsProg(name) : s.prog;
     const tex = shader === 'naive' ? naiveSet(name).tex : s.tex;
     gl.bindFramebuffer(gl.FRAMEBUFFER, target);
     gl.viewport(0, 0, W, H);
@@ -261,6 +295,10 @@
     gl.uniform1i(prog.u_tex, 0);
     if (shader === 'naive') {
       gl.uniform1fv(prog.u_wn, Float32Array.from(imageWeights));
+    } else if (shader === 'bits') {
+      const padded = new Float32Array(Math.ceil(s.n / 8) * 8), f = Math.pow(2, 112);
+      for (let i = 0; i < s.n; i++) padded[(i & ~7) + ((i & 1) << 2) + ((i & 7) >> 1)] = imageWeights[i] * f;
+      gl.uniform4fv(prog.u_w, padded);
     } else {
       const padded = new Float32Array(Math.ceil(s.n / 8) * 8);
       padded.set(imageWeights);
@@ -486,6 +524,7 @@
     const m = model(), x = new Array(m.q);
     for (let d = 0; d < m.q; d++) x[d] = (1 - t) * m.X[a * m.q + d] + t * m.X[b * m.q + d];
     setPoint(x);
+    buildSlices();  // the sliders of the other coordinates follow the path's point
   }
 
   // ---------------------------------------------------------------- controls
@@ -536,6 +575,9 @@
     state.mode = mode;
     document.querySelector(`input[name=mode][value=${mode}]`).checked = true;
     $('path-controls').hidden = mode !== 'path';
+    // side by side in path mode: two images in the width of one
+    const cw = mode === 'path' ? Math.min(W * scale, 340) : W * scale;
+    for (const c of [view, refCanvas]) { c.style.width = cw + 'px'; c.style.height = Math.round(cw * H / W) + 'px'; }
     if (mode === 'path') {
       const first = PATHS.length ? PATHS[0] : null;
       const a = state.pathA !== null ? state.pathA : first ? NAMES.indexOf(first.a) : 0;
