@@ -16,7 +16,7 @@ SLURM_STAMP   := $(SLURM_PLUGINS)/.installed
 CONFIG ?= config/config.yaml
 CORES  ?= all
 
-.PHONY: run test bench setup llvm dryrun lint clean slurm-test slurm-plugins report
+.PHONY: run test bench setup llvm chromium dryrun lint clean slurm-test slurm-plugins report
 
 setup: $(STAMP) llvm
 
@@ -40,6 +40,20 @@ llvm: $(STAMP)
 	fi
 	@$(PY) -c "import drjit.llvm as L; assert list(L.Float([1, 2, 3]) * 2) == [2, 4, 6]; print('Dr.Jit LLVM backend: ok')"
 
+# Debian's chromium for the explorer's browser tests (tests/test_explorer.py) and
+# its benchmark: installed when root and missing; otherwise those tests are
+# skipped with the reason, so this target never fails the build.
+chromium:
+	@if ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing chromium (the explorer's browser tests)"; \
+	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } \
+	      || echo "chromium could not be installed: the explorer's browser tests will be skipped" >&2; \
+	  else \
+	    echo "no chromium: the explorer's browser tests will be skipped (sudo apt-get install chromium)" >&2; \
+	  fi; \
+	fi
+
 # pyproject's `slurm` extra, without dependencies (the venv has the rest)
 slurm-plugins: $(SLURM_STAMP)
 $(SLURM_STAMP): pyproject.toml $(STAMP)
@@ -57,7 +71,7 @@ run: setup
 report: setup
 	$(SMK) --configfile $(CONFIG) --report results/report.zip
 
-test: setup lint $(SLURM_STAMP)
+test: setup lint chromium $(SLURM_STAMP)
 	$(PY) -m pytest -q -n 2
 
 bench: setup

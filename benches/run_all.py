@@ -41,6 +41,8 @@ def main() -> None:
     run("benches/bench_gplvm.py", "--scaling", "entry")
     # Rendering track: the merl BSDF vs Mitsuba's analytic plugins.
     run("benches/bench_render.py")
+    # The explorer: blend frame rate in headless chromium (SwiftShader), naive vs packed shaders.
+    run("benches/bench_explorer.py")
     # Trust and cluster: verifying the store on open, parse time, declared memory vs the run's peaks.
     run("benches/bench_verify.py")
     run("benches/bench_dryrun.py")

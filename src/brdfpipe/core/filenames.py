@@ -69,6 +69,7 @@ __all__ = [
     "stage_times_csv",
     "stage_times_rst",
     "caption",
+    "explorer_dir",
 ]
 
 #: Root folder of every output.
@@ -361,3 +362,9 @@ def stage_times_rst() -> str:
 def caption(name: str) -> str:
     """A generated report caption (reStructuredText) for one figure, table or set of error maps."""
     return f"{REPORT}/captions/{name}.rst"
+# -- the explorer (a static page over the manifold and the pre-renders) -----
+
+
+def explorer_dir() -> str:
+    """Folder of the in-browser material explorer (:mod:`brdfpipe.explorer`): open its ``index.html``."""
+    return f"{RESULTS}/explorer"

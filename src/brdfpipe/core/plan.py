@@ -335,6 +335,8 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     # the report
     "write_claims": (60.0, 0.0),  # as compare_spaces (small CSVs); the library alone peaks at 24 MB (tiny run)
     "summarize_stage_times": (60.0, 0.0),  # as write_claims: one small TSV per job
+    # the explorer: pre-renders in float32 and float64 (SVD), their half floats and base64 text
+    "write_explorer": (250.0, 6.0),
 }
 #: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every
 #: output in memory: ``interpolate_path_points`` holds one float64 MERL table

@@ -16,6 +16,7 @@ packs.  The alternative, a static caption that computes numbers in Jinja2,
 cannot read files (Snakemake passes only the job's input, output, params,
 wildcards and config), and a number typed into a caption would go stale.
 
-Modules: :mod:`.items` (which files the report holds: parse time, standard
-library only), :mod:`.claims`, :mod:`.captions`, :mod:`.runinfo` (job time).
+Modules: :mod:`brdfpipe.report.items` (which files the report holds: parse
+time, standard library only), :mod:`brdfpipe.report.claims`,
+:mod:`brdfpipe.report.captions`, :mod:`brdfpipe.report.runinfo` (job time).
 """

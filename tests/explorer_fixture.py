@@ -1,0 +1,77 @@
+"""A small synthetic explorer input: images, GPLVM fits (q = 1, 2, 5), albedos, two path points, a summary.
+
+Used by tests/test_explorer.py and benches/bench_explorer.py (when no workflow results exist).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from brdfpipe.core import exr
+from brdfpipe.manifold import gplvm
+
+
+def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, qs: tuple[int, ...] = (2, 5),
+                space: str = "standardised", seed: int = 3) -> dict[str, Any]:
+    """Write a synthetic explorer input under ``root`` and return the write_explorer keyword arguments."""
+    rng = np.random.default_rng(seed)
+    root.mkdir(parents=True, exist_ok=True)
+    names = [f"mat-{i:02d}" for i in range(n)]
+    # images: a few smooth patterns mixed per material, plus noise: low rank + noise like pre-renders
+    yy, xx = np.mgrid[0:height, 0:width] / max(width, height)
+    patterns = np.stack([np.ones_like(xx), xx, yy, np.sin(6 * xx) ** 2, np.exp(-20 * ((xx - .5) ** 2 + (yy - .4) ** 2))])
+    mix = rng.uniform(0.05, 1.0, size=(n, 3, patterns.shape[0]))
+    images = np.einsum("ncp,phw->nhwc", mix, patterns) * (1 + 0.01 * rng.standard_normal((n, height, width, 3)))
+    images = (0.3 * np.abs(images)).astype(np.float32)
+    prerenders = {}
+    for name, img in zip(names, images):
+        prerenders[name] = str(root / f"{name}.exr")
+        exr.write_exr(prerenders[name], img)
+    # GPLVM fits on a random structured Gram matrix
+    Z = rng.standard_normal((n, 4)) @ rng.standard_normal((4, 400)) + 0.1 * rng.standard_normal((n, 400))
+    Z -= Z.mean(axis=0)
+    G = Z @ Z.T
+    s = gplvm.gram_scale(G, 400)
+    models = []
+    for q in qs:
+        res = gplvm.fit(G / s, 400, q=q, mu=1e-4, seed=seed, max_sweeps=20, method="hooke-jeeves")
+        path = root / f"q{q}.npz"
+        gplvm.save_model(path, res, names, space=space, gram_scale=s)
+        models.append(str(path))
+    albedo = root / "albedo.csv"
+    alb = rng.uniform(0.02, 0.9, size=(n, 3))
+    with albedo.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["database", "material", "r", "g", "b", "luminance"])
+        for name, a in zip(names, alb):
+            w.writerow(["synthetic", name, *a, a.mean()])
+    # two path points on the largest-q model, like manifold.path_points_to_files
+    m = gplvm.load_model(models[-1])
+    points, rows = [], []
+    for t in (0.25, 0.5):
+        a, b = names[0], names[1]
+        x = (1.0 - t) * m.X[0] + t * m.X[1]
+        wts = gplvm.blend_weights(gplvm.weights(m, x))
+        doc = {"path": f"{a}--{b}", "material_a": a, "material_b": b, "t": t, "q": int(m.X.shape[1]),
+               "x": [float(v) for v in x], "clamped": 0, "measured_values": 100,
+               "weights": {nm: float(v) for nm, v in zip(names, wts)}}
+        wpath = root / f"point-{t:g}-weights.json"
+        wpath.write_text(json.dumps(doc))
+        ref = np.abs(np.einsum("i,ihwc->hwc", wts, images) * (1 + 0.02 * rng.standard_normal(images.shape[1:])))
+        ipath = root / f"point-{t:g}.exr"
+        exr.write_exr(ipath, ref.astype(np.float32))
+        points.append({"weights": str(wpath), "image": str(ipath)})
+        rows.append({"path": f"{a}--{b}", "t": f"{t:g}", "rmse_noise": "0.05", "rmse_blend_seed2": "0.052",
+                     "ratio_seed2": "1.04"})
+    summary = root / "summary.csv"
+    with summary.open("w", newline="") as fh:
+        wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        wr.writeheader()
+        wr.writerows(rows)
+    return {"models": models, "prerenders": prerenders, "albedo": str(albedo), "path_points": points,
+            "summary": str(summary), "database": "synthetic"}

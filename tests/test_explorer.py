@@ -1,0 +1,333 @@
+"""The in-browser explorer: its export (no browser) and the page in headless Chromium.
+
+The browser tests need Debian's ``chromium`` (``make test`` installs it when
+run as root) and are skipped with the reason otherwise.  The fixture is a
+small synthetic input (tests/explorer_fixture.py): 12 materials of 48 × 36
+pixels, GPLVM fits at q = 2 and 5, two rendered path points.
+"""
+
+from __future__ import annotations
+
+import base64
+import functools
+import http.server
+import json
+import shutil
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from explorer_fixture import make_inputs  # noqa: E402
+
+from brdfpipe.core import exr  # noqa: E402
+from brdfpipe.manifold import gplvm, latent  # noqa: E402
+from brdfpipe.rendering import blend  # noqa: E402
+from brdfpipe.explorer import chromium, export  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    return make_inputs(tmp_path_factory.mktemp("explorer-inputs"))
+
+
+@pytest.fixture(scope="module")
+def site(inputs: dict, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("explorer-site") / "explorer"
+    export.write_explorer(out=out, **inputs)
+    return out
+
+
+def images_of(inputs: dict) -> np.ndarray:
+    names = list(gplvm.load_model(inputs["models"][0]).names)
+    return np.stack([exr.read_exr(inputs["prerenders"][n]) for n in names]).astype(np.float64)
+
+
+def b64_array(text: str, dtype: str) -> np.ndarray:
+    return np.frombuffer(base64.b64decode(text), dtype=dtype)
+
+
+# --------------------------------------------------------------------------
+# The export, without a browser
+# --------------------------------------------------------------------------
+
+
+def test_pack_halves_round_trips_and_puts_eight_images_in_a_texel() -> None:
+    rng = np.random.default_rng(0)
+    imgs = rng.uniform(-2, 2, size=(13, 3, 5, 3)).astype(np.float16)
+    words = export.pack_halves(imgs)
+    assert words.shape == (3 * 2, 3, 5, 4) and words.dtype == np.uint32
+    assert np.array_equal(export.unpack_halves(words, 13).view(np.uint16), imgs.view(np.uint16))
+    # layer c*G + g, component j: image 8g + 2j in the low half, 8g + 2j + 1 in the high half
+    c, g, j, y, x = 2, 1, 1, 2, 4
+    word = int(words[c * 2 + g, y, x, j])
+    assert word & 0xFFFF == imgs[8 * g + 2 * j, y, x, c].view(np.uint16)
+    assert word >> 16 == imgs[8 * g + 2 * j + 1, y, x, c].view(np.uint16)
+    assert int(words[c * 2 + 1, y, x, 3]) == 0  # images 14, 15 do not exist: zero
+
+
+def test_exported_model_gives_gplvm_weights_and_the_images(inputs: dict, site: Path) -> None:
+    doc = export.read_data_file(site / "data" / "model.js")
+    manifest = json.loads((site / "manifest.json").read_text())
+    assert doc["manifest"]["materials"] == manifest["materials"] and manifest["format"] == export.FORMAT
+    assert manifest["default_q"] == 2 and [m["q"] for m in manifest["models"]] == [2, 5]
+    rng = np.random.default_rng(1)
+    for path, mdoc in zip(inputs["models"], doc["models"]):
+        model = gplvm.load_model(path)
+        n, q = model.X.shape
+        X = b64_array(mdoc["X"], "<f8").reshape(n, q)
+        L = b64_array(mdoc["chol"], "<f8").reshape(n, n)
+        assert np.array_equal(X, model.X) and np.array_equal(L, model.chol)
+        assert (mdoc["ell"], mdoc["mu"]) == (model.ell, model.mu)
+        # the page's arithmetic: forward and back substitution with L, mu where x is a training point
+        for x in [*rng.normal(size=(5, q)), model.X[3]]:
+            d2 = ((X - x) ** 2).sum(axis=1)
+            k = np.exp(-d2 / (2 * mdoc["ell"] ** 2)) + mdoc["mu"] * (d2 == 0)
+            b = scipy.linalg.solve_triangular(L.T, scipy.linalg.solve_triangular(L, k, lower=True), lower=False)
+            np.testing.assert_allclose(b, gplvm.weights(model, x), rtol=0, atol=1e-10 * np.abs(b).max())
+    # the packed layers are the pre-renders rounded to half floats
+    layers = export.read_data_file(site / "data" / "layers.js")
+    imgs = images_of(inputs)
+    words = b64_array(layers["data"], "<u4").reshape(layers["layers"], manifest["height"], manifest["width"], 4)
+    got = export.unpack_halves(words, layers["n"]).astype(np.float64)
+    np.testing.assert_array_equal(got, imgs.astype(np.float16).astype(np.float64))
+    albedo = b64_array(doc["albedo"], "<f8").reshape(-1, 3)
+    assert albedo.shape == (len(manifest["materials"]), 3) and np.all((albedo > 0) & (albedo < 1))
+
+
+def test_reduced_basis_meets_its_target_with_the_fewest_components(inputs: dict, site: Path) -> None:
+    manifest = json.loads((site / "manifest.json").read_text())
+    basis = manifest["basis"]
+    assert basis["floor"] == pytest.approx(0.05 / np.sqrt(2)) and basis["target"] == basis["floor"]
+    imgs = images_of(inputs)
+    n = imgs.shape[0]
+    data = export.read_data_file(site / "data" / "basis.js")
+    k1 = data["n"]
+    assert k1 == basis["k"] + 1
+    words = b64_array(data["data"], "<u4").reshape(data["layers"], manifest["height"], manifest["width"], 4)
+    B = export.unpack_halves(words, k1).astype(np.float64).reshape(k1, -1)
+    C = b64_array(data["coef"], "<f8").reshape(n, k1)
+    recon = C @ B  # every pre-render from the shipped basis (w = e_i)
+    flat = imgs.reshape(n, -1)
+    err = np.sqrt(np.mean((recon - flat) ** 2, axis=1)) / flat.mean(axis=1)
+    assert err.max() == pytest.approx(basis["error_prerenders_max"], rel=1e-6)
+    assert basis["below_floor"] and max(err.max(), basis["error_blends_max"]) <= basis["target"]
+    # one component fewer misses the target (on the pre-renders or the blends)
+    mean, full, cu = export.reduced_basis(imgs)
+    model = gplvm.load_model(inputs["models"][0])
+    pts = latent.sample_in_hull(model.X, 64, np.random.default_rng(0))
+    W = np.concatenate([np.eye(n), [gplvm.blend_weights(gplvm.weights(model, x)) for x in pts]])
+    assert export.truncation_errors(imgs, W, mean, full, cu, basis["k"] - 1).max() > basis["target"]
+
+
+def test_without_a_summary_the_fallback_target_and_a_q1_model(inputs: dict, tmp_path: Path) -> None:
+    names = list(gplvm.load_model(inputs["models"][0]).names)
+    rng = np.random.default_rng(2)
+    g = rng.normal(size=(len(names), 30))
+    fit = gplvm.fit(g @ g.T / 30, 30, q=1, mu=1e-4, seed=0, max_sweeps=5, method="hooke-jeeves")
+    q1 = tmp_path / "q1.npz"
+    gplvm.save_model(q1, fit, names, space="log")
+    out = tmp_path / "explorer"
+    m = export.write_explorer(out=out, models=[q1], prerenders=inputs["prerenders"], albedo=inputs["albedo"])
+    assert m["basis"]["floor"] is None and m["basis"]["target"] == export.FALLBACK_TARGET
+    assert m["default_q"] == 1 and not m["linear"] and m["paths"] == []
+    doc = export.read_data_file(out / "data" / "model.js")
+    lo, hi = doc["models"][0]["hull"]["interval"]
+    assert (lo, hi) == (fit.X.min(), fit.X.max())
+
+
+def test_bad_inputs_fail_naming_the_file_and_keep_the_earlier_output(inputs: dict, site: Path, tmp_path: Path) -> None:
+    out = tmp_path / "explorer"
+    shutil.copytree(site, out)
+    before = (out / "manifest.json").read_bytes()
+    missing = dict(inputs["prerenders"])
+    gone = sorted(missing)[3]
+    del missing[gone]
+    with pytest.raises(export.ExplorerError, match=f"no pre-render for {gone}"):
+        export.write_explorer(out=out, **{**inputs, "prerenders": missing})
+    bad = tmp_path / "albedo.csv"
+    bad.write_text("material,r\nx,1\n")
+    with pytest.raises(export.ExplorerError, match=str(bad)):
+        export.write_explorer(out=out, **{**inputs, "albedo": str(bad)})
+    assert (out / "manifest.json").read_bytes() == before
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    from brdfpipe.core.atomic import OutputError
+
+    with pytest.raises(OutputError, match="not an output of this kind"):
+        export.write_explorer(out=foreign, **inputs)
+    assert (foreign / "notes.txt").read_text() == "mine"
+
+
+def test_export_is_deterministic(inputs: dict, site: Path, tmp_path: Path) -> None:
+    again = tmp_path / "explorer"
+    export.write_explorer(out=again, **inputs)
+    for f in sorted(p.relative_to(site) for p in site.rglob("*") if p.is_file()):
+        assert (again / f).read_bytes() == (site / f).read_bytes(), f
+
+
+# --------------------------------------------------------------------------
+# The page in headless Chromium
+# --------------------------------------------------------------------------
+
+needs_chromium = pytest.mark.skipif(chromium.find_chromium() is None,
+                                    reason="no chromium (Debian: apt-get install chromium; make test installs it as root)")
+READY = "window.explorer && (window.explorer.ready || window.explorer.error)"
+
+
+@pytest.fixture(scope="module")
+def page(site: Path):
+    if chromium.find_chromium() is None:
+        pytest.skip("no chromium (Debian: apt-get install chromium; make test installs it as root)")
+    with chromium.Browser() as b:
+        b.open(site / "index.html", ready=READY)
+        assert b.evaluate("explorer.error") is None, b.evaluate("explorer.error")
+        yield b
+
+
+def canvas(b: chromium.Browser, manifest: dict) -> np.ndarray:
+    px = b64_array(b.evaluate("explorer.canvasPixels()"), "u1")
+    return px.reshape(manifest["height"], manifest["width"], 4)[..., :3]
+
+
+def linear_blend(b: chromium.Browser, **opts) -> tuple[np.ndarray, np.ndarray]:
+    r = b.evaluate(f"explorer.debugBlend({json.dumps(opts)})")
+    rgb = b64_array(r["rgb"], "<f4").reshape(r["height"], r["width"], 3).astype(np.float64)
+    return rgb, np.array(r["weights"])
+
+
+@needs_chromium
+def test_page_loads_without_errors_and_draws(page: chromium.Browser) -> None:
+    assert page.errors == [], page.errors
+    m = page.evaluate("explorer.manifest")
+    img = canvas(page, m)
+    assert img.std() > 5 and img.max() > 50  # not blank
+    assert page.evaluate("document.getElementById('weights').tBodies[0].rows.length") == 8
+
+
+@needs_chromium
+def test_pointer_moves_change_the_image(page: chromium.Browser, inputs: dict) -> None:
+    page.evaluate("explorer.setMode('map')")
+    page.evaluate("explorer.setModel(2)")
+    m = page.evaluate("explorer.manifest")
+    model = gplvm.load_model(inputs["models"][0])
+    shots = []
+    for j in (0, 5):
+        x, y = page.evaluate(f"explorer.mapToPage({json.dumps(list(model.X[j] * 0.9 + model.X.mean(0) * 0.1))})")
+        page.mouse("mouseMoved", x, y)
+        page.evaluate("new Promise(r => requestAnimationFrame(() => r(1)))")
+        shots.append((canvas(page, m), page.evaluate("explorer.state().point")))
+    (a, pa), (b, pb) = shots
+    assert pa != pb and np.abs(a.astype(int) - b.astype(int)).mean() > 1.0
+    # the point under the pointer: the state's weights are the GPLVM's there
+    w = np.array(page.evaluate("explorer.state().w"))
+    np.testing.assert_allclose(w, gplvm.blend_weights(gplvm.weights(model, np.array(pb))), rtol=0, atol=1e-9)
+    # a click on a material puts the point exactly on it: w = e_i (exact reproduction)
+    x, y = page.evaluate(f"explorer.mapToPage({json.dumps(list(model.X[4]))})")
+    page.mouse("mousePressed", x, y, buttons=1)
+    page.mouse("mouseReleased", x, y)
+    w = np.array(page.evaluate("explorer.state().w"))
+    np.testing.assert_allclose(w, np.eye(len(w))[4], atol=1e-9)
+    assert page.errors == []
+
+
+@needs_chromium
+def test_weights_and_hull_in_the_page_equal_the_library(page: chromium.Browser, inputs: dict) -> None:
+    rng = np.random.default_rng(5)
+    for path in inputs["models"]:
+        model = gplvm.load_model(path)
+        q = model.X.shape[1]
+        pts = np.concatenate([rng.normal(scale=model.X.std() * 1.5, size=(20, q)), model.X[:2]])
+        inside = latent.hull_contains(model.X, pts)
+        assert inside.any() and not inside.all()
+        for x, ins in zip(pts, inside):
+            r = page.evaluate(f"explorer.weightsAt({q}, {json.dumps(list(x))})")
+            b = gplvm.weights(model, x)
+            np.testing.assert_allclose(r["b"], b, rtol=0, atol=1e-10 * max(1.0, np.abs(b).max()))
+            np.testing.assert_allclose(r["w"], gplvm.blend_weights(b), rtol=0, atol=1e-10 * max(1.0, np.abs(b).max()))
+            assert page.evaluate(f"explorer.hullContains({q}, {json.dumps(list(x))})") == bool(ins)
+
+
+@needs_chromium
+def test_blended_pixels_equal_numpy(page: chromium.Browser, inputs: dict) -> None:
+    imgs = images_of(inputs)
+    model = gplvm.load_model(inputs["models"][0])
+    page.evaluate("explorer.setMode('map')")
+    page.evaluate(f"explorer.setPoint({json.dumps(list(model.X[:3].mean(axis=0)))})")
+    rgb, w = linear_blend(page, basis="exact")
+    ref = np.einsum("i,ihwc->hwc", w, imgs)
+    rel = np.sqrt(np.mean((rgb - ref) ** 2)) / np.sqrt(np.mean(ref ** 2))
+    assert rel < 1e-3, rel
+    assert np.abs(rgb - ref).max() < 1e-3 * np.abs(ref).max() + 1e-3 * np.abs(w) @ imgs.reshape(len(w), -1).max(1)
+    # the reduced basis: the same blend within the manifest's error (and the shader equals numpy's basis blend)
+    manifest = page.evaluate("explorer.manifest")
+    rgb_r, _ = linear_blend(page, basis="reduced")
+    rel_r = np.sqrt(np.mean((rgb_r - ref) ** 2)) / ref.mean()
+    assert rel_r <= manifest["basis"]["target"] * 1.01
+    # tone mapping in the shader: the canvas is blend.tonemap of the linear blend (± 1 level of rounding)
+    page.evaluate("explorer.setBasis('exact')")
+    for e in (0.0, 1.5):
+        page.evaluate(f"explorer.setExposure({e})")
+        shown = canvas(page, manifest).astype(int)
+        assert np.abs(shown - blend.tonemap(rgb, e).astype(int)).max() <= 1
+    page.evaluate("explorer.setExposure(0)")
+
+
+@needs_chromium
+def test_path_mode_shows_the_reference_and_uses_the_paths_weights(page: chromium.Browser, inputs: dict) -> None:
+    doc = json.loads(Path(inputs["path_points"][1]["weights"]).read_text())
+    st = page.evaluate(f"explorer.setPath({json.dumps(doc['material_a'])}, {json.dumps(doc['material_b'])}, {doc['t']})")
+    assert st["mode"] == "path" and st["q"] == doc["q"] == 5
+    names = page.evaluate("explorer.manifest.materials")
+    np.testing.assert_allclose(st["w"], [doc["weights"][n] for n in names], rtol=0, atol=1e-9)
+    assert page.evaluate("document.getElementById('ref-fig').hidden") is False
+    ref = page.evaluate("""(() => { const c = document.getElementById('ref');
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let s = 0, s2 = 0, n = 0;
+        for (let i = 0; i < d.length; i++) if (i % 4 !== 3) { s += d[i]; s2 += d[i] * d[i]; n++; }
+        return Math.sqrt(s2 / n - (s / n) ** 2); })()""")
+    assert ref > 5  # the reference render is drawn
+    assert "t = 0.5" in page.evaluate("document.getElementById('ref-caption').textContent")
+    st = page.evaluate(f"explorer.setPath({json.dumps(doc['material_a'])}, {json.dumps(doc['material_b'])}, 0.9)")
+    assert "none" in page.evaluate("document.getElementById('ref-caption').textContent")
+    page.evaluate("explorer.setMode('map')")
+    assert page.errors == []
+
+
+@needs_chromium
+def test_q5_slices(page: chromium.Browser, inputs: dict) -> None:
+    model = gplvm.load_model(inputs["models"][1])
+    page.evaluate("explorer.setMode('map')")
+    st = page.evaluate("explorer.setModel(5)")
+    assert st["q"] == 5 and page.evaluate("document.getElementById('slices').querySelectorAll('input').length") == 3
+    st = page.evaluate("explorer.setDims(2, 3)")
+    before = st["point"]
+    x, y = page.evaluate(f"explorer.mapToPage({json.dumps(list(model.X[7]))})")
+    page.mouse("mouseMoved", x + 3, y + 3)
+    after = page.evaluate("explorer.state().point")
+    assert [before[i] for i in (0, 1, 4)] == [after[i] for i in (0, 1, 4)]  # the slice's other coordinates stay
+    assert after[2] != before[2] and after[3] != before[3]
+    w = page.evaluate("explorer.state().w")
+    np.testing.assert_allclose(w, gplvm.blend_weights(gplvm.weights(model, np.array(after))), rtol=0, atol=1e-9)
+    page.evaluate("explorer.setModel(2)")
+    assert page.errors == []
+
+
+@needs_chromium
+def test_page_works_over_http(site: Path) -> None:
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(site))
+    handler.log_message = lambda *a: None  # type: ignore[method-assign]
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        with chromium.Browser() as b:
+            b.open(f"http://127.0.0.1:{server.server_port}/index.html", ready=READY)
+            assert b.evaluate("explorer.error") is None and b.errors == [], b.errors
+    finally:
+        server.shutdown()
