@@ -414,3 +414,22 @@ def test_figure_stem(tmp_path: Path) -> None:
         with pytest.raises(ValueError):
             figure_stem([tmp_path / "c" / f for f in files], table=table)
     assert files_under(tmp_path) == [] and not (tmp_path / "c").exists()
+
+
+def test_the_condition_baseline_is_labelled_as_xu_eq6(inputs: dict[str, Path], tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The κ baseline is Xu's eq. 6 over all k components, not Nielsen 2015's released code: legends say so."""
+    legends: list[str] = []
+    save = figures.finish
+
+    def record(fig, *args, **kwargs):  # the legend texts of every figure, then the real save
+        boxes = [ax.get_legend() for ax in fig.axes if ax.get_legend()] + list(fig.legends)
+        legends.extend(t.get_text() for box in boxes for t in box.get_texts())
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(figures, "finish", record)
+    figures.fig06_fov_vs_point(inputs["errors"], tmp_path / "f6", fovs=FOVS)
+    fig18_per_material(inputs["errors"], tmp_path / "f18", n=N_MAX)
+    kappa = [t for t in legends if "κ" in t]
+    assert {"point samples, min κ (Xu eq. 6)", "directions: min κ (Xu eq. 6)"} <= set(kappa), legends
+    assert not [t for t in legends if "Nielsen" in t], legends
