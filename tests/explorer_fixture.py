@@ -28,6 +28,8 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
     mix = rng.uniform(0.05, 1.0, size=(n, 3, patterns.shape[0]))
     images = np.einsum("ncp,phw->nhwc", mix, patterns) * (1 + 0.01 * rng.standard_normal((n, height, width, 3)))
     images = (0.3 * np.abs(images)).astype(np.float32)
+    # a background the camera sees directly: the same in every image (the left 3/8, not on a tile edge)
+    images[:, :, : width * 3 // 8] = images[0, :, : width * 3 // 8]
     prerenders = {}
     for name, img in zip(names, images):
         prerenders[name] = str(root / f"{name}.exr")

@@ -56,6 +56,24 @@ def b64_array(text: str, dtype: str) -> np.ndarray:
 # --------------------------------------------------------------------------
 
 
+def test_blend_tiles_lists_the_tiles_where_the_images_differ() -> None:
+    rng = np.random.default_rng(0)
+    imgs = np.repeat(rng.random((1, 20, 27, 3)), 4, axis=0)  # 3 x 4 tiles of 8, the last row and column partial
+    assert export.blend_tiles(imgs).size == 0
+    imgs[2, 9, 26, 1] += 1.0  # tile row 1, column 3 (partial)
+    imgs[1, 19, 0, 0] -= 0.5  # tile row 2 (partial), column 0
+    assert export.blend_tiles(imgs).tolist() == [1 * 4 + 3, 2 * 4 + 0]
+    # a mean + components basis: tiles where a component after the first is non-zero
+    basis = np.zeros((3, 20, 27, 3))
+    basis[0] = 1.0
+    assert export.blend_tiles(basis, zero_after_first=True).size == 0
+    basis[2, 0, 8, 2] = -1e-3
+    assert export.blend_tiles(basis, zero_after_first=True).tolist() == [1]
+    assert export.blend_tiles(basis[:1], zero_after_first=True).size == 0
+    with pytest.raises(export.ExplorerError, match="expected a stack"):
+        export.blend_tiles(imgs[0])
+
+
 def test_pack_halves_round_trips_and_puts_eight_images_in_a_texel() -> None:
     rng = np.random.default_rng(0)
     imgs = rng.uniform(-2, 2, size=(13, 3, 5, 3)).astype(np.float16)
@@ -259,16 +277,27 @@ def test_blended_pixels_equal_numpy(page: chromium.Browser, inputs: dict) -> Non
     model = gplvm.load_model(inputs["models"][0])
     page.evaluate("explorer.setMode('map')")
     page.evaluate(f"explorer.setPoint({json.dumps(list(model.X[:3].mean(axis=0)))})")
-    rgb, w = linear_blend(page, basis="exact")
-    ref = np.einsum("i,ihwc->hwc", w, imgs)
-    rel = np.sqrt(np.mean((rgb - ref) ** 2)) / np.sqrt(np.mean(ref ** 2))
-    assert rel < 1e-3, rel
-    assert np.abs(rgb - ref).max() < 1e-3 * np.abs(ref).max() + 1e-3 * np.abs(w) @ imgs.reshape(len(w), -1).max(1)
-    # the reduced basis: the same blend within the manifest's error (and the shader equals numpy's basis blend)
     manifest = page.evaluate("explorer.manifest")
+    tiles = manifest["tiles"]
+    assert 0 < tiles["exact_blended"] < tiles["total"]  # the fixture's background is drawn with one fetch
+    ref = None
+    for shader in ("packed", "naive", "bits"):
+        for use_tiles in (True, False):
+            rgb, w = linear_blend(page, basis="exact", shader=shader, tiles=use_tiles)
+            if ref is None:
+                ref = np.einsum("i,ihwc->hwc", w, imgs)
+            rel = np.sqrt(np.mean((rgb - ref) ** 2)) / np.sqrt(np.mean(ref ** 2))
+            assert rel < 1e-3, (shader, use_tiles, rel)
+            bound = 1e-3 * np.abs(ref).max() + 1e-3 * np.abs(w) @ imgs.reshape(len(w), -1).max(1)
+            assert np.abs(rgb - ref).max() < bound, (shader, use_tiles)
+    rgb, w = linear_blend(page, basis="exact")
+    # the reduced basis: the same blend within the manifest's error, with or without the one-fetch tiles
+    assert 0 < tiles["reduced_blended"] < tiles["total"]
     rgb_r, _ = linear_blend(page, basis="reduced")
     rel_r = np.sqrt(np.mean((rgb_r - ref) ** 2)) / ref.mean()
     assert rel_r <= manifest["basis"]["target"] * 1.01
+    rgb_full, _ = linear_blend(page, basis="reduced", tiles=False)
+    assert np.abs(rgb_r - rgb_full).max() <= 1e-6 * np.abs(rgb_full).max()
     # tone mapping in the shader: the canvas is blend.tonemap of the linear blend (± 1 level of rounding)
     page.evaluate("explorer.setBasis('exact')")
     for e in (0.0, 1.5):

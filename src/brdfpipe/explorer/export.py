@@ -34,6 +34,17 @@ images ``8g + 2j`` (low 16 bits) and ``8g + 2j + 1`` (high 16 bits), which
 values where a half-float texture array brings one (RGB of one image):
 3·G = 39 fetches per pixel for N = 100 instead of 100.
 
+Tiles that need the blend
+-------------------------
+Where every pre-render has the same (half) value — the background the camera
+sees directly, about a third of the preview scene — the blend is
+``(Σw)·I₀``: one fetch.  :func:`blend_tiles` lists the :data:`TILE` × :data:`TILE`
+tiles holding any pixel where the images differ; the page draws the whole
+image with the one-fetch shader and then only those tiles with the full
+blend.  For the reduced basis the same holds where every component after the
+mean is zero (the blend is ``c₀·m``).  Both are exact: the skipped pixels'
+full blend is the same sum of equal terms.
+
 Reduced basis
 -------------
 ``A`` (N × 3HW) = the pre-renders, ``m`` their mean, ``A − 1m = U S Vᵀ``.
@@ -80,6 +91,8 @@ __all__ = [
     "ExplorerError",
     "pack_halves",
     "unpack_halves",
+    "TILE",
+    "blend_tiles",
     "reduced_basis",
     "truncation_errors",
     "noise_floor",
@@ -96,6 +109,8 @@ FORMAT: Final = "brdfpipe.explorer/1"
 FALLBACK_TARGET: Final = 0.01
 #: Half floats packed per RGBA32UI texel.
 PER_TEXEL: Final = 8
+#: Side (pixels) of the tiles the page blends in full or with one fetch (:func:`blend_tiles`).
+TILE: Final = 8
 _GLOBAL: Final = "BRDF_EXPLORER_DATA"
 _HALF_MAX: Final = 65504.0
 _ROWS: Final = 16
@@ -138,6 +153,32 @@ def unpack_halves(words: ArrayLike, n: int) -> NDArray[np.float16]:
     hi = (w >> 16).astype(np.uint16)
     bits = np.stack([lo, hi], axis=2).reshape(g * PER_TEXEL, hh, ww, 3)
     return bits[:n].view(np.float16)
+
+
+def blend_tiles(images: ArrayLike, *, zero_after_first: bool = False, tile: int = TILE) -> NDArray[np.uint32]:
+    """Row-major indices of the ``tile`` × ``tile`` tiles of a stack ``(n, H, W, 3)`` that need the full blend.
+
+    A pixel needs it unless every image equals image 0 there (the blend is
+    then ``(Σw)·I₀``), or, with ``zero_after_first`` (a mean + components
+    basis), unless every image after the first is zero there (the blend is
+    ``c₀·I₀``).  Tiles are numbered from the image's top-left corner, ``⌈W/tile⌉``
+    per row; edge tiles may be partial.
+    """
+    a = np.asarray(images)
+    if a.ndim != 4 or a.shape[-1] != 3 or a.shape[0] < 1:
+        raise ExplorerError(f"blend_tiles: expected a stack (n, H, W, 3), got shape {a.shape}")
+    if tile < 1:
+        raise ExplorerError(f"blend_tiles: tile must be >= 1, got {tile}")
+    n, h, w, _ = a.shape
+    if zero_after_first:
+        varies = np.any(a[1:] != 0, axis=(0, 3)) if n > 1 else np.zeros((h, w), dtype=bool)
+    else:
+        varies = np.any(a[1:] != a[:1], axis=(0, 3)) if n > 1 else np.zeros((h, w), dtype=bool)
+    th, tw = -(-h // tile), -(-w // tile)
+    padded = np.zeros((th * tile, tw * tile), dtype=bool)
+    padded[:h, :w] = varies
+    per_tile = padded.reshape(th, tile, tw, tile).any(axis=(1, 3))
+    return np.flatnonzero(per_tile.reshape(-1)).astype(np.uint32)
 
 
 def _to_half(images: NDArray[np.float64] | NDArray[np.float32], names: Sequence[str], what: str) -> NDArray[np.float16]:
@@ -446,6 +487,9 @@ def write_explorer(
     err_pre = truncation_errors(images, np.eye(n), bh[0], bh[1:], cu, k)
     err_blend = truncation_errors(images, Wall[n:], bh[0], bh[1:], cu, k) if Wall.shape[0] > n else np.zeros(1)
     coef = np.concatenate([np.ones((n, 1)), cu[:, :k]], axis=1)  # Cᵀw = coefficients of [mean, B_1..B_k]
+    tiles_exact = blend_tiles(half)
+    tiles_basis = blend_tiles(basis_half, zero_after_first=True)
+    n_tiles = (-(-hh // TILE)) * (-(-ww // TILE))
 
     default_q = 2 if 2 in qs else min(qs)
     m0 = loaded[0][1]
@@ -478,6 +522,12 @@ def write_explorer(
             "metric": "RMSE over pixels and channels / mean of the exact blend (brdfpipe.rendering.blend.relative_rmse)",
         },
         "paths": [{key: v for key, v in pt.items() if key != "weights"} for pt in points],
+        "tiles": {
+            "size": TILE,
+            "total": n_tiles,
+            "exact_blended": int(tiles_exact.size),
+            "reduced_blended": int(tiles_basis.size),
+        },
     }
     model_doc = {
         "manifest": manifest,
@@ -488,10 +538,12 @@ def write_explorer(
     ref_half = _to_half(np.stack(refs), [pt["path"] for pt in points], "reference of") if refs else None
     files = {
         "data/model.js": _script("model", model_doc),
-        "data/layers.js": _script("layers", {"n": n, "layers": 3 * (-(-n // PER_TEXEL)), "data": _b64(pack_halves(half))}),
+        "data/layers.js": _script("layers", {"n": n, "layers": 3 * (-(-n // PER_TEXEL)), "data": _b64(pack_halves(half)),
+                                              "tile": TILE, "tiles": _b64(tiles_exact.astype("<u4"))}),
         "data/basis.js": _script("basis", {"n": k + 1, "layers": 3 * (-(-(k + 1) // PER_TEXEL)),
                                             "data": _b64(pack_halves(basis_half)),
-                                            "coef": _b64(coef.astype("<f8"))}),
+                                            "coef": _b64(coef.astype("<f8")),
+                                            "tile": TILE, "tiles": _b64(tiles_basis.astype("<u4"))}),
         "data/refs.js": _script("refs", {"n": len(refs), "data": "" if ref_half is None else _b64(ref_half.view("<u2"))}),
     }
     manifest["files"] = {name: len(text) for name, text in sorted(files.items())}

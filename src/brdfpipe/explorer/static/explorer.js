@@ -115,11 +115,11 @@
     return;
   }
 
+  // Geometry: one triangle over the whole canvas, or the quads of the tiles that need the full blend
+  // (export.blend_tiles; elsewhere every image has the same value and one fetch gives the blend).
   const VS = `#version 300 es
-  void main() {
-    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-  }`;
+  layout(location = 0) in vec2 a_pos;
+  void main() { gl_Position = vec4(a_pos, 0.0, 1.0); }`;
   const TONEMAP = `
   uniform float u_scale;
   uniform int u_linear;
@@ -201,6 +201,29 @@
       emit(acc);
     }`;
   }
+  // One fetch: where every image of a set is equal (exact) or every component after the mean is zero
+  // (reduced), the blend is u_c0 times image 0 (u_c0 = the sum of the weights, or the mean's coefficient).
+  function firstPackedFS(groups) {
+    return `#version 300 es
+    precision highp float; precision highp int; precision highp usampler2DArray;
+    #define G ${groups}
+    uniform usampler2DArray u_tex;
+    uniform float u_c0;
+    ${TONEMAP}
+    void main() {
+      ivec2 p = pixel();
+      vec3 v = vec3(unpackHalf2x16(texelFetch(u_tex, ivec3(p, 0), 0).x).x,
+                    unpackHalf2x16(texelFetch(u_tex, ivec3(p, G), 0).x).x,
+                    unpackHalf2x16(texelFetch(u_tex, ivec3(p, 2 * G), 0).x).x);
+      emit(u_c0 * v);
+    }`;
+  }
+  const FIRST_NAIVE_FS = `#version 300 es
+    precision highp float; precision highp int; precision highp sampler2DArray;
+    uniform sampler2DArray u_tex;
+    uniform float u_c0;
+    ${TONEMAP}
+    void main() { emit(u_c0 * texelFetch(u_tex, ivec3(pixel(), 0), 0).rgb); }`;
   function program(fs) {
     const mk = (type, src) => {
       const s = gl.createShader(type);
@@ -215,7 +238,7 @@
     gl.linkProgram(p);
     if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error('program: ' + gl.getProgramInfoLog(p));
     const u = (name) => gl.getUniformLocation(p, name);
-    return { p, u_tex: u('u_tex'), u_w: u('u_w'), u_wn: u('u_wn'), u_scale: u('u_scale'),
+    return { p, u_tex: u('u_tex'), u_w: u('u_w'), u_wn: u('u_wn'), u_c0: u('u_c0'), u_scale: u('u_scale'),
              u_linear: u('u_linear'), u_height: u('u_height') };
   }
   function packedTexture(words, layers) {
@@ -240,13 +263,43 @@
     return out;
   }
 
+  function vertexArray(xy) {
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferData(gl.ARRAY_BUFFER, xy, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 0, 0);
+    gl.bindVertexArray(null);
+    return { vao, count: xy.length / 2 };
+  }
+  const FULL = vertexArray(new Float32Array([-1, -1, 3, -1, -1, 3]));
+  // Two triangles per listed tile, in clip space; tile rows count from the image's top (row r is at
+  // gl_FragCoord.y = H - 1 - r, as in pixel()).
+  function tileGeometry(set) {
+    const t = set.tile, tw = Math.ceil(W / t), th = Math.ceil(H / t), list = set.tiles;
+    if (list.length === tw * th) return { all: true, geom: FULL };
+    const xy = new Float32Array(list.length * 12);
+    list.forEach((idx, i) => {
+      const tx = idx % tw, ty = Math.floor(idx / tw);
+      const x0 = tx * t / W * 2 - 1, x1 = Math.min(W, (tx + 1) * t) / W * 2 - 1;
+      const y1 = (H - ty * t) / H * 2 - 1, y0 = (H - Math.min(H, (ty + 1) * t)) / H * 2 - 1;
+      xy.set([x0, y0, x1, y0, x1, y1, x0, y0, x1, y1, x0, y1], i * 12);
+    });
+    return { all: false, geom: vertexArray(xy) };
+  }
+
   const SETS = {};
   try {
     const exactWords = u32(DATA.layers.data), basisWords = u32(DATA.basis.data);
     SETS.exact = { n: N, layers: DATA.layers.layers, words: exactWords, tex: packedTexture(exactWords, DATA.layers.layers),
-                   prog: program(packedFS(DATA.layers.layers / 3)) };
+                   prog: program(packedFS(DATA.layers.layers / 3)), first: program(firstPackedFS(DATA.layers.layers / 3)),
+                   tiles: tileGeometry({ tile: DATA.layers.tile, tiles: u32(DATA.layers.tiles) }) };
     SETS.reduced = { n: DATA.basis.n, layers: DATA.basis.layers, words: basisWords,
                      tex: packedTexture(basisWords, DATA.basis.layers), prog: program(packedFS(DATA.basis.layers / 3)),
+                     first: program(firstPackedFS(DATA.basis.layers / 3)),
+                     tiles: tileGeometry({ tile: DATA.basis.tile, tiles: u32(DATA.basis.tiles) }),
                      coef: f64(DATA.basis.coef) };
   } catch (e) {
     fail('WebGL set-up failed: ' + e.message);
@@ -265,7 +318,7 @@
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
       gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGBA16F, W, H, s.n, 0, gl.RGBA, gl.HALF_FLOAT, unpackToRGBA16(s.words, s.n));
-      s.naive = { tex: t, prog: program(naiveFS(s.n)) };
+      s.naive = { tex: t, prog: program(naiveFS(s.n)), first: program(FIRST_NAIVE_FS) };
     }
     return s.naive;
   }
@@ -283,12 +336,34 @@
   }
 
   let fbo = null, fboTex = null;
-  function draw(name, imageWeights, { linear = false, shader = 'packed', target = null } = {}) {
+  // The blend Σ wᵢ Iᵢ of a set, tone mapped (or linear into `target`): the one-fetch shader over the whole
+  // canvas, then the full blend over the tiles that need it (`tiles: false`: the full blend everywhere).
+  function draw(name, imageWeights, { linear = false, shader = 'packed', target = null, tiles = true } = {}) {
     const s = SETS[name];
     const prog = shader === 'naive' ? naiveSet(name).prog : shader === 'bits' ? bitsProg(name) : s.prog;
     const tex = shader === 'naive' ? naiveSet(name).tex : s.tex;
+    const settings = (p) => {
+      gl.uniform1f(p.u_scale, Math.pow(2, state.exposure));
+      gl.uniform1i(p.u_linear, linear ? 1 : 0);
+      gl.uniform1i(p.u_height, H);
+    };
     gl.bindFramebuffer(gl.FRAMEBUFFER, target);
     gl.viewport(0, 0, W, H);
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
+    const geom = tiles && !s.tiles.all ? s.tiles.geom : FULL;
+    if (geom !== FULL) {
+      const first = shader === 'naive' ? naiveSet(name).first : s.first;
+      let c0 = 0;
+      if (name === 'exact') for (let i = 0; i < s.n; i++) c0 += imageWeights[i];
+      else c0 = imageWeights[0];
+      gl.useProgram(first.p);
+      gl.uniform1i(first.u_tex, 0);
+      gl.uniform1f(first.u_c0, c0);
+      settings(first);
+      gl.bindVertexArray(FULL.vao);
+      gl.drawArrays(gl.TRIANGLES, 0, FULL.count);
+    }
     gl.useProgram(prog.p);
     gl.activeTexture(gl.TEXTURE0);
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
@@ -304,10 +379,10 @@
       padded.set(imageWeights);
       gl.uniform4fv(prog.u_w, padded);
     }
-    gl.uniform1f(prog.u_scale, Math.pow(2, state.exposure));
-    gl.uniform1i(prog.u_linear, linear ? 1 : 0);
-    gl.uniform1i(prog.u_height, H);
-    gl.drawArrays(gl.TRIANGLES, 0, 3);
+    settings(prog);
+    gl.bindVertexArray(geom.vao);
+    gl.drawArrays(gl.TRIANGLES, 0, geom.count);
+    gl.bindVertexArray(null);
   }
   function floatTarget() {
     if (!fbo) {
@@ -655,9 +730,9 @@
   }
 
   // ---------------------------------------------------------------- API for tests, benches and tools
-  function readLinear(name, imageWeights) {
+  function readLinear(name, imageWeights, { shader = 'packed', tiles = true } = {}) {
     const target = floatTarget();
-    draw(name, imageWeights, { linear: true, target });
+    draw(name, imageWeights, { linear: true, target, shader, tiles });
     const px = new Float32Array(W * H * 4);
     gl.bindFramebuffer(gl.FRAMEBUFFER, target);
     gl.readPixels(0, 0, W, H, gl.RGBA, gl.FLOAT, px);
@@ -701,9 +776,10 @@
     debugBlend: (opts = {}) => {
       const name = opts.basis || state.basis, w = opts.weights ? Float64Array.from(opts.weights) : state.w;
       const iw = setWeights(name, w);
-      const rgb = readLinear(name, iw);
+      const rgb = readLinear(name, iw, { shader: opts.shader || 'packed', tiles: opts.tiles !== false });
       render();
-      return { width: W, height: H, basis: name, weights: Array.from(w), imageWeights: Array.from(iw), rgb: b64f32(rgb) };
+      return { width: W, height: H, basis: name, weights: Array.from(w), imageWeights: Array.from(iw), rgb: b64f32(rgb),
+               blendedTiles: SETS[name].tiles.all ? 'all' : SETS[name].tiles.geom.count / 6 };
     },
     // the tone-mapped canvas as 8-bit RGBA (base64, top row first)
     canvasPixels: () => {
@@ -717,12 +793,13 @@
     // frame time of the blend: `frames` draws with changing weights, each finished (gl.finish + a 1-pixel read)
     bench: (opts = {}) => {
       const name = opts.basis || 'exact', shader = opts.shader || 'packed', frames = opts.frames || 30;
+      const tiles = opts.tiles !== false;
       const n = SETS[name].n, base = setWeights(name, state.w), px = new Uint8Array(4);
       if (shader === 'naive') naiveSet(name);
       const one = (i) => {
         const iw = new Float64Array(n);
         for (let j = 0; j < n; j++) iw[j] = base[j] * (1 + 0.01 * Math.sin(i + j));
-        draw(name, iw, { shader });
+        draw(name, iw, { shader, tiles });
         gl.finish();
         gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
       };
@@ -731,7 +808,8 @@
       for (let i = 0; i < frames; i++) one(i + 3);
       const ms = (performance.now() - t0) / frames;
       render();
-      return { basis: name, shader, images: n, width: W, height: H, frames, ms, fps: 1000 / ms };
+      return { basis: name, shader, tiles, blended_tiles: SETS[name].tiles.all ? 'all' : SETS[name].tiles.geom.count / 6,
+               images: n, width: W, height: H, frames, ms, fps: 1000 / ms };
     },
   });
 
