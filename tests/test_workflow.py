@@ -20,6 +20,7 @@ import yaml
 
 from brdfpipe.core import filenames
 from brdfpipe.data import merl, store
+from shared_runs import shared_run
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEFILE = ROOT / "workflow" / "Snakefile"
@@ -271,13 +272,16 @@ def declared_outputs(configfile: Path) -> set[str]:
 
 
 @pytest.mark.parametrize("shape", ["tiny-point", "tiny-nearfield"])
-def test_other_dag_shapes_run_end_to_end(tmp_path: Path, shape: str) -> None:
+def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytest.TempPathFactory,
+                                         shape: str) -> None:
     """Schema-valid configs of other DAG shapes build every output they declare (no MissingOutputException).
 
     tiny-point: point samples and the error metric only, log space with q = 1, no
     rendered path point; tiny-nearfield: near-field and the condition metric only,
     cosine space with q = 3. On tiny-point, an edit of one library module then
-    plans exactly the jobs that run it and what depends on them.
+    plans exactly the jobs that run it and what depends on them; the tiny-point run is the
+    session's shared one (built with this checkout's library, checked here with a private copy
+    of it: the code digests depend on the code, not on where it lives).
     """
     from brdfpipe.core import plan
 
@@ -288,11 +292,17 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, shape: str) -> None:
     shutil.copytree(ROOT / "src" / "brdfpipe", pkg / "brdfpipe", ignore=shutil.ignore_patterns("__pycache__"))
     env = {**os.environ, "PYTHONPATH": str(pkg)}
     work = tmp_path / "work"
-    work.mkdir()
+    if shape == "tiny-point":
+        # the session's one run of tiny-point, which the Slurm test compares with (tests/shared_runs.py);
+        # copied, since the stale-results check below must not touch the shared folder
+        shutil.copytree(shared_run(tmp_path_factory, config), work, symlinks=True)
+    else:
+        work.mkdir()
     cmd = [str(SNAKEMAKE), "--snakefile", str(SNAKEFILE), "--directory", str(work), "--configfile", str(config),
            "--cores", "2"]
-    r = subprocess.run(cmd, capture_output=True, text=True, cwd=work, env=env, timeout=900)
-    assert r.returncode == 0, r.stderr[-4000:]
+    if shape != "tiny-point":
+        r = subprocess.run(cmd, capture_output=True, text=True, cwd=work, env=env, timeout=900)
+        assert r.returncode == 0, r.stderr[-4000:]
     figures = {p.relative_to(work).as_posix() for p in (work / "results" / "figures").iterdir()}
     render = {f for fs in plan.render_figures(len(cfg["render"]["path_points"])).values() for f in fs}
     floor_checked = cfg["render"]["floor_check"]["candidates"] != "none"  # tiny-nearfield: default; tiny-point: none

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The workflow on a real Slurm, checked against Slurm's records and a local run.
 
-    python tests/slurm/run_slurm_test.py [--config tests/config/tiny-point.yaml] [--keep]
+    python tests/slurm/run_slurm_test.py [--config tests/config/tiny-point.yaml] [--reference WORKDIR]
 
 1. Slurm: installs Debian's slurmctld/slurmd/munge when missing and starts a
    single-node cluster (tests/slurm/slurm_cluster.sh), unless `sinfo` already
@@ -15,7 +15,8 @@
    Slurm job's own output file (StdOut= in slurmctld's record) shows the inner
    Snakemake running exactly the non-local jobs that the main log announced.
 4. Runs the same config locally (--cores 2) in another scratch directory and
-   compares every file under results/ byte for byte.
+   compares every file under results/ byte for byte; with --reference, compares
+   with that finished local run of the same config instead of running one.
 5. Prints the wall times and their ratio; stops only the daemons it started.
 
 Exit status 0: all checks passed; 1: a check failed; 77: cannot run here (skip).
@@ -220,7 +221,12 @@ def main() -> int:
     ap.add_argument("--profile", type=Path, default=PROFILE,
                     help="the Slurm profile to run with (default: the project's profiles/slurm)")
     ap.add_argument("--timeout", type=int, default=900)
+    ap.add_argument("--reference", type=Path, default=None,
+                    help="a finished local run (its working directory) of the same config to compare with, "
+                         "instead of running one")
     args = ap.parse_args()
+    if args.reference is not None and not (args.reference / "results").is_dir():
+        ap.error(f"--reference {args.reference}: no results/ folder there (a finished local run of the config)")
     config = args.config.resolve()
 
     scratch = Path(args.scratch or tempfile.mkdtemp(prefix="brdfpipe-slurm-"))
@@ -275,14 +281,20 @@ def main() -> int:
         log(f"Slurm run: {wall_slurm:.1f} s, {summary['slurm_jobs']} Slurm jobs holding "
             f"{summary['workflow_jobs_in_slurm']} workflow jobs; {summary['local_jobs']} local jobs")
 
-        wall_local, _ = snakemake(local_dir, config, "--cores", "2", env=env, timeout=args.timeout)
-        log(f"local run (--cores 2): {wall_local:.1f} s")
-        summary.update(compare_results(slurm_dir / "results", local_dir / "results"))
-        log(f"results/: {summary['files_compared']} files, byte-identical")
-        summary.update(wall_slurm_s=round(wall_slurm, 1), wall_local_s=round(wall_local, 1),
-                       ratio=round(wall_slurm / wall_local, 2))
-        log(f"wall time Slurm / local = {wall_slurm:.1f} / {wall_local:.1f} = {summary['ratio']:.2f} "
-            f"(target <= 2)")
+        if args.reference is not None:
+            summary.update(compare_results(slurm_dir / "results", args.reference.resolve() / "results"))
+            summary.update(reference=str(args.reference), wall_slurm_s=round(wall_slurm, 1))
+            log(f"results/: {summary['files_compared']} files, byte-identical to the reference run "
+                f"{args.reference}")
+        else:
+            wall_local, _ = snakemake(local_dir, config, "--cores", "2", env=env, timeout=args.timeout)
+            log(f"local run (--cores 2): {wall_local:.1f} s")
+            summary.update(compare_results(slurm_dir / "results", local_dir / "results"))
+            log(f"results/: {summary['files_compared']} files, byte-identical")
+            summary.update(wall_slurm_s=round(wall_slurm, 1), wall_local_s=round(wall_local, 1),
+                           ratio=round(wall_slurm / wall_local, 2))
+            log(f"wall time Slurm / local = {wall_slurm:.1f} / {wall_local:.1f} = {summary['ratio']:.2f} "
+                f"(target <= 2)")
         summary["ok"] = True
         status = 0
     except Skip as err:
