@@ -105,12 +105,16 @@ F64 = NDArray[np.float64]
 # (FactoredSelection, "Many candidates against one factored base selection"
 # in the metrics section): the greedy add's t candidates are the current set
 # + their block; a configuration's ≤ 7 moves are the current set − its block
-# + the moved block.  The current set's M = G + ηI is factored and solved
-# once and carried along as the set changes (fresh Cholesky, solve by the
-# update identity; rebuilt from the blocks once per n and every
+# + the moved block.  The current set's M⁻¹ = (G + ηI)⁻¹ and solve
+# W = M⁻¹Uᵀ are computed once (Cholesky, dpotri) and carried along as the
+# set changes by Woodbury updates, O(k²r + krm) per accepted move and no
+# factorisation (rebuilt from the blocks once per n and every
 # _MAX_UPDATE_DEPTH updates).  A point candidate then costs O(k² + km)
-# flops — a few stacked triangular solves and dgemm rows — instead of a
-# fresh Cholesky + solve with m right-hand sides, O(k³/3 + 2k²m).  Near-field
+# flops — dgemm columns, all candidates of a step stacked into one product,
+# point candidates passed as one (t, k) array — instead of a fresh
+# Cholesky + solve with m right-hand sides, O(k³/3 + 2k²m); per run the
+# cost grows with k² (≈ N², N training materials) but for the 2·n_max
+# rebuilds and recomputations of each set (k³).  Near-field
 # images (hundreds of distinct cells, the low-rank form would cost more) are
 # still evaluated afresh: their distinct rows (counted, not repeated) in one
 # dsyrk, one Cholesky + solve (E), one eigvalsh (κ, more than k rows) — and
@@ -400,6 +404,14 @@ class _Optimizer:
         """
         self.evaluations += len(cands)
         rem = None if remove is None else self.row_block(remove.idx, (remove.G, remove.qsum))
+        if self.metric == "error" and cands and all(idx.size == 1 for idx in cands):
+            # Point candidates: one row each, passed as one (t, k) array (no per-candidate blocks).
+            rows = self.Q[np.concatenate(cands)]
+            out: list[tuple[float, ...]] = []
+            for a in range(0, len(cands), _EVAL_CHUNK_ROWS):
+                out += [(float(E),) for E in base.candidate_errors(rows[a:a + _EVAL_CHUNK_ROWS], remove=rem,
+                                                                   method=self.method)]
+            return out
         keys: list[tuple[float, ...]] = []
         start = 0
         while start < len(cands):
