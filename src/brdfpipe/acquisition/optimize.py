@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.core import atomic
+from brdfpipe.core.threads import blas_threads
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl
 from brdfpipe.acquisition.geometry import (
@@ -885,13 +886,15 @@ def optimize_to_file(
     eta: float,
     beta: float,
     seed: int,
+    threads: int | None = None,
 ) -> Path:
     """Optimise the direction sets of one setup on a PCA model and write them as JSON.
 
     The workflow's ``optimize_directions`` job: opens the model written by
     :func:`brdfpipe.acquisition.svd.write_model`, runs :func:`optimize` (one log line per
     step) and writes :func:`write_directions`'s JSON to ``out``; the split
-    and database recorded are the model's.
+    and database recorded are the model's.  ``threads``: the BLAS threads
+    to use (the rule's declared threads; None leaves them as they are).
     """
     from brdfpipe.acquisition.svd import open_model
 
@@ -902,10 +905,11 @@ def optimize_to_file(
         "optimising %s fov %g (%s metric) on %s: n_max %d, %d candidates, seed %d",
         setup, kind_setup.fov_deg, metric, model_path, n_max, candidates, seed,
     )
-    sets = optimize(
-        model, kind_setup, metric=metric, n_max=n_max, candidates=candidates,
-        eta=eta, beta=beta, seed=seed, log=log,
-    )
+    with blas_threads(threads):
+        sets = optimize(
+            model, kind_setup, metric=metric, n_max=n_max, candidates=candidates,
+            eta=eta, beta=beta, seed=seed, log=log,
+        )
     return write_directions(
         out, sets, setup=kind_setup, metric=metric, split=model.split,
         model_path=model_path, seed=seed, eta=eta, beta=beta, database=model.database,

@@ -160,6 +160,7 @@ import scipy.linalg.lapack
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
+from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
@@ -1261,8 +1262,12 @@ def fit_to_files(
     max_sweeps: int = 200,
     normalise: bool = True,
     method: str = "hybrid",
+    threads: int | None = None,
 ) -> FitResult:
     """Fit a q-dimensional latent space to a saved Gram matrix; write the model and its trace.
+
+    ``threads``: the BLAS threads to use (the rule's declared threads; None
+    leaves them as they are).
 
     The workflow's ``fit_gplvm`` job.  ``normalise``: fit to ``G/s`` with
     ``s`` = :func:`gram_scale` (stored in the model).  ``trace_out`` is a CSV
@@ -1272,7 +1277,8 @@ def fit_to_files(
     """
     gram, d, info = load_gram(gram_path)
     scale = gram_scale(gram, d) if normalise else 1.0
-    result = fit(gram / scale, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps, method=method)
+    with blas_threads(threads):
+        result = fit(gram / scale, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps, method=method)
     logger.info(
         "q = %d: Gram divided by %.6g; L %.6g -> %.6g in %d sweeps + %d L-BFGS iterations, %.2f s (start scale %s)",
         q, scale, result.initial_log_likelihood, result.log_likelihood, result.sweeps,
