@@ -291,7 +291,9 @@ def _gram(B: F64) -> F64:
     # dsyrk(trans=0) computes a·aᵀ for a (k, n) Fortran array: a = Bᵀ (no copy
     # when B is C-contiguous).  Only the lower triangle is written.
     c = scipy.linalg.blas.dsyrk(1.0, np.asfortranarray(B.T), trans=0, lower=1)
-    return np.tril(c) + np.tril(c, -1).T
+    out = c + c.T  # the strict upper triangle of c is zero: the lower one mirrored (one pass, no masks)
+    np.fill_diagonal(out, np.diagonal(c))
+    return out
 
 
 def empty_stats(k: int) -> tuple[F64, F64]:
@@ -719,9 +721,8 @@ class FactoredSelection:
                 [VW, (scipy.linalg.blas.dgemv(1.0, V, self._w) - s)[:, None]], axis=1)
             sol = np.linalg.solve(C, rhs) if r > 1 else rhs / C[0, 0]
             ZCinv = np.linalg.solve(C, Z.T).T if r > 1 else Z / C[0, 0]  # Z C⁻¹ (C symmetric)
-            Minv = scipy.linalg.blas.dgemm(-1.0, ZCinv, Z, 1.0, self._inverse(), trans_b=1)
-            Minv = 0.5 * (Minv + Minv.T)
-            new._Minv = np.asfortranarray(Minv)
+            # (Fortran order from dgemm; symmetric to rounding, which the rebuilds every few updates reset)
+            new._Minv = scipy.linalg.blas.dgemm(-1.0, ZCinv, Z, 1.0, self._inverse(), trans_b=1)
             new._W = scipy.linalg.blas.dgemm(-1.0, Z, sol[:, :m], 1.0, self._W)
             if self._w is not None:
                 new._w = scipy.linalg.blas.dgemv(-1.0, Z, sol[:, m], 1.0, self._w)

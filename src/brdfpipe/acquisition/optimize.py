@@ -295,6 +295,8 @@ class _Optimizer:
         self.method: Literal["auto", "direct"] = "direct" if evaluation == "direct" else "auto"
         # The current set's configurations and factored statistics (see current()).
         self._current: tuple[tuple[Config, ...], FactoredSelection] | None = None
+        # The last summarised set's fresh factorisation (see summarise).
+        self._fresh: tuple[tuple[Config, ...], FactoredSelection] | None = None
 
     # -- configurations --------------------------------------------------
 
@@ -475,7 +477,10 @@ class _Optimizer:
     # -- search steps --------------------------------------------------------
 
     def greedy_add(self, blocks: list[_Block], t: int) -> tuple[tuple[float, ...], int]:
-        self._current = None  # rebuilt from the blocks once per n: no rounding carried over
+        # rebuilt from the blocks once per n (summarise's fresh factorisation): no rounding carried over
+        configs_now = tuple(b.config for b in blocks)
+        self._current = self._fresh if self._fresh is not None and self._fresh[0] == configs_now else None
+        self._fresh = None
         base = self.current(blocks)
         n0 = sum(b.n for b in blocks)
         exclude = {b.config for b in blocks}
@@ -630,11 +635,15 @@ class _Optimizer:
         rows = np.concatenate([b.rows for b in blocks], axis=0)
         G, qsum = selection_stats(rows)
         configs = tuple(b.config for b in blocks)
+        # E(S) from scratch (Cholesky of G + ηI, solve); the same fresh factorisation is the next
+        # greedy add's base (no rounding carried over, one factorisation per n instead of two).
+        fresh = FactoredSelection(self.em, G, qsum)
+        self._fresh = (configs, fresh)
         return DirectionSet(
             n=len(blocks),
             configurations=configs,
             records=tuple(config_to_dict(self.setup, c) for c in configs),
-            expected_error=expected_error(self.em, G, qsum),
+            expected_error=fresh.error(),
             condition_number=condition_number(rows),
             n_observations=int(rows.shape[0]),
             greedy_value=float(greedy[0]),
