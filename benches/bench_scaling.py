@@ -254,6 +254,7 @@ def exponent(sizes: list[int], secs: list[float]) -> float:
 
 def figure(sizes: list[int], results: dict, path: Path, note: str) -> None:
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -272,6 +273,7 @@ def figure(sizes: list[int], results: dict, path: Path, note: str) -> None:
     ax.set_yscale("log")
     ax.set_xticks(sizes)
     ax.set_xticklabels([str(n) for n in sizes])
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xlabel("materials N")
     ax.set_ylabel("wall time per stage [s]")
     ax.set_title(f"Stage time vs materials (synthetic database; {note})", fontsize=9)
@@ -336,16 +338,23 @@ def main() -> None:
         shutil.rmtree(work / f"n{n}", ignore_errors=True)  # stores and models: GBs at N = 400
 
     print("\nwall seconds per stage (peak MB)")
-    print(f"{'stage':12s}" + "".join(f"{'N = ' + str(n):>20s}" for n in sizes) + f"{'exponent':>10s}")
+    print(f"{'stage':12s}" + "".join(f"{'N = ' + str(n):>20s}" for n in sizes) + f"{'exponent':>10s}"
+          + f"{'last step':>11s}")
     exps = {}
+
+    def last(secs: list[float]) -> float:
+        return exponent(sizes[-2:], secs[-2:]) if len(sizes) >= 2 else float("nan")
+
     for stage in STAGES:
         secs = [results[(stage, n)]["seconds"] for n in sizes]
         exps[stage] = exponent(sizes, secs)
         cells = "".join(f"{results[(stage, n)]['seconds']:11.2f} ({results[(stage, n)]['peak_mb']:5.0f})"
                         for n in sizes)
-        print(f"{stage:12s}{cells}{exps[stage]:10.2f}")
+        print(f"{stage:12s}{cells}{exps[stage]:10.2f}{last(secs):11.2f}")
     data = [sum(results[(s, n)]["seconds"] for s in DATA_STAGES) for n in sizes]
-    print(f"{'data stages':12s}" + "".join(f"{t:11.2f}{'':8s}" for t in data) + f"{exponent(sizes, data):10.2f}")
+    print(f"{'data stages':12s}" + "".join(f"{t:11.2f}{'':8s}" for t in data) + f"{exponent(sizes, data):10.2f}"
+          + f"{last(data):11.2f}")
+    print("(exponent: least-squares slope of log t on log N over all sizes; last step: between the two largest)")
     out = (args.out or work) / "scaling.png"
     figure(sizes, results, out, f"cells iφd < {args.phi_d}, 1 BLAS thread")
     print(f"figure: {out}")
