@@ -45,6 +45,10 @@ nearfield fov 25, condition, n = 1..2  10.9 – 12.3 s       11.0 – 12.1 s
 
 (same sets, E(S) and moves in every pair; near-field images are still
 evaluated afresh, the cheaper exact form for blocks of ~400 cells).
+After issue 14 (M⁻¹ and W carried by Woodbury updates, no Cholesky per
+accepted move; point candidates as one array): point, error, n = 1..20
+7.9 s wall with model load against 10.5 s for the code before, same run,
+1-min load ≈ 9; same sets and E(S).
 ``--baseline 6`` on point: direct 15.9 s, fast 1.0 s (16×, model load
 excluded), same sets.
 

@@ -39,6 +39,9 @@ def main() -> None:
     # Manifold track: GPLVM fit vs scipy L-BFGS (and GPy, when a GPy environment is set up).
     # "entry" is the workflow's normalisation (manifold.normalise); "raw" the paper's units.
     run("benches/bench_gplvm.py", "--scaling", "entry")
+    # Scale: time and peak memory of every stage at N = 50 … 400 synthetic materials (fewer cells),
+    # growth exponents, log-log figure (its material files are kept in /tmp between runs).
+    run("benches/bench_scaling.py")
     # Rendering track: the merl BSDF vs Mitsuba's analytic plugins.
     run("benches/bench_render.py")
     # The explorer: blend frame rate in headless chromium (SwiftShader), naive vs packed shaders.

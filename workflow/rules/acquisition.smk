@@ -84,6 +84,7 @@ rule optimize_directions:
         "benchmarks/optimize_directions/{split}/{setup}-fov{fov}-{metric}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    # BLAS limited to these threads by the script (brdfpipe.core.threads.blas_threads).
     threads: 1
     resources:
         mem_mb=mem("optimize_directions"),

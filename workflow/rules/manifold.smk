@@ -37,6 +37,7 @@ rule fit_gplvm:
         "benchmarks/fit_gplvm/{candidate}/q{q}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    # BLAS limited to these threads by the script (brdfpipe.core.threads.blas_threads).
     threads: 1
     resources:
         mem_mb=mem("fit_gplvm"),

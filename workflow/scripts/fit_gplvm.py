@@ -15,4 +15,5 @@ with log_to(snakemake.log[0]):
         max_sweeps=snakemake.params.max_sweeps,
         normalise=snakemake.params.normalise,
         method=snakemake.params.method,
+        threads=snakemake.threads,
     )

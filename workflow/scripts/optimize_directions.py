@@ -16,4 +16,5 @@ with log_to(snakemake.log[0]):
         eta=snakemake.params.eta,
         beta=snakemake.params.beta,
         seed=snakemake.params.seed,
+        threads=snakemake.threads,
     )

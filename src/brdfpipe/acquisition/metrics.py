@@ -68,6 +68,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 import scipy.linalg
 import scipy.linalg.blas
+import scipy.linalg.lapack
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
@@ -290,7 +291,9 @@ def _gram(B: F64) -> F64:
     # dsyrk(trans=0) computes a·aᵀ for a (k, n) Fortran array: a = Bᵀ (no copy
     # when B is C-contiguous).  Only the lower triangle is written.
     c = scipy.linalg.blas.dsyrk(1.0, np.asfortranarray(B.T), trans=0, lower=1)
-    return np.tril(c) + np.tril(c, -1).T
+    out = c + c.T  # the strict upper triangle of c is zero: the lower one mirrored (one pass, no masks)
+    np.fill_diagonal(out, np.diagonal(c))
+    return out
 
 
 def empty_stats(k: int) -> tuple[F64, F64]:
@@ -456,12 +459,19 @@ def expected_error(model: ErrorModel, G: ArrayLike, qsum: ArrayLike) -> float:
 # forms cheaper.  The result agrees with expected_error to ~1e-13 relative.
 #
 # A selection derived from another (:meth:`FactoredSelection.updated`: a
-# block added and/or removed, as an optimiser's set changes) gets a fresh
-# Cholesky factor but its solve from the parent's by the exact identity
-#   M_new⁻¹ = M_old⁻¹ − M_new⁻¹ VᵀDV M_old⁻¹,   i.e. W_new = W_old − Y D (V W_old), Y = M_new⁻¹Vᵀ
-# (2k²r + 2krm flops instead of 2k²m).  Such chains are counted (``depth``)
-# so that a caller can rebuild from scratch now and then, bounding the
-# rounding they accumulate.
+# block added and/or removed, as an optimiser's set changes) gets M⁻¹ and its
+# solve from the parent's by the same identity, with no factorisation:
+#   Z = M_old⁻¹Vᵀ, C = D + VZ,  M_new⁻¹ = M_old⁻¹ − Z C⁻¹ Zᵀ,  W_new = W_old − Z C⁻¹ (V W_old)
+# (2k²r + 2krm flops instead of the k³/3 + 2k²m of a fresh Cholesky and
+# solve).  M⁻¹ is kept explicitly (from ``dpotri`` of a fresh selection), so
+# every product with it — the candidates' Z = M⁻¹Xᵀ included — is one dgemm.
+# A derived selection whose removed block is too strong to downdate
+# accurately (DOWNDATE_TOL) is factored afresh instead.  Such chains are
+# counted (``depth``) so that a caller can rebuild from scratch now and then,
+# bounding the rounding they accumulate.  With this, an optimiser's cost per
+# accepted move and per candidate is O(k² + km): quadratic in the number of
+# training materials (k, m ≈ 3 × materials), the one cubic step being the
+# rebuild.
 
 #: A squared norm updated by the expansion above is recomputed from its vector
 #: when it is below this fraction of the magnitude of its terms.
@@ -595,6 +605,7 @@ class FactoredSelection:
         self.depth = 0
         self.recomputed = 0
         self._cf: tuple[F64, bool] | None = None
+        self._Minv: F64 | None = None  # M⁻¹ (k, k), explicit: products with it are one dgemm
         self._W: F64 | None = None  # M⁻¹Uᵀ (k, m)
         self._w: F64 | None = None  # M⁻¹qsum (k,), only when β > 0
         self._nnW: F64 | None = None  # NᵀN W (k, m)
@@ -606,6 +617,22 @@ class FactoredSelection:
         if self._cf is None:
             self._cf = _cho_M(self.G, self.model.eta)
         return self._cf
+
+    def _inverse(self) -> F64:
+        """``M⁻¹`` (k, k): from the Cholesky factor (``dpotri``), or carried over by :meth:`updated`."""
+        if self._Minv is None:
+            c, _ = self._factor()
+            inv, info = scipy.linalg.lapack.dpotri(c, lower=1)
+            if info != 0:
+                raise ValueError(f"G + ηI could not be inverted (dpotri info {info})")
+            inv = np.tril(inv)
+            inv += np.tril(inv, -1).T
+            self._Minv = np.asfortranarray(inv)
+        return self._Minv
+
+    def _apply_inv(self, B: F64) -> F64:
+        """``M⁻¹ B`` for a (k, r) array: one dgemm with the explicit inverse (O(k²r))."""
+        return scipy.linalg.blas.dgemm(1.0, self._inverse(), B)
 
     def _solve(self) -> tuple[F64, F64 | None]:
         """``(W, w) = (M⁻¹Uᵀ, M⁻¹qsum)`` (w None when β = 0)."""
@@ -673,15 +700,32 @@ class FactoredSelection:
         new.depth = self.depth + 1
         r = sum(blk.r for blk, _ in parts)
         if self._W is not None and r and 2.0 * k * k * r + 2.0 * k * r * m < 2.0 * k * k * m:
+            # Woodbury with the explicit inverse (section comment): Z = M_old⁻¹Vᵀ, C = D + VZ,
+            # M_new⁻¹ = M_old⁻¹ − Z C⁻¹ Zᵀ, W_new = W_old − Z C⁻¹ (V W_old): O(k²r + krm), no factorisation.
             V = np.concatenate([blk.Rw for blk, _ in parts], axis=0)
             d = np.concatenate([np.full(blk.r, sign) for blk, sign in parts])
             s = np.concatenate([blk.s for blk, _ in parts])
-            Y = scipy.linalg.cho_solve(new._factor(), np.asfortranarray(V.T), check_finite=False)  # M_new⁻¹Vᵀ
+            Z = self._apply_inv(np.asfortranarray(V.T))  # (k, r)
+            C = scipy.linalg.blas.dgemm(1.0, V, Z)
+            C = 0.5 * (C + C.T)
+            C[np.diag_indices(r)] += d
+            neg = d < 0
+            if neg.any():
+                # Downdating a strong block cancels (section comment, accuracy (2)): then the new
+                # selection is factored afresh on first use instead.
+                Kr = -C[np.ix_(neg, neg)]
+                if not float(scipy.linalg.eigvalsh(Kr, check_finite=False)[0]) >= DOWNDATE_TOL:
+                    return new
             VW = scipy.linalg.blas.dgemm(1.0, V, self._W)  # (r, m)
-            new._W = scipy.linalg.blas.dgemm(-1.0, Y, d[:, None] * VW, 1.0, self._W)  # W − Y D V W
+            rhs = VW if self._w is None else np.concatenate(
+                [VW, (scipy.linalg.blas.dgemv(1.0, V, self._w) - s)[:, None]], axis=1)
+            sol = np.linalg.solve(C, rhs) if r > 1 else rhs / C[0, 0]
+            ZCinv = np.linalg.solve(C, Z.T).T if r > 1 else Z / C[0, 0]  # Z C⁻¹ (C symmetric)
+            # (Fortran order from dgemm; symmetric to rounding, which the rebuilds every few updates reset)
+            new._Minv = scipy.linalg.blas.dgemm(-1.0, ZCinv, Z, 1.0, self._inverse(), trans_b=1)
+            new._W = scipy.linalg.blas.dgemm(-1.0, Z, sol[:, :m], 1.0, self._W)
             if self._w is not None:
-                Vw = scipy.linalg.blas.dgemv(1.0, V, self._w)
-                new._w = scipy.linalg.blas.dgemv(-1.0, Y, d * (Vw - s), 1.0, self._w)
+                new._w = scipy.linalg.blas.dgemv(-1.0, Z, sol[:, m], 1.0, self._w)
         return new
 
     # -- candidates ----------------------------------------------------------
@@ -718,7 +762,15 @@ class FactoredSelection:
         if method not in ("auto", "lowrank", "direct"):
             raise ValueError(f"method must be 'auto', 'lowrank' or 'direct', got {method!r}")
         k, m = self.model.k, self.model.m
-        cands = [_as_block(b, k, f"blocks[{i}]") for i, b in enumerate(blocks)]
+        if isinstance(blocks, np.ndarray) and blocks.ndim == 2:
+            # t single-row candidates (a 2-D array is a sequence of rows): validated at once.
+            R = np.asarray(blocks, dtype=np.float64)
+            if R.shape[1] != k or not np.issubdtype(blocks.dtype, np.number) or not np.all(np.isfinite(R)):
+                raise ValueError(f"blocks must be finite rows of length {k}, got shape {R.shape}")
+            one = np.ones(1)
+            cands = [_Weighted(R[i:i + 1], one, None) for i in range(R.shape[0])]
+        else:
+            cands = [_as_block(b, k, f"blocks[{i}]") for i, b in enumerate(blocks)]
         rem = None if remove is None else _as_block(remove, k, "remove")
         rj = 0 if rem is None else rem.r
         out = np.empty(len(cands))
@@ -751,7 +803,8 @@ class FactoredSelection:
                 res = base._lowrank(chunk, rem if base is self else None)
                 if res is None:  # downdating rem would lose accuracy: factor the base without it instead
                     assert rem is not None
-                    base = self._updated([(rem, -1.0)])
+                    Gr, qr = rem.gram()
+                    base = FactoredSelection(self.model, self.G - Gr, self.qsum - qr)
                     res = base._lowrank(chunk, None)
                 out[idx[a:a + step]] = res
         if base is not self:
@@ -772,7 +825,7 @@ class FactoredSelection:
         r, n = rc + rj, t * rc
         # All update rows stacked: the candidates' (n) then the removed block's (rj).
         X = np.concatenate([c.Rw for c in cands] + ([rem.Rw] if rem is not None else []), axis=0)
-        Z = scipy.linalg.cho_solve(self._factor(), np.asfortranarray(X.T), check_finite=False)  # M0⁻¹Xᵀ
+        Z = self._apply_inv(np.asfortranarray(X.T))  # M0⁻¹Xᵀ
         Y = self._nn(Z)
         if rem is not None:
             K = np.eye(rj) - scipy.linalg.blas.dgemm(1.0, X[n:], Z[:, n:])

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.core import atomic
+from brdfpipe.core.threads import blas_threads
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl
 from brdfpipe.acquisition.geometry import (
@@ -105,12 +106,16 @@ F64 = NDArray[np.float64]
 # (FactoredSelection, "Many candidates against one factored base selection"
 # in the metrics section): the greedy add's t candidates are the current set
 # + their block; a configuration's ≤ 7 moves are the current set − its block
-# + the moved block.  The current set's M = G + ηI is factored and solved
-# once and carried along as the set changes (fresh Cholesky, solve by the
-# update identity; rebuilt from the blocks once per n and every
+# + the moved block.  The current set's M⁻¹ = (G + ηI)⁻¹ and solve
+# W = M⁻¹Uᵀ are computed once (Cholesky, dpotri) and carried along as the
+# set changes by Woodbury updates, O(k²r + krm) per accepted move and no
+# factorisation (rebuilt from the blocks once per n and every
 # _MAX_UPDATE_DEPTH updates).  A point candidate then costs O(k² + km)
-# flops — a few stacked triangular solves and dgemm rows — instead of a
-# fresh Cholesky + solve with m right-hand sides, O(k³/3 + 2k²m).  Near-field
+# flops — dgemm columns, all candidates of a step stacked into one product,
+# point candidates passed as one (t, k) array — instead of a fresh
+# Cholesky + solve with m right-hand sides, O(k³/3 + 2k²m); per run the
+# cost grows with k² (≈ N², N training materials) but for the 2·n_max
+# rebuilds and recomputations of each set (k³).  Near-field
 # images (hundreds of distinct cells, the low-rank form would cost more) are
 # still evaluated afresh: their distinct rows (counted, not repeated) in one
 # dsyrk, one Cholesky + solve (E), one eigvalsh (κ, more than k rows) — and
@@ -290,6 +295,8 @@ class _Optimizer:
         self.method: Literal["auto", "direct"] = "direct" if evaluation == "direct" else "auto"
         # The current set's configurations and factored statistics (see current()).
         self._current: tuple[tuple[Config, ...], FactoredSelection] | None = None
+        # The last summarised set's fresh factorisation (see summarise).
+        self._fresh: tuple[tuple[Config, ...], FactoredSelection] | None = None
 
     # -- configurations --------------------------------------------------
 
@@ -400,6 +407,14 @@ class _Optimizer:
         """
         self.evaluations += len(cands)
         rem = None if remove is None else self.row_block(remove.idx, (remove.G, remove.qsum))
+        if self.metric == "error" and cands and all(idx.size == 1 for idx in cands):
+            # Point candidates: one row each, passed as one (t, k) array (no per-candidate blocks).
+            rows = self.Q[np.concatenate(cands)]
+            out: list[tuple[float, ...]] = []
+            for a in range(0, len(cands), _EVAL_CHUNK_ROWS):
+                out += [(float(E),) for E in base.candidate_errors(rows[a:a + _EVAL_CHUNK_ROWS], remove=rem,
+                                                                   method=self.method)]
+            return out
         keys: list[tuple[float, ...]] = []
         start = 0
         while start < len(cands):
@@ -462,7 +477,10 @@ class _Optimizer:
     # -- search steps --------------------------------------------------------
 
     def greedy_add(self, blocks: list[_Block], t: int) -> tuple[tuple[float, ...], int]:
-        self._current = None  # rebuilt from the blocks once per n: no rounding carried over
+        # rebuilt from the blocks once per n (summarise's fresh factorisation): no rounding carried over
+        configs_now = tuple(b.config for b in blocks)
+        self._current = self._fresh if self._fresh is not None and self._fresh[0] == configs_now else None
+        self._fresh = None
         base = self.current(blocks)
         n0 = sum(b.n for b in blocks)
         exclude = {b.config for b in blocks}
@@ -617,11 +635,15 @@ class _Optimizer:
         rows = np.concatenate([b.rows for b in blocks], axis=0)
         G, qsum = selection_stats(rows)
         configs = tuple(b.config for b in blocks)
+        # E(S) from scratch (Cholesky of G + ηI, solve); the same fresh factorisation is the next
+        # greedy add's base (no rounding carried over, one factorisation per n instead of two).
+        fresh = FactoredSelection(self.em, G, qsum)
+        self._fresh = (configs, fresh)
         return DirectionSet(
             n=len(blocks),
             configurations=configs,
             records=tuple(config_to_dict(self.setup, c) for c in configs),
-            expected_error=expected_error(self.em, G, qsum),
+            expected_error=fresh.error(),
             condition_number=condition_number(rows),
             n_observations=int(rows.shape[0]),
             greedy_value=float(greedy[0]),
@@ -873,13 +895,15 @@ def optimize_to_file(
     eta: float,
     beta: float,
     seed: int,
+    threads: int | None = None,
 ) -> Path:
     """Optimise the direction sets of one setup on a PCA model and write them as JSON.
 
     The workflow's ``optimize_directions`` job: opens the model written by
     :func:`brdfpipe.acquisition.svd.write_model`, runs :func:`optimize` (one log line per
     step) and writes :func:`write_directions`'s JSON to ``out``; the split
-    and database recorded are the model's.
+    and database recorded are the model's.  ``threads``: the BLAS threads
+    to use (the rule's declared threads; None leaves them as they are).
     """
     from brdfpipe.acquisition.svd import open_model
 
@@ -890,10 +914,11 @@ def optimize_to_file(
         "optimising %s fov %g (%s metric) on %s: n_max %d, %d candidates, seed %d",
         setup, kind_setup.fov_deg, metric, model_path, n_max, candidates, seed,
     )
-    sets = optimize(
-        model, kind_setup, metric=metric, n_max=n_max, candidates=candidates,
-        eta=eta, beta=beta, seed=seed, log=log,
-    )
+    with blas_threads(threads):
+        sets = optimize(
+            model, kind_setup, metric=metric, n_max=n_max, candidates=candidates,
+            eta=eta, beta=beta, seed=seed, log=log,
+        )
     return write_directions(
         out, sets, setup=kind_setup, metric=metric, split=model.split,
         model_path=model_path, seed=seed, eta=eta, beta=beta, database=model.database,

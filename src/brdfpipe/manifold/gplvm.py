@@ -155,9 +155,12 @@ from typing import Any, Final
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.blas
+import scipy.linalg.lapack
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
+from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
@@ -429,8 +432,20 @@ def load_gram(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], int, G
 
 
 def _sqdist(X: NDArray[np.float64]) -> NDArray[np.float64]:
-    diff = X[:, None, :] - X[None, :, :]
-    return np.einsum("ijk,ijk->ij", diff, diff)
+    """Squared distances ``‖x_i − x_j‖²`` (N × N), one latent axis at a time: O(N²q) time, O(N²) memory.
+
+    Differences, not ``‖x_i‖² + ‖x_j‖² − 2x_i·x_j`` (which cancels for close
+    points); exactly symmetric with a zero diagonal.
+    """
+    n, q = X.shape
+    out = np.zeros((n, n))
+    diff = np.empty((n, n))
+    for k in range(q):
+        col = X[:, k]
+        np.subtract(col[:, None], col[None, :], out=diff)
+        diff *= diff
+        out += diff
+    return out
 
 
 def kernel_matrix(X: ArrayLike, ell: float = 1.0, mu: float = 1e-4) -> NDArray[np.float64]:
@@ -487,29 +502,76 @@ def log_likelihood(
 def log_likelihood_grad(
     X: ArrayLike, gram: ArrayLike, d: float, ell: float = 1.0, mu: float = 1e-4
 ) -> tuple[float, NDArray[np.float64]]:
-    """``L`` (eq. 6) and its analytic gradient ``∂L/∂X`` (N × q), O(N³ + N²q).
+    """``L`` (eq. 6) and its analytic gradient ``∂L/∂X`` (N × q).
 
     ``∂L/∂K = W = −(d/2)K⁻¹ + ½K⁻¹GK⁻¹``; off the diagonal ``∂K_ij/∂x_i =
     −K_ij (x_i − x_j)/ℓ²`` (the diagonal 1 + μ does not move), and K_ij and
     K_ji move together, so ``∂L/∂x_i = −(2/ℓ²) Σ_j W_ij E_ij (x_i − x_j)``
-    with ``E = exp(−D²/2ℓ²)``.  Used by the quasi-Newton polish of
-    :func:`fit` and checked against finite differences in the tests.
+    with ``E = exp(−D²/2ℓ²)``.  Cost: one Cholesky of K, its inverse
+    (``dpotri``), two triangular solves and one ``dsyrk`` with a square root
+    of G (:class:`_GramRoot`; ≈ 4N³ flops in all) and O(N²q) for the kernel
+    and the contraction — no N × N × q array.  Used by the quasi-Newton
+    stage of :func:`fit` and checked against finite differences in the tests.
     """
     g, d_f = _check_gram(gram, d)
     ell, mu = _check_hyper(ell, mu)
     x = _check_X(X)
-    E = np.exp(-_sqdist(x) / (2.0 * ell * ell))
+    if x.shape[0] != g.shape[0]:
+        raise ValueError(f"X has {x.shape[0]} rows but gram is {g.shape[0]} x {g.shape[0]}")
+    return _loglik_grad(x, _GramRoot(g), d_f, ell, mu)
+
+
+class _GramRoot:
+    """``G = R₊R₊ᵀ − R₋R₋ᵀ`` from the eigendecomposition of the (symmetric) Gram matrix, computed once per fit.
+
+    With ``K = LLᵀ``: ``tr(K⁻¹G) = ‖L⁻¹R₊‖² − ‖L⁻¹R₋‖²`` and
+    ``K⁻¹GK⁻¹ = T₊T₊ᵀ − T₋T₋ᵀ``, ``T = L⁻ᵀL⁻¹R`` — triangular solves and
+    ``dsyrk`` instead of general products with G.  (R₋ holds the eigenvalues
+    of a centred Gram matrix that rounding made negative: ~1e-16 of ‖G‖.)
+    """
+
+    def __init__(self, gram: NDArray[np.float64]) -> None:
+        lam, V = np.linalg.eigh(gram)
+        pos = lam > 0
+        self.plus = np.asfortranarray(V[:, pos] * np.sqrt(lam[pos]))
+        self.minus = np.asfortranarray(V[:, ~pos] * np.sqrt(-lam[~pos])) if (~pos).any() else None
+
+
+def _loglik_grad(
+    x: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float
+) -> tuple[float, NDArray[np.float64]]:
+    """:func:`log_likelihood_grad` without validation (the quasi-Newton stage's inner loop)."""
+    blas, lapack = scipy.linalg.blas, scipy.linalg.lapack
+    s = 1.0 / (ell * ell)
+    E = np.exp(_sqdist(x) * (-0.5 * s))
     K = E.copy()
-    K[np.diag_indices_from(K)] = 1.0 + mu
-    cf = scipy.linalg.cho_factor(K, lower=True)
-    Kinv = scipy.linalg.cho_solve(cf, np.eye(K.shape[0]))
-    KinvG = Kinv @ g
-    logdet = 2.0 * float(np.log(np.diag(cf[0])).sum())
-    L = -0.5 * d_f * logdet - 0.5 * float(np.trace(KinvG))
-    W = -0.5 * d_f * Kinv + 0.5 * (KinvG @ Kinv)
-    P = 0.5 * (W + W.T) * E
-    np.fill_diagonal(P, 0.0)
-    grad = -(2.0 / (ell * ell)) * (P.sum(axis=1)[:, None] * x - P @ x)
+    np.fill_diagonal(K, 1.0 + mu)
+    c, info = lapack.dpotrf(K, lower=1, clean=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("K is not positive definite")
+    logdet = 2.0 * float(np.log(np.diag(c)).sum())
+    Kinv_l, info = lapack.dpotri(c, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("K could not be inverted")
+    # Lower triangles only (dpotri and dsyrk leave the strict upper triangle zero), mirrored once.
+    Wl = Kinv_l
+    Wl *= -0.5 * d
+    tr = 0.0
+    for R, sign in ((root.plus, 1.0), (root.minus, -1.0)):
+        if R is None or R.shape[1] == 0:
+            continue
+        S = blas.dtrsm(1.0, c, R, lower=1)  # L⁻¹R
+        tr += sign * float(np.einsum("ij,ij->", S, S))
+        T = blas.dtrsm(1.0, c, S, lower=1, trans_a=1)  # K⁻¹R
+        Wl = blas.dsyrk(0.5 * sign, T, beta=1.0, c=Wl, lower=1, overwrite_c=1)  # + ½ K⁻¹GK⁻¹
+    L = -0.5 * d * logdet - 0.5 * tr
+    np.fill_diagonal(Wl, 0.0)  # the diagonal of A is zero anyway
+    A = Wl + Wl.T  # W off the diagonal
+    A *= E
+    np.fill_diagonal(A, 0.0)
+    grad = A @ x
+    grad -= A.sum(axis=1)[:, None] * x
+    grad *= 2.0 * s
     return L, grad
 
 
@@ -537,34 +599,61 @@ def _full_state(X: NDArray[np.float64], gram: NDArray[np.float64], ell: float, m
     return _State(X.copy(), K, Kinv, logdet, tr)
 
 
+def _candidates(
+    st: _State, gram: NDArray[np.float64], i: int, xs: NDArray[np.float64], inv2l2: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+           NDArray[np.bool_]]:
+    """Score moving point ``i`` to each row of ``xs`` (c × q) at once, by the rank-2 formulas.
+
+    Returns ``(Δlog|K|, Δtr, columns (N × c), a = K⁻¹u (N × c), M⁻¹ (c × 2 × 2), ok)``; ``ok`` is
+    False where K′ would not be positive definite (its other entries are then meaningless).  The
+    products with K⁻¹ and G of all candidates are two matrix products (2·2N²c flops), the rest
+    O(Nc): ``U = [u, e_i]``, ``A = K⁻¹U``, ``M = C + UᵀK⁻¹U`` (module docstring).
+    """
+    n = st.X.shape[0]
+    d2 = np.zeros((n, xs.shape[0]))
+    for k in range(st.X.shape[1]):
+        diff = st.X[:, k, None] - xs[None, :, k]
+        d2 += diff * diff
+    cols = np.exp(d2 * -inv2l2)
+    cols[i] = st.K[i, i]
+    u = cols - st.K[i][:, None]  # K is symmetric: row i = column i
+    u[i] = 0.0
+    a = st.Kinv @ u  # (N, c)
+    ki = st.Kinv[i]
+    gki = gram @ ki
+    m00 = np.einsum("nc,nc->c", u, a)
+    m01 = a[i] + 1.0
+    m11 = ki[i]
+    det = m00 * m11 - m01 * m01
+    ratio = -det  # |K′|/|K| (determinant lemma, twice)
+    ok = ratio > 0.0
+    safe = np.where(ok, det, -1.0)
+    Minv = np.empty((xs.shape[0], 2, 2))
+    Minv[:, 0, 0] = m11 / safe
+    Minv[:, 0, 1] = Minv[:, 1, 0] = -m01 / safe
+    Minv[:, 1, 1] = m00 / safe
+    ga = gram @ a
+    aga00 = np.einsum("nc,nc->c", a, ga)
+    aga01 = a.T @ gki
+    aga11 = float(ki @ gki)
+    dtr = -(Minv[:, 0, 0] * aga00 + 2.0 * Minv[:, 0, 1] * aga01 + Minv[:, 1, 1] * aga11)
+    dlogdet = np.log(np.where(ok, ratio, 1.0))
+    return dlogdet, dtr, cols, a, Minv, ok
+
+
 def _candidate(
     st: _State, gram: NDArray[np.float64], i: int, xi: NDArray[np.float64], inv2l2: float
 ) -> tuple[float, float, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
     """Score moving point ``i`` to ``xi``: (Δlog|K|, Δtr, new column, Aᵀ (2 × N), M⁻¹); None if K′ is not PD.
 
-    ``U = [u, e_i]``, ``A = K⁻¹U``, ``M = C + UᵀK⁻¹U`` (see the module docstring).
+    One candidate of :func:`_candidates`.
     """
-    diff = st.X - xi
-    diff *= diff
-    col = np.exp(diff.sum(axis=1) * -inv2l2)
-    Kii = st.K[i, i]
-    col[i] = Kii
-    u = col - st.K[i]  # K is symmetric: row i = column i
-    u[i] = 0.0
-    At = np.empty((2, u.size))
-    np.dot(st.Kinv, u, out=At[0])
-    At[1] = st.Kinv[i]
-    m00 = float(u @ At[0])
-    m01 = float(At[0, i]) + 1.0
-    m11 = float(At[1, i])
-    det = m00 * m11 - m01 * m01
-    ratio = -det  # |K′|/|K| (determinant lemma, twice)
-    if not ratio > 0.0:
+    dlogdet, dtr, cols, a, Minv, ok = _candidates(st, gram, i, xi[None, :], inv2l2)
+    if not ok[0]:
         return None
-    Minv = np.array([[m11, -m01], [-m01, m00]]) / det
-    AGA = (At @ gram) @ At.T
-    dtr = -float(np.sum(Minv * AGA))
-    return float(np.log(ratio)), dtr, col, At, Minv
+    At = np.stack([a[:, 0], st.Kinv[i]])
+    return float(dlogdet[0]), float(dtr[0]), cols[:, 0], At, Minv[0]
 
 
 def _accept(st: _State, i: int, xi: NDArray[np.float64], col: NDArray[np.float64],
@@ -697,23 +786,29 @@ def _hooke_jeeves(
         st.K, st.Kinv, st.logdet, st.tr = fresh.K, fresh.Kinv, fresh.logdet, fresh.tr
         max_drift = max(max_drift, abs(before - L()) / max(abs(L()), 1.0))
 
-    def try_move(i: int, xi: NDArray[np.float64]) -> bool:
+    def try_moves(i: int, xs: NDArray[np.float64]) -> int:
+        """Score the moves of point i to the rows of ``xs`` in one batch; accept the first that
+        improves L (in row order) and return its row, or −1.  The same choice as trying them one
+        by one and stopping at the first improvement."""
         nonlocal accepted, evals, since
-        evals += 1
-        res = _candidate(st, gram, i, xi, inv2l2)
-        if res is None:
-            return False
-        dlogdet, dtr, col, A, Minv = res
+        evals += xs.shape[0]
+        dlogdet, dtr, cols, a, Minv, ok = _candidates(st, gram, i, xs, inv2l2)
         dL = -0.5 * d * dlogdet - 0.5 * dtr
-        if not dL > tol * max(abs(L()), 1.0):
-            return False
-        _accept(st, i, xi, col, A, Minv, dlogdet, dtr)
+        good = np.flatnonzero(ok & (dL > tol * max(abs(L()), 1.0)))
+        if good.size == 0:
+            return -1
+        c = int(good[0])
+        At = np.stack([a[:, c], st.Kinv[i]])
+        _accept(st, i, xs[c].copy(), cols[:, c].copy(), At, Minv[c], float(dlogdet[c]), float(dtr[c]))
         accepted += 1
         since += 1
         if since >= refactor_every:
             refactor()
             since = 0
-        return True
+        return c
+
+    def try_move(i: int, xi: NDArray[np.float64]) -> bool:
+        return try_moves(i, xi[None, :]) == 0
 
     steps = np.full(n, step)
     stalled = 0
@@ -726,13 +821,19 @@ def _hooke_jeeves(
                 continue
             h = steps[i]
             base = st.X[i].copy()
-            # exploratory moves: ±h on each coordinate, first improvement taken
-            for k in rng.permutation(q):
-                for sgn in (1.0, -1.0):
-                    xi = st.X[i].copy()
-                    xi[k] += sgn * h
-                    if try_move(int(i), xi):
-                        break
+            # exploratory moves: ±h on each coordinate in a random order, first improvement taken
+            # (then the next coordinate from the new point); the remaining moves are scored in one batch
+            order = rng.permutation(q)
+            j = 0
+            while j < q:
+                ks = order[j:]
+                xs = np.repeat(st.X[i][None, :], 2 * ks.size, axis=0)
+                xs[np.arange(0, 2 * ks.size, 2), ks] += h
+                xs[np.arange(1, 2 * ks.size, 2), ks] -= h
+                c = try_moves(int(i), xs)
+                if c < 0:
+                    break
+                j += c // 2 + 1
             delta = st.X[i] - base
             if delta.any():
                 # pattern moves: keep going in the direction that improved, doubling
@@ -767,12 +868,13 @@ def _lbfgs_polish(
 
     n, q = X0.shape
     scale = max(abs(log_likelihood(X0, gram, d, ell, mu)), 1.0)
+    root = _GramRoot(gram)
 
     last: dict[bytes, float] = {}
 
     def f(x: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
         try:
-            L, g = log_likelihood_grad(x.reshape(n, q), gram, d, ell, mu)
+            L, g = _loglik_grad(x.reshape(n, q), root, d, ell, mu)
         except np.linalg.LinAlgError:
             return np.inf, np.zeros_like(x)
         last.clear()
@@ -1160,8 +1262,12 @@ def fit_to_files(
     max_sweeps: int = 200,
     normalise: bool = True,
     method: str = "hybrid",
+    threads: int | None = None,
 ) -> FitResult:
     """Fit a q-dimensional latent space to a saved Gram matrix; write the model and its trace.
+
+    ``threads``: the BLAS threads to use (the rule's declared threads; None
+    leaves them as they are).
 
     The workflow's ``fit_gplvm`` job.  ``normalise``: fit to ``G/s`` with
     ``s`` = :func:`gram_scale` (stored in the model).  ``trace_out`` is a CSV
@@ -1171,7 +1277,8 @@ def fit_to_files(
     """
     gram, d, info = load_gram(gram_path)
     scale = gram_scale(gram, d) if normalise else 1.0
-    result = fit(gram / scale, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps, method=method)
+    with blas_threads(threads):
+        result = fit(gram / scale, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps, method=method)
     logger.info(
         "q = %d: Gram divided by %.6g; L %.6g -> %.6g in %d sweeps + %d L-BFGS iterations, %.2f s (start scale %s)",
         q, scale, result.initial_log_likelihood, result.log_likelihood, result.sweeps,

@@ -1,0 +1,105 @@
+"""The number of BLAS threads a job uses: the threads its rule declares.
+
+numpy and scipy each bundle their own OpenBLAS, and each starts as many
+threads as the machine has cores when first used — more than a rule with
+``threads: 1`` declares, and setting ``OPENBLAS_NUM_THREADS`` from a Snakemake
+``script:`` is too late (the libraries are loaded when the script's first
+import of numpy runs, before the script's own code).  :func:`blas_threads`
+sets the thread count of every OpenBLAS loaded in the process at run time
+and restores it afterwards, through ``threadpoolctl`` when it is installed and
+otherwise through OpenBLAS's own ``*_set_num_threads`` functions (ctypes, on
+the libraries listed in ``/proc/self/maps``; the symbol names of the numpy
+and scipy wheels, ``scipy_openblas*``, and of a plain OpenBLAS).  Where
+neither works (no OpenBLAS, not Linux) it does nothing and says so in the
+log, once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["blas_threads", "openblas_libraries", "current_blas_threads"]
+
+logger = logging.getLogger("brdfpipe.core.threads")
+
+_SET = ("openblas_set_num_threads", "openblas_set_num_threads64_", "scipy_openblas_set_num_threads",
+        "scipy_openblas_set_num_threads64_")
+_GET = ("openblas_get_num_threads", "openblas_get_num_threads64_", "scipy_openblas_get_num_threads",
+        "scipy_openblas_get_num_threads64_")
+_warned = False
+
+
+def _load_blas() -> None:
+    """Import numpy and scipy.linalg so that both OpenBLAS copies are loaded before they are set."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
+
+
+def openblas_libraries() -> list[tuple[str, ctypes.CDLL, ctypes._CFuncPtr, ctypes._CFuncPtr]]:
+    """Every OpenBLAS mapped into this process: (path, library, set function, get function)."""
+    try:
+        maps = Path("/proc/self/maps").read_text()
+    except OSError:
+        return []
+    paths = sorted({line.split()[-1] for line in maps.splitlines()
+                    if "openblas" in line.rsplit("/", 1)[-1].lower() and "/" in line})
+    out = []
+    for path in paths:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        set_fn = next((getattr(lib, n) for n in _SET if hasattr(lib, n)), None)
+        get_fn = next((getattr(lib, n) for n in _GET if hasattr(lib, n)), None)
+        if set_fn is not None and get_fn is not None:
+            get_fn.restype = ctypes.c_int
+            set_fn.argtypes = [ctypes.c_int]
+            out.append((path, lib, set_fn, get_fn))
+    return out
+
+
+def current_blas_threads() -> dict[str, int]:
+    """Thread count of each loaded OpenBLAS, by library path (empty where none can be queried)."""
+    _load_blas()
+    return {path: int(get()) for path, _, _, get in openblas_libraries()}
+
+
+@contextlib.contextmanager
+def blas_threads(n: int | None) -> Iterator[None]:
+    """Run the body with every loaded OpenBLAS limited to ``n`` threads (None: leave them alone).
+
+    ``n`` is the job's declared thread count (``snakemake.threads``); a
+    ValueError for ``n < 1``.  The previous counts are restored on exit.
+    """
+    global _warned
+    if n is None:
+        yield
+        return
+    if isinstance(n, bool) or int(n) != n or int(n) < 1:
+        raise ValueError(f"threads must be a positive integer, got {n!r}")
+    n = int(n)
+    _load_blas()
+    try:
+        from threadpoolctl import threadpool_limits  # type: ignore[import-not-found]
+    except ImportError:
+        threadpool_limits = None
+    if threadpool_limits is not None:
+        with threadpool_limits(limits=n, user_api="blas"):
+            yield
+        return
+    libs = openblas_libraries()
+    if not libs and not _warned:
+        _warned = True
+        logger.info("no OpenBLAS found to limit to %d thread(s): BLAS threads left as they are", n)
+    before = [(set_fn, int(get_fn())) for _, _, set_fn, get_fn in libs]
+    for set_fn, _ in before:
+        set_fn(n)
+    try:
+        yield
+    finally:
+        for set_fn, old in before:
+            set_fn(old)
