@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from brdfpipe.core import nearfield
 from brdfpipe.data import merl
 
 __all__ = [
@@ -90,7 +91,7 @@ F64 = NDArray[np.float64]
 # radius ν about the origin, which subtends the half-angle asin(ν) from C, so
 # in tangent-plane coordinates (u, v) its image lies in [−h, h]² with
 #
-#     h = tan(asin ν) = ν / √(1 − ν²)          (:func:`image_half_width`)
+#     h = tan(asin ν) = ν / √(1 − ν²)          (:func:`brdfpipe.core.nearfield.image_half_width`)
 #
 # (h = 0.2273 against ν = 0.2217 at 25°, 0.4551 against 0.4142 at 45°; a
 # square image of half-width ν — the bound at the zenith — clipped 2–3.8 %
@@ -98,14 +99,14 @@ F64 = NDArray[np.float64]
 # lattice of pitch Δ *centred on the optical axis*: u = (i − ⌊grid/2⌋)·Δ,
 # i = 0 … grid − 1, so there always is a centre pixel, looking exactly along
 # −wo.  Δ is the smallest pitch whose pixel footprints [u − Δ/2, u + Δ/2]
-# cover [−h, h] (:func:`pixel_pitch`): Δ = 2h/grid for an odd grid; an even
+# cover [−h, h] (:func:`brdfpipe.core.nearfield.pixel_pitch`): Δ = 2h/grid for an odd grid; an even
 # grid has one more column on the negative side than on the positive one,
 # so Δ = 2h/(grid − 1) (its negative side reaches past −h).  Camera frame:
 # forward f = −wo, right e_r = (−sin φo, cos φo, 0) (horizontal, normal to
 # the camera's plane of incidence; φo = atan2(wo_y, wo_x), 0 at the zenith),
-# up e_u = e_r × f.  Lattice index (a, b) is the pixel (u, v) =
-# (a, b)·Δ − ⌊grid/2⌋·Δ; in an image with rows from the top, column a and
-# row grid − 1 − b.  The ray f + u·e_r + v·e_u from C meets the plane z = 0
+# up e_u = e_r × f (:func:`brdfpipe.core.nearfield.camera_basis`); where
+# lattice index (a, b) sits in a rendered image: :func:`brdfpipe.core.nearfield.image_frame`.
+# The ray f + u·e_r + v·e_u from C meets the plane z = 0
 # at P (rays with non-negative z component never do and are dropped); a
 # pixel is kept iff |P| ≤ r: pixels outside the disk are masked, they are
 # not observations.  At the zenith the disk spans ±ν/Δ pixels about the
@@ -271,39 +272,10 @@ def centre_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
     return wi[0], wo[0]
 
 
-def image_half_width(fov_deg: float) -> float:
-    """Half-width h = ν/√(1 − ν²) of the image in tangent-plane coordinates (R = 1).
-
-    ν = tan(α/2); h = tan(asin ν) bounds the image of the disk from any
-    camera direction on the hemisphere of radius R (see the section comment).
-    """
-    nu = math.tan(math.radians(fov_deg) / 2.0)
-    if not 0.0 < nu < 1.0:
-        raise ValueError(f"the disk must subtend less than the camera's hemisphere: need 0 < fov_deg < 90, got {fov_deg}")
-    return nu / math.sqrt(1.0 - nu * nu)
-
-
-def pixel_pitch(fov_deg: float, grid: int) -> float:
-    """Pixel pitch Δ of a grid × grid image: pixel footprints cover [−h, h] (h = :func:`image_half_width`)."""
-    grid = int(grid)
-    if grid < 1:
-        raise ValueError(f"grid must be ≥ 1, got {grid}")
-    cols = grid if grid % 2 else max(grid - 1, 1)
-    return 2.0 * image_half_width(fov_deg) / cols
-
-
-def lattice_shape_in_image(grid: int) -> tuple[int, int]:
-    """(size, offset) of the smallest symmetric image holding the lattice.
-
-    An image of ``size`` × ``size`` pixels (``size`` odd) centred on the
-    optical axis with the lattice's pitch: lattice index (a, b) is its column
-    ``offset + a`` and row ``size − 1 − offset − b`` (rows from the top).
-    size = grid for an odd grid, grid + 1 for an even one (whose last column
-    and top row the lattice does not use).
-    """
-    grid = int(grid)
-    size = grid if grid % 2 else grid + 1
-    return size, size // 2 - grid // 2
+#: Re-exported from :mod:`brdfpipe.core.nearfield` (the capture frames the same image).
+image_half_width = nearfield.image_half_width
+pixel_pitch = nearfield.pixel_pitch
+lattice_shape_in_image = nearfield.image_frame
 
 
 @functools.lru_cache(maxsize=16)
@@ -325,10 +297,7 @@ def _pixel_views(setup: Setup, wo: F64) -> F64:
         return np.zeros((0, 3))
     u, v, centre = _lattice(setup.fov_deg, setup.grid)
     nu = setup.nu
-    phi = math.atan2(wo[1], wo[0]) if (wo[0] != 0.0 or wo[1] != 0.0) else 0.0
-    e_r = np.array([-math.sin(phi), math.cos(phi), 0.0])
-    f = -wo
-    e_u = np.cross(e_r, f)
+    f, e_r, e_u = nearfield.camera_basis(wo)
     ray = f + u[:, None] * e_r + v[:, None] * e_u
     dz = ray[:, 2]
     hit = dz < 0.0
