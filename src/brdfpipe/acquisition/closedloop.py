@@ -1,0 +1,237 @@
+"""Closed-loop evaluation: reconstruct held-out materials from captured images, next to the table lookup.
+
+The leave-out evaluation (:mod:`brdfpipe.acquisition.reconstruct`) observes a
+held-out material by looking its table up at the cells the acquisition
+geometry predicts.  The closed loop observes it through images instead:
+:mod:`brdfpipe.rendering.capture` renders each configuration of a direction
+set (Mitsuba 3, the ``merl`` BSDF, a point light, the set-up's camera) and
+writes the observation table read off the pixels (NPZ: ``wi``, ``wo``,
+``rgb`` per kept pixel).  Here, for every (material, directions file, n):
+
+* ``rms_log``, ``relrms_linear`` — the table lookup, exactly as
+  :func:`brdfpipe.acquisition.reconstruct.evaluate` (observations = the
+  store's values at :func:`brdfpipe.acquisition.geometry.observation_cells`
+  of the set's configurations, dropped where not a model column);
+* ``closedloop_noiseless_rms_log``, ``closedloop_noiseless_relrms_linear`` —
+  from the noiseless render (each pixel the average over its footprint);
+* ``closedloop_rms_log``, ``closedloop_relrms_linear`` — from the sensor's
+  photograph (photon and read noise, saturation, ADC, HDR brackets;
+  pixels masked for low signal);
+
+each observation binned into its MERL cell (:func:`brdfpipe.data.merl.cell_index`
+of the pixel's own light and view directions), observations on cells that
+are not model columns dropped (unmeasured), and c̄ by eq. 4 with the same η.
+The errors are measured against the store's row (the same ground truth as
+the table lookup), per channel, with the means over the material-channels
+as material ``mean``, channel ``all``.  Counts per (material, set), channel
+``all``: ``observations`` (table lookup), ``closedloop_observations`` (sensor
+pixels used) and ``closedloop_masked`` (share of the disk's pixels not used:
+masked by the sensor or on a cell that is not a model column).
+
+Cost: one streamed pass over Q for all (material, set, kind) coefficient
+columns at once (as the evaluation's pass 2).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from brdfpipe.acquisition import geometry
+from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
+from brdfpipe.acquisition.optimize import read_directions
+from brdfpipe.acquisition.reconstruct import CHANNELS, ERROR_COLUMNS, write_errors
+from brdfpipe.acquisition.svd import Model, open_model
+from brdfpipe.data import logmap, merl
+from brdfpipe.data.merl import N_CELLS
+from brdfpipe.data.store import material_indices, open_store
+
+__all__ = ["CLOSEDLOOP_KINDS", "OBSERVATION_SOURCES", "read_observations", "evaluate_closedloop", "write_closedloop"]
+
+logger = logging.getLogger("brdfpipe.acquisition.closedloop")
+
+F64 = NDArray[np.float64]
+
+#: Observation sources: kind prefix of their error rows.
+OBSERVATION_SOURCES: Final = {"table": "", "noiseless": "closedloop_noiseless_", "sensor": "closedloop_"}
+#: Every kind of closedloop.csv.
+CLOSEDLOOP_KINDS: Final = tuple(
+    f"{prefix}{k}" for prefix in OBSERVATION_SOURCES.values() for k in ("rms_log", "relrms_linear")
+) + ("observations", "closedloop_observations", "closedloop_masked")
+
+_Q_ROWS: Final = 8192  # rows of Q per block of the error pass
+
+
+def read_observations(path: str | os.PathLike[str]) -> tuple[NDArray[np.intp], F64, dict[str, int]]:
+    """(cells, rgb, counts) of a capture's observation table (NPZ of :mod:`brdfpipe.rendering.capture`).
+
+    ValueError naming the file when it is missing or malformed.
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            wi = np.asarray(z["wi"], dtype=np.float64)
+            wo = np.asarray(z["wo"], dtype=np.float64)
+            rgb = np.asarray(z["rgb"], dtype=np.float64)
+            counts = {str(k): int(v) for k, v in zip(z["counts_keys"], z["counts"])}
+    except (OSError, KeyError, ValueError) as exc:
+        raise ValueError(f"{path}: not a capture observation table ({exc})") from exc
+    n = rgb.shape[0]
+    if wi.shape != (n, 3) or wo.shape != (n, 3) or rgb.shape != (n, 3) or not np.isfinite(rgb).all() or (rgb < 0).any():
+        raise ValueError(f"{path}: observation arrays have wrong shapes or values")
+    cells = merl.cell_index(wi, wo) if n else np.zeros(0, dtype=np.intp)
+    return cells.astype(np.intp), rgb, counts
+
+
+def _coefficients(mdl: Model, lut: NDArray[np.intp], cells: NDArray[np.intp], rgb: F64, eta: float) -> tuple[F64, int]:
+    """(k, 3) coefficients of eq. 4 from observations (cells, rgb); drops cells that are not model columns."""
+    cols = lut[cells]
+    keep = cols >= 0
+    cols, v = cols[keep], rgb[keep]
+    if cols.size == 0:
+        return np.zeros((mdl.k, 3)), 0
+    x_obs = logmap.forward(v.T, mdl.reference[cols], mdl.weight[cols], mdl.epsilon)  # (3, n)
+    y_obs = (x_obs - mdl.mean[cols]).T
+    uniq, inv = np.unique(cols, return_inverse=True)
+    q = np.asarray(mdl.Q.get_orthogonal_selection((uniq, slice(None))), dtype=np.float64)[inv]
+    return reconstruct_coefficients(q, y_obs, eta), int(cols.size)
+
+
+def _q_blocks(mdl: Model) -> Iterator[tuple[int, int]]:
+    for a in range(0, mdl.p, _Q_ROWS):
+        yield a, min(a + _Q_ROWS, mdl.p)
+
+
+def _errors(mdl: Model, truth: F64, coefs: F64, owner: NDArray[np.intp]) -> tuple[F64, F64]:
+    """(rms_log, relrms_linear) of each coefficient column; ``owner[j]`` = row of ``truth`` (material-channel)."""
+    x_true = logmap.forward(truth, mdl.reference[None, :], mdl.weight[None, :], mdl.epsilon)  # (m, p)
+    wi, wo = merl.cell_directions(mdl.cells)
+    cc = wi[:, 2] * wo[:, 2]
+    sq_log = np.zeros(coefs.shape[1])
+    num = np.zeros(coefs.shape[1])
+    den = np.zeros(coefs.shape[1])
+    for a, b in _q_blocks(mdl):
+        q = np.asarray(mdl.Q[a:b], dtype=np.float64)
+        xhat = q @ coefs + mdl.mean[a:b, None]  # (b − a, ncols)
+        xt = x_true[owner, a:b].T
+        sq_log += np.einsum("ij,ij->j", xhat - xt, xhat - xt)
+        rho_hat = np.maximum(logmap.inverse(xhat.T, mdl.reference[a:b], mdl.weight[a:b], mdl.epsilon), 0.0).T
+        rho = truth[owner, a:b].T
+        d = (rho_hat - rho) * cc[a:b, None]
+        num += np.einsum("ij,ij->j", d, d)
+        r = rho * cc[a:b, None]
+        den += np.einsum("ij,ij->j", r, r)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(den > 0, np.sqrt(num / den), np.where(num > 0, np.inf, 0.0))
+    return np.sqrt(sq_log / mdl.p), rel
+
+
+def evaluate_closedloop(
+    store_path: str | os.PathLike[str],
+    model_path: str | os.PathLike[str],
+    directions: Sequence[str | os.PathLike[str]],
+    observations: Mapping[tuple[str, int, int], tuple[str | os.PathLike[str], str | os.PathLike[str]]],
+    *,
+    materials: Sequence[str],
+    n_images: Sequence[int],
+    eta: float = DEFAULT_ETA,
+) -> list[dict[str, Any]]:
+    """Error rows (columns of ``errors.csv``) of the table lookup and the closed loop (module docstring).
+
+    ``observations[(material, d, n)]`` = (noiseless NPZ, sensor NPZ) of the
+    n-set of ``directions[d]``.
+    """
+    mdl = open_model(model_path)
+    st = open_store(store_path)
+    rows_idx = material_indices(st, list(materials), "closed-loop materials")
+    lut = np.full(N_CELLS, -1, dtype=np.intp)
+    lut[np.asarray(mdl.cells, dtype=np.intp)] = np.arange(mdl.p, dtype=np.intp)
+    valid = np.zeros(N_CELLS, dtype=bool)
+    valid[np.asarray(mdl.cells, dtype=np.intp)] = True
+    truth = np.empty((3 * len(materials), mdl.p))
+    for i, r in enumerate(rows_idx):
+        row = np.asarray(st.brdf[int(r)], dtype=np.float64).reshape(3, N_CELLS)
+        truth[3 * i : 3 * i + 3] = row[:, mdl.cells]
+    sets = [read_directions(p) for p in directions]
+    combos: list[tuple[int, int, str]] = []  # (directions index, n, source)
+    coef_cols: list[F64] = []
+    owners: list[int] = []
+    counts: dict[tuple[int, int, int], dict[str, float]] = {}
+    for i, name in enumerate(materials):
+        for d, dset in enumerate(sets):
+            by_n = {s.n: s for s in dset.sets}
+            for n in n_images:
+                if n not in by_n:
+                    raise ValueError(f"{directions[d]}: no set of n = {n}")
+                cells = np.concatenate([geometry.observation_cells(dset.setup, c, valid) for c in by_n[n].configurations])
+                table_rgb = truth[3 * i : 3 * i + 3, lut[cells]].T
+                coef, used = _coefficients(mdl, lut, cells, np.maximum(table_rgb, 0.0), eta)
+                cnt: dict[str, float] = {"observations": used}
+                sources = {"table": coef}
+                noiseless_path, sensor_path = observations[(name, d, n)]
+                for source, path in (("noiseless", noiseless_path), ("sensor", sensor_path)):
+                    c_cells, rgb, px = read_observations(path)
+                    coef, used = _coefficients(mdl, lut, c_cells, rgb, eta)
+                    if used == 0:
+                        raise ValueError(f"{path}: no observation falls on a model column")
+                    sources[source] = coef
+                    if source == "sensor":
+                        cnt["closedloop_observations"] = used
+                        cnt["closedloop_masked"] = 1.0 - used / px["pixels"] if px["pixels"] else 1.0
+                counts[(i, d, n)] = cnt
+                for source, coef in sources.items():
+                    for c in range(3):
+                        combos.append((i, d, n, source, c))  # type: ignore[arg-type]
+                        coef_cols.append(coef[:, c])
+                        owners.append(3 * i + c)
+    logger.info("closed loop: %d materials × %d sets × 3 sources; error pass over %d model columns",
+                len(materials), len(sets) * len(n_images), mdl.p)
+    rms, rel = _errors(mdl, truth, np.stack(coef_cols, axis=1), np.asarray(owners, dtype=np.intp))
+    out: list[dict[str, Any]] = []
+    base = {"database": st.database, "split": sets[0].split if sets else "train"}
+    acc: dict[tuple[int, int, str, str], list[float]] = {}
+    for j, (i, d, n, source, c) in enumerate(combos):  # type: ignore[misc]
+        dset = sets[d]
+        key = dict(base, setup=dset.setup.kind, fov=_fov(dset.setup.fov_deg), metric=dset.metric, n=n)
+        prefix = OBSERVATION_SOURCES[source]
+        for kind, value in ((f"{prefix}rms_log", rms[j]), (f"{prefix}relrms_linear", rel[j])):
+            out.append(dict(key, material=materials[i], channel=CHANNELS[c], kind=kind, value=float(value)))
+            acc.setdefault((d, n, kind, ""), []).append(float(value))
+    for (i, d, n), cnt in counts.items():
+        dset = sets[d]
+        key = dict(base, setup=dset.setup.kind, fov=_fov(dset.setup.fov_deg), metric=dset.metric, n=n)
+        for kind, value in cnt.items():
+            out.append(dict(key, material=materials[i], channel="all", kind=kind, value=value))
+            acc.setdefault((d, n, kind, ""), []).append(float(value))
+    for (d, n, kind, _), values in acc.items():
+        dset = sets[d]
+        out.append(dict(base, setup=dset.setup.kind, fov=_fov(dset.setup.fov_deg), metric=dset.metric, n=n,
+                        material="mean", channel="all", kind=kind, value=float(np.mean(values))))
+    return out
+
+
+def _fov(value: float) -> float | int:
+    return int(value) if float(value).is_integer() else float(value)
+
+
+def write_closedloop(
+    store_path: str | os.PathLike[str],
+    model_path: str | os.PathLike[str],
+    directions: Sequence[str | os.PathLike[str]],
+    observations: Mapping[tuple[str, int, int], tuple[str | os.PathLike[str], str | os.PathLike[str]]],
+    out: str | os.PathLike[str],
+    *,
+    materials: Sequence[str],
+    n_images: Sequence[int],
+    eta: float = DEFAULT_ETA,
+) -> Path:
+    """:func:`evaluate_closedloop`, written to ``out`` (the columns of ``errors.csv``), atomically."""
+    rows = evaluate_closedloop(store_path, model_path, directions, observations,
+                               materials=materials, n_images=n_images, eta=eta)
+    return write_errors(out, rows, ERROR_COLUMNS)
