@@ -188,16 +188,20 @@ class Loop:
     def run(self, tag: str, sensor: capture.Sensor, spp: int, min_snr: float = 3.0) -> dict[tuple[str, str, int], float]:
         obs = {}
         for name in self.test:
-            images = {(0, n, j): (self.dir / tag / name / f"n{n}-{j}-render.exr", self.dir / tag / name / f"n{n}-{j}.exr")
-                      for n in (1, 2) for j in range(n)}
-            paths = {(0, n): (self.dir / tag / name / f"n{n}-noiseless.npz", self.dir / tag / name / f"n{n}.npz")
-                     for n in (1, 2)}
-            capture.capture_to_files(material=self.sources[name], directions=[self.directions], n_images=[1, 2],
-                                     images=images, observations=paths, spp=spp, seed=5, light_distance=20.0,
-                                     min_snr=min_snr, sensor=sensor)
-            for n in (1, 2):
-                obs[(name, 0, n)] = paths[(0, n)]
-        out = closedloop.write_closedloop(self.store, self.model, [self.directions], obs, self.dir / f"{tag}.csv",
+            folder = self.dir / tag / name
+            image_keys, table_keys = capture.output_layout(1, [1, 2])
+            capture.capture_to_files(
+                material=self.sources[name], directions=[self.directions], n_images=[1, 2],
+                renders=[folder / f"n{n}-{j}-render.exr" for _, n, j in image_keys],
+                photographs=[folder / f"n{n}-{j}.exr" for _, n, j in image_keys],
+                noiseless=[folder / f"n{n}-noiseless.npz" for _, n in table_keys],
+                observations=[folder / f"n{n}.npz" for _, n in table_keys],
+                spp=spp, seed=5, light_distance=20.0, min_snr=min_snr, sensor=sensor)
+            for _, n in table_keys:
+                obs[(name, 0, n)] = (folder / f"n{n}-noiseless.npz", folder / f"n{n}.npz")
+        keys = closedloop.table_layout(self.test, 1, [1, 2])
+        out = closedloop.write_closedloop(self.store, self.model, [self.directions], [obs[k][0] for k in keys],
+                                          [obs[k][1] for k in keys], self.dir / f"{tag}.csv",
                                           materials=self.test, n_images=[1, 2])
         with open(out, newline="") as fh:
             rows = list(csv.DictReader(fh))
@@ -248,3 +252,28 @@ def test_closed_loop_with_the_default_sensor(loop: Loop) -> None:
     for first in (loop.dir / "sensor").rglob("*.exr"):
         second = loop.dir / "sensor-again" / first.relative_to(loop.dir / "sensor")
         np.testing.assert_allclose(exr.read_exr(first), exr.read_exr(second), rtol=1e-5, atol=1e-6)
+
+
+@needs_llvm
+def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from brdfpipe.cli import main
+
+    name = loop.test[0]
+    out = tmp_path / "cap"
+    assert main(["-q", "capture", str(loop.sources[name]), str(loop.directions), "--out", str(out), "--n", "2",
+                 "--spp", "4", "--model", str(loop.model)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["n2-0-render.exr", "n2-0-sensor.exr", "n2-1-render.exr",
+                                                     "n2-1-sensor.exr", "n2-noiseless.npz", "n2-sensor.npz",
+                                                     "n2.binary"]
+    table = merl.read_merl(out / "n2.binary")
+    assert table.shape == merl.SHAPE and np.isfinite(table).all()
+    cells, rgb, counts = closedloop.read_observations(out / "n2-sensor.npz")
+    assert cells.size == rgb.shape[0] == counts["kept"] > 100
+    # Bad input: one line naming the file, exit 1, nothing written.
+    bad = tmp_path / "not-directions.json"
+    bad.write_text('{"format": "something else"}')
+    capsys.readouterr()
+    assert main(["capture", str(loop.sources[name]), str(bad), "--out", str(tmp_path / "none")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not-directions.json" in err[0] and "brdfpipe capture: error:" in err[0]
+    assert not (tmp_path / "none").exists()

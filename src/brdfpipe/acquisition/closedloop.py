@@ -52,7 +52,14 @@ from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import material_indices, open_store
 
-__all__ = ["CLOSEDLOOP_KINDS", "OBSERVATION_SOURCES", "read_observations", "evaluate_closedloop", "write_closedloop"]
+__all__ = [
+    "CLOSEDLOOP_KINDS",
+    "OBSERVATION_SOURCES",
+    "read_observations",
+    "evaluate_closedloop",
+    "table_layout",
+    "write_closedloop",
+]
 
 logger = logging.getLogger("brdfpipe.acquisition.closedloop")
 
@@ -220,18 +227,33 @@ def _fov(value: float) -> float | int:
     return int(value) if float(value).is_integer() else float(value)
 
 
+def table_layout(materials: Sequence[str], n_directions: int, n_images: Sequence[int]) -> list[tuple[str, int, int]]:
+    """The order of :func:`write_closedloop`'s observation lists: (material, directions index, n)."""
+    return [(m, d, int(n)) for m in materials for d in range(n_directions) for n in n_images]
+
+
 def write_closedloop(
     store_path: str | os.PathLike[str],
     model_path: str | os.PathLike[str],
     directions: Sequence[str | os.PathLike[str]],
-    observations: Mapping[tuple[str, int, int], tuple[str | os.PathLike[str], str | os.PathLike[str]]],
+    noiseless: Sequence[str | os.PathLike[str]],
+    observations: Sequence[str | os.PathLike[str]],
     out: str | os.PathLike[str],
     *,
     materials: Sequence[str],
     n_images: Sequence[int],
     eta: float = DEFAULT_ETA,
 ) -> Path:
-    """:func:`evaluate_closedloop`, written to ``out`` (the columns of ``errors.csv``), atomically."""
-    rows = evaluate_closedloop(store_path, model_path, directions, observations,
+    """:func:`evaluate_closedloop`, written to ``out`` (the columns of ``errors.csv``), atomically.
+
+    ``noiseless`` / ``observations``: the capture's observation tables
+    (noiseless render, sensor), in the order of :func:`table_layout`.
+    """
+    keys = table_layout(materials, len(directions), n_images)
+    if not len(noiseless) == len(observations) == len(keys):
+        raise ValueError(f"closed loop: need {len(keys)} observation tables of each kind, "
+                         f"got {len(noiseless)} and {len(observations)}")
+    tables = {k: (a, b) for k, a, b in zip(keys, noiseless, observations)}
+    rows = evaluate_closedloop(store_path, model_path, directions, tables,
                                materials=materials, n_images=n_images, eta=eta)
     return write_errors(out, rows, ERROR_COLUMNS)

@@ -79,6 +79,7 @@ __all__ = [
     "observations_from_image",
     "read_configurations",
     "capture_to_files",
+    "output_layout",
     "OBSERVATION_KEYS",
 ]
 
@@ -432,16 +433,25 @@ def _image_seed(seed: int, material: str, light: F64, camera: F64) -> int:
     return (int(seed) * 0x9E3779B1 + zlib.crc32(key)) % (1 << 31)
 
 
+def output_layout(n_directions: int, n_images: Sequence[int]) -> tuple[list[tuple[int, int, int]], list[tuple[int, int]]]:
+    """The order of :func:`capture_to_files`' output lists: image keys (d, n, j) and table keys (d, n)."""
+    images = [(d, int(n), j) for d in range(n_directions) for n in n_images for j in range(int(n))]
+    tables = [(d, int(n)) for d in range(n_directions) for n in n_images]
+    return images, tables
+
+
 def capture_to_files(
     *,
     material: str | os.PathLike[str],
     directions: Sequence[str | os.PathLike[str]],
     n_images: Sequence[int],
-    images: Mapping[tuple[int, int, int], tuple[str | os.PathLike[str], str | os.PathLike[str]]],
-    observations: Mapping[tuple[int, int], tuple[str | os.PathLike[str], str | os.PathLike[str]]],
+    renders: Sequence[str | os.PathLike[str]],
+    photographs: Sequence[str | os.PathLike[str]],
+    noiseless: Sequence[str | os.PathLike[str]],
+    observations: Sequence[str | os.PathLike[str]],
     spp: int,
     seed: int,
-    light_distance: float,
+    light_distance: float | None,
     min_snr: float,
     sensor: Sensor | Mapping[str, Any],
     variant: str = "llvm_ad_rgb",
@@ -449,17 +459,27 @@ def capture_to_files(
 ) -> dict[tuple[int, int], dict[str, int]]:
     """Capture one material under every set of size ``n_images`` of each directions file; write the files.
 
-    ``images[(d, n, j)]`` = (raw render EXR, sensor image EXR) of image j of
-    the n-set of ``directions[d]``; ``observations[(d, n)]`` = its NPZ
+    In the order of :func:`output_layout`: ``renders`` / ``photographs`` are
+    the EXRs (noiseless render, sensor image) of image j of the n-set of
+    ``directions[d]``; ``noiseless`` / ``observations`` its NPZ
     observation tables (:data:`OBSERVATION_KEYS`, ``image`` = j, plus
     ``counts_keys`` / ``counts``: pixels, kept, masked_horizon,
     masked_saturated, masked_low summed over the images) read off the
-    noiseless render and off the sensor's photograph.  A configuration shared by two sets is rendered
-    once (same seed: same photograph).  Noise is seeded from ``seed``, the
-    material and the configuration.  Returns the counts per (d, n).
+    noiseless render and off the sensor's photograph.  A configuration
+    shared by two sets is rendered once (same seed: same photograph).  Noise
+    is seeded from ``seed``, the material and the configuration.
+    ``light_distance`` None (or inf): a distant light.  Returns the counts
+    per (d, n).
     """
     from brdfpipe.rendering import render
 
+    light_distance = math.inf if light_distance is None else float(light_distance)
+    image_keys, table_keys = output_layout(len(directions), n_images)
+    if not len(renders) == len(photographs) == len(image_keys) or not len(noiseless) == len(observations) == len(table_keys):
+        raise ValueError(f"capture outputs: need {len(image_keys)} images and {len(table_keys)} tables of each kind, "
+                         f"got {len(renders)}, {len(photographs)}, {len(noiseless)}, {len(observations)}")
+    images = {k: (r, p) for k, r, p in zip(image_keys, renders, photographs)}
+    tables = {k: (a, b) for k, a, b in zip(table_keys, noiseless, observations)}
     mat = Path(material)
     if not mat.is_file():
         raise FileNotFoundError(f"{mat}: material file not found")
@@ -508,7 +528,7 @@ def capture_to_files(
                     parts[source].append(table)
                     for k, v in counts.items():
                         totals[source][k] = totals[source].get(k, 0) + v
-            for source, out in zip(("noiseless", "sensor"), observations[(d, n)]):
+            for source, out in zip(("noiseless", "sensor"), tables[(d, n)]):
                 merged = {k: np.concatenate([p[k] for p in parts[source]]) for k in OBSERVATION_KEYS}
                 _write_npz(Path(out), merged, totals[source])
             total = totals["sensor"]
