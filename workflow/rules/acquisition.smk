@@ -256,7 +256,7 @@ if CLOSEDLOOP_SETS:
                 f for m in TEST_MATERIALS for f in closedloop_tables(m, "sensor")
             ],
         output:
-            errors=fn.closedloop_errors(),
+            errors=reported(fn.closedloop_errors()),
         log:
             "logs/evaluate_closedloop.log",
         benchmark:
@@ -284,6 +284,7 @@ if CLOSEDLOOP_SETS:
             "logs/plot_closedloop.log",
         benchmark:
             "benchmarks/plot_closedloop.tsv"
+        localrule: True
         conda:
             "../envs/brdfpipe.yaml"
         threads: 1
