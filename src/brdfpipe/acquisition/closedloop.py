@@ -36,7 +36,8 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterator, Mapping, Sequence
+import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -96,44 +97,64 @@ def read_observations(path: str | os.PathLike[str]) -> tuple[NDArray[np.intp], F
     return cells.astype(np.intp), rgb, counts
 
 
-def _coefficients(mdl: Model, lut: NDArray[np.intp], cells: NDArray[np.intp], rgb: F64, eta: float) -> tuple[F64, int]:
-    """(k, 3) coefficients of eq. 4 from observations (cells, rgb); drops cells that are not model columns."""
+class _Rows:
+    """Rows of Q (float64) at a fixed set of model columns, read with one selection (Q is read once)."""
+
+    def __init__(self, mdl: Model, cols: NDArray[np.intp]) -> None:
+        self.cols = np.unique(cols)
+        self.q = (np.asarray(mdl.Q.get_orthogonal_selection((self.cols, slice(None))), dtype=np.float64)
+                  if self.cols.size else np.zeros((0, mdl.k)))
+
+    def get(self, cols: NDArray[np.intp]) -> F64:
+        return self.q[np.searchsorted(self.cols, cols)]
+
+
+def _model_columns(lut: NDArray[np.intp], cells: NDArray[np.intp], rgb: F64) -> tuple[NDArray[np.intp], F64]:
+    """Observations on model columns: (columns, values); the others (unmeasured cells) are dropped."""
     cols = lut[cells]
     keep = cols >= 0
-    cols, v = cols[keep], rgb[keep]
+    return cols[keep], rgb[keep]
+
+
+def _coefficients(mdl: Model, rows: _Rows, cols: NDArray[np.intp], v: F64, eta: float) -> F64:
+    """(k, 3) coefficients of eq. 4 from observations on model columns ``cols`` with values ``v`` (n, 3)."""
     if cols.size == 0:
-        return np.zeros((mdl.k, 3)), 0
+        return np.zeros((mdl.k, 3))
     x_obs = logmap.forward(v.T, mdl.reference[cols], mdl.weight[cols], mdl.epsilon)  # (3, n)
     y_obs = (x_obs - mdl.mean[cols]).T
-    uniq, inv = np.unique(cols, return_inverse=True)
-    q = np.asarray(mdl.Q.get_orthogonal_selection((uniq, slice(None))), dtype=np.float64)[inv]
-    return reconstruct_coefficients(q, y_obs, eta), int(cols.size)
-
-
-def _q_blocks(mdl: Model) -> Iterator[tuple[int, int]]:
-    for a in range(0, mdl.p, _Q_ROWS):
-        yield a, min(a + _Q_ROWS, mdl.p)
+    return reconstruct_coefficients(rows.get(cols), y_obs, eta)
 
 
 def _errors(mdl: Model, truth: F64, coefs: F64, owner: NDArray[np.intp]) -> tuple[F64, F64]:
-    """(rms_log, relrms_linear) of each coefficient column; ``owner[j]`` = row of ``truth`` (material-channel)."""
-    x_true = logmap.forward(truth, mdl.reference[None, :], mdl.weight[None, :], mdl.epsilon)  # (m, p)
+    """(rms_log, relrms_linear) of each coefficient column; ``owner[j]`` = row of ``truth`` (material-channel).
+
+    Q is read chunk by chunk (each stored chunk decoded once), the work done
+    in sub-blocks of :data:`_Q_ROWS` rows.
+    """
     wi, wo = merl.cell_directions(mdl.cells)
     cc = wi[:, 2] * wo[:, 2]
     sq_log = np.zeros(coefs.shape[1])
     num = np.zeros(coefs.shape[1])
     den = np.zeros(coefs.shape[1])
-    for a, b in _q_blocks(mdl):
-        q = np.asarray(mdl.Q[a:b], dtype=np.float64)
-        xhat = q @ coefs + mdl.mean[a:b, None]  # (b − a, ncols)
-        xt = x_true[owner, a:b].T
-        sq_log += np.einsum("ij,ij->j", xhat - xt, xhat - xt)
-        rho_hat = np.maximum(logmap.inverse(xhat.T, mdl.reference[a:b], mdl.weight[a:b], mdl.epsilon), 0.0).T
-        rho = truth[owner, a:b].T
-        d = (rho_hat - rho) * cc[a:b, None]
-        num += np.einsum("ij,ij->j", d, d)
-        r = rho * cc[a:b, None]
-        den += np.einsum("ij,ij->j", r, r)
+    width = int(mdl.Q.chunks[0])
+    t0 = time.monotonic()
+    for a0 in range(0, mdl.p, width):
+        qc = np.asarray(mdl.Q[a0 : min(a0 + width, mdl.p)], dtype=np.float64)
+        for s0 in range(0, qc.shape[0], _Q_ROWS):
+            a, b = a0 + s0, a0 + min(s0 + _Q_ROWS, qc.shape[0])
+            ref, w = mdl.reference[a:b], mdl.weight[a:b]
+            xhat = qc[s0 : s0 + (b - a)] @ coefs + mdl.mean[a:b, None]  # (b − a, ncols)
+            rho = truth[:, a:b]  # (m, b − a)
+            xt = logmap.forward(rho, ref[None, :], w[None, :], mdl.epsilon)[owner].T
+            diff = xhat - xt
+            sq_log += np.einsum("ij,ij->j", diff, diff)
+            rho_hat = np.maximum(logmap.inverse(xhat.T, ref, w, mdl.epsilon), 0.0).T
+            r = rho[owner].T * cc[a:b, None]
+            d = rho_hat * cc[a:b, None] - r
+            num += np.einsum("ij,ij->j", d, d)
+            den += np.einsum("ij,ij->j", r, r)
+        logger.info("closed-loop error pass: %d/%d model columns, %.1f s", min(a0 + width, mdl.p), mdl.p,
+                    time.monotonic() - t0)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(den > 0, np.sqrt(num / den), np.where(num > 0, np.inf, 0.0))
     return np.sqrt(sq_log / mdl.p), rel
@@ -166,9 +187,8 @@ def evaluate_closedloop(
         row = np.asarray(st.brdf[int(r)], dtype=np.float64).reshape(3, N_CELLS)
         truth[3 * i : 3 * i + 3] = row[:, mdl.cells]
     sets = [read_directions(p) for p in directions]
-    combos: list[tuple[int, int, str]] = []  # (directions index, n, source)
-    coef_cols: list[F64] = []
-    owners: list[int] = []
+    # Every observation first (table lookup, noiseless render, sensor), then one read of the Q rows they need.
+    obs: list[tuple[int, int, int, str, NDArray[np.intp], F64]] = []
     counts: dict[tuple[int, int, int], dict[str, float]] = {}
     for i, name in enumerate(materials):
         for d, dset in enumerate(sets):
@@ -177,33 +197,37 @@ def evaluate_closedloop(
                 if n not in by_n:
                     raise ValueError(f"{directions[d]}: no set of n = {n}")
                 cells = np.concatenate([geometry.observation_cells(dset.setup, c, valid) for c in by_n[n].configurations])
-                table_rgb = truth[3 * i : 3 * i + 3, lut[cells]].T
-                coef, used = _coefficients(mdl, lut, cells, np.maximum(table_rgb, 0.0), eta)
-                cnt: dict[str, float] = {"observations": used}
-                sources = {"table": coef}
+                cols = lut[cells]
+                obs.append((i, d, n, "table", cols, np.maximum(truth[3 * i : 3 * i + 3, cols].T, 0.0)))
+                cnt: dict[str, float] = {"observations": int(cols.size)}
                 noiseless_path, sensor_path = observations[(name, d, n)]
                 for source, path in (("noiseless", noiseless_path), ("sensor", sensor_path)):
                     c_cells, rgb, px = read_observations(path)
-                    coef, used = _coefficients(mdl, lut, c_cells, rgb, eta)
-                    if used == 0:
+                    c_cols, v = _model_columns(lut, c_cells, rgb)
+                    if c_cols.size == 0:
                         raise ValueError(f"{path}: no observation falls on a model column")
-                    sources[source] = coef
+                    obs.append((i, d, n, source, c_cols, v))
                     if source == "sensor":
-                        cnt["closedloop_observations"] = used
-                        cnt["closedloop_masked"] = 1.0 - used / px["pixels"] if px["pixels"] else 1.0
+                        cnt["closedloop_observations"] = int(c_cols.size)
+                        cnt["closedloop_masked"] = 1.0 - c_cols.size / px["pixels"] if px["pixels"] else 1.0
                 counts[(i, d, n)] = cnt
-                for source, coef in sources.items():
-                    for c in range(3):
-                        combos.append((i, d, n, source, c))  # type: ignore[arg-type]
-                        coef_cols.append(coef[:, c])
-                        owners.append(3 * i + c)
+    rows = _Rows(mdl, np.concatenate([o[4] for o in obs]))
+    combos: list[tuple[int, int, int, str, int]] = []  # (material, directions index, n, source, channel)
+    coef_cols: list[F64] = []
+    owners: list[int] = []
+    for i, d, n, source, cols, v in obs:
+        coef = _coefficients(mdl, rows, cols, v, eta)
+        for c in range(3):
+            combos.append((i, d, n, source, c))
+            coef_cols.append(coef[:, c])
+            owners.append(3 * i + c)
     logger.info("closed loop: %d materials × %d sets × 3 sources; error pass over %d model columns",
                 len(materials), len(sets) * len(n_images), mdl.p)
     rms, rel = _errors(mdl, truth, np.stack(coef_cols, axis=1), np.asarray(owners, dtype=np.intp))
     out: list[dict[str, Any]] = []
     base = {"database": st.database, "split": sets[0].split if sets else "train"}
     acc: dict[tuple[int, int, str, str], list[float]] = {}
-    for j, (i, d, n, source, c) in enumerate(combos):  # type: ignore[misc]
+    for j, (i, d, n, source, c) in enumerate(combos):
         dset = sets[d]
         key = dict(base, setup=dset.setup.kind, fov=_fov(dset.setup.fov_deg), metric=dset.metric, n=n)
         prefix = OBSERVATION_SOURCES[source]

@@ -357,7 +357,7 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "check_directions": (136.0, 6.8),
     "evaluate_training_size": (250.0, 2.45),  # N = 100 only: slope as evaluate_directions'
     "plot_acquisition_figures": (157.0, 0.0),
-    "capture_closedloop": (400.0, 0.0),
+    "capture_closedloop": (250.0, 0.0),  # 231-251 MB measured (default config, 33 × 33 images)
     "evaluate_closedloop": (600.0, 0.0),
     "plot_closedloop": (157.0, 0.0),  # as plot_acquisition_figures
     # manifold track
