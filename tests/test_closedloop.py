@@ -282,3 +282,18 @@ def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixtu
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not-directions.json" in err[0] and "brdfpipe capture: error:" in err[0]
     assert not (tmp_path / "none").exists()
+
+
+@needs_llvm
+def test_closed_loop_figure(loop: Loop, tmp_path: Path) -> None:
+    from brdfpipe.acquisition import figures
+
+    csv_path = loop.dir / "clean.csv"
+    if not csv_path.exists():
+        loop.run("clean", NO_NOISE, spp=16)
+    files = [tmp_path / "closedloop.png", tmp_path / "closedloop.pdf"]
+    out = figures.plot_closedloop(csv_path, files)
+    assert [p.name for p in out.files] == ["closedloop.png", "closedloop.pdf"] and all(p.stat().st_size for p in files)
+    assert "synthetic" in out.title and not out.warnings
+    with pytest.raises(ValueError):
+        figures.plot_closedloop(csv_path, [tmp_path / "x.png"])

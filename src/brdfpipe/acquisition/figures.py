@@ -949,6 +949,5 @@ def plot_closedloop(closedloop_csv: str | os.PathLike[str], files: Sequence[str 
             right.set_title("per material")
             right.legend(loc="best", fontsize=6)
         title = f"Closed-loop vs table-lookup reconstruction ({database_label(table.database)})"
-        return finish(fig, stem, title, "held-out materials photographed by the optimised set-ups (Mitsuba 3, "
-                      f"merl BSDF, point light, sensor model), reconstructed from the images; {_split_text(split)}",
-                      table.database, warn)
+        return finish(fig, stem, title, f"{_split_text(split)}, photographed by the optimised set-ups (Mitsuba 3, "
+                      "merl BSDF, point light, sensor model) and reconstructed from the images", table.database, warn)

@@ -358,7 +358,7 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "evaluate_training_size": (250.0, 2.45),  # N = 100 only: slope as evaluate_directions'
     "plot_acquisition_figures": (157.0, 0.0),
     "capture_closedloop": (250.0, 0.0),  # 231-251 MB measured (default config, 33 × 33 images)
-    "evaluate_closedloop": (600.0, 0.0),
+    "evaluate_closedloop": (900.0, 0.0),  # 1,135 MB measured: 10 held-out materials × 8 sets (default config)
     "plot_closedloop": (157.0, 0.0),  # as plot_acquisition_figures
     # manifold track
     "compute_gram": (276.0, 3.93),
