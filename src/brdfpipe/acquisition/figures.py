@@ -929,7 +929,9 @@ def plot_closedloop(closedloop_csv: str | os.PathLike[str], files: Sequence[str 
             left.set_xticks(x, labels, fontsize=8)
             left.set_ylabel(f"mean {_KIND_LABEL.get('rms_log', 'rms_log')}")
             left.set_title("held-out mean per direction set")
-            left.legend(loc="best", fontsize=8)
+            if allv:
+                left.set_ylim(0.0, 1.25 * max(allv))  # headroom for the legend
+            left.legend(loc="upper center", ncol=3, fontsize=8)
             markers = {1: "o", 2: "s", 3: "^", 4: "D", 5: "v"}
             for (s, f, m, n), xi in zip(sets, x):
                 for mat in table.materials(split, s, f, m, n, "rms_log"):
