@@ -121,7 +121,17 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 + 16 + 6 + 2 and "fig05-error-vs-images.png" in figures
+    assert len(figures) == 16 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
+    assert "closedloop-vs-table.png" in figures
+    # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
+    with open(tmp_path / "results" / "evaluation" / "closedloop.csv") as fh:
+        closed = list(csv.DictReader(fh))
+    assert list(closed[0]) == list(errors[0]) and {r["database"] for r in closed} == {"synthetic"}
+    assert {r["material"] for r in closed} == set(splits["test"]) | {"mean"}
+    assert {r["kind"] for r in closed} >= {"rms_log", "closedloop_rms_log", "closedloop_noiseless_rms_log"}
+    for m in splits["test"]:
+        shots = sorted(p.name for p in (tmp_path / "results" / "closedloop" / m).glob("*.exr"))
+        assert len(shots) == 2 * (1 + 2), shots
     assert "render-floor-check.png" in figures
     assert "manifold-spaces.png" in figures
     assert "manifold-fig09-paths.pdf" in figures and "render-fig13-errors.png" in figures
