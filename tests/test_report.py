@@ -350,9 +350,11 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         floor_figure=filenames.figure_files(filenames.FLOOR_CHECK_STEM), spaces_table=filenames.spaces_csv(),
         errormaps=[(n.split("-t")[0], "0.5", f"{filenames.RESULTS}/errormaps/preview/{n}") for n in emaps],
         errormap_summary=filenames.errormap_summary("preview"),
-        floor_check_table=filenames.floor_check_csv("preview-16x12-64spp"))
+        floor_check_table=filenames.floor_check_csv("preview-16x12-64spp"),
+        closedloop_figure=filenames.figure_files(filenames.CLOSEDLOOP_STEM),
+        closedloop_table=filenames.closedloop_errors())
     pngs = [it for it in declared if it.path.endswith(".png")]
-    assert len(emaps) == 3 and len(pngs) == 19 + 3  # 19 figures, 3 error maps
+    assert len(emaps) == 3 and len(pngs) == 20 + 3  # 20 figures (the closed loop's included), 3 error maps
     assert set(entries) == {it.path for it in declared}, set(entries) ^ {it.path for it in declared}
     rows = claims.read_claims(results / "report" / "claims.csv")
     figs_of = {c["key"]: c["figures"] for c in json.loads((results / "report" / "claims.json").read_text())}

@@ -281,6 +281,8 @@ def declared_outputs(configfile: Path) -> set[str]:
     cfg = yaml.safe_load(configfile.read_text())
     files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
              for fs in figs.values() for f in fs}
+    if plan.closedloop_directions(cfg):
+        files |= set(filenames.figure_files(filenames.CLOSEDLOOP_STEM))
     return files
 
 
