@@ -25,8 +25,8 @@ Mitsuba 3 what the near-field camera of that configuration sees:
 
 A sensor (:class:`Sensor`) then turns radiance into a photograph: exposures
 of relative length ``brackets`` (one for a single shot, several for Xu §7's
-HDR bracketing), the longest scaled so the brightest disk pixel of the
-*shortest* exposure collects ``peak_level`` of the full well; per exposure
+HDR bracketing), scaled so that the brightest disk pixel collects
+``peak_level`` of the full well in the *shortest* exposure; per exposure
 Poisson photon noise, Gaussian read noise, saturation at the full well and
 an ADC of ``bits``; the HDR merge Σ eₖ / Σ tₖ over each pixel's unsaturated
 exposures; pixels saturated in every exposure are masked.  ``enabled:
@@ -37,16 +37,15 @@ of :func:`brdfpipe.acquisition.reconstruct.load_observations` (NPZ with
 ``wi``, ``wo``, ``rgb``): for every lattice pixel whose centre ray hits the
 disk, wo = normalize(C − P), wi = normalize(L − P) (or wi for a distant
 light) and the BRDF value pixel / E with E = I·cos θi/d² (point) or cos θi
-(directional), averaged over the pixel's footprint; pixels with a direction below the horizon, a non-positive
-value in any channel, an SNR below ``min_snr`` or saturated everywhere are
-masked, and counted.  Unmeasured cells are the reconstruction's to drop
+(directional), averaged over the pixel's footprint; pixels with a direction
+below the horizon, a non-positive value in any channel, an SNR below
+``min_snr`` or saturated everywhere are masked, and counted.  Unmeasured cells are the reconstruction's to drop
 (cells that are not model columns).
 
 :func:`capture_to_files` is the workflow's call: for one material and the
-given directions files and set sizes n, the EXR of every image (raw
-render, then sensor image) and two observation tables per (file, n): from the noiseless render and from
-the photograph.
-The cells a lattice pixel predicts (the optimiser's geometry, distant light)
+given directions files and set sizes n, the EXR of every image (noiseless
+render and sensor photograph) and two observation tables per (file, n),
+read off each.  The cells a lattice pixel predicts (the optimiser's geometry, distant light)
 are :func:`brdfpipe.acquisition.geometry.observation_cells`; the tests check
 that a render of a cell-index table decodes to them.
 """
