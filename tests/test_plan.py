@@ -30,6 +30,17 @@ def test_tiny_config_passes() -> None:
     plan.check_config(TINY, materials=NAMES, train=NAMES[3:])
 
 
+def test_closed_loop_captures_the_configured_sets() -> None:
+    assert plan.closedloop_directions(TINY) == [("nearfield", 25.0, "error")]
+    cfg = tiny(closed_loop={"setups": ["nearfield", "fixed_camera"], "fovs": None, "metric": "condition"},
+               acquisition={"fovs": [15, 25]})
+    assert plan.closedloop_directions(cfg) == [("nearfield", 15.0, "condition"), ("nearfield", 25.0, "condition"),
+                                               ("fixed_camera", 25.0, "condition")]
+    assert plan.closedloop_directions(tiny(closed_loop={"enabled": False, "setups": ["fixed_light"]})) == []
+    plan.check_config(tiny(closed_loop={"enabled": False, "setups": ["fixed_light"]},
+                           acquisition={"setups": ["point"]}), materials=NAMES, train=NAMES[3:])
+
+
 @pytest.mark.parametrize(
     ("sections", "key"),
     [
@@ -46,6 +57,11 @@ def test_tiny_config_passes() -> None:
         ({"manifold": {"paths": [["m01", "m01"]]}}, "manifold.paths[0]"),
         ({"manifold": {"paths": [["m01", "zz"]]}}, "manifold.paths[0]"),
         ({"manifold": {"paths": [["m01", "m02"], ["m01", "m02"]]}}, "manifold.paths"),
+        ({"closed_loop": {"setups": ["nearfield", "fixed_light"]}, "acquisition": {"setups": ["nearfield"]}},
+         "closed_loop.setups"),
+        ({"closed_loop": {"metric": "condition"}, "acquisition": {"metrics": ["error"]}}, "closed_loop.metric"),
+        ({"closed_loop": {"fovs": [30]}}, "closed_loop.fovs"),
+        ({"closed_loop": {"n_images": [1, 3]}}, "closed_loop.n_images"),
     ],
 )
 def test_bad_values_name_their_key(sections: dict, key: str) -> None:

@@ -350,9 +350,11 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         floor_figure=filenames.figure_files(filenames.FLOOR_CHECK_STEM), spaces_table=filenames.spaces_csv(),
         errormaps=[(n.split("-t")[0], "0.5", f"{filenames.RESULTS}/errormaps/preview/{n}") for n in emaps],
         errormap_summary=filenames.errormap_summary("preview"),
-        floor_check_table=filenames.floor_check_csv("preview-16x12-64spp"))
+        floor_check_table=filenames.floor_check_csv("preview-16x12-64spp"),
+        closedloop_figure=filenames.figure_files(filenames.CLOSEDLOOP_STEM),
+        closedloop_table=filenames.closedloop_errors())
     pngs = [it for it in declared if it.path.endswith(".png")]
-    assert len(emaps) == 3 and len(pngs) == 19 + 3  # 19 figures, 3 error maps
+    assert len(emaps) == 3 and len(pngs) == 20 + 3  # 20 figures (the closed loop's included), 3 error maps
     assert set(entries) == {it.path for it in declared}, set(entries) ^ {it.path for it in declared}
     rows = claims.read_claims(results / "report" / "claims.csv")
     figs_of = {c["key"]: c["figures"] for c in json.loads((results / "report" / "claims.json").read_text())}
@@ -405,3 +407,33 @@ def test_header_only_csvs_give_not_measured_claims(tmp_path: Path) -> None:
         errormap_summary=empty("su.csv", ("database", "path", "t", "ratio_seed2", "ratio_one_seed2")),
     ))
     assert found and {c.holds for c in found} == {"not measured"}
+
+
+def test_closed_loop_claim_follows_the_numbers(tmp_path: Path) -> None:
+    """Holds when every set's noiseless closed loop is within 10 % of its table lookup; reports the sensor."""
+    def table(noiseless: float, sensor: float, name: str) -> Path:
+        rows = []
+        for n, t in ((1, 0.30), (2, 0.25)):
+            base = {"database": "synthetic", "split": "train", "setup": "nearfield", "fov": 25, "metric": "error",
+                    "n": n, "material": "mean", "channel": "all"}
+            rows += [{**base, "kind": "rms_log", "value": t},
+                     {**base, "kind": "closedloop_noiseless_rms_log", "value": t * noiseless},
+                     {**base, "kind": "closedloop_rms_log", "value": t * sensor},
+                     {**base, "material": "m1", "channel": "R", "kind": "closedloop_noiseless_rms_log", "value": 9.0}]
+        return write_csv(tmp_path / name, ERR_COLS, rows)
+
+    good = claims.closed_loop_vs_table(table(1.05, 1.4, "good.csv"))
+    assert good.holds == "yes" and math.isclose(good.value, 0.05) and "+40.0%" in good.measured
+    bad = claims.closed_loop_vs_table(table(0.85, 1.0, "bad.csv"))
+    assert bad.holds == "no" and math.isclose(bad.value, 0.15)
+    empty = claims.closed_loop_vs_table(write_csv(tmp_path / "empty.csv", ERR_COLS, []))
+    assert empty.holds == "not measured"
+    found = by_key(claims.compute_claims(claims.ClaimInputs(closedloop=table(1.0, 1.0, "c.csv"))))
+    assert found["xu-closed-loop"].holds == "yes" and "xu-closedloop" in found["xu-closed-loop"].figures
+    assert by_key(claims.compute_claims(claims.ClaimInputs()))["xu-closed-loop"].holds == "not measured"
+    its = items.report_items(database="synthetic", acquisition_figures={}, manifold_figures={}, render_figures={},
+                             closedloop_figure=filenames.figure_files(filenames.CLOSEDLOOP_STEM),
+                             closedloop_table=filenames.closedloop_errors())
+    keys = {it.key: it for it in its}
+    assert keys["xu-closedloop"].path.endswith(".png") and keys["xu-closedloop-table"].path.endswith(".csv")
+    assert all(k in captions.DESCRIPTIONS for k in keys)

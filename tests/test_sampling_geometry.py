@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from brdfpipe.acquisition import geometry
 from brdfpipe.acquisition.geometry import DEFAULT_GRID, SETUP_KINDS, Setup, centre_directions, config_from_dict, config_to_dict, observation_cells, pixel_directions
 from brdfpipe.data import merl
 
@@ -74,6 +75,7 @@ def test_setup_valid_and_normalised() -> None:
         ("nearfield", 0.0, 32),
         ("nearfield", -5.0, 32),
         ("nearfield", 180.0, 32),
+        ("nearfield", 90.0, 32),  # ν = 1: no image frames the whole disk from every direction
         ("nearfield", float("nan"), 32),
         ("nearfield", float("inf"), 32),
         ("fixed_camera", "25", 32),
@@ -148,8 +150,10 @@ def test_nearfield_zenith_pixel_count_and_centre(grid: int) -> None:
     wi, wo = centre_directions(setup, ZENITH_CONFIG)
     assert angle_deg(wo, np.array([0.0, 0.0, 1.0])) < 0.2
     cells = observation_cells(setup, ZENITH_CONFIG)
-    expected = math.pi / 4 * grid * grid
-    assert abs(cells.size - expected) < 0.04 * expected
+    radius_px = setup.nu / geometry.pixel_pitch(25.0, grid)  # the disk's radius in pixels
+    # lattice points in a disk of radius r: their unit squares lie within r ± √2/2
+    assert math.pi * (radius_px - 0.5**0.5) ** 2 <= cells.size <= math.pi * (radius_px + 0.5**0.5) ** 2
+    assert cells.size <= math.pi / 4 * grid * grid  # the disk no longer fills the image
     # The centre pixel looks exactly along −wo and sees the configuration's cell.
     pw, po = pixel_directions(setup, ZENITH_CONFIG)
     centre = np.flatnonzero(np.all(po == wo, axis=1))
@@ -167,9 +171,53 @@ def test_nearfield_exact_zenith_disk_fills_image() -> None:
     grid = 32
     setup = Setup("fixed_camera", 25.0, grid)
     _, po = pixel_directions(setup, (0, 40, 0))
-    assert po.shape[0] == 795  # lattice points (a, b) ∈ [−16, 15]² with a² + b² ≤ 16²
-    assert angle_deg(po, np.array([0.0, 0.0, 1.0])).max() <= 12.5 + 1e-9
-    assert angle_deg(po, np.array([0.0, 0.0, 1.0])).max() >= 12.5 - 1e-9  # the rim is imaged
+    # lattice points (a, b) ∈ [−16, 15]² with (a² + b²)·Δ² ≤ ν², Δ = 2h/31
+    assert po.shape[0] == 717
+    step = geometry.pixel_pitch(25.0, grid)
+    angles = angle_deg(po, np.array([0.0, 0.0, 1.0]))
+    assert angles.max() <= 12.5 + 1e-9
+    assert angles.max() >= math.degrees(math.atan(math.tan(math.radians(12.5)) - step))  # the rim is imaged
+
+
+@pytest.mark.parametrize("fov", [15.0, 25.0, 45.0])
+@pytest.mark.parametrize("grid", [15, 32])
+def test_image_frames_the_whole_disk(fov: float, grid: int) -> None:
+    """From every camera elevation the pixel footprints cover the disk's whole image (Xu §5.2).
+
+    A square image of half-width ν (the bound at the zenith) clips part of
+    the disk at oblique views; the half-width h = ν/√(1 − ν²) clips nothing.
+    """
+    nu = math.tan(math.radians(fov) / 2)
+    h = geometry.image_half_width(fov)
+    assert math.isclose(h, math.tan(math.asin(nu)))
+    step = geometry.pixel_pitch(fov, grid)
+    lo, hi = -(grid // 2 + 0.5) * step, (grid - 1 - grid // 2 + 0.5) * step
+    assert lo <= -h * (1 - 1e-12) and hi >= h * (1 - 1e-12)
+    rng = np.random.default_rng(5)
+    r = nu * np.sqrt(rng.random(50_000))
+    phi = rng.random(50_000) * 2 * np.pi
+    P = np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(r)], axis=1)
+    clipped_old = []
+    for theta in range(0, 90, 5):
+        wo = np.array([math.sin(math.radians(theta)), 0.0, math.cos(math.radians(theta))])
+        f, e_r = -wo, np.array([0.0, 1.0, 0.0])
+        e_u = np.cross(e_r, f)
+        ray = P - wo
+        t = ray @ f
+        u, v = (ray @ e_r) / t, (ray @ e_u) / t
+        assert np.all((u >= lo) & (u <= hi) & (v >= lo) & (v <= hi))
+        clipped_old.append(float(np.mean((np.abs(u) > nu) | (np.abs(v) > nu))))
+    if fov == 45.0:
+        assert max(clipped_old) > 0.02  # what the half-width-ν image lost
+
+
+def test_lattice_position_in_a_symmetric_image() -> None:
+    for grid in (1, 7, 8, 32):
+        size, offset = geometry.lattice_shape_in_image(grid)
+        assert size % 2 == 1 and size - grid in (0, 1)
+        # the centre pixel (a = b = ⌊grid/2⌋) is the image's centre
+        assert offset + grid // 2 == size // 2
+        assert size - 1 - offset - grid // 2 == size // 2
 
 
 @pytest.mark.parametrize("kind", IMAGE_KINDS)
@@ -198,7 +246,7 @@ def test_foreshortening_fewer_pixels_when_oblique() -> None:
     setup = Setup("fixed_camera", 25.0, 32)
     counts = [pixel_directions(setup, (theta, 0, 0))[1].shape[0] for theta in (0, 30, 60, 80, 89)]
     assert counts == sorted(counts, reverse=True)
-    assert counts[0] == 795 and counts[-1] < 100
+    assert counts[0] == 717 and counts[-1] < 100
     # The ellipse's area ∝ cos θ, roughly.
     assert abs(counts[2] / counts[0] - math.cos(math.radians(60))) < 0.1
 

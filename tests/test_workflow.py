@@ -64,6 +64,8 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
                     ("evaluate_directions", 1), ("evaluate_training_size", 1), ("check_directions", 2),
                     ("plot_acquisition_figures", 1),
+                    # the closed loop: one capture per held-out material, one evaluation, one figure
+                    ("capture_closedloop", 3), ("evaluate_closedloop", 1), ("plot_closedloop", 1),
                     ("compute_gram", 2), ("fit_gplvm", 4), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
                     ("make_envmap", 1), ("prerender_material", 12 + 12), ("interpolate_path_points", 1),
@@ -119,7 +121,17 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 + 16 + 6 + 2 and "fig05-error-vs-images.png" in figures
+    assert len(figures) == 16 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
+    assert "closedloop-vs-table.png" in figures
+    # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
+    with open(tmp_path / "results" / "evaluation" / "closedloop.csv") as fh:
+        closed = list(csv.DictReader(fh))
+    assert list(closed[0]) == list(errors[0]) and {r["database"] for r in closed} == {"synthetic"}
+    assert {r["material"] for r in closed} == set(splits["test"]) | {"mean"}
+    assert {r["kind"] for r in closed} >= {"rms_log", "closedloop_rms_log", "closedloop_noiseless_rms_log"}
+    for m in splits["test"]:
+        shots = sorted(p.name for p in (tmp_path / "results" / "closedloop" / m).glob("*.exr"))
+        assert len(shots) == 2 * (1 + 2), shots
     assert "render-floor-check.png" in figures
     assert "manifold-spaces.png" in figures
     assert "manifold-fig09-paths.pdf" in figures and "render-fig13-errors.png" in figures
@@ -207,7 +219,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"merl_dir": "/nonexistent/merl"}, "does not exist"),
         ({"acquisition": {"setups": ["gonioreflectometer"]}}, "is not one of"),
         ({"acquisition": {"fovs": [0]}}, "less than or equal to the minimum of 0"),
-        ({"acquisition": {"fovs": [180]}}, "greater than or equal to the maximum of 180"),
+        ({"acquisition": {"fovs": [90]}}, "greater than or equal to the maximum of 90"),
         ({"acquisition": {"n_max_images": 0}}, "less than the minimum of 1"),
         ({"acquisition": {"eta": 0}}, "less than or equal to the minimum of 0"),
         ({"manifold": {"latent_dims": [0]}}, "less than the minimum of 1"),
@@ -223,6 +235,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"manifold": {"latent_dims": [2, 12]}}, "below the number of materials"),
         ({"acquisition": {"training_sizes": [3, 50]}}, "acquisition.training_sizes"),
         ({"render": {"path_points": [0.1234561, 0.1234562]}}, "render.path_points"),
+        ({"closed_loop": {"n_images": [3]}}, "closed_loop.n_images"),
         ({"merl_dir": ""}, "merl_dir"),
         ({"materials": ["no-such-*"]}, "materials: 'no-such-*' match"),
     ],
@@ -268,6 +281,8 @@ def declared_outputs(configfile: Path) -> set[str]:
     cfg = yaml.safe_load(configfile.read_text())
     files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
              for fs in figs.values() for f in fs}
+    if plan.closedloop_directions(cfg):
+        files |= set(filenames.figure_files(filenames.CLOSEDLOOP_STEM))
     return files
 
 

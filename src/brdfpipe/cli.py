@@ -11,6 +11,7 @@ Subcommands::
     brdfpipe sample --model M --store S --seed N --count K --out-dir DIR
     brdfpipe reconstruct OBSERVATIONS --model results/svd/train.zarr --out FILE.binary [--eta η]
     brdfpipe render MATERIAL.binary --out IMAGE.exr [--spp N] [--resolution W H] [--variant V]
+    brdfpipe capture MATERIAL.binary DIRECTIONS.json --out DIR [--n 1 2] [--model M] [--spp N] [--no-noise] …
 
 Every subcommand exits non-zero with one line ``brdfpipe CMD: error: ...``
 naming the file and the problem on bad input or a failing environment (full
@@ -256,6 +257,51 @@ def _cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _light_distance(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 1 or inf, got {text!r}") from None
+    if not value > 1.0:
+        raise argparse.ArgumentTypeError(f"the light must lie beyond the camera (distance > 1 R), got {text!r}")
+    return value
+
+
+def _cmd_capture(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from brdfpipe.rendering import capture
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out}: --out must be a folder")
+    image_keys, table_keys = capture.output_layout(1, args.n)
+    inputs = [args.material, args.directions] + ([args.model] if args.model else [])
+    names = [f"n{n}-{j}-{kind}.exr" for _, n, j in image_keys for kind in ("render", "sensor")]
+    names += [f"n{n}-{src}.npz" for _, n in table_keys for src in ("noiseless", "sensor")]
+    names += [f"n{n}.binary" for _, n in table_keys] if args.model else []
+    for name in names:
+        check_not_input(out / name, inputs)
+    sensor = capture.Sensor(enabled=not args.no_noise, full_well=args.full_well, read_noise=args.read_noise,
+                            bits=args.bits, peak_level=args.peak_level, brackets=tuple(args.brackets))
+    capture.capture_to_files(
+        material=args.material, directions=[args.directions], n_images=args.n,
+        renders=[out / f"n{n}-{j}-render.exr" for _, n, j in image_keys],
+        photographs=[out / f"n{n}-{j}-sensor.exr" for _, n, j in image_keys],
+        noiseless=[out / f"n{n}-noiseless.npz" for _, n in table_keys],
+        observations=[out / f"n{n}-sensor.npz" for _, n in table_keys],
+        spp=args.spp, seed=args.seed, light_distance=args.light_distance, min_snr=args.min_snr,
+        sensor=sensor, variant=args.variant,
+    )
+    if args.model:
+        from brdfpipe.acquisition import reconstruct
+
+        for _, n in table_keys:
+            reconstruct.write_reconstruction(args.model, out / f"n{n}-sensor.npz", out / f"n{n}.binary", eta=args.eta)
+    print(out)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``brdfpipe`` command."""
     parser = argparse.ArgumentParser(prog="brdfpipe", description=__doc__.split("\n\n")[0])
@@ -351,6 +397,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--variant", default="llvm_ad_rgb", help="llvm_ad_rgb (CPU, default) or cuda_ad_rgb (GPU)")
     p.set_defaults(func=_cmd_render)
+
+    p = sub.add_parser("capture", help="photograph a flat sample with the set-ups of a directions file (closed loop)")
+    p.add_argument("material", help="a MERL .binary file (the sample)")
+    p.add_argument("directions", help="a directions file of an image setup (results/directions/.../*.json)")
+    p.add_argument("--out", required=True,
+                   help="folder for the images (n{n}-{j}-render.exr, n{n}-{j}-sensor.exr) and the observation "
+                        "tables (n{n}-noiseless.npz, n{n}-sensor.npz)")
+    p.add_argument("--n", type=_positive_int, nargs="+", default=[1, 2], help="set sizes to capture (default 1 2)")
+    p.add_argument("--model", default=None,
+                   help="a PCA model: also reconstruct each set's BRDF from the sensor's observations (n{n}.binary)")
+    p.add_argument("--eta", type=_positive_float, default=40.0, help="Tikhonov weight of the reconstruction")
+    p.add_argument("--spp", type=_positive_int, default=64, help="samples per pixel (default 64)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--light-distance", type=_light_distance, default=20.0,
+                   help="point light distance in units of the camera's (default 20; inf = distant light)")
+    p.add_argument("--min-snr", type=float, default=3.0, help="mask pixels below this SNR (default 3)")
+    p.add_argument("--no-noise", action="store_true", help="no sensor: the noiseless render is the photograph")
+    p.add_argument("--full-well", type=_positive_float, default=20000.0, help="electrons at saturation")
+    p.add_argument("--read-noise", type=float, default=5.0, help="electrons RMS per exposure")
+    p.add_argument("--bits", type=_positive_int, default=12, help="ADC bits")
+    p.add_argument("--peak-level", type=_positive_float, default=0.8,
+                   help="brightest disk pixel of the shortest exposure / full well")
+    p.add_argument("--brackets", type=float, nargs="+", default=[1.0, 8.0, 64.0],
+                   help="relative exposure times (HDR bracketing; default 1 8 64)")
+    p.add_argument("--variant", default="llvm_ad_rgb", help="llvm_ad_rgb (CPU, default) or cuda_ad_rgb (GPU)")
+    p.set_defaults(func=_cmd_capture)
     return parser
 
 

@@ -3,7 +3,8 @@
 # per job; `--set-scatter gram=N` spreads it over N jobs) and gather
 # (eigendecomposition, Q written block by block); direction sets per setup,
 # FOV and metric; their leave-out evaluation, E(S) check and training-size
-# curve (three jobs), and the figures.
+# curve (three jobs), and the figures; the closed loop (held-out materials
+# photographed by the direction sets, reconstructed from the images).
 
 
 rule map_logrelative:
@@ -205,3 +206,93 @@ rule plot_acquisition_figures:
         code=code("plot_acquisition_figures.py"),
     script:
         "../scripts/plot_acquisition_figures.py"
+
+
+if CLOSEDLOOP_SETS:
+
+    # One job per held-out material: every image of its sets (small: grid ×
+    # grid pixels, direct light only), the noiseless render and the sensor's
+    # photograph, and the observation tables read off both.
+    rule capture_closedloop:
+        input:
+            binary=source_file,
+            directions=CLOSEDLOOP_DIRECTIONS,
+        output:
+            renders=closedloop_images("{material}", "render"),
+            photographs=closedloop_images("{material}", "sensor"),
+            noiseless=closedloop_tables("{material}", "noiseless"),
+            observations=closedloop_tables("{material}", "sensor"),
+        log:
+            "logs/capture_closedloop/{material}.log",
+        benchmark:
+            "benchmarks/capture_closedloop/{material}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            gpu=RENDER_GPUS,
+            mem_mb=mem("capture_closedloop"),
+            runtime=30,
+        params:
+            n_images=CLOSEDLOOP_N,
+            spp=CLOSED["spp"],
+            seed=CLOSED["seed"],
+            light_distance=CLOSED["light_distance"],
+            min_snr=CLOSED["min_snr"],
+            sensor=CLOSED["sensor"],
+            variant=RENDER["variant"],
+            code=code("capture_closedloop.py"),
+        script:
+            "../scripts/capture_closedloop.py"
+
+    rule evaluate_closedloop:
+        input:
+            store=fn.store(),
+            model=fn.svd_model("train"),
+            directions=CLOSEDLOOP_DIRECTIONS,
+            noiseless=[
+                f for m in TEST_MATERIALS for f in closedloop_tables(m, "noiseless")
+            ],
+            observations=[
+                f for m in TEST_MATERIALS for f in closedloop_tables(m, "sensor")
+            ],
+        output:
+            errors=reported(fn.closedloop_errors()),
+        log:
+            "logs/evaluate_closedloop.log",
+        benchmark:
+            "benchmarks/evaluate_closedloop.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("evaluate_closedloop"),
+            runtime=30,
+        params:
+            materials=TEST_MATERIALS,
+            n_images=CLOSEDLOOP_N,
+            eta=ACQ["eta"],
+            code=code("evaluate_closedloop.py"),
+        script:
+            "../scripts/evaluate_closedloop.py"
+
+    rule plot_closedloop:
+        input:
+            closedloop=fn.closedloop_errors(),
+        output:
+            **reported_figures({"closedloop": fn.figure_files(fn.CLOSEDLOOP_STEM)}),
+        log:
+            "logs/plot_closedloop.log",
+        benchmark:
+            "benchmarks/plot_closedloop.tsv"
+        localrule: True
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("plot_closedloop"),
+            runtime=15,
+        params:
+            code=code("plot_closedloop.py"),
+        script:
+            "../scripts/plot_closedloop.py"

@@ -64,6 +64,12 @@ DIRECTIONS = {split: plan.direction_files(ACQ, split) for split in PCA_SPLITS}
 # E(S) consistency checks: one per split that has direction sets.
 CHECKED_SPLITS = [split for split in PCA_SPLITS if DIRECTIONS[split]]
 CURVE_DIRECTIONS = plan.curve_directions(ACQ)
+# Closed-loop acquisition: the held-out materials photographed by these
+# training-split direction sets (setup, fov, metric), n images each.
+CLOSED = config["closed_loop"]
+CLOSEDLOOP_SETS = plan.closedloop_directions(config)
+CLOSEDLOOP_N = sorted(CLOSED["n_images"])
+CLOSEDLOOP_DIRECTIONS = [fn.directions("train", *s) for s in CLOSEDLOOP_SETS]
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
 DEFAULT_CANDIDATE = plan.candidate_label(MAN["space"], MAN["mu"])
@@ -169,6 +175,25 @@ wildcard_constraints:
     path="|".join(re.escape(p) for p in PATH_ENDS) or "(?!)",
     t=r"\d+(\.\d+)?",
     scene="|".join(re.escape(s) for s in RENDER_SETTINGS),
+
+
+def closedloop_images(material, kind):
+    """A material's closed-loop EXRs of one kind (render, sensor), in the capture's output order."""
+    return [
+        fn.closedloop_image(material, *CLOSEDLOOP_SETS[d], n, j, kind)
+        for d in range(len(CLOSEDLOOP_SETS))
+        for n in CLOSEDLOOP_N
+        for j in range(n)
+    ]
+
+
+def closedloop_tables(material, source):
+    """A material's observation tables of one source (noiseless, sensor), in the capture's output order."""
+    return [
+        fn.closedloop_observations(material, *CLOSEDLOOP_SETS[d], n, source)
+        for d in range(len(CLOSEDLOOP_SETS))
+        for n in CLOSEDLOOP_N
+    ]
 
 
 def source_file(wildcards):

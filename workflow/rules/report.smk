@@ -20,6 +20,7 @@ rule write_claims:
         bounce_shares=fn.bounce_shares(SCENE),
         errormap_summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
         floor_check=fn.floor_check_csv(FLOOR_SCENE) if FLOOR_CANDIDATES else [],
+        closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
     output:
         claims=reported(fn.claims_csv()),
         json=fn.claims_json(),

@@ -15,6 +15,8 @@ REPORT_ITEMS = report_plan.report_items(
     errormaps=[(p, t, fn.errormap(SCENE, p, t, "error.png")) for p, t in PATH_POINTS],
     errormap_summary=fn.errormap_summary(SCENE) if PATH_POINTS else None,
     floor_check_table=fn.floor_check_csv(FLOOR_SCENE) if FLOOR_CANDIDATES else None,
+    closedloop_figure=fn.figure_files(fn.CLOSEDLOOP_STEM) if CLOSEDLOOP_SETS else (),
+    closedloop_table=fn.closedloop_errors() if CLOSEDLOOP_SETS else None,
 )
 _REPORTED = {item.path: item for item in REPORT_ITEMS}
 REPORT_CAPTIONS = sorted({item.caption for item in REPORT_ITEMS})

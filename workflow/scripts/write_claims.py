@@ -19,6 +19,7 @@ with log_to(snakemake.log[0]):
             bounce_shares=inp.bounce_shares,
             errormap_summary=inp.errormap_summary or None,
             floor_check=inp.floor_check or None,
+            closedloop=inp.closedloop or None,
         )
     )
     claims.write_claims(

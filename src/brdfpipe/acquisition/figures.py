@@ -878,3 +878,78 @@ def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
     if len(dbs) > 1:
         logger.warning("figures: inputs name different databases: %s", ", ".join(sorted(dbs)))
     return [p for r in results for p in r.files]
+
+
+# ---------------------------------------------------------------------------
+# Closed-loop acquisition (issue 13)
+# ---------------------------------------------------------------------------
+
+_CLOSEDLOOP_SERIES = (
+    ("rms_log", "table lookup", COLOURS[0]),
+    ("closedloop_noiseless_rms_log", "closed loop, noiseless render", COLOURS[1]),
+    ("closedloop_rms_log", "closed loop, sensor", COLOURS[3]),
+)
+
+
+def plot_closedloop(closedloop_csv: str | os.PathLike[str], files: Sequence[str | os.PathLike[str]]) -> FigureOutput:
+    """Table-lookup vs closed-loop error (``closedloop.csv``): mean RMS log error per set, and per material.
+
+    Left: for every captured direction set (setup, FOV, n) the mean
+    ``rms_log`` over the held-out materials of the table lookup, the
+    closed loop from the noiseless render and from the sensor's photograph.
+    Right: each material's closed-loop (sensor) error over its table-lookup
+    error, and the share of the disk's pixels the closed loop could not use.
+    """
+    stem = figure_stem(files)
+    table = read_errors(closedloop_csv)
+    warn = Warnings("closedloop")
+    split = _choose_split(table, "train", warn)
+    sets = sorted({(k[1], k[2], k[3], k[4]) for k in table.values if k[0] == split and k[7] == "rms_log"})
+    with style():
+        fig = new_figure(max(6.0, 1.0 + 1.1 * len(sets)) + 3.5, 3.6)
+        left, right = fig.subplots(1, 2, width_ratios=[max(1.0, len(sets) / 3.0), 1.0])
+        if not sets:
+            no_data(left, "no closed-loop rows")
+            no_data(right, "no closed-loop rows")
+        labels = [f"{'near-field' if s == 'nearfield' else s.replace('_', ' ')} {_fov_text(f)}\n"
+                  f"n = {n}" + ("" if m == "error" else f" ({m})") for s, f, m, n in sets]
+        x = np.arange(len(sets), dtype=np.float64)
+        width = 0.8 / len(_CLOSEDLOOP_SERIES)
+        allv: list[float] = []
+        for i, (kind, label, colour) in enumerate(_CLOSEDLOOP_SERIES):
+            vals = []
+            for s, f, m, n in sets:
+                v = table.values.get((split, s, f, m, n, "mean", "all", kind), math.nan)
+                if not math.isfinite(v):
+                    warn(f"no mean {kind} for {s} FOV {_fov_text(f)} n = {n}")
+                vals.append(v)
+            left.bar(x + (i - 1) * width, vals, width, label=label, color=colour)
+            allv += [v for v in vals if math.isfinite(v)]
+        if sets:
+            left.set_xticks(x, labels, fontsize=8)
+            left.set_ylabel(f"mean {_KIND_LABEL.get('rms_log', 'rms_log')}")
+            left.set_title("held-out mean per direction set")
+            if allv:
+                left.set_ylim(0.0, 1.25 * max(allv))  # headroom for the legend
+            left.legend(loc="upper center", ncol=3, fontsize=8)
+            markers = {1: "o", 2: "s", 3: "^", 4: "D", 5: "v"}
+            for (s, f, m, n), xi in zip(sets, x):
+                for mat in table.materials(split, s, f, m, n, "rms_log"):
+                    t = table.material_value(split, s, f, m, n, "rms_log", mat)
+                    c = table.material_value(split, s, f, m, n, "closedloop_rms_log", mat)
+                    masked = table.material_value(split, s, f, m, n, "closedloop_masked", mat)
+                    if math.isfinite(t) and math.isfinite(c) and t > 0:
+                        right.scatter([c / t], [masked * 100.0 if math.isfinite(masked) else math.nan],
+                                      marker=markers.get(n, "x"), color=COLOURS[int(xi) % len(COLOURS)],
+                                      s=18, alpha=0.8)
+            for xi, lab in zip(x, labels):
+                right.scatter([], [], marker="o", color=COLOURS[int(xi) % len(COLOURS)],
+                              label=lab.replace("\n", ", "))
+            right.axvline(1.0, color="#666666", lw=0.8, ls="--")
+            right.set_xlabel("closed-loop (sensor) / table-lookup RMS log error")
+            right.set_ylabel("disk pixels not used (%)")
+            right.set_title("per material")
+            right.legend(loc="best", fontsize=6)
+        title = f"Closed-loop vs table-lookup reconstruction ({database_label(table.database)})"
+        return finish(fig, stem, title, f"{_split_text(split)}, photographed by the optimised set-ups (Mitsuba 3, "
+                      "merl BSDF, point light, sensor model) and reconstructed from the images", table.database, warn)

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from brdfpipe.core import nearfield
 from brdfpipe.data import merl
 
 __all__ = [
@@ -38,6 +39,9 @@ __all__ = [
     "FIXED_KINDS",
     "cell_config",
     "centre_cells",
+    "image_half_width",
+    "pixel_pitch",
+    "lattice_shape_in_image",
 ]
 
 F64 = NDArray[np.float64]
@@ -82,26 +86,34 @@ F64 = NDArray[np.float64]
 #
 # The near-field pixel model
 # --------------------------
-# The image is square with half-angle α/2: tangent-plane coordinates
-# (u, v) ∈ [−ν, ν]², so at the zenith the disk exactly fills it.  Pixel centres
-# lie on a grid × grid lattice of pitch Δ = 2ν/grid *centred on the optical
-# axis*: u = (i − ⌊grid/2⌋)·Δ, i = 0 … grid − 1 (for an even grid the lattice
-# has one more column on the negative side, which lies on the image border) —
-# so there always is a centre pixel, looking exactly along −wo.  Camera frame:
-# forward f = −wo, right e_r = (−sin φo, cos φo, 0) (horizontal, normal to the
-# camera's plane of incidence; φo = atan2(wo_y, wo_x), 0 at the zenith), up
-# e_u = e_r × f.  The ray f + u·e_r + v·e_u from C meets the plane z = 0 at P
-# (rays with non-negative z component never do and are dropped); a pixel is
-# kept iff |P| ≤ r.  At the zenith ≈ π/4·grid² pixels are kept (795 of 1024 for
-# grid 32).  Oblique cameras see the disk foreshortened into an ellipse and
-# keep fewer pixels (708 at 30°, 420 at 60°, 154 at 80° for 25°/32).
+# The image frames the whole disk (Xu §5.2: "the image always sees the full
+# sample") at every camera direction.  The disk lies inside the ball of
+# radius ν about the origin, which subtends the half-angle asin(ν) from C, so
+# in tangent-plane coordinates (u, v) its image lies in [−h, h]² with
 #
-# Angles: at the zenith every kept ray is within α/2 of the optical axis.  An
-# oblique camera's disk image is not exactly inside the cone of half-angle
-# α/2: the disk lies inside the ball of radius ν about the origin, which
-# subtends asin(ν) from C, and points on the near side of the disk reach up
-# to that bound (12.81° against α/2 = 12.5° at 25°); the square image still
-# clips them at |u|, |v| ≤ ν.
+#     h = tan(asin ν) = ν / √(1 − ν²)          (:func:`brdfpipe.core.nearfield.image_half_width`)
+#
+# (h = 0.2273 against ν = 0.2217 at 25°, 0.4551 against 0.4142 at 45°; a
+# square image of half-width ν — the bound at the zenith — clipped 2–3.8 %
+# of the disk at 45° oblique views).  Pixel centres lie on a grid × grid
+# lattice of pitch Δ *centred on the optical axis*: u = (i − ⌊grid/2⌋)·Δ,
+# i = 0 … grid − 1, so there always is a centre pixel, looking exactly along
+# −wo.  Δ is the smallest pitch whose pixel footprints [u − Δ/2, u + Δ/2]
+# cover [−h, h] (:func:`brdfpipe.core.nearfield.pixel_pitch`): Δ = 2h/grid for an odd grid; an even
+# grid has one more column on the negative side than on the positive one,
+# so Δ = 2h/(grid − 1) (its negative side reaches past −h).  Camera frame:
+# forward f = −wo, right e_r = (−sin φo, cos φo, 0) (horizontal, normal to
+# the camera's plane of incidence; φo = atan2(wo_y, wo_x), 0 at the zenith),
+# up e_u = e_r × f (:func:`brdfpipe.core.nearfield.camera_basis`); where
+# lattice index (a, b) sits in a rendered image: :func:`brdfpipe.core.nearfield.image_frame`.
+# The ray f + u·e_r + v·e_u from C meets the plane z = 0
+# at P (rays with non-negative z component never do and are dropped); a
+# pixel is kept iff |P| ≤ r: pixels outside the disk are masked, they are
+# not observations.  At the zenith the disk spans ±ν/Δ pixels about the
+# centre (717 of 1024 pixels kept for 25°/32); oblique cameras see it
+# foreshortened into an ellipse and keep fewer (632 at 30°, 380 at 60°,
+# 140 at 80° for 25°/32).  Every kept ray is within asin(ν) of the optical
+# axis (α/2 at the zenith).
 #
 # The observed cells are cell_index(wi, view) of the kept pixels, in lattice
 # order, with repeats (neighbouring pixels often share a cell; every pixel is
@@ -136,7 +148,8 @@ class Setup:
     """An acquisition setup: kind, field of view (degrees) and pixel lattice.
 
     ``kind`` ∈ :data:`SETUP_KINDS`.  Image setups (``nearfield``,
-    ``fixed_camera``, ``fixed_light``) need ``0 < fov_deg < 180`` and a
+    ``fixed_camera``, ``fixed_light``) need ``0 < fov_deg < 90`` (an image
+    can frame the whole disk from every camera direction only if ν < 1) and a
     ``grid`` ≥ 1 (the image is a ``grid × grid`` lattice); ``point`` needs
     ``fov_deg == 0`` and its ``grid`` is normalised to 1 (one sample per
     configuration).  :class:`ValueError` otherwise.
@@ -164,8 +177,8 @@ class Setup:
                 raise ValueError(f"grid must be ≥ 1, got {grid}")
             grid = 1
         else:
-            if not (np.isfinite(fov) and 0.0 < fov < 180.0):
-                raise ValueError(f"{self.kind} needs 0 < fov_deg < 180, got {self.fov_deg!r}")
+            if not (np.isfinite(fov) and 0.0 < fov < 90.0):
+                raise ValueError(f"{self.kind} needs 0 < fov_deg < 90, got {self.fov_deg!r}")
             if not 1 <= grid <= _MAX_GRID:
                 raise ValueError(f"grid must lie in [1, {_MAX_GRID}], got {grid}")
         object.__setattr__(self, "fov_deg", fov)
@@ -259,11 +272,16 @@ def centre_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
     return wi[0], wo[0]
 
 
+#: Re-exported from :mod:`brdfpipe.core.nearfield` (the capture frames the same image).
+image_half_width = nearfield.image_half_width
+pixel_pitch = nearfield.pixel_pitch
+lattice_shape_in_image = nearfield.image_frame
+
+
 @functools.lru_cache(maxsize=16)
 def _lattice(fov_deg: float, grid: int) -> tuple[F64, F64, int]:
     """Tangent-plane pixel coordinates (u, v) of the axis-centred lattice and the centre pixel's index."""
-    nu = math.tan(math.radians(fov_deg) / 2.0)
-    step = 2.0 * nu / grid
+    step = pixel_pitch(fov_deg, grid)
     j = np.arange(grid) - grid // 2
     a, b = np.meshgrid(j, j, indexing="ij")
     u = a.ravel() * step
@@ -279,10 +297,7 @@ def _pixel_views(setup: Setup, wo: F64) -> F64:
         return np.zeros((0, 3))
     u, v, centre = _lattice(setup.fov_deg, setup.grid)
     nu = setup.nu
-    phi = math.atan2(wo[1], wo[0]) if (wo[0] != 0.0 or wo[1] != 0.0) else 0.0
-    e_r = np.array([-math.sin(phi), math.cos(phi), 0.0])
-    f = -wo
-    e_u = np.cross(e_r, f)
+    f, e_r, e_u = nearfield.camera_basis(wo)
     ray = f + u[:, None] * e_r + v[:, None] * e_u
     dz = ray[:, 2]
     hit = dz < 0.0

@@ -36,6 +36,10 @@ __all__ = [
     "errors",
     "consistency",
     "training_size",
+    "CLOSEDLOOP_STEM",
+    "closedloop_image",
+    "closedloop_observations",
+    "closedloop_errors",
     "gram",
     "gplvm_model",
     "gplvm_trace",
@@ -191,6 +195,33 @@ def consistency(split: str) -> str:
 
 def training_size() -> str:
     return f"{RESULTS}/evaluation/training_size.csv"
+
+
+# -- closed-loop acquisition ------------------------------------------------
+
+#: The closed loop's figure (table-lookup vs closed-loop error per FOV and n).
+CLOSEDLOOP_STEM = "closedloop-vs-table"
+
+
+def closedloop_image(material: str, setup: str, fov: float | str, metric: str, n: int | str, j: int | str,
+                     kind: str) -> str:
+    """EXR of image ``j`` of the n-image set of a directions file: kind ``render`` (noiseless) or ``sensor``."""
+    if kind not in ("render", "sensor"):
+        raise ValueError(f"closed-loop image kind must be render or sensor, got {kind!r}")
+    return f"{RESULTS}/closedloop/{material}/{setup}-fov{fov_tag(fov)}-{metric}-n{n}-{j}-{kind}.exr"
+
+
+def closedloop_observations(material: str, setup: str, fov: float | str, metric: str, n: int | str,
+                            source: str) -> str:
+    """Observation table (NPZ) read off the n-image set's images: source ``noiseless`` or ``sensor``."""
+    if source not in ("noiseless", "sensor"):
+        raise ValueError(f"closed-loop observation source must be noiseless or sensor, got {source!r}")
+    return f"{RESULTS}/closedloop/{material}/{setup}-fov{fov_tag(fov)}-{metric}-n{n}-{source}.npz"
+
+
+def closedloop_errors() -> str:
+    """Table-lookup and closed-loop errors of the held-out materials (the columns of errors.csv)."""
+    return f"{RESULTS}/evaluation/closedloop.csv"
 
 
 # -- manifold track ---------------------------------------------------------

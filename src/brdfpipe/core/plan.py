@@ -40,6 +40,8 @@ __all__ = [
     "manifold_figures",
     "render_figures",
     "floor_check_candidates",
+    "closedloop_directions",
+    "check_closed_loop",
     "MEMORY_MB",
     "mem_mb",
 ]
@@ -136,6 +138,7 @@ def check_config(config: Mapping[str, Any], *, materials: Sequence[str], train: 
     if render["noise_seed"] == render["seed"]:
         raise ConfigError("config render.noise_seed must differ from render.seed (it measures the noise floor)")
     latent_paths(config["manifold"], materials)
+    check_closed_loop(config)
     tags = [filenames.format_t(t) for t in render["path_points"]]
     dup = sorted({t for t in tags if tags.count(t) > 1})
     if dup:
@@ -210,6 +213,49 @@ def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
         metrics = acquisition["metrics"] if split == "train" else ["error"]
         files += [filenames.directions(split, setup, fov, metric) for fov in fovs for metric in metrics]
     return files
+
+
+def closedloop_directions(config: Mapping[str, Any]) -> list[tuple[str, float, str]]:
+    """(setup, fov, metric) of every training-split direction set the closed loop captures ([] when disabled).
+
+    ``closed_loop.setups`` × their FOVs (``closed_loop.fovs``, null = the
+    acquisition's: ``acquisition.fovs`` for nearfield, ``acquisition.fixed_fov``
+    for fixed_*) with ``closed_loop.metric``.
+    """
+    cl = config["closed_loop"]
+    if not cl["enabled"]:
+        return []
+    acq = config["acquisition"]
+    out = []
+    for setup in cl["setups"]:
+        if setup == "nearfield":
+            fovs = acq["fovs"] if cl["fovs"] is None else cl["fovs"]
+        else:
+            fovs = [acq["fixed_fov"]]
+        out += [(setup, float(f), cl["metric"]) for f in fovs]
+    return out
+
+
+def check_closed_loop(config: Mapping[str, Any]) -> None:
+    """The closed loop captures only direction sets the acquisition optimises; ConfigError naming the key."""
+    cl = config["closed_loop"]
+    if not cl["enabled"]:
+        return
+    acq = config["acquisition"]
+    for setup in cl["setups"]:
+        if setup not in acq["setups"]:
+            raise ConfigError(f"config closed_loop.setups: {setup} is not in acquisition.setups {acq['setups']} "
+                              "(or set closed_loop.enabled: false)")
+    if cl["metric"] not in acq["metrics"]:
+        raise ConfigError(f"config closed_loop.metric: {cl['metric']} is not in acquisition.metrics {acq['metrics']} "
+                          "(or set closed_loop.enabled: false)")
+    if cl["fovs"] is not None:
+        extra = [f for f in cl["fovs"] if float(f) not in [float(a) for a in acq["fovs"]]]
+        if extra:
+            raise ConfigError(f"config closed_loop.fovs: {extra} not in acquisition.fovs {acq['fovs']}")
+    big = [n for n in cl["n_images"] if int(n) > int(acq["n_max_images"])]
+    if big:
+        raise ConfigError(f"config closed_loop.n_images: {big} exceed acquisition.n_max_images = {acq['n_max_images']}")
 
 
 def curve_fov(acquisition: Mapping[str, Any]) -> float:
@@ -311,6 +357,9 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "check_directions": (136.0, 6.8),
     "evaluate_training_size": (250.0, 2.45),  # N = 100 only: slope as evaluate_directions'
     "plot_acquisition_figures": (157.0, 0.0),
+    "capture_closedloop": (250.0, 0.0),  # 231-251 MB measured (default config, 33 × 33 images)
+    "evaluate_closedloop": (900.0, 0.0),  # 1,135 MB measured: 10 held-out materials × 8 sets (default config)
+    "plot_closedloop": (157.0, 0.0),  # as plot_acquisition_figures
     # manifold track
     "compute_gram": (276.0, 3.93),
     "fit_gplvm": (95.0, 0.0),

@@ -39,6 +39,16 @@ DESCRIPTIONS: dict[str, str] = {
                 "smaller): min E(S) vs min κ, and the deviation floor (all cells observed).",
     "xu-fig19": "Mean RMS error of point sampling vs the number of samples n: min E(S) vs min κ, with the "
                 "deviation floor.",
+    "xu-closedloop": "Closed loop: each held-out material photographed by the optimised set-ups (Mitsuba 3, the "
+                     "``merl`` BSDF on a flat sample, a point light, the set-up's camera and resolution, a sensor "
+                     "with photon and read noise and HDR bracketing), its BRDF read off the pixels (fall-off and "
+                     "cosine removed, low-signal pixels masked) and reconstructed; left: mean RMS log error of the "
+                     "table lookup, of the noiseless render and of the sensor's photograph per direction set; right: "
+                     "per material, closed-loop / table error against the share of disk pixels not used.",
+    "xu-closedloop-table": "``closedloop.csv``: per held-out material, channel and captured direction set the "
+                           "table-lookup errors (kinds ``rms_log``, ``relrms_linear``), the closed-loop errors from "
+                           "the noiseless render (``closedloop_noiseless_*``) and from the sensor "
+                           "(``closedloop_*``), the observations used and the share of pixels masked.",
     "soler-fig05": "GPLVM log-likelihood over the optimiser's steps (start, L-BFGS, Hooke–Jeeves), default "
                    "candidate, each latent dimension q.",
     "soler-fig10_q2": "The 2-D latent space of the default candidate: every material at its latent point, "

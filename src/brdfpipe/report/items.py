@@ -41,6 +41,8 @@ FIGURE_NUMBERS: dict[str, str] = {
     "xu-fig13": "Xu Fig. 13",
     "xu-fig18": "Xu Fig. 18",
     "xu-fig19": "Xu Fig. 19",
+    "xu-closedloop": "Xu §7 (closed loop)",
+    "xu-closedloop-table": "Xu §7 (closed loop, table)",
     "soler-fig05": "Soler Fig. 5",
     "soler-fig10_q2": "Soler Fig. 10 (q = 2)",
     "soler-fig10_q5": "Soler Fig. 10 (q = 5 slices)",
@@ -96,6 +98,8 @@ def report_items(
     errormaps: Sequence[tuple[str, str, str]] = (),
     errormap_summary: str | None = None,
     floor_check_table: str | None = None,
+    closedloop_figure: Sequence[str] = (),
+    closedloop_table: str | None = None,
 ) -> list[Item]:
     """Every report entry of a configuration, in report order.
 
@@ -103,7 +107,8 @@ def report_items(
     PDF next to it is the same figure); Xu Fig. 8's CSV table;
     ``errormaps``: ``(path, t, error.png)`` per rendered path point (the EXR
     maps are data: browsers cannot show them, the captions name them);
-    the summary tables when the configuration writes them; the claims table.
+    the summary tables when the configuration writes them; the closed
+    loop's figure and ``closedloop.csv`` when it runs; the claims table.
     ``database``: ``merl`` or ``synthetic`` (a label of every entry).
     """
     items: list[Item] = []
@@ -116,6 +121,10 @@ def report_items(
         add(f"xu-{k}", _png(files), ACQUISITION, "Figures")
         if k == "fig08":
             add("xu-fig08-table", next(f for f in files if f.endswith(".csv")), ACQUISITION, "Tables")
+    if closedloop_figure:
+        add("xu-closedloop", _png(closedloop_figure), ACQUISITION, "Closed loop")
+    if closedloop_table:
+        add("xu-closedloop-table", closedloop_table, ACQUISITION, "Closed loop")
     for k, files in manifold_figures.items():
         add(f"soler-{k}", _png(files), MANIFOLD, "Figures")
     if spaces_table:
