@@ -669,7 +669,8 @@
     $('model').innerHTML = MODELS.map((m) => `<option value="${m.q}">q = ${m.q}</option>`).join('');
     const b = M.basis;
     $('basis').innerHTML = `<option value="exact">exact: ${N} pre-renders</option>` +
-      `<option value="reduced">reduced: mean + ${b.k} components</option>`;
+      `<option value="reduced">reduced: mean + ${b.k} components` +
+      (b.below_floor === false ? ' (approximate: worst blend above the noise floor)' : '') + '</option>';
     $('basis').title = `reduced basis: largest relative RMSE ${b.error_prerenders_max.toPrecision(3)} over the pre-renders, ` +
       `${b.error_blends_max.toPrecision(3)} over ${b.blend_samples} blends in the hulls; target ${b.target.toPrecision(3)}` +
       (b.floor === null ? ' (no noise floor known)' : ' (the Monte Carlo noise of one pre-render)');
