@@ -360,3 +360,23 @@ def test_page_works_over_http(site: Path) -> None:
             assert b.evaluate("explorer.error") is None and b.errors == [], b.errors
     finally:
         server.shutdown()
+
+
+@needs_chromium
+def test_reduced_option_says_approximate_only_above_the_noise_floor(site: Path, tmp_path: Path) -> None:
+    """The blend menu marks the reduced basis approximate exactly when the manifest says its
+    worst error is above the noise floor (the fixture's basis is below it; a copy says it is not)."""
+    above = tmp_path / "site"
+    shutil.copytree(site, above)
+    model_js = above / "data" / "model.js"
+    text = model_js.read_text()
+    assert text.count('"below_floor":true') == 1
+    model_js.write_text(text.replace('"below_floor":true', '"below_floor":false'))
+    labels = {}
+    for name, folder in (("below", site), ("above", above)):
+        with chromium.Browser() as b:
+            b.open(folder / "index.html", ready=READY)
+            assert b.evaluate("explorer.error") is None and b.errors == [], b.errors
+            labels[name] = b.evaluate("document.querySelector('#basis option[value=reduced]').textContent")
+    assert labels["below"].startswith("reduced: mean + ") and "approximate" not in labels["below"]
+    assert "approximate" in labels["above"] and labels["above"].startswith(labels["below"])
