@@ -494,8 +494,8 @@ def check_source(
     what = "an unmarked MERL file (a measurement)" if mark is None else mark.describe()
     if mark is not None and not mark.legacy and KINDS[mark.kind].binds_name and mark.name != name:
         raise ProvenanceError(
-            f"{p}: is {what}, not {name!r}: a file copied or renamed over {name!r}'s; "
-            f"restore {name!r}'s own file or regenerate it"
+            f"{p}: is {what}, not {name!r}: a file copied or renamed over that material's own; "
+            "restore it or regenerate it"
         )
     if expect:
         want = expect.get("database")
