@@ -317,8 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_synth)
 
     p = sub.add_parser("ingest", help="ingest MERL files into the chunked Zarr store")
-    p.add_argument("folder", help="folder of .binary files: real MERL, or written by "
-                   "`brdfpipe synth` (recognised by the files' synthetic watermark)")
+    p.add_argument("folder", help="folder of .binary files of one kind: real MERL, written by `brdfpipe synth`, "
+                   "or derived by brdfpipe (labelled from the files' provenance marks)")
     p.add_argument("--out", required=True, help="the store to write (e.g. results/merl.zarr)")
     p.add_argument("--jobs", type=_positive_int, default=os.cpu_count() or 1,
                    help="worker processes (default: all cores)")

@@ -392,21 +392,24 @@ def stamp(raw: NDArray[np.float64], mark: Mark) -> None:
 # --------------------------------------------------------------------------
 
 
-def _damaged(path: Path, what: str) -> ProvenanceError:
+_LEGACY: Final = Mark("synthetic", legacy=True)
+
+
+def _damaged(path: str, what: str) -> ProvenanceError:
     return ProvenanceError(
         f"{path}: damaged provenance mark ({what}); the file was changed after brdfpipe wrote it: "
         "write it again with the command that made it"
     )
 
 
-def _decode(path: Path, fd: int) -> Mark | None:
+def _decode(path: str, fd: int) -> Mark | None:
     head = os.pread(fd, 8 * _HEADER_CELLS, _offset(MARK_CELLS[0]))
     watermark = os.pread(fd, len(_WATERMARK_BYTES), _WATERMARK_OFFSET) == _WATERMARK_BYTES
     if len(head) < 8 * _HEADER_CELLS:
         return None  # too short to be a MERL file: the format check names it
     c0, c1, c2 = (int.from_bytes(head[i : i + 8], "little") for i in range(0, 24, 8))
     if bin(c0 ^ _MAGIC_U64).count("1") > _MAGIC_NEAR:
-        return Mark("synthetic", legacy=True) if watermark else None
+        return _LEGACY if watermark else None
     if c0 != _MAGIC_U64:
         raise _damaged(path, "magic altered")
     for c in (c1, c2):
@@ -446,7 +449,13 @@ def _decode(path: Path, fd: int) -> Mark | None:
     kind = doc.pop("kind")
     if watermark != (kind == "synthetic"):
         raise _damaged(path, f"{kind} mark {'with' if watermark else 'without'} the synthetic watermark")
-    return Mark(kind, doc)
+    if len(payload) > CAPACITY:  # pragma: no cover - the header's length was checked
+        raise _damaged(path, "payload too long")
+    mark = object.__new__(Mark)  # checked above (_problem); no second round trip through JSON
+    object.__setattr__(mark, "kind", kind)
+    object.__setattr__(mark, "fields", doc)
+    object.__setattr__(mark, "legacy", False)
+    return mark
 
 
 def read_mark(path: str | os.PathLike[str]) -> Mark | None:
@@ -458,7 +467,7 @@ def read_mark(path: str | os.PathLike[str]) -> Mark | None:
     :class:`ProvenanceError` naming the file for a damaged or unknown mark,
     :class:`OSError` if the file cannot be read.
     """
-    p = Path(path)
+    p = os.fspath(path)
     fd = os.open(p, os.O_RDONLY)
     try:
         return _decode(p, fd)
@@ -470,6 +479,19 @@ def file_label(path: str | os.PathLike[str]) -> str:
     """The database label of one file: its mark's kind, or :data:`UNMARKED`."""
     mark = read_mark(path)
     return UNMARKED if mark is None else mark.kind
+
+
+_UNMARKED_WHAT: Final = "an unmarked MERL file (a measurement)"
+
+
+class _What:
+    """A mark's :meth:`Mark.describe`, formatted only into a message that is raised."""
+
+    def __init__(self, mark: Mark) -> None:
+        self.mark = mark
+
+    def __format__(self, spec: str) -> str:
+        return self.mark.describe()
 
 
 def check_source(
@@ -488,10 +510,10 @@ def check_source(
     Raises :class:`ProvenanceError` (one line naming the file) or the errors
     of :func:`read_mark`.
     """
-    p = Path(path)
+    p = os.fspath(path)
     mark = read_mark(p)
     label = UNMARKED if mark is None else mark.kind
-    what = "an unmarked MERL file (a measurement)" if mark is None else mark.describe()
+    what = _UNMARKED_WHAT if mark is None else _What(mark)
     if mark is not None and not mark.legacy and KINDS[mark.kind].binds_name and mark.name != name:
         raise ProvenanceError(
             f"{p}: is {what}, not {name!r}: a file copied or renamed over that material's own; "
