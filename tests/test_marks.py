@@ -306,7 +306,7 @@ def test_a_folder_mixing_kinds_is_an_error_naming_the_files_of_each(tmp_path: Pa
     with pytest.raises(db.DatabaseError) as e:
         db.database_from_folder(folder)
     msg = _one_line(e.value, "interp.binary", "measured.binary", "synthetic files", "derived files",
-                    "unmarked MERL files (measurements)")
+                    "unmarked (measured) MERL files")
     assert all(p.name in msg for p in synth_dir.glob("*.binary"))
     (folder / "measured.binary").unlink()
     with pytest.raises(db.DatabaseError, match="mixes synthetic files .* with derived files .*interp.binary"):

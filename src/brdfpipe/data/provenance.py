@@ -163,7 +163,7 @@ KINDS: Final[Mapping[str, MarkKind]] = {
         ),
         MarkKind(
             "derived",
-            "derived files written by brdfpipe (interpolated, sampled, extrapolated or reconstructed)",
+            "derived files written by brdfpipe",
             {"name": _STR, "operation": _STR, "source_database": _STR, "inputs": (dict,)},
             binds_name=False,
         ),
@@ -180,9 +180,9 @@ def database_labels() -> tuple[str, ...]:
 
 
 def kind_title(label: str) -> str:
-    """How messages name the files of a label ("unmarked MERL files (measurements)" for ``merl``)."""
+    """How messages name the files of a label ("unmarked (measured) MERL files" for ``merl``)."""
     if label == UNMARKED:
-        return "unmarked MERL files (measurements)"
+        return "unmarked (measured) MERL files"
     kind = KINDS.get(label)
     return kind.title if kind is not None else f"{label} files"
 

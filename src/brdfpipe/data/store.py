@@ -715,9 +715,9 @@ def assemble_store(
     for info in infos:
         if info.database != database:
             raise StoreError(
-                f"{info.path}: material {info.name!r} comes from {info.source_file or 'its file'}, "
-                f"{provenance.kind_title(info.database)} (label {info.database!r}), but the store is assembled "
-                f"as the {database!r} database; one kind per store: re-plan the run or replace the file"
+                f"{info.path}: material {info.name!r} was ingested from {info.source_file or 'a file'} labelled "
+                f"{info.database!r} (its provenance mark), but the store is assembled as the {database!r} database; "
+                "one kind per store: re-plan the run or replace the file"
             )
     names = [info.name for info in infos]
     n = len(infos)
