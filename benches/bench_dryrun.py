@@ -83,6 +83,8 @@ def _write_folder(folder: Path, n: int, kind: str, full: bool) -> list[Path]:
             fh.write(np.asarray(merl.DIMS, dtype="<i4").tobytes())
             if full:
                 fh.write(raw.astype("<f8").tobytes())
+                fh.flush()
+                os.fsync(fh.fileno())  # clean pages: posix_fadvise(DONTNEED) can evict them
             else:
                 fh.truncate(merl.FILE_SIZE)
                 for c in range(3):
