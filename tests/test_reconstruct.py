@@ -241,6 +241,21 @@ def test_write_reconstruction_and_cli(data: Data, tmp_path: Path) -> None:
     assert cli_main(["-q", "reconstruct", str(bad), "--model", str(data.model_path), "--out", str(out2)]) == 1
 
 
+def test_reconstructions_are_derived_and_ingest_as_derived(data: Data, tmp_path: Path) -> None:
+    """A reconstruction (and that of a capture) is marked derived; a folder of them is never 'merl'."""
+    files, _, _ = _observation_files(data, tmp_path)
+    folder = tmp_path / "recs"
+    reconstruct.write_reconstruction(data.model_path, files["npz-dirs"], folder / "rec.binary")
+    source = folder_database(data.dir / "db").sources[data.test[0]]
+    reconstruct.write_reconstruction(data.model_path, files["csv-angles"], folder / "captured.binary", material=source)
+    mark = provenance.read_mark(folder / "captured.binary")
+    assert mark.fields["operation"] == "capture-reconstruct"
+    assert mark.fields["inputs"]["material"] == {"sha256": provenance.file_sha256(source), "database": "synthetic"}
+    assert provenance.read_mark(folder / "rec.binary").fields["operation"] == "reconstruct"
+    assert cli_main(["-q", "ingest", str(folder), "--out", str(tmp_path / "recs.zarr"), "--jobs", "1"]) == 0
+    assert store.open_store(tmp_path / "recs.zarr").database == "derived"
+
+
 def _write(path: Path, text: str) -> Path:
     path.write_text(text)
     return path

@@ -510,7 +510,8 @@ def reconstruction_mark(
     }
     if material is not None:
         inputs["material"] = {"sha256": provenance.file_sha256(material), "database": provenance.file_label(material)}
-    return provenance.derived_mark(name=provenance.output_name(out), operation="reconstruct" if material is None else "capture-reconstruct",
+    operation = "reconstruct" if material is None else "capture-reconstruct"
+    return provenance.derived_mark(name=provenance.output_name(out), operation=operation,
                                    source_database=model.database, inputs=inputs)
 
 

@@ -22,6 +22,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+
 from brdfpipe.core import atomic
 from brdfpipe.core.version import full_version
 from brdfpipe.data import provenance, synth

@@ -46,7 +46,12 @@ class BlendSource:
 
     @classmethod
     def of(cls, model_path: str | os.PathLike[str], model: Any, store: Any) -> BlendSource:
-        """From a model file, the model loaded from it (:class:`brdfpipe.manifold.gplvm.GplvmModel`) and the open store."""
+        """From a model file, the model loaded from it and the open store.
+
+        ``model``: a :class:`brdfpipe.manifold.gplvm.GplvmModel` (its
+        ``space``, ``X`` and ``names``); ``store``: a
+        :class:`brdfpipe.data.store.BrdfStore`.
+        """
         ident = provenance.store_identity(store)
         info = {"sha256": provenance.file_sha256(model_path), "space": str(model.space),
                 "q": int(np.asarray(model.X).shape[1]), "materials": len(model.names)}
@@ -55,7 +60,11 @@ class BlendSource:
     def mark(
         self, *, out: str | os.PathLike[str], operation: str, point: ArrayLike, weights: ArrayLike, **details: Any
     ) -> provenance.Mark:
-        """The ``derived`` mark of the blend written to ``out`` with ``weights`` (one per model material) at latent ``point``."""
+        """The ``derived`` mark of the blend written to ``out``.
+
+        ``weights``: one per model material (in the model's order);
+        ``point``: the latent point; ``details``: the operation's own inputs.
+        """
         w = np.ascontiguousarray(weights, dtype="<f8")
         if w.shape != (len(self.names),):
             raise ValueError(f"weights have shape {w.shape}, expected ({len(self.names)},)")
@@ -66,4 +75,5 @@ class BlendSource:
             "weights_sha256": hashlib.sha256(w.tobytes()).hexdigest(),
             **details,
         }
-        return provenance.derived_mark(name=provenance.output_name(out), operation=operation, source_database=self.database, inputs=inputs)
+        return provenance.derived_mark(name=provenance.output_name(out), operation=operation,
+                                       source_database=self.database, inputs=inputs)
