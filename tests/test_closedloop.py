@@ -272,6 +272,12 @@ def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixtu
                                                      "n2.binary"]
     table = merl.read_merl(out / "n2.binary")
     assert table.shape == merl.SHAPE and np.isfinite(table).all()
+    from brdfpipe.data import provenance
+
+    mark = provenance.read_mark(out / "n2.binary")  # a reconstruction, never taken for a measurement
+    assert mark.kind == "derived" and mark.fields["operation"] == "capture-reconstruct"
+    assert mark.fields["inputs"]["material"]["sha256"] == provenance.file_sha256(loop.sources[name])
+    assert mark.fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(out / "n2-sensor.npz")
     cells, rgb, counts = closedloop.read_observations(out / "n2-sensor.npz")
     assert cells.size == rgb.shape[0] == counts["kept"] > 100
     # Bad input: one line naming the file, exit 1, nothing written.

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.core.plan import ConfigError
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import merl, provenance, store, synth
 from brdfpipe.manifold import analysis, gplvm
 
 
@@ -193,7 +193,12 @@ def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
         table = merl.read_merl(merls[k]).reshape(-1)
         expect = np.maximum(w @ small["brdf"][[names.index(n) for n in m.names]], 0.0)
         np.testing.assert_allclose(table[valid], expect[valid], rtol=1e-9, atol=1e-12)
-        assert np.all(table[~valid] == -1.0)
+        marked = np.zeros(table.size, dtype=bool)
+        marked[provenance.MARK_CELLS] = True  # red channel: the provenance mark (negative, unmeasured)
+        assert np.all(table[~valid & ~marked] == -1.0) and np.all(table[marked] < 0.0)
+        mark = provenance.read_mark(merls[k])
+        assert mark is not None and mark.kind == "derived" and mark.fields["operation"] == "path-point"
+        assert mark.fields["inputs"]["path"] == [a, b] and mark.fields["inputs"]["t"] == t
     # t = 0 is the first material itself (exact reproduction at training points)
     first = np.maximum(small["brdf"][names.index(points[0][0])], 0.0)
     np.testing.assert_allclose(merl.read_merl(merls[0]).reshape(-1)[valid], first[valid], rtol=1e-6, atol=1e-9)

@@ -151,7 +151,6 @@ def _cmd_nearest(args: argparse.Namespace) -> int:
 
 
 def _cmd_extrapolate(args: argparse.Namespace) -> int:
-    from brdfpipe.data import merl
     from brdfpipe.manifold import gplvm, latent
 
     if args.out is not None:
@@ -178,10 +177,10 @@ def _cmd_extrapolate(args: argparse.Namespace) -> int:
         point = e.last_valid_point
         if point is None:
             raise ValueError(f"the albedo at {args.start} itself is outside [0, 1]; nothing to write to {args.out}")
-        w = gplvm.blend_weights(gplvm.weights(model, point))
-        table, clamped = gplvm.interpolate_table(args.store, w, materials=model.names, space=model.space)
-        merl.write_merl(args.out, table)
-        summary["clamped_values"] = clamped  # negative interpolated values written as 0
+        details = {"start": args.start, "through": args.through, "s": e.last_valid_s, "step": args.step}
+        clamped = latent.write_blends(args.model, model, args.store, [point], [args.out], operation="extrapolate",
+                                      details=[details])
+        summary["clamped_values"] = int(clamped[0])  # negative interpolated values written as 0
     print(json.dumps(summary, indent=2))
     return 0
 
@@ -194,7 +193,6 @@ def _cmd_sample(args: argparse.Namespace) -> int:
     import numpy as np
 
     from brdfpipe.core import atomic
-    from brdfpipe.data import merl
     from brdfpipe.manifold import gplvm, latent
 
     out_dir = Path(args.out_dir)
@@ -206,11 +204,8 @@ def _cmd_sample(args: argparse.Namespace) -> int:
                                max_tries=args.max_tries, exact=args.exact)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [f"sample-{i:03d}.binary" for i in range(args.count)]
-    for a in range(0, args.count, 4):
-        tables, _ = gplvm.interpolate_tables(args.store, s.weights[a : a + 4], materials=model.names,
-                                             space=model.space)
-        for j, table in enumerate(tables):
-            merl.write_merl(out_dir / files[a + j], table)
+    latent.write_blends(args.model, model, args.store, s.points, [out_dir / f for f in files], operation="sample",
+                        details=[{"seed": args.seed, "count": args.count, "index": i} for i in range(args.count)])
     q = model.X.shape[1]
     rows = []
     for i, name in enumerate(files):
@@ -297,7 +292,8 @@ def _cmd_capture(args: argparse.Namespace) -> int:
         from brdfpipe.acquisition import reconstruct
 
         for _, n in table_keys:
-            reconstruct.write_reconstruction(args.model, out / f"n{n}-sensor.npz", out / f"n{n}.binary", eta=args.eta)
+            reconstruct.write_reconstruction(args.model, out / f"n{n}-sensor.npz", out / f"n{n}.binary", eta=args.eta,
+                                             material=args.material)
     print(out)
     return 0
 
@@ -321,8 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_synth)
 
     p = sub.add_parser("ingest", help="ingest MERL files into the chunked Zarr store")
-    p.add_argument("folder", help="folder of .binary files: real MERL, or written by "
-                   "`brdfpipe synth` (recognised by the files' synthetic watermark)")
+    p.add_argument("folder", help="folder of .binary files of one kind: real MERL, written by `brdfpipe synth`, "
+                   "or derived by brdfpipe (labelled from the files' provenance marks)")
     p.add_argument("--out", required=True, help="the store to write (e.g. results/merl.zarr)")
     p.add_argument("--jobs", type=_positive_int, default=os.cpu_count() or 1,
                    help="worker processes (default: all cores)")

@@ -51,6 +51,18 @@ if SYNTHETIC:
             "../scripts/write_manifest.py"
 
 
+# What every ingested file must be (brdfpipe.data.provenance.check_source): of the
+# database labelled at parse time and, for the workflow's own synthetic files,
+# made with this configuration (the material name is checked for every marked file).
+INGEST_EXPECT = {"database": DATABASE.kind}
+if config["merl_dir"] is None:
+    INGEST_EXPECT.update(
+        count=config["synthetic"]["count"],
+        seed=config["synthetic"]["seed"],
+        noise=float(config["synthetic"]["noise"]),
+    )
+
+
 rule ingest_material:
     input:
         binary=source_file,
@@ -67,6 +79,7 @@ rule ingest_material:
         mem_mb=mem("ingest_material"),
         runtime=10,
     params:
+        expect=INGEST_EXPECT,
         code=code("ingest_material.py"),
     script:
         "../scripts/ingest_material.py"

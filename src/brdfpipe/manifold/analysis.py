@@ -61,7 +61,7 @@ from brdfpipe.core.filenames import path_name
 from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
 from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, iter_column_blocks, open_store
-from brdfpipe.manifold import gplvm, latent, perceptual
+from brdfpipe.manifold import derivation, gplvm, latent, perceptual
 
 __all__ = [
     "ALBEDO_NODES",
@@ -412,7 +412,9 @@ def path_points_to_files(
     ``t``, ``q``, the latent point ``x``, ``clamped`` (values of measured cells
     that came out negative and were clamped to 0), ``measured_values`` (the
     table's values in measured cells) and ``weights`` {material: wᵢ} (blend
-    weights, Σw = 1), written atomically.  Returns the weights ``(P, N)``.
+    weights, Σw = 1), written atomically.  Each MERL file carries a
+    ``derived`` provenance mark (operation ``path-point``, :mod:`brdfpipe.manifold.derivation`).
+    Returns the weights ``(P, N)``.
     """
     import json
 
@@ -421,6 +423,8 @@ def path_points_to_files(
                          f"{len(merl_outs)} MERL and {len(weights_outs)} weights outputs")
     m = gplvm.load_model(model)
     check_paths(sorted({(a, b) for a, b, _ in points}), m.names, what=f"path of {model}")
+    st = open_store(store)
+    source = derivation.BlendSource.of(model, m, st)
     names = list(m.names)
     xs, ws = [], []
     for a, b, t in points:
@@ -430,9 +434,11 @@ def path_points_to_files(
         xs.append(x)
         ws.append(gplvm.blend_weights(gplvm.weights(m, x)))
     W = np.stack(ws)
-    tables, clamped = gplvm.interpolate_tables(store, W, materials=names, space=m.space)
+    tables, clamped = gplvm.interpolate_tables(st, W, materials=names, space=m.space)
     for k, (a, b, t) in enumerate(points):
-        merl.write_merl(merl_outs[k], tables[k])
+        mark = source.mark(out=merl_outs[k], operation="path-point", point=xs[k],
+                           weights=W[k], path=[a, b], t=float(t))
+        merl.write_merl(merl_outs[k], tables[k], mark=mark)
         doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
                "x": [float(v) for v in xs[k]], "clamped": int(clamped[k]),
                "measured_values": int(np.count_nonzero(tables[k] >= 0.0)),

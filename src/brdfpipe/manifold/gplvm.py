@@ -164,6 +164,7 @@ from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
+from brdfpipe.manifold import derivation
 
 __all__ = [
     "SPACES",
@@ -1315,9 +1316,11 @@ def interpolate_to_file(
     way from material A to material B of ``between`` (linear in the latent
     space).  The blend is Σ w_i z_i of the store's materials with the weights
     of :func:`blend_weights`, taken in the model's data space
-    (:func:`interpolate_table`).  ValueError for a point of the wrong length,
-    an unknown material, both or neither of ``at`` / ``between``, or a model
-    whose materials are not in the store.
+    (:func:`interpolate_table`).  The file carries a ``derived`` provenance
+    mark (:mod:`brdfpipe.manifold.derivation`: model and store digests, the
+    latent point, ``between`` and ``t``).  ValueError for a point of the wrong
+    length, an unknown material, both or neither of ``at`` / ``between``, or a
+    model whose materials are not in the store.
     """
     model = load_model(model_path)
     if (at is None) == (between is None):
@@ -1333,7 +1336,11 @@ def interpolate_to_file(
     else:
         x_star = np.asarray(at, dtype=np.float64)
     w = blend_weights(weights(model, x_star))
-    table, clamped = interpolate_table(store_path, w, materials=model.names, space=model.space)
-    merl.write_merl(out, table)
+    st = open_store(store_path)
+    table, clamped = interpolate_table(st, w, materials=model.names, space=model.space)
+    details: dict[str, Any] = {"between": list(between), "t": float(t)} if between is not None else {}
+    mark = derivation.BlendSource.of(model_path, model, st).mark(
+        out=out, operation="interpolate", point=x_star, weights=w, **details)
+    merl.write_merl(out, table, mark=mark)
     logger.info("interpolated BRDF at x* = %s -> %s (%d clamped values)", np.round(x_star, 4).tolist(), out, clamped)
     return clamped

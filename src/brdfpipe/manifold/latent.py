@@ -71,9 +71,9 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Any, Final
 
 import numpy as np
 import scipy.linalg
@@ -82,7 +82,8 @@ import scipy.spatial
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.data.store import BrdfStore, open_store
-from brdfpipe.manifold import analysis, gplvm
+from brdfpipe.data import merl
+from brdfpipe.manifold import analysis, derivation, gplvm
 
 __all__ = [
     "MIN_ACCEPTANCE",
@@ -97,6 +98,7 @@ __all__ = [
     "extrapolate",
     "MaterialSamples",
     "sample_material",
+    "write_blends",
 ]
 
 logger = logging.getLogger("brdfpipe.manifold.latent")
@@ -609,3 +611,46 @@ def sample_material(
             f"only {have} of {n} sampled materials had albedo in [0, 1] within {limit} tries; raise max_tries"
         )
     return MaterialSamples(np.concatenate(pts), np.concatenate(ws), np.concatenate(als), model.names, tries)
+
+
+# --------------------------------------------------------------------------
+# Writing blended materials
+# --------------------------------------------------------------------------
+
+
+def write_blends(
+    model_path: str | os.PathLike[str],
+    model: gplvm.GplvmModel,
+    store: BrdfStore | str | os.PathLike[str],
+    points: ArrayLike,
+    outs: Sequence[str | os.PathLike[str]],
+    *,
+    operation: str,
+    details: Sequence[Mapping[str, Any]] | None = None,
+    batch: int = _LOG_BATCH,
+) -> NDArray[np.int64]:
+    """Write the materials at latent ``points`` ``(P, q)`` of ``model`` as MERL files ``outs``; returns clamp counts.
+
+    Each is the blend of :func:`blend_weights_at` (:func:`brdfpipe.manifold.gplvm.interpolate_tables`,
+    ``batch`` tables at a time, one pass over the store per batch) written
+    with its ``derived`` provenance mark (:class:`brdfpipe.manifold.derivation.BlendSource`:
+    ``operation`` — ``sample``, ``extrapolate`` … — the model's and the
+    store's digests, the point, the weights and ``details[k]``).  The store is
+    opened (and verified) once.
+    """
+    P = _as_points(points, "points", model.X.shape[1])
+    if len(outs) != P.shape[0] or (details is not None and len(details) != P.shape[0]):
+        raise ValueError(f"need one output (and one details entry) per point, got {P.shape[0]} points, "
+                         f"{len(outs)} outputs")
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    source = derivation.BlendSource.of(model_path, model, st)
+    W = blend_weights_at(model, P)
+    clamped = np.zeros(P.shape[0], dtype=np.int64)
+    for a in range(0, P.shape[0], max(1, int(batch))):
+        b = min(a + max(1, int(batch)), P.shape[0])
+        tables, clamped[a:b] = gplvm.interpolate_tables(st, W[a:b], materials=model.names, space=model.space)
+        for k in range(a, b):
+            mark = source.mark(out=outs[k], operation=operation, point=P[k], weights=W[k],
+                               **(details[k] if details is not None else {}))
+            merl.write_merl(outs[k], tables[k - a], mark=mark)
+    return clamped

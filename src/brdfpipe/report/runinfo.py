@@ -170,6 +170,18 @@ def _literal(text: str) -> list[str]:
     return ["::", ""] + ["   " + line for line in text.rstrip("\n").splitlines()] + [""]
 
 
+def _database_note(database: str) -> str:
+    """The front page's sentence on what a database label means (nothing for measured MERL data)."""
+    if database == "merl":
+        return ""
+    if database == "synthetic":
+        return " This is the generated synthetic MERL-format database, not real MERL data."
+    if database == "derived":
+        return (" These are materials derived by brdfpipe (interpolated, sampled, extrapolated or reconstructed; "
+                "see each file's provenance mark), not measurements.")
+    return " These are not measured MERL data."
+
+
 def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Mapping[str, Any],
               configfiles: Sequence[str], targets: Mapping[str, int], versions: Mapping[str, str]) -> str:
     """The front page body (reStructuredText): what ran, the claims, versions, the configuration."""
@@ -179,7 +191,7 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
              f"Database: **{database}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
              f"{len(splits['test'])} held out: {rst_cell(', '.join(splits['test']))}), as recorded in "
              "``results/splits.json`` from the store." +
-             (" This is the generated synthetic MERL-format database, not real MERL data." if database == "synthetic" else ""),
+             _database_note(database),
              "",
              "Configuration file(s): " + ", ".join(f"``{c}``" for c in configfiles) + " (validated contents below).",
              "", "Targets of rule ``all`` (files):", ""]
