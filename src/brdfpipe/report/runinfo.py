@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from brdfpipe.core import atomic, version
+from brdfpipe.report import rst
 from brdfpipe.report.claims import Claim, claims_table_rst, rst_cell
 
 __all__ = [
@@ -176,12 +177,13 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
     database = str(splits["database"])
     counts = {h: sum(c.holds == h for c in claims) for h in ("yes", "no", "not measured")}
     lines = ["What ran", "--------", "",
-             f"Database: **{database}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
+             f"Database: **{rst.text(database)}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
              f"{len(splits['test'])} held out: {rst_cell(', '.join(splits['test']))}), as recorded in "
              "``results/splits.json`` from the store." +
              (" This is the generated synthetic MERL-format database, not real MERL data." if database == "synthetic" else ""),
              "",
-             "Configuration file(s): " + ", ".join(f"``{c}``" for c in configfiles) + " (validated contents below).",
+             "Configuration file(s): " + (", ".join(rst.literal(c) for c in configfiles) or "none")
+             + " (validated contents below).",
              "", "Targets of rule ``all`` (files):", ""]
     lines += [f"- {rst_cell(k)}: {v}" for k, v in targets.items()]
     lines += ["", "Claims", "------", "",
