@@ -415,3 +415,20 @@ def test_free_space_and_memory_checks() -> None:
     assert resources.format_bytes(35e15) == "35 PB" and resources.format_bytes(999) == "999 B"
     with pytest.raises(resources.ResourceError, match="more than this machine's 1 GB"):
         resources.check_memory(2 * 10**9, what="x", memory=10**9)
+
+
+def test_a_truncated_material_is_named_before_mitsuba_reads_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Mitsuba's merl plugin buried the reader's error (with a Python traceback's text) in a scene error."""
+    material = tmp_path / "m.binary"
+    material.write_bytes(np.array([90, 90, 180], "<i4").tobytes() + b"\0" * 988)
+    assert cli.main(["-q", "render", str(material), "--out", str(tmp_path / "x.exr"), "--resolution", "8", "6",
+                     "--spp", "1"]) == 1
+    line = one_line(capsys, "render")
+    assert line.startswith(f"brdfpipe render: error: {material}: truncated file") and "Traceback" not in line
+    directions = tmp_path / "d.json"
+    directions.write_text("{}")
+    assert cli.main(["-q", "capture", str(material), str(directions), "--out", str(tmp_path / "c"), "--n", "1"]) == 1
+    assert one_line(capsys, "capture").startswith(f"brdfpipe capture: error: {material}: truncated file")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.json", "m.binary"]

@@ -450,6 +450,13 @@ def _check_own_folder(out: Path, option: str, recognise: Any, command: str, mani
             "refusing to replace it: choose a new or empty folder") from None
 
 
+def _check_material(path: str) -> None:
+    """Read the MERL file before Mitsuba does: its ``merl`` plugin would bury the reader's error in a scene error."""
+    from brdfpipe.data import merl
+
+    merl.read_merl(path)  # MerlFormatError (a ValueError) naming the file
+
+
 def _cmd_render(args: argparse.Namespace) -> int:
     import tempfile
 
@@ -460,6 +467,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
                                 names={"resolution": "--resolution", "spp": "--spp", "seed": "--seed",
                                        "max_depth": "--max-depth"})
     check_writable(args.out)
+    _check_material(args.material)
     if args.envmap is not None:
         from brdfpipe.core import exr
 
@@ -505,6 +513,7 @@ def _cmd_capture(args: argparse.Namespace) -> int:
     check_not_input(out, inputs)  # the folder is replaced whole: it may not hold an input
     _check_own_folder(out, "--out", _is_capture_folder, "brdfpipe capture", "capture.json")
     check_writable(out)
+    _check_material(args.material)
     sensor = capture.Sensor(enabled=not args.no_noise, full_well=args.full_well, read_noise=args.read_noise,
                             bits=args.bits, peak_level=args.peak_level, brackets=tuple(args.brackets))
     with atomic.atomic_dir(out, replaceable=_is_capture_folder) as tmp:
