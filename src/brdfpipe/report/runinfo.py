@@ -196,7 +196,9 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
     for k, v in versions.items():
         lines += [f"   * - {rst_cell(k)}", f"     - {rst_cell(v)}"]
     lines += ["", "Configuration", "-------------", ""]
-    lines += _literal(json.dumps(config, indent=2, sort_keys=True, default=str))
+    # a literal block: ASCII JSON has no line break, control or separator character inside a string, so no
+    # config value can end the block (every line stays indented) and nothing in it is markup
+    lines += _literal(json.dumps(config, indent=2, sort_keys=True, default=str, ensure_ascii=True))
     return "\n".join(lines) + "\n"
 
 
