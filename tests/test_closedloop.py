@@ -22,6 +22,7 @@ Skipped with the reason when Mitsuba's LLVM backend is not available.
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 
@@ -267,9 +268,11 @@ def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixtu
     out = tmp_path / "cap"
     assert main(["-q", "capture", str(loop.sources[name]), str(loop.directions), "--out", str(out), "--n", "2",
                  "--spp", "4", "--model", str(loop.model)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["n2-0-render.exr", "n2-0-sensor.exr", "n2-1-render.exr",
-                                                     "n2-1-sensor.exr", "n2-noiseless.npz", "n2-sensor.npz",
-                                                     "n2.binary"]
+    assert sorted(p.name for p in out.iterdir()) == ["capture.json", "n2-0-render.exr", "n2-0-sensor.exr",
+                                                     "n2-1-render.exr", "n2-1-sensor.exr", "n2-noiseless.npz",
+                                                     "n2-sensor.npz", "n2.binary"]
+    assert json.loads((out / "capture.json").read_text())["files"] == sorted(
+        p.name for p in out.iterdir() if p.name != "capture.json")
     table = merl.read_merl(out / "n2.binary")
     assert table.shape == merl.SHAPE and np.isfinite(table).all()
     from brdfpipe.data import provenance
@@ -280,6 +283,11 @@ def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixtu
     assert mark.fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(out / "n2-sensor.npz")
     cells, rgb, counts = closedloop.read_observations(out / "n2-sensor.npz")
     assert cells.size == rgb.shape[0] == counts["kept"] > 100
+    # its own earlier output is replaced whole (no n2 files left from the first capture)
+    assert main(["-q", "capture", str(loop.sources[name]), str(loop.directions), "--out", str(out), "--n", "1",
+                 "--spp", "2", "--no-noise"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["capture.json", "n1-0-render.exr", "n1-0-sensor.exr",
+                                                     "n1-noiseless.npz", "n1-sensor.npz"]
     # Bad input: one line naming the file, exit 1, nothing written.
     bad = tmp_path / "not-directions.json"
     bad.write_text('{"format": "something else"}')

@@ -1185,7 +1185,9 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
 
     ``out`` may be absent, empty (hidden entries aside) or a folder that this
     generator wrote before (a synthetic ``manifest.json``), whose ``*.binary``
-    files are all watermarked materials of ``specs`` (regenerated in place).
+    files are all watermarked materials of ``specs`` (regenerated in place);
+    a folder of watermarked materials of ``specs`` alone (a run interrupted
+    before it wrote its manifest) is completed the same way.
     Anything else — a file, a folder of other data, a real MERL file or a
     material of another plan — raises :class:`brdfpipe.core.atomic.OutputError`
     naming the path, before anything is written.  Nothing is ever deleted.
@@ -1200,12 +1202,14 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
     entries = sorted(e for e in out.iterdir() if not e.name.startswith("."))
     if not entries:
         return
-    if not _is_synthetic_manifest(out / "manifest.json"):
+    planned = {f"{s.name}.binary" for s in specs}
+    interrupted = all(e.name in planned and e.is_file() and not e.is_symlink() and is_synthetic_file(e)
+                      for e in entries)  # an earlier run of this plan stopped before its manifest
+    if not interrupted and not _is_synthetic_manifest(out / "manifest.json"):
         raise atomic.OutputError(
             f"--out {out}: folder is not empty and holds no synthetic manifest.json (not written by "
             "`brdfpipe synth`); refusing to write into it: choose a new or empty folder"
         )
-    planned = {f"{s.name}.binary" for s in specs}
     foreign: list[str] = []
     other_plan: list[str] = []
     for e in entries:

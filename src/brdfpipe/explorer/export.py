@@ -98,6 +98,7 @@ __all__ = [
     "noise_floor",
     "hull_data",
     "read_data_file",
+    "script_json",
     "write_explorer",
 ]
 
@@ -339,9 +340,28 @@ def _model_doc(model: gplvm.GplvmModel, path: Path) -> dict[str, Any]:
 # --------------------------------------------------------------------------
 
 
+#: Characters a JSON text may hold that would end or alter a ``<script>`` (HTML parser) or a JS source
+#: line, as ``\\uXXXX`` escapes, which JSON and JavaScript read back as the same characters.
+_SCRIPT_UNSAFE: Final = str.maketrans({"<": "\\u003c", ">": "\\u003e", "&": "\\u0026",
+                                        "\u2028": "\\u2028", "\u2029": "\\u2029"})
+
+
+def script_json(value: Any) -> str:
+    """``value`` as JSON (sorted keys, compact) that is safe inside a ``<script>`` element or a JS file.
+
+    The one place where data becomes JavaScript source: ASCII only, and
+    ``<``, ``>``, ``&``, U+2028 and U+2029 are ``\\u`` escapes, so no
+    material, path or database name can close the script (``</script>``),
+    open an HTML comment (``<!--``) or break a line of the source.  The
+    value read back (``JSON.parse``, :func:`read_data_file`) is unchanged.
+    """
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return text.translate(_SCRIPT_UNSAFE)
+
+
 def _script(key: str, value: Any) -> str:
-    return f"window.{_GLOBAL} = window.{_GLOBAL} || {{}};\nwindow.{_GLOBAL}[{json.dumps(key)}] = " \
-           f"{json.dumps(value, sort_keys=True, separators=(',', ':'))};\n"
+    return f"window.{_GLOBAL} = window.{_GLOBAL} || {{}};\nwindow.{_GLOBAL}[{script_json(key)}] = " \
+           f"{script_json(value)};\n"
 
 
 def read_data_file(path: str | os.PathLike[str]) -> Any:

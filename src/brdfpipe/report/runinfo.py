@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from brdfpipe.core import atomic, version
+from brdfpipe.report import rst
 from brdfpipe.report.claims import Claim, claims_table_rst, rst_cell
 
 __all__ = [
@@ -188,12 +189,13 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
     database = str(splits["database"])
     counts = {h: sum(c.holds == h for c in claims) for h in ("yes", "no", "not measured")}
     lines = ["What ran", "--------", "",
-             f"Database: **{database}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
+             f"Database: **{rst.text(database)}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
              f"{len(splits['test'])} held out: {rst_cell(', '.join(splits['test']))}), as recorded in "
              "``results/splits.json`` from the store." +
              _database_note(database),
              "",
-             "Configuration file(s): " + ", ".join(f"``{c}``" for c in configfiles) + " (validated contents below).",
+             "Configuration file(s): " + (", ".join(rst.literal(c) for c in configfiles) or "none")
+             + " (validated contents below).",
              "", "Targets of rule ``all`` (files):", ""]
     lines += [f"- {rst_cell(k)}: {v}" for k, v in targets.items()]
     lines += ["", "Claims", "------", "",
@@ -206,7 +208,9 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
     for k, v in versions.items():
         lines += [f"   * - {rst_cell(k)}", f"     - {rst_cell(v)}"]
     lines += ["", "Configuration", "-------------", ""]
-    lines += _literal(json.dumps(config, indent=2, sort_keys=True, default=str))
+    # a literal block: ASCII JSON has no line break, control or separator character inside a string, so no
+    # config value can end the block (every line stays indented) and nothing in it is markup
+    lines += _literal(json.dumps(config, indent=2, sort_keys=True, default=str, ensure_ascii=True))
     return "\n".join(lines) + "\n"
 
 
