@@ -374,7 +374,10 @@ def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, nam
 
 
 def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
-    """A folder written by `brdfpipe synth` and given as merl_dir: the store says synthetic, like the CLI."""
+    """A folder written by `brdfpipe synth` and given as merl_dir: the store says synthetic, like the CLI.
+
+    The folder is read as it is: the workflow does not plan synthesis (or a manifest) of its own for it.
+    """
     from brdfpipe import cli
 
     folder = tmp_path / "db"
@@ -383,12 +386,15 @@ def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
     names = sorted(p.stem for p in folder.glob("*.binary"))
     cfg = write_config(tmp_path / "synth.yaml", merl_dir=str(folder), test_materials=names[:1],
                        manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
-    r = snakemake(tmp_path, "results/merl.zarr", configfile=cfg)
+    r = snakemake(tmp_path, "results/splits.json", configfile=cfg)
     assert r.returncode == 0, r.stderr[-3000:]
     assert store.open_store(tmp_path / "results" / "merl.zarr").database == "synthetic"
+    assert json.loads((tmp_path / "results" / "splits.json").read_text())["test"] == names[:1]
+    assert not (tmp_path / "results" / "synthetic").exists()
 
 
 def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None:
+    """A `materials` subset of the synthetic database: jobs for those only, and the data stage runs through."""
     from brdfpipe.data import database
 
     names = database.synthetic_database("x", 12, 7).materials
@@ -399,3 +405,8 @@ def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None
     assert r.returncode == 0, r.stderr[-3000:]
     out = r.stdout + r.stderr
     assert any(line.split()[:2] == ["ingest_material", str(len(subset))] for line in out.splitlines()), out
+    r = snakemake(tmp_path, "results/splits.json", configfile=cfg)  # synthesis, manifest, ingest, store, split
+    assert r.returncode == 0, r.stderr[-3000:]
+    manifest = json.loads((tmp_path / "results" / "synthetic" / "manifest.json").read_text())
+    assert sorted(m["name"] for m in manifest["materials"]) == subset and manifest["count"] == 12
+    assert json.loads((tmp_path / "results" / "splits.json").read_text())["materials"] == subset

@@ -44,7 +44,10 @@ def _load_database():
 DATABASE, TEST_MATERIALS = _load_database()
 MATERIALS = DATABASE.materials
 TRAIN_MATERIALS = [m for m in MATERIALS if m not in TEST_MATERIALS]
-SYNTHETIC = DATABASE.kind == "synthetic"
+# The workflow generates the synthetic database (rules synthesize_material and
+# write_manifest) only without merl_dir: a folder written by `brdfpipe synth`
+# given as merl_dir is labelled synthetic but is read as it is.
+GENERATED = config["merl_dir"] is None
 ACQ = config["acquisition"]
 MAN = config["manifold"]
 RENDER = config["render"]

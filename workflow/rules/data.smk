@@ -2,7 +2,7 @@
 # validated Zarr store, plus the train/test split.
 
 
-if SYNTHETIC:
+if GENERATED:
 
     rule synthesize_material:
         output:
@@ -46,6 +46,7 @@ if SYNTHETIC:
             seed=config["synthetic"]["seed"],
             noise=config["synthetic"]["noise"],
             test_materials=TEST_MATERIALS,
+            materials=MATERIALS,
             code=code("write_manifest.py"),
         script:
             "../scripts/write_manifest.py"
@@ -97,7 +98,7 @@ rule assemble_store:
 rule write_splits:
     input:
         store=fn.store(),
-        manifest=fn.manifest() if SYNTHETIC else [],
+        manifest=fn.manifest() if GENERATED else [],
     output:
         splits=fn.splits(),
     log:
