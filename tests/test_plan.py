@@ -264,3 +264,48 @@ def test_floor_check_candidates() -> None:
         "standardised-mu1e-06"]
     assert plan.floor_check_candidates({"floor_check": {"candidates": "none"}}, cands, 9) == []
     assert plan.floor_check_candidates(render, cands, 0) == []  # no path point, nothing to check
+
+
+# --------------------------------------------------------------------------
+# Schema violations: one line naming the key (not Snakemake's dump of the schema)
+# --------------------------------------------------------------------------
+
+SCHEMA = yaml.safe_load((ROOT / "workflow" / "schemas" / "config.schema.yaml").read_text())
+
+
+def test_the_shipped_configs_satisfy_the_schema() -> None:
+    for cfg in (DEFAULT, TINY, *(yaml.safe_load(p.read_text()) for p in (ROOT / "tests" / "config").glob("*.yaml"))):
+        assert plan.schema_problem(cfg, SCHEMA) is None
+
+
+@pytest.mark.parametrize(
+    ("config", "line"),
+    [
+        ({"colour": "red"}, "config colour: unknown key; top-level keys are: merl_dir, synthetic, materials, "
+                            "test_materials, acquisition, manifold, render, closed_loop"),
+        ({"render": {"resolutoin": [3, 4]}}, "config render.resolutoin: unknown key; did you mean 'resolution'? "
+                                              "render has: variant, scene, resolution, spp"),
+        ({"closed_loop": {"sensor": {"gain": 2, "iso": 100}}}, "config closed_loop.sensor.gain: unknown key "
+                                                                "(and iso); closed_loop.sensor has: enabled"),
+        ({"render": {"spp": "1e5"}}, "config render.spp = '1e5': must be an integer"),
+        ({"render": {"spp": True}}, "config render.spp = True: must be an integer"),
+        ({"merl_dir": 3}, "config merl_dir = 3: must be a string or null"),
+        ({"synthetic": None}, "config synthetic = None: must be a mapping (key: value)"),
+        ({"render": {"spp": 0}}, "config render.spp = 0: must be ≥ 1"),
+        ({"acquisition": {"fovs": [25, 90]}}, "config acquisition.fovs[1] = 90: must be < 90"),
+        ({"acquisition": {"eta": 0}}, "config acquisition.eta = 0: must be > 0"),
+        ({"render": {"variant": "cpu"}}, "config render.variant = 'cpu': must be one of llvm_ad_rgb, cuda_ad_rgb"),
+        ({"render": {"resolution": [64]}}, "config render.resolution: needs at least 2 entries (has 1)"),
+        ({"render": {"resolution": [64, 48, 3]}}, "config render.resolution: at most 2 entries (has 3)"),
+        ({"materials": []}, "config materials: must not be empty"),
+        ({"materials": [""]}, "config materials[0]: must not be empty"),
+        ({"acquisition": {"fovs": [25, 25]}}, "config acquisition.fovs: 25 is listed more than once"),
+        ({"manifold": {"candidates": [{"space": "raw"}]}}, "config manifold.candidates[0]: missing key mu"),
+        ({"render": {"scene": "a/b"}}, "config render.scene = 'a/b': must"),
+        ({"render": {"spp": 0, "colour": 1}}, "(and 1 more problem after it)"),
+    ],
+)
+def test_schema_violations_are_one_line_naming_the_key(config: dict, line: str) -> None:
+    problem = plan.schema_problem(config, SCHEMA)
+    assert problem is not None and "\n" not in problem and len(problem) < 400
+    assert problem.startswith(line) if line.startswith("config") else line in problem

@@ -23,6 +23,9 @@ from brdfpipe.core import filenames
 
 __all__ = [
     "ConfigError",
+    "config_key",
+    "schema_problem",
+    "describe_schema_error",
     "SOLER_PATHS",
     "candidate_label",
     "manifold_candidates",
@@ -56,6 +59,105 @@ SOLER_PATHS: tuple[tuple[str, str], ...] = (
 
 class ConfigError(ValueError):
     """A configuration value is unusable; the message names the key."""
+
+
+def config_key(path: Sequence[Any]) -> str:
+    """``["render", "resolution", 0]`` → ``"render.resolution[0]"``: a key path as a user writes it."""
+    out = ""
+    for part in path:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _shown(value: Any, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 5] + " …" + text[-3:]
+
+
+_JSON_TYPES = {
+    "integer": "an integer", "number": "a number", "string": "a string", "array": "a list",
+    "object": "a mapping (key: value)", "null": "null", "boolean": "true or false",
+}
+
+
+def describe_schema_error(error: Any) -> str:
+    """One line for a JSON-schema violation: the key path (``render.spp``), the value and what is wrong.
+
+    ``error`` is a ``jsonschema.ValidationError`` (duck-typed: ``absolute_path``,
+    ``validator``, ``validator_value``, ``instance``, ``schema``,
+    ``message``).  A schema may give the reason of a limit in a keyword
+    ``x-reason`` next to it; it ends the line.
+    """
+    import difflib
+
+    path = list(error.absolute_path)
+    key = config_key(path)
+    where = f"config {key}" if key else "config"
+    kind, limit, value = error.validator, error.validator_value, error.instance
+    sub = error.schema if isinstance(error.schema, Mapping) else {}
+    reason = sub.get("x-reason")
+    why = f" ({reason})" if reason else ""
+    if kind == "additionalProperties" and isinstance(value, Mapping):
+        allowed = list(sub.get("properties", {}))
+        unknown = sorted((str(k) for k in value if k not in allowed), key=str)
+        first = unknown[0] if unknown else "?"
+        guess = difflib.get_close_matches(first, allowed, n=1)
+        hint = f"did you mean {guess[0]!r}? " if guess else ""
+        more = f" (and {', '.join(unknown[1:])})" if len(unknown) > 1 else ""
+        section = f"{key} has" if key else "top-level keys are"
+        return (f"config {config_key([*path, first])}: unknown key{more}; {hint}{section}: "
+                f"{', '.join(allowed)}")
+    if kind == "type":
+        types = [limit] if isinstance(limit, str) else list(limit)
+        return f"{where} = {_shown(value)}: must be " + " or ".join(_JSON_TYPES.get(t, t) for t in types)
+    if kind == "enum":
+        return f"{where} = {_shown(value)}: must be one of " + ", ".join(str(v) for v in limit)
+    if kind == "const":
+        return f"{where} = {_shown(value)}: must be {limit!r}"
+    bounds = {"minimum": "≥", "maximum": "≤", "exclusiveMinimum": ">", "exclusiveMaximum": "<"}
+    if kind in bounds:
+        return f"{where} = {_shown(value)}: must be {bounds[kind]} {limit}{why}"
+    if kind == "minItems":
+        what = "must not be empty" if limit == 1 else f"needs at least {limit} entries (has {len(value)})"
+        return f"{where}: {what}"
+    if kind == "maxItems":
+        return f"{where}: at most {limit} entries (has {len(value)}){why}"
+    if kind == "uniqueItems":
+        seen: list[Any] = []
+        dup = next((v for v in value if v in seen or seen.append(v)), None)  # type: ignore[func-returns-value]
+        return f"{where}: {_shown(dup)} is listed more than once"
+    if kind == "required":
+        missing = [k for k in limit if not (isinstance(value, Mapping) and k in value)]
+        return f"{where}: missing key {', '.join(missing)}"
+    if kind == "minLength":
+        return f"{where}: must not be empty" if limit == 1 else f"{where} = {_shown(value)}: at least {limit} characters"
+    if kind == "maxLength":
+        return f"{where}: at most {limit} characters (has {len(value)}){why}"
+    if kind == "pattern":
+        meaning = sub.get("x-pattern") or f"match the pattern {limit}"
+        return f"{where} = {_shown(value)}: must {meaning}"
+    text = " ".join(str(error.message).split())
+    return f"{where}: {text[:200]}"
+
+
+def schema_problem(config: Mapping[str, Any], schema: Mapping[str, Any]) -> str | None:
+    """The first violation of ``schema`` (a JSON schema, as a dict) by ``config`` as one line, or None.
+
+    The line names the key path and what is wrong
+    (:func:`describe_schema_error`), and how many other violations there
+    are; the workflow stops with it instead of Snakemake's dump of the schema.
+    Imports ``jsonschema`` (Snakemake's own validator) when called.
+    """
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(schema)
+    errors = sorted(validator.iter_errors(config), key=lambda e: [str(p) for p in e.absolute_path])
+    if not errors:
+        return None
+    best = jsonschema.exceptions.best_match(errors)
+    line = describe_schema_error(best)
+    more = len(errors) - 1
+    return line + (f" (and {more} more problem{'s' if more > 1 else ''} after it)" if more else "")
 
 
 def check_finite(value: Any, key: str = "") -> None:
