@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import math
 import shutil
 import subprocess
 import sys
@@ -14,8 +15,20 @@ import yaml
 from brdfpipe.core import filenames as fn, plan, version
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
-TINY = yaml.safe_load((ROOT / "tests" / "config" / "tiny.yaml").read_text())
+SCHEMA_PATH = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+
+
+def _with_defaults(path: Path) -> dict:
+    """A config file as the workflow sees it: validated, the schema's defaults filled in."""
+    from snakemake.utils import validate
+
+    cfg = yaml.safe_load(path.read_text())
+    validate(cfg, str(SCHEMA_PATH), set_default=True)
+    return cfg
+
+
+DEFAULT = _with_defaults(ROOT / "config" / "config.yaml")
+TINY = _with_defaults(ROOT / "tests" / "config" / "tiny.yaml")
 NAMES = [f"m{i:02d}" for i in range(12)]
 
 
@@ -62,12 +75,36 @@ def test_closed_loop_captures_the_configured_sets() -> None:
         ({"closed_loop": {"metric": "condition"}, "acquisition": {"metrics": ["error"]}}, "closed_loop.metric"),
         ({"closed_loop": {"fovs": [30]}}, "closed_loop.fovs"),
         ({"closed_loop": {"n_images": [1, 3]}}, "closed_loop.n_images"),
+        ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "brackets": [2, 8]}}},
+         "config closed_loop.sensor.brackets = [2, 8]: the shortest exposure must be 1"),
+        ({"closed_loop": {"min_snr": 250}}, "config closed_loop.min_snr = 250: no pixel can reach it"),
+        ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "read_noise": 1e4, "brackets": [1]}}},
+         "config closed_loop.min_snr = 3: no pixel can reach it"),
     ],
 )
 def test_bad_values_name_their_key(sections: dict, key: str) -> None:
     with pytest.raises(plan.ConfigError) as err:
         plan.check_config(tiny(**sections), materials=NAMES, train=NAMES[3:])
     assert key in str(err.value)
+
+
+def test_two_paths_whose_file_names_collide_are_refused() -> None:
+    names = ["a", "b", "c", "a--b", "b--c"]
+    with pytest.raises(plan.ConfigError, match=r"^manifold.paths\[0\] \['a--b', 'c'\] and \[1\] \['a', 'b--c'\] "
+                                               "share the file name a--b--c"):
+        plan.check_paths([["a--b", "c"], ["a", "b--c"]], names)
+
+
+def test_sensor_checks_follow_what_the_capture_uses() -> None:
+    """min_snr is checked against the sensor's best SNR only when the sensor is on; nothing when the loop is off."""
+    sensor = TINY["closed_loop"]["sensor"]
+    best = plan.sensor_max_snr(sensor)  # [1, 8] brackets of the default sensor: √2 · 20000 / √(20025 + lsb²/12)
+    assert best == pytest.approx(math.sqrt(2) * 20000 / math.sqrt(20000 + 25 + (20000 / 4095) ** 2 / 12))
+    plan.check_config(tiny(closed_loop={"min_snr": 0.99 * best}), materials=NAMES, train=NAMES[3:])
+    plan.check_config(tiny(closed_loop={"min_snr": 1e6, "sensor": {**sensor, "enabled": False}}),
+                      materials=NAMES, train=NAMES[3:])
+    plan.check_config(tiny(closed_loop={"enabled": False, "sensor": {**sensor, "brackets": [4]}}),
+                      materials=NAMES, train=NAMES[3:])
 
 
 def test_default_paths_are_seeded_and_prefer_soler() -> None:
@@ -270,7 +307,7 @@ def test_floor_check_candidates() -> None:
 # Schema violations: one line naming the key (not Snakemake's dump of the schema)
 # --------------------------------------------------------------------------
 
-SCHEMA = yaml.safe_load((ROOT / "workflow" / "schemas" / "config.schema.yaml").read_text())
+SCHEMA = yaml.safe_load(SCHEMA_PATH.read_text())
 
 
 def test_the_shipped_configs_satisfy_the_schema() -> None:

@@ -363,7 +363,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
     assert not planned & untouched, planned & untouched
 
 
-@pytest.mark.parametrize("name", ["brace{x}", "with space", "café", "x" * 101])
+@pytest.mark.parametrize("name", ["brace{x}", "with space", "café", "x" * 101, "mean"])
 def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, name: str) -> None:
     folder = tmp_path / "merl"
     folder.mkdir()

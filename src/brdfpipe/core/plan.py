@@ -45,6 +45,7 @@ __all__ = [
     "floor_check_candidates",
     "closedloop_directions",
     "check_closed_loop",
+    "sensor_max_snr",
     "MEMORY_MB",
     "mem_mb",
 ]
@@ -282,9 +283,13 @@ def check_paths(
             raise ConfigError(f"{what}[{k}]: a path needs two different materials, got {a!r} twice")
         out.append((a, b))
     names = [filenames.path_name(a, b) for a, b in out]
-    dup = sorted({p for p in names if names.count(p) > 1})
-    if dup:
-        raise ConfigError(f"{what}: listed more than once: {', '.join(dup)}")
+    for k, name in enumerate(names):
+        j = names.index(name)
+        if j < k:
+            if out[j] == out[k]:
+                raise ConfigError(f"{what}: listed more than once: {name}")
+            raise ConfigError(f"{what}[{j}] {list(out[j])} and [{k}] {list(out[k])} share the file name {name}; "
+                              "rename a material or drop one path")
     return out
 
 
@@ -358,6 +363,36 @@ def check_closed_loop(config: Mapping[str, Any]) -> None:
     big = [n for n in cl["n_images"] if int(n) > int(acq["n_max_images"])]
     if big:
         raise ConfigError(f"config closed_loop.n_images: {big} exceed acquisition.n_max_images = {acq['n_max_images']}")
+    sensor = cl["sensor"]
+    brackets = [float(b) for b in sensor["brackets"]]
+    if min(brackets) != 1.0:
+        scaled = ", ".join(f"{b / min(brackets):g}" for b in brackets)
+        raise ConfigError(f"config closed_loop.sensor.brackets = {sensor['brackets']}: the shortest exposure must be 1 "
+                          f"(the others are relative to it), e.g. [{scaled}]")
+    if sensor["enabled"]:
+        best = sensor_max_snr(sensor)
+        if float(cl["min_snr"]) >= best:
+            raise ConfigError(
+                f"config closed_loop.min_snr = {cl['min_snr']}: no pixel can reach it, the sensor's best SNR is "
+                f"{best:.4g} (√{len(brackets)} brackets × full_well / √(full_well + read_noise² + lsb²/12)); "
+                "lower min_snr or raise closed_loop.sensor.full_well"
+            )
+
+
+def sensor_max_snr(sensor: Mapping[str, Any]) -> float:
+    """The highest SNR any pixel of the closed loop's sensor can reach (``closed_loop.sensor``).
+
+    The capture (:func:`brdfpipe.rendering.capture.expose`) estimates a
+    pixel's SNR as Σe / √(Σe + k·read_noise² + k·lsb²/12) over its k
+    unsaturated exposures, each below the full well: at most
+    √k·full_well / √(full_well + read_noise² + lsb²/12), k = the number of
+    brackets.  A ``min_snr`` at or above it masks every pixel.
+    """
+    fw = float(sensor["full_well"])
+    rn = float(sensor["read_noise"])
+    lsb = fw / ((1 << int(sensor["bits"])) - 1)
+    k = len(sensor["brackets"])
+    return math.sqrt(k) * fw / math.sqrt(fw + rn * rn + lsb * lsb / 12.0)
 
 
 def curve_fov(acquisition: Mapping[str, Any]) -> float:
