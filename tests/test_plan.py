@@ -346,3 +346,33 @@ def test_schema_violations_are_one_line_naming_the_key(config: dict, line: str) 
     problem = plan.schema_problem(config, SCHEMA)
     assert problem is not None and "\n" not in problem and len(problem) < 400
     assert problem.startswith(line) if line.startswith("config") else line in problem
+
+
+def _schema_at(*path: str) -> dict:
+    node = SCHEMA
+    for key in path:
+        node = node["items"] if key == "[]" else node["properties"][key]
+    return node
+
+
+def test_render_limits_in_the_schema_are_what_the_renderer_takes() -> None:
+    """spp and seeds the schema accepts render (passes of rendering.scene); one more is refused in one line."""
+    from brdfpipe.rendering import scene
+
+    most = scene._MAX_PASSES * scene.DEFAULT_PASS_SPP
+    for path in (("render", "spp"), ("render", "floor_check", "spp")):
+        assert _schema_at(*path)["maximum"] == most
+        scene.pass_seeds(most, 0)  # accepted
+        with pytest.raises(ValueError):
+            scene.pass_seeds(most + 1, 0)
+    for key in ("seed", "noise_seed"):
+        top = _schema_at("render", key)["maximum"]
+        assert max(s for s, _ in scene.pass_seeds(most, top)) < 2**32 <= max(s for s, _ in scene.pass_seeds(most, top + 1))
+    for cfg, key in [({"render": {"spp": most + 1}}, "render.spp = 32001: must be ≤ 32000 (a render runs in at most"),
+                     ({"render": {"seed": 4294967}}, "render.seed = 4294967: must be ≤ 4294966 (pass p of a render"),
+                     ({"render": {"floor_check": {"spp": 10**6}}}, "render.floor_check.spp = 1000000: must be ≤ 32000"),
+                     ({"closed_loop": {"sensor": {"full_well": 1e12}}}, "closed_loop.sensor.full_well = 1e+12: must be ≤ 1000000000"),
+                     ({"closed_loop": {"sensor": {"brackets": [1, 1e9]}}}, "closed_loop.sensor.brackets[1] = 1000000000: must be ≤ 1000000"),
+                     ({"render": {"scene": "x" * 65}}, "render.scene = 'xxxx")]:
+        problem = plan.schema_problem(cfg, SCHEMA)
+        assert problem is not None and problem.startswith(f"config {key}"), problem

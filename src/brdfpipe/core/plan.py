@@ -71,7 +71,7 @@ def config_key(path: Sequence[Any]) -> str:
 
 
 def _shown(value: Any, limit: int = 60) -> str:
-    text = repr(value)
+    text = f"{value:.10g}" if isinstance(value, float) else repr(value)
     return text if len(text) <= limit else text[: limit - 5] + " …" + text[-3:]
 
 
@@ -117,7 +117,7 @@ def describe_schema_error(error: Any) -> str:
         return f"{where} = {_shown(value)}: must be {limit!r}"
     bounds = {"minimum": "≥", "maximum": "≤", "exclusiveMinimum": ">", "exclusiveMaximum": "<"}
     if kind in bounds:
-        return f"{where} = {_shown(value)}: must be {bounds[kind]} {limit}{why}"
+        return f"{where} = {_shown(value)}: must be {bounds[kind]} {_shown(limit)}{why}"
     if kind == "minItems":
         what = "must not be empty" if limit == 1 else f"needs at least {limit} entries (has {len(value)})"
         return f"{where}: {what}"
