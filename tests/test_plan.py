@@ -78,6 +78,8 @@ def test_closed_loop_captures_the_configured_sets() -> None:
         ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "brackets": [2, 8]}}},
          "config closed_loop.sensor.brackets = [2, 8]: the shortest exposure must be 1"),
         ({"closed_loop": {"min_snr": 250}}, "config closed_loop.min_snr = 250: no pixel can reach it"),
+        ({"closed_loop": {"spp": 65536}, "acquisition": {"grid": 512}},
+         "config closed_loop.spp = 65536: at most 16320 with acquisition.grid = 512"),
         ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "read_noise": 1e4, "brackets": [1]}}},
          "config closed_loop.min_snr = 3: no pixel can reach it"),
     ],

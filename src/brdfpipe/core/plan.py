@@ -58,6 +58,11 @@ SOLER_PATHS: tuple[tuple[str, str], ...] = (
 )
 
 
+#: Mitsuba renders at most 2^32 − 1 samples in one pass (its wavefront index is 32-bit; 3.9's own split of a
+#: larger render fails).
+MITSUBA_MAX_SAMPLES: int = 2**32
+
+
 class ConfigError(ValueError):
     """A configuration value is unusable; the message names the key."""
 
@@ -363,6 +368,11 @@ def check_closed_loop(config: Mapping[str, Any]) -> None:
     big = [n for n in cl["n_images"] if int(n) > int(acq["n_max_images"])]
     if big:
         raise ConfigError(f"config closed_loop.n_images: {big} exceed acquisition.n_max_images = {acq['n_max_images']}")
+    size = int(acq["grid"]) + (1 - int(acq["grid"]) % 2)  # the capture's image: brdfpipe.core.nearfield.image_frame
+    most = (MITSUBA_MAX_SAMPLES - 1) // (size * size)
+    if int(cl["spp"]) > most:
+        raise ConfigError(f"config closed_loop.spp = {cl['spp']}: at most {most} with acquisition.grid = {acq['grid']} "
+                          f"(a capture renders its {size} × {size} pixels in one Mitsuba pass, at most 2^32 − 1 samples)")
     sensor = cl["sensor"]
     brackets = [float(b) for b in sensor["brackets"]]
     if min(brackets) != 1.0:
