@@ -378,3 +378,75 @@ def test_render_limits_in_the_schema_are_what_the_renderer_takes() -> None:
                      ({"render": {"scene": "x" * 65}}, "render.scene = 'xxxx")]:
         problem = plan.schema_problem(cfg, SCHEMA)
         assert problem is not None and problem.startswith(f"config {key}"), problem
+
+
+# --------------------------------------------------------------------------
+# Sizes: no job may need more than a job may have (plan.check_memory)
+# --------------------------------------------------------------------------
+
+
+def _memory_problem(cfg: dict, n: int = 100, points: int = 9) -> str | None:
+    floor = cfg["render"]["floor_check"]["resolution"]
+    rules = plan.planned_rules(cfg, generated=True, path_points=points > 0, floor_check=True)
+    try:
+        plan.check_memory(cfg, n, rules, outputs={r: points for r in plan.PER_OUTPUT_MB}, floor_resolution=floor,
+                          materials_key="synthetic.count")
+    except plan.ConfigError as err:
+        return str(err)
+    return None
+
+
+def _sections(base: dict, **sections: dict) -> dict:
+    cfg = copy.deepcopy(base)
+    for key, value in sections.items():
+        for k, v in value.items():
+            cfg[key][k] = {**cfg[key][k], **v} if isinstance(v, dict) else v
+    return cfg
+
+
+def test_the_shipped_configs_fit_the_memory_limit() -> None:
+    assert _memory_problem(DEFAULT) is None
+    assert _memory_problem(TINY, n=12, points=3) is None
+    # the declared memory of the default sizes is the measured model's, and grows with a size
+    sizes = plan.job_sizes(DEFAULT)
+    assert all(plan.mem_mb(r, 100, sizes=sizes) == plan.mem_mb(r, 100) for r in plan.MEMORY_MB)
+    big = plan.job_sizes(_sections(DEFAULT, render={"resolution": [1024, 768]}))
+    assert plan.mem_mb("prerender_material", 100, sizes=big) > plan.mem_mb("prerender_material", 100)
+    assert plan.mem_mb("write_explorer", 200, sizes=big) > 1.9 * plan.mem_mb("write_explorer", 100, sizes=big) - 500
+
+
+@pytest.mark.parametrize(
+    ("sections", "n", "start"),
+    [
+        ({"render": {"resolution": [4096, 3072]}}, 100, "config render.resolution = 12,582,912 pixels: one "),
+        ({"render": {"floor_check": {"resolution": [20000, 20000]}}}, 100,
+         "config render.floor_check.resolution = 400,000,000 pixels: one "),
+        ({"render": {"envmap": {"width": 100000, "height": 50000}}}, 100,
+         "config render.envmap.width × height = 5,000,000,000 pixels: one make_envmap job would need"),
+        ({}, 1000, "config synthetic.count: 1000 materials: one "),
+    ],
+)
+def test_a_size_beyond_the_memory_limit_names_its_key_and_largest_value(sections: dict, n: int, start: str) -> None:
+    cfg = _sections(DEFAULT, **sections)
+    problem = _memory_problem(cfg, n=n)
+    assert problem is not None and problem.startswith(start) and "above the 16,000 MB a job may have" in problem
+    # the largest value it names fits; a little more does not
+    most = int(problem.rsplit("at most ", 1)[1].split()[0].replace(",", ""))
+    if "materials" in start:
+        assert _memory_problem(cfg, n=most) is None and _memory_problem(cfg, n=most + 1) is not None
+        return
+    side = math.isqrt(most)
+    key = "floor_check" if "floor_check" in start else "envmap" if "envmap" in start else None
+    for w, fits in ((side, True), (side + 2, False)):
+        if key == "envmap":
+            patch = {"render": {"envmap": {"width": w, "height": w}}}
+        elif key == "floor_check":
+            patch = {"render": {"floor_check": {"resolution": [w, w]}}}
+        else:
+            patch = {"render": {"resolution": [w, w]}}
+        assert (_memory_problem(_sections(DEFAULT, **patch)) is None) == fits, (w, fits)
+
+
+def test_many_path_points_are_refused_by_the_outputs_a_job_holds() -> None:
+    problem = _memory_problem(DEFAULT, points=400)
+    assert problem is not None and problem.startswith("config render.path_points × manifold.paths: 400 path points")

@@ -242,6 +242,8 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"closed_loop": {"n_images": [3]}}, "closed_loop.n_images"),
         ({"merl_dir": ""}, "merl_dir"),
         ({"materials": ["no-such-*"]}, "materials: 'no-such-*' match"),
+        ({"render": {"envmap": {"width": 100000, "height": 50000}}}, "render.envmap.width × height = 5,000,000,000"),
+        ({"closed_loop": {"sensor": {"enabled": True, "brackets": [2, 8]}}}, "closed_loop.sensor.brackets"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:

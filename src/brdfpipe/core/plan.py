@@ -47,7 +47,14 @@ __all__ = [
     "check_closed_loop",
     "sensor_max_snr",
     "MEMORY_MB",
+    "JOB_MEMORY_LIMIT_MB",
+    "MEASURED_SIZES",
+    "SIZE_MEMORY_MB",
+    "job_sizes",
+    "model_mb",
     "mem_mb",
+    "planned_rules",
+    "check_memory",
 ]
 
 #: The latent paths of Soler et al. 2018, Fig. 9 (used when all six materials exist).
@@ -544,14 +551,207 @@ MEMORY_HEADROOM: float = 1.3
 MEMORY_RETRY_GROWTH: float = 1.5
 
 
-def mem_mb(rule: str, n_materials: int, attempt: int = 1, *, outputs: int = 1) -> int:
-    """``mem_mb`` a job of ``rule`` declares for ``n_materials`` materials at retry ``attempt`` (≥ 1).
+#: The most memory one job may declare (``mem_mb`` of its first attempt, :func:`mem_mb`): the per-job
+#: memory of the Slurm profile (``profiles/slurm``: ``resources: mem_mb: 16000``), below the 24 GiB of
+#: the build machine.  :func:`check_memory` refuses a configuration whose model exceeds it.
+JOB_MEMORY_LIMIT_MB: int = 16000
 
-    ``outputs``: how many outputs the job writes (counts only for the rules
-    of :data:`PER_OUTPUT_MB`).  Rounded up to 50 MB; at least 100 MB.
-    KeyError for a rule without a model.
+#: The sizes at which :data:`MEMORY_MB` was measured (the default configuration): pixels of a render
+#: (``render.resolution``), of the environment map, of a near-field image lattice (``acquisition.grid``²),
+#: points of the albedo map (``manifold.albedo_grid``²), images of a direction set
+#: (``acquisition.n_max_images``) and candidates per greedy step.
+MEASURED_SIZES: dict[str, float] = {
+    "render_pixels": 256 * 192,
+    "envmap_pixels": 256 * 128,
+    "lattice": 32 * 32,
+    "albedo_points": 96 * 96,
+    "images": 5,
+    "candidates": 500,
+}
+
+#: Memory that grows with a size beyond :data:`MEASURED_SIZES`, on top of :data:`MEMORY_MB`: per rule,
+#: terms ``(size, multipliers, MB)`` adding ``MB × (size − measured size)⁺ × Π multipliers`` (a multiplier
+#: is another size or ``materials``).  Measured with peak RSS on 2-core AMD EPYC (see each comment).
+SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
+    # the envmap: 302 B per pixel (sub-pixel sun coverage in float64); 4096 × 2048: 2,476 MB
+    "make_envmap": (("envmap_pixels", (), 3.0e-4),),
+    # a render: film, AOVs and float64 accumulators, 240 B per pixel (1024 × 768: 437 MB, 2048 × 1536:
+    # 1,028 MB, 32 spp per pass); Mitsuba's copy of the envmap, 63 B per pixel (4096 × 2048: +529 MB)
+    "prerender_material": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_path_point": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_object_mask": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_candidate_path_point": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    # readers of the renders (tiny config, 12 materials, 32 × 24 → 384 × 288: +5.6, +30, +56 and +264 MB)
+    "bounce_shares": (("render_pixels", (), 6.0e-5),),
+    "error_maps": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
+    "measure_candidate_blends": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
+    "plot_render_figures": (("render_pixels", ("materials",), 4.3e-5),),
+    "write_explorer": (("render_pixels", ("materials",), 2.0e-4),),
+}
+
+#: Config key of each size, for messages.
+SIZE_KEYS: dict[str, str] = {
+    "render_pixels": "render.resolution",
+    "envmap_pixels": "render.envmap.width × height",
+    "lattice": "acquisition.grid",
+    "albedo_points": "manifold.albedo_grid",
+    "images": "acquisition.n_max_images",
+    "candidates": "acquisition.candidates",
+}
+
+#: Rules whose jobs render or read the noise-floor check's scene (render.floor_check.resolution).
+FLOOR_RULES: frozenset[str] = frozenset({
+    "render_candidate_path_point", "measure_candidate_blends", "summarize_floor_check", "plot_floor_check",
+    "interpolate_candidate_path_points",
+})
+
+
+def job_sizes(config: Mapping[str, Any], *, resolution: Sequence[int] | None = None) -> dict[str, float]:
+    """The sizes of :data:`MEASURED_SIZES` in ``config`` (``resolution``: the scene's, default ``render.resolution``)."""
+    acq, man, render = config["acquisition"], config["manifold"], config["render"]
+    w, h = resolution if resolution is not None else render["resolution"]
+    return {
+        "render_pixels": float(w) * float(h),
+        "envmap_pixels": float(render["envmap"]["width"]) * float(render["envmap"]["height"]),
+        "lattice": float(acq["grid"]) ** 2,
+        "albedo_points": float(man["albedo_grid"]) ** 2,
+        "images": float(acq["n_max_images"]),
+        "candidates": float(acq["candidates"]),
+    }
+
+
+def _size_terms(rule: str, n_materials: int, sizes: Mapping[str, float] | None) -> list[tuple[str, float, float]]:
+    """(size, MB per unit of it above the measured size, that excess) of each size term of ``rule``."""
+    if not sizes:
+        return []
+    have = {**sizes, "materials": float(n_materials)}
+    out = []
+    for size, multipliers, mb in SIZE_MEMORY_MB.get(rule, ()):
+        per_unit = mb * math.prod(have[m] for m in multipliers)
+        out.append((size, per_unit, max(0.0, have[size] - MEASURED_SIZES[size])))
+    return out
+
+
+def model_mb(rule: str, n_materials: int, *, outputs: int = 1, sizes: Mapping[str, float] | None = None) -> float:
+    """Modelled peak memory (MB) of a job of ``rule``: :data:`MEMORY_MB`, :data:`PER_OUTPUT_MB`, :data:`SIZE_MEMORY_MB`.
+
+    ``sizes``: :func:`job_sizes` of the job's configuration; None = the measured ones (no size term).
     """
     base, per = MEMORY_MB[rule]
     base += PER_OUTPUT_MB.get(rule, 0.0) * max(0, int(outputs) - 1)
-    need = (base + per * int(n_materials)) * MEMORY_HEADROOM * MEMORY_RETRY_GROWTH ** (max(1, int(attempt)) - 1)
+    extra = sum(per_unit * excess for _, per_unit, excess in _size_terms(rule, n_materials, sizes))
+    return base + per * int(n_materials) + extra
+
+
+def mem_mb(
+    rule: str, n_materials: int, attempt: int = 1, *, outputs: int = 1, sizes: Mapping[str, float] | None = None
+) -> int:
+    """``mem_mb`` a job of ``rule`` declares for ``n_materials`` materials at retry ``attempt`` (≥ 1).
+
+    ``outputs``: how many outputs the job writes (counts only for the rules
+    of :data:`PER_OUTPUT_MB`); ``sizes``: the config's :func:`job_sizes`
+    (None: those :data:`MEMORY_MB` was measured at).  The model
+    (:func:`model_mb`) × :data:`MEMORY_HEADROOM`, rounded up to 50 MB; at
+    least 100 MB.  KeyError for a rule without a model.
+    """
+    need = model_mb(rule, n_materials, outputs=outputs, sizes=sizes)
+    need *= MEMORY_HEADROOM * MEMORY_RETRY_GROWTH ** (max(1, int(attempt)) - 1)
     return max(100, int(math.ceil(need / 50.0)) * 50)
+
+
+def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bool, floor_check: bool) -> list[str]:
+    """The rules of :data:`MEMORY_MB` whose jobs ``config`` plans (for :func:`check_memory`)."""
+    skip: set[str] = set()
+    if not generated:
+        skip |= {"synthesize_material", "write_manifest"}
+    if not closedloop_directions(config):
+        skip |= {"capture_closedloop", "evaluate_closedloop", "plot_closedloop"}
+    if not path_points:
+        skip |= {"interpolate_path_points", "render_path_point", "error_maps"}
+    if not floor_check:
+        skip |= FLOOR_RULES
+    if not curve_directions(config["acquisition"]):
+        skip.add("evaluate_training_size")
+    return [r for r in MEMORY_MB if r not in skip]
+
+
+def _largest(rule: str, what: str, n_materials: int, n_out: int, sizes: Mapping[str, float], budget: float) -> float:
+    """Largest value of ``what`` (a size, ``materials`` or ``outputs``) for which ``rule``'s model stays within ``budget``."""
+    base, per = MEMORY_MB[rule]
+    if what == "outputs":
+        step = PER_OUTPUT_MB.get(rule, 0.0)
+        rest = model_mb(rule, n_materials, outputs=1, sizes=sizes)
+        return math.inf if step <= 0 else 1 + (budget - rest) / step
+    if what == "materials":
+        # the model is linear in N: base + per·N + N-proportional size terms
+        at0, at1 = (model_mb(rule, n, outputs=n_out, sizes=sizes) for n in (0, 1))
+        slope = at1 - at0
+        return math.inf if slope <= 0 else (budget - at0) / slope
+    terms = [t for t in _size_terms(rule, n_materials, sizes) if t[0] == what]
+    per_unit = sum(t[1] for t in terms)
+    if per_unit <= 0:
+        return math.inf
+    rest = model_mb(rule, n_materials, outputs=n_out, sizes=sizes) - sum(t[1] * t[2] for t in terms)
+    return MEASURED_SIZES[what] + max(0.0, (budget - rest) / per_unit)
+
+
+def check_memory(
+    config: Mapping[str, Any],
+    n_materials: int,
+    rules: Sequence[str],
+    *,
+    outputs: Mapping[str, int] | None = None,
+    floor_resolution: Sequence[int] | None = None,
+    materials_key: str = "materials",
+    limit_mb: int = JOB_MEMORY_LIMIT_MB,
+) -> None:
+    """Refuse a configuration one of whose jobs would declare more than ``limit_mb`` (:data:`JOB_MEMORY_LIMIT_MB`).
+
+    For each rule (``rules``, :func:`planned_rules`) the first attempt's
+    ``mem_mb`` (:func:`mem_mb`) with the config's sizes (the floor check's
+    rules with ``floor_resolution``).  The job that needs most decides:
+    :class:`ConfigError` naming the key whose term grew most (a size of
+    :data:`SIZE_KEYS`, the number of path points, or the number of
+    materials, ``materials_key``), the job's need, the limit, and the
+    largest value of that key that every planned job fits with.
+    """
+    outputs = outputs or {}
+    budget = limit_mb / MEMORY_HEADROOM  # what a model may reach (declared: × headroom, rounded up to 50 MB)
+    jobs = []
+    for rule in rules:
+        if floor_resolution is None:
+            scenes: list[Sequence[int] | None] = [None]
+        elif rule in FLOOR_RULES:
+            scenes = [floor_resolution]
+        else:  # prerender_material renders both scene folders
+            scenes = [None, floor_resolution] if rule == "prerender_material" else [None]
+        for res in scenes:
+            sizes = job_sizes(config, resolution=res)
+            n_out = int(outputs.get(rule, 1))
+            jobs.append((mem_mb(rule, n_materials, outputs=n_out, sizes=sizes), rule, res, sizes, n_out))
+    need, rule, res, sizes, n_out = max(jobs, key=lambda j: j[0])
+    if need <= limit_mb:
+        return
+    # what grew: the size term with the largest share, else path points, else materials
+    grown = {size: per_unit * excess for size, per_unit, excess in _size_terms(rule, n_materials, sizes)}
+    grown["outputs"] = PER_OUTPUT_MB.get(rule, 0.0) * (n_out - 1)
+    grown["materials"] = MEMORY_MB[rule][1] * n_materials
+    what = max(grown, key=lambda k: (grown[k], k != "materials"))
+    most = min(_largest(r, what, n_materials, o, z, budget) for _, r, q, z, o in jobs
+               if what != "render_pixels" or (q is None) == (res is None))
+    why = f"one {rule} job would need {need:,} MB, above the {limit_mb:,} MB a job may have (the Slurm profile's per-job memory)"
+    if what == "materials":
+        raise ConfigError(f"config {materials_key}: {n_materials} materials: {why}; at most {int(most)} materials")
+    if what == "outputs":
+        raise ConfigError(f"config render.path_points × manifold.paths: {n_out} path points: {why}; "
+                          f"at most {int(most)} path points")
+    key = "render.floor_check.resolution" if what == "render_pixels" and res is not None else SIZE_KEYS[what]
+    have = sizes[what]
+    if what in ("lattice", "albedo_points"):
+        value, limit_text = f"{int(round(math.sqrt(have)))}", f"at most {math.isqrt(int(most))}"
+    elif what in ("render_pixels", "envmap_pixels"):
+        value, limit_text = f"{int(have):,} pixels", f"at most {int(most):,} pixels"
+    else:
+        value, limit_text = f"{int(have)}", f"at most {int(most)}"
+    why = f"one {rule} job would need {need:,} MB with {n_materials} materials, above the {limit_mb:,} MB a job may have (the Slurm profile's per-job memory)"
+    raise ConfigError(f"config {key} = {value}: {why}; {limit_text}")
