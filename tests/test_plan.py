@@ -78,6 +78,8 @@ def test_closed_loop_captures_the_configured_sets() -> None:
         ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "brackets": [2, 8]}}},
          "config closed_loop.sensor.brackets = [2, 8]: the shortest exposure must be 1"),
         ({"closed_loop": {"min_snr": 250}}, "config closed_loop.min_snr = 250: no pixel can reach it"),
+        ({"manifold": {"mu": 1e-5, "candidates": [{"space": "standardised", "mu": 1.0000001e-5}]}},
+         "config manifold.candidates[0]: mu = 1.0000001e-05 differs from manifold.mu = 1e-05 only past 6"),
         ({"closed_loop": {"spp": 65536}, "acquisition": {"grid": 512}},
          "config closed_loop.spp = 65536: at most 16320 with acquisition.grid = 512"),
         ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "read_noise": 1e4, "brackets": [1]}}},
@@ -342,6 +344,13 @@ def test_the_shipped_configs_satisfy_the_schema() -> None:
         ({"manifold": {"candidates": [{"space": "raw"}]}}, "config manifold.candidates[0]: missing key mu"),
         ({"render": {"scene": "a/b"}}, "config render.scene = 'a/b': must"),
         ({"render": {"spp": 0, "colour": 1}}, "(and 1 more problem after it)"),
+        ({"render": {"resolution": [2, 100]}}, "config render.resolution[0] = 2: must be ≥ 8 (the preview object"),
+        ({"acquisition": {"training_sizes": [3, 3]}}, "config acquisition.training_sizes: 3 is listed more than once"),
+        ({"manifold": {"paths": []}}, "config manifold.paths: must not be empty"),
+        ({"acquisition": {"n_max_point": 5000}}, "config acquisition.n_max_point = 5000: must be ≤ 1000 (a directions"),
+        ({"acquisition": {"candidates": 10**9}}, "config acquisition.candidates = 1000000000: must be ≤ 1458000"),
+        ({"manifold": {"path_steps": 10**6}}, "config manifold.path_steps = 1000000: must be ≤ 1000"),
+        ({"test_materials": ["a/b"]}, "config test_materials[0] = 'a/b': must be a material name"),
     ],
 )
 def test_schema_violations_are_one_line_naming_the_key(config: dict, line: str) -> None:
@@ -424,6 +433,7 @@ def test_the_shipped_configs_fit_the_memory_limit() -> None:
         ({"render": {"envmap": {"width": 100000, "height": 50000}}}, 100,
          "config render.envmap.width × height = 5,000,000,000 pixels: one make_envmap job would need"),
         ({}, 1000, "config synthetic.count: 1000 materials: one "),
+        ({"manifold": {"albedo_grid": 2000}}, 100, "config manifold.albedo_grid = 2000: one analyze_manifold job"),
     ],
 )
 def test_a_size_beyond_the_memory_limit_names_its_key_and_largest_value(sections: dict, n: int, start: str) -> None:
@@ -434,6 +444,10 @@ def test_a_size_beyond_the_memory_limit_names_its_key_and_largest_value(sections
     most = int(problem.rsplit("at most ", 1)[1].split()[0].replace(",", ""))
     if "materials" in start:
         assert _memory_problem(cfg, n=most) is None and _memory_problem(cfg, n=most + 1) is not None
+        return
+    if "albedo_grid" in start:
+        assert _memory_problem(_sections(DEFAULT, manifold={"albedo_grid": most})) is None
+        assert _memory_problem(_sections(DEFAULT, manifold={"albedo_grid": most + 1})) is not None
         return
     side = math.isqrt(most)
     key = "floor_check" if "floor_check" in start else "envmap" if "envmap" in start else None

@@ -117,7 +117,7 @@ else:
 
 # Sizes the memory model reads, per scene folder (the floor check renders smaller).
 JOB_SIZES = {
-    scene: plan.job_sizes(config, resolution=res)
+    scene: plan.job_sizes(config, resolution=res, n_test=len(TEST_MATERIALS))
     for scene, (res, _) in RENDER_SETTINGS.items()
 }
 # No job may need more memory than one job may have: sizes and materials are
@@ -141,6 +141,7 @@ try:
         outputs=POINT_OUTPUTS,
         floor_resolution=FLOOR["resolution"] if FLOOR_CANDIDATES else None,
         materials_key=MATERIALS_KEY,
+        n_test=len(TEST_MATERIALS),
     )
 except plan.ConfigError as err:
     raise WorkflowError(f"invalid configuration: {err}") from None

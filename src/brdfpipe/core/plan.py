@@ -214,7 +214,12 @@ def manifold_candidates(manifold: Mapping[str, Any]) -> dict[str, tuple[str, flo
         if label in seen:
             raise ConfigError(f"config manifold.candidates[{k}]: {label} is listed twice")
         seen.add(label)
-        out.setdefault(label, (str(c["space"]), float(c["mu"])))
+        have = out.setdefault(label, (str(c["space"]), float(c["mu"])))
+        if have != (str(c["space"]), float(c["mu"])):
+            raise ConfigError(
+                f"config manifold.candidates[{k}]: mu = {c['mu']!r} differs from manifold.mu = {manifold['mu']!r} only "
+                f"past 6 significant digits, so both would be {label}; use the same value or distinct ones"
+            )
     return out
 
 
@@ -567,7 +572,15 @@ MEASURED_SIZES: dict[str, float] = {
     "albedo_points": 96 * 96,
     "images": 5,
     "candidates": 500,
+    "candidate_cells": 500 * 32 * 32,
+    "image_cells": (5 + 7) * 32 * 32,
+    "path_chunk": 21,
+    "q_plus": 5 + 4,
+    "captured_lattice": (1 + 2) * 4 * 32 * 32,
+    "test_materials": 10,
 }
+#: Path points whose tables the manifold analyses hold at once (brdfpipe.manifold.analysis: 24, and the end).
+PATH_CHUNK: int = 25
 
 #: Memory that grows with a size beyond :data:`MEASURED_SIZES`, on top of :data:`MEMORY_MB`: per rule,
 #: terms ``(size, multipliers, MB)`` adding ``MB × (size − measured size)⁺ × Π multipliers`` (a multiplier
@@ -587,6 +600,19 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     "measure_candidate_blends": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
     "plot_render_figures": (("render_pixels", ("materials",), 4.3e-5),),
     "write_explorer": (("render_pixels", ("materials",), 2.0e-4),),
+    # path points: an interpolated table (35 MB) and its perceptual features (53 MB) each, up to PATH_CHUNK at
+    # once (tiny config, path_steps 4 → 30: +1,760 MB); the albedo map: distances and kernel values of every
+    # point to every material, 8·(q + 4) bytes (albedo_grid 16 → 256 at q = 5, 12 materials: +78 MB)
+    # the optimiser: transient per-configuration geometry, ~0.7 kB per lattice pixel (tiny model, 40
+    # candidates: grid 12: 309 MB, 128: 334 MB, 256: 384 MB, 512: 492 MB; 200 candidates at 256: 401 MB)
+    "optimize_directions": (("lattice", (), 7.0e-4),),
+    # the capture: one configuration's footprint rays, 8.6 kB per lattice pixel (grid 32: 254 MB, 128: 274 MB,
+    # 256: 717 MB, 512: 2,493 MB), and every image of the material kept (render, photograph, SNR, saturation
+    # and geometry, 170 B per pixel); the evaluation holds every kept pixel's model column and value per source
+    "capture_closedloop": (("lattice", (), 8.6e-3), ("captured_lattice", (), 1.7e-4)),
+    "evaluate_closedloop": (("captured_lattice", ("test_materials",), 6.4e-5),),
+    "analyze_manifold": (("path_chunk", (), 88.0), ("albedo_points", ("materials", "q_plus"), 1.2e-5)),
+    "measure_gplvm_candidate": (("path_chunk", (), 88.0), ("albedo_points", ("materials", "q_plus"), 1.2e-5)),
 }
 
 #: Config key of each size, for messages.
@@ -597,6 +623,12 @@ SIZE_KEYS: dict[str, str] = {
     "albedo_points": "manifold.albedo_grid",
     "images": "acquisition.n_max_images",
     "candidates": "acquisition.candidates",
+    "candidate_cells": "acquisition.candidates × grid²",
+    "image_cells": "(acquisition.n_max_images + 7) × grid²",
+    "path_chunk": "manifold.path_steps",
+    "q_plus": "manifold.latent_dims",
+    "captured_lattice": "acquisition.grid",
+    "test_materials": "test_materials",
 }
 
 #: Rules whose jobs render or read the noise-floor check's scene (render.floor_check.resolution).
@@ -606,17 +638,32 @@ FLOOR_RULES: frozenset[str] = frozenset({
 })
 
 
-def job_sizes(config: Mapping[str, Any], *, resolution: Sequence[int] | None = None) -> dict[str, float]:
-    """The sizes of :data:`MEASURED_SIZES` in ``config`` (``resolution``: the scene's, default ``render.resolution``)."""
+def job_sizes(
+    config: Mapping[str, Any], *, resolution: Sequence[int] | None = None, n_test: int = 10
+) -> dict[str, float]:
+    """The sizes of :data:`MEASURED_SIZES` in ``config`` (``resolution``: the scene's, default ``render.resolution``).
+
+    ``n_test``: the number of held-out materials.
+    """
     acq, man, render = config["acquisition"], config["manifold"], config["render"]
     w, h = resolution if resolution is not None else render["resolution"]
+    lattice = float(acq["grid"]) ** 2
     return {
         "render_pixels": float(w) * float(h),
         "envmap_pixels": float(render["envmap"]["width"]) * float(render["envmap"]["height"]),
-        "lattice": float(acq["grid"]) ** 2,
+        "lattice": lattice,
         "albedo_points": float(man["albedo_grid"]) ** 2,
         "images": float(acq["n_max_images"]),
         "candidates": float(acq["candidates"]),
+        # a greedy step's candidates hold their observed cells; a set's images and a move's ≤ 7 trials their rows
+        "candidate_cells": float(acq["candidates"]) * lattice,
+        "image_cells": (float(acq["n_max_images"]) + 7.0) * lattice,
+        "path_chunk": float(min(int(man["path_steps"]) + 1, PATH_CHUNK)),
+        "q_plus": float(max(int(q) for q in man["latent_dims"]) + 4),
+        # lattice pixels of the closed loop's images of one material: Σ n_images over its direction sets
+        "captured_lattice": float(sum(int(n) for n in config["closed_loop"]["n_images"])
+                                  * max(1, len(closedloop_directions(config))) * lattice),
+        "test_materials": float(n_test),
     }
 
 
@@ -703,6 +750,7 @@ def check_memory(
     outputs: Mapping[str, int] | None = None,
     floor_resolution: Sequence[int] | None = None,
     materials_key: str = "materials",
+    n_test: int = 10,
     limit_mb: int = JOB_MEMORY_LIMIT_MB,
 ) -> None:
     """Refuse a configuration one of whose jobs would declare more than ``limit_mb`` (:data:`JOB_MEMORY_LIMIT_MB`).
@@ -726,7 +774,7 @@ def check_memory(
         else:  # prerender_material renders both scene folders
             scenes = [None, floor_resolution] if rule == "prerender_material" else [None]
         for res in scenes:
-            sizes = job_sizes(config, resolution=res)
+            sizes = job_sizes(config, resolution=res, n_test=n_test)
             n_out = int(outputs.get(rule, 1))
             jobs.append((mem_mb(rule, n_materials, outputs=n_out, sizes=sizes), rule, res, sizes, n_out))
     need, rule, res, sizes, n_out = max(jobs, key=lambda j: j[0])
@@ -747,7 +795,24 @@ def check_memory(
                           f"at most {int(most)} path points")
     key = "render.floor_check.resolution" if what == "render_pixels" and res is not None else SIZE_KEYS[what]
     have = sizes[what]
-    if what in ("lattice", "albedo_points"):
+    if what == "captured_lattice":
+        per_grid2 = sizes[what] / sizes["lattice"]  # images per material
+        if sizes["lattice"] > MEASURED_SIZES["lattice"]:
+            key = "acquisition.grid"
+            value, limit_text = f"{int(round(math.sqrt(sizes['lattice'])))}", f"at most {math.isqrt(int(most / per_grid2))}"
+        else:
+            key = "closed_loop.n_images × setups × fovs"
+            value, limit_text = f"{int(per_grid2)} images per material", f"at most {int(most / sizes['lattice'])}"
+    elif what in ("candidate_cells", "image_cells"):
+        per_grid2 = sizes[what] / sizes["lattice"]  # candidates, or images + 7
+        if sizes["lattice"] > MEASURED_SIZES["lattice"]:
+            key = "acquisition.grid"
+            value, limit_text = f"{int(round(math.sqrt(sizes['lattice'])))}", f"at most {math.isqrt(int(most / per_grid2))}"
+        else:
+            key = "acquisition.candidates" if what == "candidate_cells" else "acquisition.n_max_images"
+            top = most / sizes["lattice"] - (0 if what == "candidate_cells" else 7)
+            value, limit_text = f"{int(round(per_grid2 - (0 if what == 'candidate_cells' else 7)))}", f"at most {int(top)}"
+    elif what in ("lattice", "albedo_points"):
         value, limit_text = f"{int(round(math.sqrt(have)))}", f"at most {math.isqrt(int(most))}"
     elif what in ("render_pixels", "envmap_pixels"):
         value, limit_text = f"{int(have):,} pixels", f"at most {int(most):,} pixels"
