@@ -225,7 +225,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"acquisition": {"fovs": [0]}}, "acquisition.fovs[0] = 0: must be > 0"),
         ({"acquisition": {"fovs": [90]}}, "acquisition.fovs[0] = 90: must be < 90"),
         ({"acquisition": {"n_max_images": 0}}, "acquisition.n_max_images = 0: must be ≥ 1"),
-        ({"acquisition": {"eta": 0}}, "acquisition.eta = 0: must be > 0"),
+        ({"acquisition": {"eta": 0}}, "acquisition.eta = 0: must be ≥ 1e-06"),
         ({"manifold": {"latent_dims": [0]}}, "manifold.latent_dims[0] = 0: must be ≥ 1"),
         ({"manifold": {"ell": 0}}, "manifold.ell = 0: must be > 0"),
         ({"manifold": {"mu": -1e-4}}, "manifold.mu = -0.0001: must be ≥ 0"),
