@@ -101,6 +101,12 @@ def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pyte
     assert peaks[12] < peaks[2] + 2 * feature_bytes, peaks
 
 
+def test_the_memory_model_counts_the_path_points_held_at_once() -> None:
+    from brdfpipe.core import plan
+
+    assert plan.PATH_CHUNK == analysis._MAX_TABLES_IN_MEMORY + 1  # a chunk and the path's end
+
+
 def test_check_and_default_paths() -> None:
     names = [f"m{i}" for i in range(10)]
     p1 = analysis.default_paths(names, seed=4)

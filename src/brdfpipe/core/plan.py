@@ -562,18 +562,14 @@ MEMORY_RETRY_GROWTH: float = 1.5
 JOB_MEMORY_LIMIT_MB: int = 16000
 
 #: The sizes at which :data:`MEMORY_MB` was measured (the default configuration): pixels of a render
-#: (``render.resolution``), of the environment map, of a near-field image lattice (``acquisition.grid``²),
-#: points of the albedo map (``manifold.albedo_grid``²), images of a direction set
-#: (``acquisition.n_max_images``) and candidates per greedy step.
+#: (``render.resolution``) and of the environment map, a near-field image lattice (``acquisition.grid``²),
+#: points of the albedo map (``manifold.albedo_grid``²), path points held at once, the largest latent
+#: dimension + 4, the lattice pixels of one material's closed-loop images, held-out materials.
 MEASURED_SIZES: dict[str, float] = {
     "render_pixels": 256 * 192,
     "envmap_pixels": 256 * 128,
     "lattice": 32 * 32,
     "albedo_points": 96 * 96,
-    "images": 5,
-    "candidates": 500,
-    "candidate_cells": 500 * 32 * 32,
-    "image_cells": (5 + 7) * 32 * 32,
     "path_chunk": 21,
     "q_plus": 5 + 4,
     "captured_lattice": (1 + 2) * 4 * 32 * 32,
@@ -621,10 +617,6 @@ SIZE_KEYS: dict[str, str] = {
     "envmap_pixels": "render.envmap.width × height",
     "lattice": "acquisition.grid",
     "albedo_points": "manifold.albedo_grid",
-    "images": "acquisition.n_max_images",
-    "candidates": "acquisition.candidates",
-    "candidate_cells": "acquisition.candidates × grid²",
-    "image_cells": "(acquisition.n_max_images + 7) × grid²",
     "path_chunk": "manifold.path_steps",
     "q_plus": "manifold.latent_dims",
     "captured_lattice": "acquisition.grid",
@@ -653,11 +645,6 @@ def job_sizes(
         "envmap_pixels": float(render["envmap"]["width"]) * float(render["envmap"]["height"]),
         "lattice": lattice,
         "albedo_points": float(man["albedo_grid"]) ** 2,
-        "images": float(acq["n_max_images"]),
-        "candidates": float(acq["candidates"]),
-        # a greedy step's candidates hold their observed cells; a set's images and a move's ≤ 7 trials their rows
-        "candidate_cells": float(acq["candidates"]) * lattice,
-        "image_cells": (float(acq["n_max_images"]) + 7.0) * lattice,
         "path_chunk": float(min(int(man["path_steps"]) + 1, PATH_CHUNK)),
         "q_plus": float(max(int(q) for q in man["latent_dims"]) + 4),
         # lattice pixels of the closed loop's images of one material: Σ n_images over its direction sets
@@ -803,15 +790,6 @@ def check_memory(
         else:
             key = "closed_loop.n_images × setups × fovs"
             value, limit_text = f"{int(per_grid2)} images per material", f"at most {int(most / sizes['lattice'])}"
-    elif what in ("candidate_cells", "image_cells"):
-        per_grid2 = sizes[what] / sizes["lattice"]  # candidates, or images + 7
-        if sizes["lattice"] > MEASURED_SIZES["lattice"]:
-            key = "acquisition.grid"
-            value, limit_text = f"{int(round(math.sqrt(sizes['lattice'])))}", f"at most {math.isqrt(int(most / per_grid2))}"
-        else:
-            key = "acquisition.candidates" if what == "candidate_cells" else "acquisition.n_max_images"
-            top = most / sizes["lattice"] - (0 if what == "candidate_cells" else 7)
-            value, limit_text = f"{int(round(per_grid2 - (0 if what == 'candidate_cells' else 7)))}", f"at most {int(top)}"
     elif what in ("lattice", "albedo_points"):
         value, limit_text = f"{int(round(math.sqrt(have)))}", f"at most {math.isqrt(int(most))}"
     elif what in ("render_pixels", "envmap_pixels"):
