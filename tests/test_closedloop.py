@@ -261,6 +261,19 @@ def test_closed_loop_with_the_default_sensor(loop: Loop) -> None:
 
 
 @needs_llvm
+def test_a_sensor_that_masks_every_pixel_gives_the_mean_reconstruction(loop: Loop) -> None:
+    """min_snr above any pixel's SNR: the evaluation runs to the end and reports 0 observations, all masked."""
+    got = loop.run("all-masked", capture.Sensor(), spp=4, min_snr=1e6)
+    for n in (1, 2):
+        assert got[("mean", "closedloop_observations", n)] == 0
+        assert got[("mean", "closedloop_masked", n)] == 1.0
+        assert math.isfinite(got[("mean", "closedloop_rms_log", n)])
+        # no observation: eq. 4 gives the model's mean, the same reconstruction for n = 1 and n = 2
+        assert got[("mean", "closedloop_rms_log", n)] == got[("mean", "closedloop_rms_log", 1)]
+        assert got[("mean", "closedloop_noiseless_rms_log", n)] < got[("mean", "closedloop_rms_log", n)]
+
+
+@needs_llvm
 def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from brdfpipe.cli import main
 

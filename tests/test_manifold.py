@@ -75,6 +75,38 @@ def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
         analysis.path_analysis(small["store"], model, G, a, "zzz")
 
 
+def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    """manifold.path_steps: each point's 53 MB perceptual features are dropped once its distances are known.
+
+    (Holding all of them took one job to 22.7 GB.)  Chunks of two tables: the values are those of the
+    one-chunk computation, and the peak of 13 points stays that of 3.
+    """
+    import tracemalloc
+
+    model = gplvm.load_model(small["models"][3])
+    G, _, _ = gplvm.load_gram(small["gram"])
+    a, b = small["names"][0], small["names"][4]
+    whole = analysis.path_analysis(small["store"], model, G, a, b, steps=12)
+    monkeypatch.setattr(analysis, "_MAX_TABLES_IN_MEMORY", 2)
+    peaks = {}
+    for steps in (2, 12):
+        tracemalloc.start()
+        rows = analysis.path_analysis(small["store"], model, G, a, b, steps=steps)
+        peaks[steps] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    for r, w in zip(rows, whole):
+        for k in ("perceptual_a", "perceptual_b", "perceptual_ab"):
+            assert r[k] == pytest.approx(w[k], rel=1e-9, abs=1e-9)
+    feature_bytes = 8 * __import__("brdfpipe.manifold.perceptual", fromlist=["x"]).pr12_n_features()
+    assert peaks[12] < peaks[2] + 2 * feature_bytes, peaks
+
+
+def test_the_memory_model_counts_the_path_points_held_at_once() -> None:
+    from brdfpipe.core import plan
+
+    assert plan.PATH_CHUNK == analysis._MAX_TABLES_IN_MEMORY + 1  # a chunk and the path's end
+
+
 def test_check_and_default_paths() -> None:
     names = [f"m{i}" for i in range(10)]
     p1 = analysis.default_paths(names, seed=4)

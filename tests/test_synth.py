@@ -434,3 +434,22 @@ def test_database_manifest_collects_job_records(tmp_path: Path) -> None:
     )
     doc = json.loads(out.read_text())
     assert [m["params"]["energy_scale"] for m in doc["materials"]] == [0.9] * 4 + [1.0]
+
+
+def test_database_manifest_of_a_subset_lists_the_generated_materials(tmp_path: Path) -> None:
+    """The workflow's `materials` subset of the synthetic database: the manifest lists what was generated."""
+    specs = synth.plan_database(5, 3)
+    part = [specs[1].name, specs[3].name]
+    files = []
+    for name in part:
+        f = tmp_path / f"{name}.json"
+        f.write_text(json.dumps({"name": name, "energy_scale": 0.9, "max_albedo": 1.07}))
+        files.append(f)
+    out = tmp_path / "manifest.json"
+    synth.write_database_manifest(out, count=5, seed=3, noise=0.0, test_materials=part[:1], record_files=files,
+                                  materials=part)
+    doc = json.loads(out.read_text())
+    assert [m["name"] for m in doc["materials"]] == part and doc["count"] == 5 and doc["test_materials"] == part[:1]
+    with pytest.raises(ValueError, match="not materials of this synthetic database: nope"):
+        synth.write_database_manifest(out, count=5, seed=3, noise=0.0, test_materials=[], record_files=files,
+                                      materials=[*part, "nope"])

@@ -2,7 +2,7 @@
 # validated Zarr store, plus the train/test split.
 
 
-if SYNTHETIC:
+if GENERATED:
 
     rule synthesize_material:
         output:
@@ -46,6 +46,7 @@ if SYNTHETIC:
             seed=config["synthetic"]["seed"],
             noise=config["synthetic"]["noise"],
             test_materials=TEST_MATERIALS,
+            materials=MATERIALS,
             code=code("write_manifest.py"),
         script:
             "../scripts/write_manifest.py"
@@ -55,7 +56,7 @@ if SYNTHETIC:
 # database labelled at parse time and, for the workflow's own synthetic files,
 # made with this configuration (the material name is checked for every marked file).
 INGEST_EXPECT = {"database": DATABASE.kind}
-if config["merl_dir"] is None:
+if GENERATED:
     INGEST_EXPECT.update(
         count=config["synthetic"]["count"],
         seed=config["synthetic"]["seed"],
@@ -110,7 +111,7 @@ rule assemble_store:
 rule write_splits:
     input:
         store=fn.store(),
-        manifest=fn.manifest() if SYNTHETIC else [],
+        manifest=fn.manifest() if GENERATED else [],
     output:
         splits=fn.splits(),
     log:

@@ -34,6 +34,7 @@ __all__ = [
     "Database",
     "DatabaseError",
     "MAX_NAME_LENGTH",
+    "RESERVED_NAMES",
     "check_material_name",
     "database_from_folder",
     "merl_database",
@@ -70,6 +71,9 @@ _NAME_RULE = (
     f"letter or digit and have at most {MAX_NAME_LENGTH} characters"
 )
 _SHOWN = 8  # files named in one error message
+#: Names the results use for something else: ``mean`` is the material of the mean rows of
+#: ``errors.csv``, ``closedloop.csv`` and ``training_size.csv``.
+RESERVED_NAMES: frozenset[str] = frozenset({"mean"})
 
 
 class DatabaseError(ValueError):
@@ -102,7 +106,7 @@ def check_material_name(name: str, source: str) -> str:
     A material name becomes file and folder names and Snakemake wildcards:
     it must consist of ASCII letters, digits, ``.``, ``_``, ``+`` and ``-``,
     start with a letter or digit and be at most :data:`MAX_NAME_LENGTH`
-    characters long.  ``source`` says where the name comes from (a file, or a
+    characters long; it must not be one of :data:`RESERVED_NAMES`.  ``source`` says where the name comes from (a file, or a
     config key such as ``test_materials``) and starts the one-line message,
     which also names the broken rule.
     """
@@ -117,6 +121,11 @@ def check_material_name(name: str, source: str) -> str:
         problem = "contains " + ", ".join(repr(c) for c in bad)
     elif not name[0].isascii() or not name[0].isalnum():
         problem = f"starts with {name[0]!r}"
+    elif name in RESERVED_NAMES:
+        raise DatabaseError(
+            f"{source}: material name {name!r} is reserved (the results' tables name their mean rows "
+            f"{name!r}); rename the file"
+        )
     else:
         return name
     raise DatabaseError(f"{source}: material name {name!r} {problem}; {_NAME_RULE}")

@@ -1083,11 +1083,15 @@ def write_manifest(
     noise: float,
     test_materials: Sequence[str],
     records: Mapping[str, Mapping[str, float]] | None = None,
+    count: int | None = None,
 ) -> None:
     """Write the database's ``manifest.json`` (atomically: temporary file + rename).
 
     ``records`` (optional) maps material names to their generation records
     (:func:`generate_material`); they are stored in the materials' params.
+    ``count``: the size of the planned database (``plan_database(count,
+    seed)``) when ``specs`` are only the part of it that was generated;
+    default ``len(specs)``.
     Raises :class:`ValueError` for duplicate names or unknown test materials.
     """
     seed = _check_int(seed, "seed", 0)
@@ -1111,7 +1115,7 @@ def write_manifest(
         "generator": "brdfpipe.data.synth",
         "version": full_version(),
         "seed": seed,
-        "count": len(specs),
+        "count": len(specs) if count is None else _check_int(count, "count", len(specs)),
         "noise": noise,
         "materials": materials,
         "test_materials": list(test_materials),
@@ -1127,14 +1131,24 @@ def write_database_manifest(
     noise: float,
     test_materials: Sequence[str],
     record_files: Sequence[str | os.PathLike[str]],
+    materials: Sequence[str] | None = None,
 ) -> None:
     """Write the manifest of ``plan_database(count, seed)`` with the records of its jobs.
 
     ``record_files`` are the JSON records that :func:`write_named_material`
     wrote, one per material; a missing or foreign record is an error naming
-    the file.
+    the file.  ``materials``: the names generated when the run uses a part
+    of the database (the workflow's ``materials`` key); the manifest then
+    lists those only (its ``count`` stays the planned database's).
     """
     specs = plan_database(count, seed)
+    if materials is not None:
+        planned = {s.name for s in specs}
+        unknown = sorted(set(materials) - planned)
+        if unknown:
+            raise ValueError(f"not materials of this synthetic database: {', '.join(unknown)}")
+        keep = set(materials)
+        specs = [s for s in specs if s.name in keep]
     names = {s.name for s in specs}
     records: dict[str, dict[str, float]] = {}
     for f in record_files:
@@ -1147,7 +1161,7 @@ def write_database_manifest(
     if missing:
         raise ValueError(f"no generation record for: {', '.join(missing)}")
     write_manifest(
-        specs, path, seed=seed, noise=noise, test_materials=test_materials, records=records
+        specs, path, seed=seed, noise=noise, test_materials=test_materials, records=records, count=count
     )
 
 

@@ -285,12 +285,28 @@ def path_analysis(
     ts = np.arange(steps + 1) / steps
     pts = (1.0 - ts)[:, None] * xa + ts[:, None] * xb
     W = np.stack([gplvm.blend_weights(gplvm.weights(model, x)) for x in pts])
-    feats = []
-    for c0 in range(0, len(ts), _MAX_TABLES_IN_MEMORY):
-        tables, _ = gplvm.interpolate_tables(st, W[c0 : c0 + _MAX_TABLES_IN_MEMORY], materials=names, space=model.space)
-        feats.extend(perceptual.pr12_features(t) for t in tables)
+    # Points in chunks of _MAX_TABLES_IN_MEMORY, the last point (B) in the first chunk: only each point's
+    # distances to the ends are kept, so memory does not grow with ``steps`` (a feature vector is ~53 MB).
+    n_pts = len(ts)
+    chunks = [list(range(c0, min(c0 + _MAX_TABLES_IN_MEMORY, n_pts))) for c0 in range(0, n_pts, _MAX_TABLES_IN_MEMORY)]
+    if n_pts - 1 not in chunks[0]:
+        chunks[-1].pop()
+        chunks[0].append(n_pts - 1)
+        chunks = [c for c in chunks if c]
+    to_a = np.zeros(n_pts)
+    to_b = np.zeros(n_pts)
+    f_a = f_b = None
+    for chunk in chunks:
+        tables, _ = gplvm.interpolate_tables(st, W[chunk], materials=names, space=model.space)
+        feats = {k: perceptual.pr12_features(tab) for k, tab in zip(chunk, tables)}
         del tables
-    d_ab = perceptual.pr12_distance(feats[0], feats[-1])
+        if f_a is None:
+            f_a, f_b = feats[0], feats[n_pts - 1]
+        for k, f in feats.items():
+            to_a[k] = perceptual.pr12_distance(f, f_a)
+            to_b[k] = perceptual.pr12_distance(f, f_b)
+        del feats
+    d_ab = perceptual.pr12_distance(f_a, f_b)
     g = np.asarray(gram, dtype=np.float64)
     rows = []
     for k, (t, x) in enumerate(zip(ts, pts)):
@@ -298,8 +314,8 @@ def path_analysis(
         rows.append({
             "path": path_name(a, b), "material_a": a, "material_b": b, "step": k, "t": float(t),
             "latent_distance": float(t * np.linalg.norm(xb - xa)),
-            "perceptual_a": perceptual.pr12_distance(feats[k], feats[0]),
-            "perceptual_b": perceptual.pr12_distance(feats[k], feats[-1]),
+            "perceptual_a": float(to_a[k]),
+            "perceptual_b": float(to_b[k]),
             "perceptual_ab": d_ab,
             "nearest": names[j],
             "deviation": deviation(g, W[k], j),
