@@ -1,10 +1,13 @@
 #!/usr/bin/env python
 """Fit time and final log-likelihood of the GPLVM (Soler et al. 2018 §3).
 
-Target (from the GPLVM issue): :func:`brdfpipe.manifold.gplvm.fit` for N = 100,
-q = 5 takes ≤ 2 s on one core (the paper: 122 s for q = 2) and reaches a
-log-likelihood, under our objective, at least that of GPy's GPLVM with the
-same fixed kernel.  Also compared: scipy L-BFGS-B with analytic gradients.
+Targets: :func:`brdfpipe.manifold.gplvm.fit` for N = 100, q = 5 takes ≤ 2 s
+on one core (the paper: 122 s for q = 2) and reaches a log-likelihood, under
+our objective, at least that of GPy's GPLVM with the same fixed kernel from
+the same start (the GPLVM issue); and (issue 23) at least 10× faster than
+that GPy run.  Also compared: scipy L-BFGS-B with analytic gradients from
+the same start, and the previous default optimiser (``hybrid``) and the
+paper's (``hooke-jeeves``).
 
 Objective (eq. 6), kernel (eq. 5), ``ℓ = 1``, ``μ = 1e-4`` fixed::
 
@@ -31,8 +34,10 @@ What it does
    to max|grad|.
 3. For q in ``--q`` (default 2 5):
 
-   * ours: ``gplvm.fit(G, d, q=q, seed=0)`` (default ``init_scale="best"``),
-     best of ``--repeats`` wall times, final L;
+   * ours: ``gplvm.fit(G, d, q=q, seed=0)`` (default ``method="newton"``,
+     ``init_scale="best"``), best of ``--repeats`` wall times, final L,
+     gradient and Hessian evaluations; ``method="hybrid"`` (the default
+     before issue 23) and ``"hooke-jeeves"`` (the paper) the same way;
    * scipy L-BFGS-B (analytic gradient ``dL/dX`` through
      ``dL/dK = −(d/2)K⁻¹ + ½K⁻¹GK⁻¹``) from the same start as ours:
      ``pca_init(G, q) × FitResult.init_factor`` (the scale of the rule our
@@ -57,8 +62,15 @@ What it does
      run): how far our result is from a stationary point.
 4. Prints a table (method, q, wall s, final L under our objective, ratio of
    times to ours, relative L gap to ours) and PASS/FAIL lines:
-   "ours ≤ 2 s at q = 5", "ours L ≥ L-BFGS L", "ours L ≥ GPy L".  Exit
-   status 0 either way: benches report, they do not gate CI.
+   "ours ≤ 2 s at q = 5", "ours L ≥ L-BFGS L", "ours L ≥ GPy L", "GPy
+   time / ours ≥ 10" (GPy on our objective, both from the same start; the
+   ratio of two timings of the same run, on a shared machine the only
+   comparable number) and the speed-up over ``hybrid``.  The optimisers
+   land in different local maxima from the same start (the objective is
+   multimodal), so "ours L ≥ …" can fail by a few per cent either way on
+   another data set; see the module docstring of
+   :mod:`brdfpipe.manifold.gplvm`.  Exit status 0 either way: benches
+   report, they do not gate CI.
 
 Single-threaded: OPENBLAS_NUM_THREADS / OMP_NUM_THREADS / MKL_NUM_THREADS
 are set to 1 before numpy is imported (also for the GPy subprocess).
@@ -97,6 +109,8 @@ from brdfpipe.manifold import gplvm  # noqa: E402
 ELL = 1.0
 MU = 1e-4
 TARGET_S = 2.0
+#: Issue 23: ours at least this many times faster than GPy (same objective, same start).
+GPY_RATIO_TARGET = 10.0
 DEFAULT_GRAM = ROOT / "results" / "gplvm" / "gram-raw.npz"
 #: Two optima equal to this relative tolerance count as equal (rounding of L ~ 1e9 at a stationary point).
 RTOL = 1e-9
@@ -313,10 +327,19 @@ def main() -> None:
             L0 = gplvm.log_likelihood(X0, G, d, ELL, MU)
             rows.append(("ref: all points coincide (L∞)", q, None, L_inf, "closed form, centred G"))
             rows.append(("start: pca_init × init_factor", q, None, L0, f"rule {res.init_scale}, factor {res.init_factor:.4g}"))
-            rows.append(("ours (fit, hybrid: HJ + L-BFGS)", q, t_ours, res.log_likelihood,
-                         f"{res.sweeps} sweeps, {res.evaluations} evals, {res.polish_iterations} L-BFGS its, "
-                         f"HJ stage L {res.hj_log_likelihood:.6g}; trials "
+            rows.append((f"ours (fit, {res.method})", q, t_ours, res.log_likelihood,
+                         f"{res.gradient_evaluations} gradients, {res.hessian_evaluations} Hessians, "
+                         f"{res.polish_iterations} L-BFGS its ({res.trial_iterations} in the trial), "
+                         f"{res.newton_iterations} Newton steps; trials "
                          + ", ".join(f"{k} {v:.4g}" for k, v in res.scale_trials.items())))
+            t = time.perf_counter()
+            t_hy, res_hy = best_of(lambda: gplvm.fit(G, d, q=q, seed=0, method="hybrid"), args.repeats)
+            part_times[f"{scaling} hybrid q={q}"] = time.perf_counter() - t
+            rows.append(("hybrid (HJ + L-BFGS, before issue 23)", q, t_hy, res_hy.log_likelihood,
+                         f"{res_hy.sweeps} sweeps, {res_hy.evaluations} evals, {res_hy.polish_iterations} L-BFGS its, "
+                         f"start {res_hy.init_scale}"))
+            verdicts.append(f"INFO  [{scaling}] q = {q}: ours {t_ours:.3f} s vs hybrid {t_hy:.3f} s: "
+                            f"{t_hy / t_ours:.1f}x faster; L rel. gap {(res.log_likelihood - res_hy.log_likelihood) / abs(res_hy.log_likelihood):+.2e}")
             t_hj, res_hj = best_of(lambda: gplvm.fit(G, d, q=q, seed=0, method="hooke-jeeves"), args.repeats)
             rows.append(("ours (Hooke-Jeeves only, the paper)", q, t_hj, res_hj.log_likelihood,
                          f"{res_hj.sweeps} sweeps, {res_hj.evaluations} evals"))
@@ -355,6 +378,11 @@ def main() -> None:
                     ok = ours[q][1] >= L_g - RTOL * abs(L_g)
                     verdicts.append(f"{'PASS' if ok else 'FAIL'}  [{scaling}] q = {q}: ours L {ours[q][1]:.6g} ≥ {label} L {L_g:.6g} (to {RTOL:g})"
                                     f" (rel. gap {(ours[q][1] - L_g) / abs(L_g):+.2e})")
+                    if key == "Y_scaled":
+                        ratio = o["seconds"] / ours[q][0]
+                        verdicts.append(f"{'PASS' if ratio >= GPY_RATIO_TARGET else 'FAIL'}  [{scaling}] q = {q}: GPy "
+                                        f"{o['seconds']:.3f} s / ours {ours[q][0]:.3f} s = {ratio:.1f} ≥ {GPY_RATIO_TARGET:g} "
+                                        f"(same objective and start, timed in this run)")
         rows.sort(key=lambda r: r[1])
         print(f"{'method':38s} {'q':>2s} {'wall s':>9s} {'final L (ours)':>16s} {'t/ours':>7s} {'(L−L_ours)/|L_ours|':>20s}  notes")
         for name, q, tt, L, note in rows:

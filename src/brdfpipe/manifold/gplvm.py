@@ -34,7 +34,7 @@ Kernel (eq. 5) ``c(x, x′) = μ·δ(x, x′) + exp(−‖x − x′‖²/2ℓ²
 ``K = exp(−D²/2ℓ²) + μI``; objective (eq. 6)
 ``L(X) = −(d/2)·log|K| − ½·tr(K⁻¹ Gc)``, with ``Gc`` the centred Gram.
 
-Optimisation (:func:`fit`): Hooke–Jeeves direct search over the latent points.
+Hooke–Jeeves (``method="hooke-jeeves"``, ``"hybrid"``): direct search over the latent points.
 Moving point ``i`` changes row and column ``i`` of ``K`` (its diagonal stays
 1 + μ): ``K′ = K + u e_iᵀ + e_i uᵀ`` with ``u = k′_i − k_i`` (``u_i = 0``),
 i.e. a symmetric rank-2 update ``K′ = K + U C Uᵀ``, ``U = [u, e_i]``,
@@ -72,8 +72,45 @@ degenerate "all points coincide"; measured in ``benches/bench_gplvm.py``.)
 
 Optimisation
 ------------
+``method="newton"`` (the default since issue 23; :func:`_newton_stages`):
+
+1. start: :func:`pca_init` scaled by the rules ``rms`` and ``unit``
+   (:data:`NEWTON_TRIAL_SCALES`; below), 100 plain L-BFGS iterations from
+   each, the higher L continues;
+2. L-BFGS preconditioned by the exact Hessian
+   (:func:`log_likelihood_hessian`, ≈ 20 gradients' worth at q = 5): every
+   30 iterations the Hessian is recomputed, shifted into a positive
+   definite matrix where it is not (far from a maximum) and factorised, and
+   L-BFGS continues in the coordinates where it is the identity;
+3. Newton steps (a Levenberg–Marquardt trust region) with the exact Hessian
+   until the gain is at rounding level; where the Hessian shows a stationary
+   point to be a saddle, a step along its direction of positive curvature
+   and back to 2.  The result is a local maximum: gradient at rounding
+   level, Hessian negative semi-definite up to the rigid motions.
+
+It has no random element (``seed`` is not used).  Why: plain L-BFGS needs
+1,000–8,600 iterations on these data (the curvature spans many decades:
+nearly coincident materials make K nearly singular along a few directions),
+and the ``hybrid`` optimiser (below) adds Hooke–Jeeves trials and sweeps
+around it.  Measured on the default synthetic store's 18 fits (the nine
+``(space, μ)`` candidates × q ∈ {2, 5}, normalised, N = 100, one thread,
+CPU seconds on the shared 2-core machine): 8.8 s for all 18 against 95.4 s
+for ``hybrid``; 111–778 L-BFGS iterations (median 300; plus 3–26 Hessians)
+where plain L-BFGS from the same start needs 217–5,166 (median 2,250).  Final L against ``hybrid``: higher in 12 fits (by up to 40 %:
+its Hooke–Jeeves trials picked the ``nn`` start, from which no gradient
+method recovers), within 1e-4 in 3, lower in 3 (−0.08 %, −0.3 %, −0.7 %);
+against plain L-BFGS from the same start run to convergence: higher or
+equal in 13, lower in 5 (−0.3 % to −6.5 %).  The objective is multimodal
+(several maxima within a few per cent of each other), and a different
+path from the same start can end in a different one, either way; no
+optimiser here is global.  Hooke–Jeeves sweeps run after this method's
+end points accepted no move in 17 of the 18 fits (one: +9e-11), so the
+direct search's gains that motivated ``hybrid`` (escaping the stationary
+points where L-BFGS stops) are what step 3 now does.  N = 400 and GPy:
+``benches/bench_scaling.py`` and ``benches/bench_gplvm.py``.
+
 ``method="hooke-jeeves"`` is the paper's direct search alone (below).
-``method="hybrid"`` (the default): the initial scale is chosen by short
+``method="hybrid"`` (the default before issue 23): the initial scale is chosen by short
 Hooke–Jeeves trials (below), then scipy's L-BFGS-B on the analytic gradient
 (:func:`log_likelihood_grad`) runs from that start to a stationary point,
 then the Hooke–Jeeves search continues from there (its finite steps can
@@ -122,7 +159,12 @@ random    5      3.37e8           3.76e8           **4.05e8**
 ========  =====  ===============  ===============  ===============
 
 so ``init_scale="best"`` (the default) runs every rule for ``trial_sweeps``
-sweeps (10) and continues the search from the one with the highest L; on the
+sweeps (10) and continues the search from the one with the highest L (that
+is ``hybrid`` and ``hooke-jeeves``; ``newton`` tries ``rms`` and ``unit``
+with 100 L-BFGS iterations each: under L-BFGS to convergence, on the 18
+default fits, ``nn`` never ended best — its final L was 0.43–0.97 of the
+best rule's — and the L after 100 iterations picked the better of ``rms``
+/ ``unit`` in 15, losing 0.3 % on average, against 13 and 2.3 % after 50); on the
 eight cases above it ends within 2 % of the best single rule or above it
 (raw q = 2: −1.36e16), for about 30 % more time.  The tendencies: ``nn``
 (points spread so neighbours sit at ℓ) wins at q = 2 when the data are on
