@@ -378,6 +378,19 @@ def test_fit_is_deterministic_and_seeded() -> None:
     assert set(a.scale_trials) == set(gplvm.INIT_SCALES) and a.init_scale in gplvm.INIT_SCALES
 
 
+def test_fit_to_files_same_bytes_twice(tmp_path: Path) -> None:
+    """The workflow's fit (default method): the same Gram file gives the same bytes of model and trace."""
+    d = 4e6
+    G = _random_gram(20, 9, d) * 1e3
+    info = gplvm.GramInfo(tuple(f"m{i}" for i in range(20)), "raw", np.zeros(20), G)
+    gplvm.save_gram(tmp_path / "g.npz", G, int(d), info)
+    for k in (1, 2):
+        gplvm.fit_to_files(tmp_path / "g.npz", tmp_path / f"m{k}.npz", tmp_path / f"t{k}.csv", q=2, seed=k)
+    assert (tmp_path / "m1.npz").read_bytes() == (tmp_path / "m2.npz").read_bytes()
+    assert (tmp_path / "t1.csv").read_bytes() == (tmp_path / "t2.csv").read_bytes()
+    assert "newton" in (tmp_path / "t1.csv").read_text() or ",lbfgs," in (tmp_path / "t1.csv").read_text()
+
+
 @pytest.mark.parametrize("q", [2, 5])
 def test_fit_at_full_database_size(q: int) -> None:
     """N = 100, d = 4e6 (the MERL sizes): both stages run, improve on the start and keep
