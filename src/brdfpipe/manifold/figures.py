@@ -947,7 +947,7 @@ def manifold_fig05_likelihood(inp: ManifoldInputs, stem: str | os.PathLike[str])
                 if last > 200:
                     a_.set_xscale("symlog", linthresh=10.0, linscale=0.6)
                 a_.set_xlim(left=0.0)
-            ax.set_xlabel("step (an L-BFGS iteration, a Newton step or a Hooke–Jeeves sweep; stage changes marked)")
+            ax.set_xlabel("step (L-BFGS iteration, Newton step or Hooke–Jeeves sweep; stage changes marked)")
             ax.set_ylabel("log-likelihood L (eq. 6)")
             ax.set_title("log-likelihood")
             ax.legend(loc="lower right")

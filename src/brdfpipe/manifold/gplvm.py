@@ -1470,7 +1470,7 @@ def fit(
         res.seconds = time.perf_counter() - t0
         logger.info(
             "GPLVM fit N=%d q=%d (newton): start %s x%.3g, L %.6g -> %.6g after %d L-BFGS iterations "
-            "(%d preconditioned by %d Hessians) and %d Newton steps, %d gradients, %.2f s",
+            "(%d after the start's trial, preconditioned by %d Hessians) and %d Newton steps, %d gradients, %.2f s",
             g.shape[0], q, res.init_scale, res.init_factor, res.initial_log_likelihood, res.log_likelihood,
             res.polish_iterations, res.polish_iterations - res.trial_iterations, res.hessian_evaluations,
             res.newton_iterations, res.gradient_evaluations, res.seconds,
