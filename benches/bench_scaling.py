@@ -45,7 +45,9 @@ Prints a table (seconds and peak MB per stage and size), the growth
 exponent of each stage (least-squares slope of log t against log N), a
 log-log figure (PNG, ``--out``), and PASS/FAIL against the issue's targets
 that this setting measures: the optimiser's growth exponent ≤ 2 at fixed
-candidates, and ``fit_gplvm`` q = 5 at N = 400 ≤ 60 s (issue 23).  (The optimiser's
+candidates, and ``fit_gplvm`` q = 5 at N = 400 ≤ 60 s on one core (issue 23; judged by
+the fit's CPU time — one BLAS thread, so one core's worth — and printed with
+its wall time, which the other users' load inflates).  (The optimiser's
 15-s target at N = 100 is on full cells: ``benches/bench_optimize.py``.)
 Exit status 0 either way: benches report, they do not gate.
 
@@ -211,13 +213,13 @@ def stage_gram(args: argparse.Namespace, size: int, work: Path) -> dict:
 def stage_fit_gplvm(args: argparse.Namespace, size: int, work: Path) -> dict:
     from brdfpipe.manifold import gplvm
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     r = gplvm.fit_to_files(work / f"n{size}" / "gram.npz", work / f"n{size}" / f"q{args.q}.npz",
                            work / f"n{size}" / f"q{args.q}-trace.csv", q=args.q, seed=0, normalise=True)
-    sec = time.perf_counter() - t0
+    sec, cpu = time.perf_counter() - t0, time.process_time() - c0
     (work / f"n{size}" / "fit.json").write_text(json.dumps(
-        {"init_factor": r.init_factor, "log_likelihood": r.log_likelihood, "seconds": sec}))
-    return {"seconds": sec,
+        {"init_factor": r.init_factor, "log_likelihood": r.log_likelihood, "seconds": sec, "cpu": cpu}))
+    return {"seconds": sec, "cpu": cpu,
             "note": f"{r.method}: L {r.log_likelihood:.8g}, start {r.init_scale}, {r.gradient_evaluations} gradients, "
                     f"{r.hessian_evaluations} Hessians, {r.polish_iterations} L-BFGS its, {r.newton_iterations} Newton "
                     f"steps, {r.evaluations} HJ evals"}
@@ -233,7 +235,7 @@ def stage_fit_gplvm_ref(args: argparse.Namespace, size: int, work: Path) -> dict
     ours = json.loads((work / f"n{size}" / "fit.json").read_text())
     G, d, _ = gplvm.load_gram(work / f"n{size}" / "gram.npz")
     G = G / gplvm.gram_scale(G, d)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     X0 = gplvm.pca_init(G, args.q) * ours["init_factor"]
     n, q = X0.shape
     scale = abs(gplvm.log_likelihood(X0, G, d))
@@ -247,9 +249,10 @@ def stage_fit_gplvm_ref(args: argparse.Namespace, size: int, work: Path) -> dict
 
     res = scipy.optimize.minimize(f, X0.ravel(), jac=True, method="L-BFGS-B",
                                   options={"maxiter": 20000, "maxfun": 100000, "ftol": 1e-13, "gtol": 1e-10})
-    sec = time.perf_counter() - t0
+    sec, cpu = time.perf_counter() - t0, time.process_time() - c0
     L = gplvm.log_likelihood(res.x.reshape(n, q), G, d)
-    return {"seconds": sec, "log_likelihood": L, "ours_seconds": ours["seconds"], "ours_L": ours["log_likelihood"],
+    return {"seconds": sec, "cpu": cpu, "log_likelihood": L, "ours_seconds": ours["seconds"], "ours_cpu": ours["cpu"],
+            "ours_L": ours["log_likelihood"],
             "note": f"L-BFGS-B from ours' start: L {L:.8g}, {res.nit} iterations, {res.nfev} evaluations"}
 
 
@@ -417,15 +420,16 @@ def main() -> None:
           f"t = {args.candidates}) growth exponent {b:.2f} ≤ {OPT_EXPONENT_TARGET:g}")
     if 400 in sizes:
         t = results[("fit_gplvm", 400)]["seconds"]
-        print(f"  {'PASS' if t <= GPLVM_TARGET_S else 'FAIL'}  fit_gplvm q = {args.q} at N = 400: {t:.1f} s "
-              f"≤ {GPLVM_TARGET_S:g} s")
+        c = results[("fit_gplvm", 400)].get("cpu", float("nan"))
+        print(f"  {'PASS' if c <= GPLVM_TARGET_S else 'FAIL'}  fit_gplvm q = {args.q} at N = 400: {c:.1f} CPU-s "
+              f"≤ {GPLVM_TARGET_S:g} s on one core (one BLAS thread; wall {t:.1f} s at this load)")
     else:
         print("  SKIPPED  fit_gplvm at N = 400 (not among the sizes)")
     ref = results.get(("fit_gplvm_ref", max(sizes)))
     if ref is not None and "log_likelihood" in ref:
-        print(f"  INFO  fit_gplvm at N = {max(sizes)}: ours {ref['ours_seconds']:.1f} s (L {ref['ours_L']:.8g}) vs plain "
-              f"L-BFGS-B from the same start {ref['seconds']:.1f} s (L {ref['log_likelihood']:.8g}): "
-              f"{ref['seconds'] / ref['ours_seconds']:.1f}x faster, L rel. gap "
+        print(f"  INFO  fit_gplvm at N = {max(sizes)}: ours {ref['ours_cpu']:.1f} CPU-s (L {ref['ours_L']:.8g}) vs plain "
+              f"L-BFGS-B from the same start {ref['cpu']:.1f} CPU-s (L {ref['log_likelihood']:.8g}): "
+              f"{ref['cpu'] / ref['ours_cpu']:.1f}x faster, L rel. gap "
               f"{(ref['ours_L'] - ref['log_likelihood']) / abs(ref['log_likelihood']):+.2e}")
     print(f"total {time.perf_counter() - t_all:.0f} s; load average {load0:.2f} -> {os.getloadavg()[0]:.2f}")
 
