@@ -89,25 +89,27 @@ Optimisation
    level, Hessian negative semi-definite up to the rigid motions.
 
 It has no random element (``seed`` is not used).  Why: plain L-BFGS needs
-1,000–8,600 iterations on these data (the curvature spans many decades:
-nearly coincident materials make K nearly singular along a few directions),
-and the ``hybrid`` optimiser (below) adds Hooke–Jeeves trials and sweeps
-around it.  Measured on the default synthetic store's 18 fits (the nine
-``(space, μ)`` candidates × q ∈ {2, 5}, normalised, N = 100, one thread,
-CPU seconds on the shared 2-core machine): 8.8 s for all 18 against 95.4 s
-for ``hybrid``; 111–778 L-BFGS iterations (median 300; plus 3–26 Hessians)
-where plain L-BFGS from the same start needs 217–5,166 (median 2,250).  Final L against ``hybrid``: higher in 12 fits (by up to 40 %:
-its Hooke–Jeeves trials picked the ``nn`` start, from which no gradient
-method recovers), within 1e-4 in 3, lower in 3 (−0.08 %, −0.3 %, −0.7 %);
-against plain L-BFGS from the same start run to convergence: higher or
-equal in 13, lower in 5 (−0.3 % to −6.5 %).  The objective is multimodal
-(several maxima within a few per cent of each other), and a different
-path from the same start can end in a different one, either way; no
-optimiser here is global.  Hooke–Jeeves sweeps run after this method's
-end points accepted no move in 17 of the 18 fits (one: +9e-11), so the
-direct search's gains that motivated ``hybrid`` (escaping the stationary
-points where L-BFGS stops) are what step 3 now does.  N = 400 and GPy:
-``benches/bench_scaling.py`` and ``benches/bench_gplvm.py``.
+up to thousands of iterations on these data (the curvature spans many
+decades: nearly coincident materials make K nearly singular along a few
+directions), and the ``hybrid`` optimiser (below) adds Hooke–Jeeves trials
+and sweeps around it.  Measured on the default synthetic store's 18 fits
+(the nine ``(space, μ)`` candidates × q ∈ {2, 5}, normalised, N = 100, one
+thread, CPU seconds on the shared 2-core machine): 8.8–10.3 s for all 18
+(two runs) against 95.4 s for ``hybrid``; 111–778 L-BFGS iterations
+(median 300) plus 3–26 Hessians, where plain L-BFGS from the same start
+needs 217–5,166 iterations (median 2,250).  Final L against ``hybrid``:
+higher by more than 1e-4 in 11 fits (by up to 40 %: its Hooke–Jeeves
+trials picked the ``nn`` start, from which no gradient method recovers),
+within 1e-4 in 4, lower in 3 (−0.08 %, −0.3 %, −0.7 %); against plain
+L-BFGS from the same start run to convergence: higher or equal in 13,
+lower in 5 (−0.3 % to −6.5 %).  The objective is multimodal (several
+maxima within a few per cent of each other), and a different path from the
+same start can end in a different one, either way; no optimiser here is
+global.  Hooke–Jeeves sweeps run after this method's end points accepted no
+move in 17 of the 18 fits (one: +9e-11), so the direct search's gains that
+motivated ``hybrid`` (leaving the stationary points where L-BFGS stops) are
+what step 3 now does.  N = 400 and GPy: ``benches/bench_scaling.py`` and
+``benches/bench_gplvm.py``.
 
 ``method="hooke-jeeves"`` is the paper's direct search alone (below).
 ``method="hybrid"`` (the default before issue 23): the initial scale is chosen by short
@@ -1146,7 +1148,9 @@ def _shifted_cholesky(
     lapack = scipy.linalg.lapack
     diag = np.diag_indices_from(B)
     base = B[diag].copy()
-    while True:
+    if not lam > 0:  # a zero Hessian (every point far from all others): any positive shift
+        lam = 1e-12 * max(float(np.abs(base).max()), 1e-300)
+    for _ in range(120):
         B[diag] = base + lam
         counts.factorisations += 1
         c, info = lapack.dpotrf(B, lower=1, clean=1)
@@ -1154,6 +1158,8 @@ def _shifted_cholesky(
             B[diag] = base
             return c, lam
         lam *= 8.0
+    B[diag] = base
+    raise np.linalg.LinAlgError("the Hessian could not be shifted to a positive definite matrix")
 
 
 def _newton_stages(
@@ -1180,8 +1186,8 @@ def _newton_stages(
        model's prediction (else ``λ`` ×4 and retry), ``λ`` ÷4 after a good
        step.  Stops when the largest gradient entry is ≤ ``gtol``·|L|, when a
        step gains less than 1e-15·|L| (rounding level), after three steps in
-       a row that gain less than 1e-10·|L| each (converging quadratically,
-       the step after such a one gains ~1e-20·|L|; creeping along an almost
+       a row that gain less than 1e-9·|L| each (converging quadratically,
+       the step after such a one gains ~1e-18·|L|; creeping along an almost
        flat direction — a point far from all others, whose kernel entries
        are ~0 — it would go on for such gains), or after
        ``newton_iterations``.
@@ -1227,7 +1233,7 @@ def _newton_stages(
                 break
         # 2. Newton steps; 3. a step out of a saddle point, then stage 1 again
         lam: float | None = None
-        escaped = False
+        escaped = checked = False
         small = 0
         while newton_left > 0:
             B = H * (-1.0 / scale)
@@ -1237,7 +1243,8 @@ def _newton_stages(
             counts.factorisations += 1
             _, info = lapack.dpotrf(B, lower=1, clean=1)
             B[diag] -= 1e-8 * dB
-            if info != 0:
+            if info != 0 and not checked:  # one eigenpair (≈ 2n³ flops), at most once per round
+                checked = True
                 w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
                 if w[0] < -1e-6 * dB and round_ < int(max_escapes):
                     x_esc = _escape_saddle(x, v[:, 0], L, root, d, ell, mu, hist, counts)
@@ -1274,7 +1281,7 @@ def _newton_stages(
             newton_left -= 1
             hist.append(("newton", L))
             lam = lam / 4.0 if rho > 0.75 else (lam * 2.0 if rho < 0.25 else lam)
-            small = small + 1 if L - L_old <= 1e-10 * abs(L) else 0
+            small = small + 1 if L - L_old <= 1e-9 * abs(L) else 0
             if L - L_old <= 1e-15 * abs(L) or small >= 3:
                 break  # gains at rounding level, or creeping along a flat direction
         if not escaped:
