@@ -206,13 +206,20 @@ def test_gradient_matches_finite_differences() -> None:
     assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
 
 
-def test_hybrid_reaches_a_stationary_point_above_hooke_jeeves() -> None:
-    """Hybrid: L-BFGS from the chosen start, then Hooke–Jeeves, (then L-BFGS): ends at a tiny gradient."""
+@pytest.fixture(scope="module")
+def hj_and_hybrid() -> tuple[np.ndarray, float, gplvm.FitResult, gplvm.FitResult]:
+    """N = 40, q = 2 (normalised): the Hooke–Jeeves and hybrid fits that the newton test compares with too."""
     d = 4e6
     G = _random_gram(40, 4, d)
     G = G / gplvm.gram_scale(G, d)
     hj = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hooke-jeeves")
     hy = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hybrid")
+    return G, d, hj, hy
+
+
+def test_hybrid_reaches_a_stationary_point_above_hooke_jeeves(hj_and_hybrid: tuple) -> None:
+    """Hybrid: L-BFGS from the chosen start, then Hooke–Jeeves, (then L-BFGS): ends at a tiny gradient."""
+    G, d, hj, hy = hj_and_hybrid
     assert hy.init_factor == hj.init_factor  # same start
     assert hy.log_likelihood > hj.log_likelihood and hy.polish_iterations > 0
     assert hy.method == "hybrid" and len(hy.stages) == len(hy.trace)
@@ -257,19 +264,15 @@ def test_hessian_matches_finite_differences_and_is_blind_to_rigid_motions() -> N
         gplvm.log_likelihood_hessian(np.zeros((3, 2)), np.eye(4), 10.0)
 
 
-def test_newton_ends_at_a_local_maximum_above_the_references() -> None:
+def test_newton_ends_at_a_local_maximum_above_the_references(hj_and_hybrid: tuple) -> None:
     """Default method: L-BFGS trials of two start scales, Hessian-preconditioned L-BFGS, Newton steps.
     Same data and q as the hybrid test: it ends above Hooke–Jeeves alone, above the hybrid, and above
     plain L-BFGS from the same start (on this case; it is not a global optimiser), with a gradient at
     rounding level and a negative semi-definite Hessian (a maximum, not a saddle)."""
-    d = 4e6
-    G = _random_gram(40, 4, d)
-    G = G / gplvm.gram_scale(G, d)
+    G, d, hj, hy = hj_and_hybrid
     r = gplvm.fit(G, d, q=2)
     assert r.method == "newton" and r.init_scale in gplvm.NEWTON_TRIAL_SCALES
     assert set(r.scale_trials) == set(gplvm.NEWTON_TRIAL_SCALES) and r.scale_trials[r.init_scale] == max(r.scale_trials.values())
-    hj = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hooke-jeeves")
-    hy = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hybrid")
     X0 = gplvm.pca_init(G, 2) * r.init_factor
     X_ref, _, _ = gplvm._lbfgs_polish(X0, G, d, 1.0, 1e-4, max_iter=20000, ftol=1e-13, gtol=1e-10)
     L_ref = gplvm.log_likelihood(X_ref, G, d)
