@@ -358,7 +358,7 @@ def test_inconsistent_inputs(inputs: dict[str, object], tmp_path: Path) -> None:
     back.write_text("step,stage,log_likelihood\n0,start,-5\n1,lbfgs,-4\n2,start,-3\n", encoding="utf-8")
     _expect_error(inputs, tmp_path, r"back-trace\.csv: line 4", traces={2: back})
     odd = tmp_path / "odd-trace.csv"
-    odd.write_text("step,stage,log_likelihood\n0,start,-5\n1,newton,-4\n", encoding="utf-8")
+    odd.write_text("step,stage,log_likelihood\n0,start,-5\n1,simplex,-4\n", encoding="utf-8")
     _expect_error(inputs, tmp_path, r"odd-trace\.csv: line 3.*unknown stage", traces={2: odd})
 
 

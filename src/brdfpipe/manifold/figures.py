@@ -87,8 +87,8 @@ logger = logging.getLogger("brdfpipe.manifold.figures")
 # Inputs (written by brdfpipe.manifold.analysis and the fit_gplvm jobs):
 #
 # * models ``gplvm/q{q}.npz`` (:func:`brdfpipe.manifold.gplvm.load_model`) and traces
-#   ``gplvm/q{q}-trace.csv`` (``step,stage,log_likelihood``; stage
-#   ``hooke-jeeves``, then ``lbfgs`` for the polish);
+#   ``gplvm/q{q}-trace.csv`` (``step,stage,log_likelihood``; stages
+#   ``start``, ``lbfgs``, ``newton``, ``hooke-jeeves``: :data:`TRACE_STAGES`);
 # * ``manifold/albedo.csv`` (``database,material,r,g,b,luminance``);
 # * albedo maps ``manifold/albedo-map-q{q}.npz`` (arrays x (W,), y (H,),
 #   dims (2,), albedo (H, W, 3), luminance (H, W), fixed (q,), q, database);
@@ -103,8 +103,8 @@ logger = logging.getLogger("brdfpipe.manifold.figures")
 
 #: Columns of a GPLVM trace CSV (gplvm.write_trace).
 TRACE_COLUMNS: tuple[str, ...] = ("step", "stage", "log_likelihood")
-#: Trace stages: the start point, Hooke–Jeeves sweeps, L-BFGS iterations (in any order).
-TRACE_STAGES: tuple[str, ...] = ("start", "hooke-jeeves", "lbfgs")
+#: Trace stages: the start point, Hooke–Jeeves sweeps, L-BFGS iterations, Newton steps (in any order).
+TRACE_STAGES: tuple[str, ...] = ("start", "hooke-jeeves", "lbfgs", "newton")
 #: Columns of ``albedo.csv``.
 ALBEDO_COLUMNS: tuple[str, ...] = ("database", "material", "r", "g", "b", "luminance")
 #: Columns of ``paths.csv``.
@@ -947,7 +947,7 @@ def manifold_fig05_likelihood(inp: ManifoldInputs, stem: str | os.PathLike[str])
                 if last > 200:
                     a_.set_xscale("symlog", linthresh=10.0, linscale=0.6)
                 a_.set_xlim(left=0.0)
-            ax.set_xlabel("step (an L-BFGS iteration or a Hooke–Jeeves sweep; stage changes marked)")
+            ax.set_xlabel("step (L-BFGS iteration, Newton step or Hooke–Jeeves sweep; stage changes marked)")
             ax.set_ylabel("log-likelihood L (eq. 6)")
             ax.set_title("log-likelihood")
             ax.legend(loc="lower right")

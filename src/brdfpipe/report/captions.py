@@ -53,7 +53,7 @@ DESCRIPTIONS: dict[str, str] = {
                            "table-lookup errors (kinds ``rms_log``, ``relrms_linear``), the closed-loop errors from "
                            "the noiseless render (``closedloop_noiseless_*``) and from the sensor "
                            "(``closedloop_*``), the observations used and the share of pixels masked.",
-    "soler-fig05": "GPLVM log-likelihood over the optimiser's steps (start, L-BFGS, Hooke–Jeeves), default "
+    "soler-fig05": "GPLVM log-likelihood over the optimiser's steps (start, L-BFGS, Newton, Hooke–Jeeves), default "
                    "candidate, each latent dimension q.",
     "soler-fig10_q2": "The 2-D latent space of the default candidate: every material at its latent point, "
                       "coloured by its albedo.",
