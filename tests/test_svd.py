@@ -20,6 +20,7 @@ import zarr
 
 from brdfpipe.acquisition import svd
 from brdfpipe.acquisition.svd import ModelError
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
 from brdfpipe.data import logmap, store, synth
@@ -188,10 +189,9 @@ def test_saved_partials_give_the_fitted_model(data: dict[str, Path], model: svd.
     odd = tmp_path / "parts" / "odd.npz"
     svd.save_partial(odd, svd.gram_partial(data["logmap"], 0, 3), logmap_path=data["logmap"], block=0, n_blocks=3)
     foreign = tmp_path / "parts" / "foreign.npz"
-    with np.load(paths[0]) as z:
-        doc = dict(z)
+    doc = integrity.load_npz(paths[0])
     doc["logmap_id"] = np.array("0123456789abcdef")
-    np.savez(foreign, **doc)
+    integrity.save_npz(foreign, doc)  # a well-formed partial of another log-map
     bad_sets = {
         "missing": (paths[:3], "missing \\[3\\]"),
         "repeated": ([*paths, paths[1]], "repeated \\[1\\]"),
@@ -343,14 +343,22 @@ def test_open_model_refuses_bad_outputs(model: svd.Model, data: dict[str, Path],
     with pytest.raises(ModelError, match="not a brdfpipe model"):
         svd.open_model(data["logmap"])
 
-    def edit(name: str, fn) -> Path:  # type: ignore[no-untyped-def]
+    def edit(name: str, fn, reseal: bool = True) -> Path:  # type: ignore[no-untyped-def]
+        """A copy with edited attributes, re-sealed (so the checks behind the digest are reached)."""
         bad = tmp_path / f"{name}.zarr"
         shutil.copytree(model.path, bad)
         doc = json.loads((bad / "zarr.json").read_text())
-        fn(doc["attributes"])
+        attrs = doc["attributes"]
+        fn(attrs)
+        if reseal and integrity.ZARR_ATTR in attrs:
+            attrs[integrity.ZARR_ATTR]["attributes"] = integrity.attributes_digest(attrs, (integrity.ZARR_ATTR,))
         (bad / "zarr.json").write_text(json.dumps(doc))
         return bad
 
+    # an edit of an attribute without re-sealing: the digest names the model and what to rerun
+    with pytest.raises(ModelError, match=r"k_edit\.zarr: its attributes do not match their recorded digest "
+                                         r"\(damaged or edited\); write it again"):
+        svd.open_model(edit("k_edit", lambda a: a.update(database="merl"), reseal=False))
     with pytest.raises(ModelError, match="incomplete model"):
         svd.open_model(edit("incomplete", lambda a: a.pop(logmap.COMPLETE_ATTR)))
     with pytest.raises(ModelError, match="completion marker"):
