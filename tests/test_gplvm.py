@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.manifold import gplvm
@@ -250,7 +251,7 @@ def test_fit_to_files_normalises_and_records_stages(tmp_path: Path) -> None:
     assert m.gram_scale == pytest.approx(gplvm.gram_scale(G, d)) and m.method == "hybrid"
     # the saved L is that of G / gram_scale, recomputed independently from the saved X
     assert gplvm.log_likelihood(m.X, G / m.gram_scale, d, m.ell, m.mu) == pytest.approx(m.log_likelihood, rel=1e-8)
-    lines = (tmp_path / "t.csv").read_text().splitlines()
+    lines = integrity.read_csv_text(tmp_path / "t.csv").splitlines()  # after its digest line
     assert lines[0] == "step,stage,log_likelihood"
     stages = [ln.split(",")[1] for ln in lines[1:]]
     assert stages == r.stages and stages[0] == "start" and set(stages) <= {"start", "lbfgs", "hooke-jeeves"}
@@ -429,6 +430,9 @@ def test_model_load_gives_same_weights(fitted: gplvm.FitResult, tmp_path: Path) 
     assert m.space == "log" and m.trace.shape == (len(fitted.trace), 2)
     bad = tmp_path / "bad.npz"
     np.savez(bad, x=np.zeros(2))
+    with pytest.raises(ValueError, match="bad.npz: GPLVM model carries no brdfpipe digest"):
+        gplvm.load_model(bad)
+    integrity.save_npz(bad, {"x": np.zeros(2)})
     with pytest.raises(ValueError, match="not a brdfpipe GPLVM model"):
         gplvm.load_model(bad)
     with pytest.raises(ValueError, match="names for"):

@@ -152,11 +152,14 @@ def test_sample_in_hull_is_deterministic_given_the_seed() -> None:
 # --------------------------------------------------------------------------
 
 
-def _model(X: np.ndarray, names: Sequence[str], ell: float = 1.0, mu: float = 1e-4, space: str = "raw"
-           ) -> gplvm.GplvmModel:
+def _model(X: np.ndarray, names: Sequence[str], ell: float = 1.0, mu: float = 1e-4, space: str = "raw",
+           store: Path | None = None) -> gplvm.GplvmModel:
+    """A hand-placed model; with ``store``, tied to its rows (as a fit on that store would be)."""
     X = np.asarray(X, dtype=np.float64)
     chol = np.linalg.cholesky(gplvm.kernel_matrix(X, ell, mu))
-    return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gplvm.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)))
+    digests = gplvm.store_digests(store, names) if store is not None else ()
+    return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gplvm.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)),
+                            data_digests=digests)
 
 
 def _albedo_by_weights(model: gplvm.GplvmModel, A: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -282,7 +285,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
 def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -> None:
     pts = np.array([[0.3, 0.2], [0.9, 0.7], [0.0, 0.0]])
     for space in ("raw", "log"):
-        m = _model(tiny["X"], tiny["names"], ell=0.8, space=space)
+        m = _model(tiny["X"], tiny["names"], ell=0.8, space=space, store=tiny["store"])
         got = latent.latent_albedos(m, tiny["store"], pts, exact=True)
         for p, a in zip(pts, got):
             w = gplvm.blend_weights(gplvm.weights(m, p))
@@ -310,7 +313,8 @@ def model_file(tiny: dict) -> Path:
     fit = types.SimpleNamespace(X=tiny["X"], ell=2.0, mu=1e-4, log_likelihood=0.0, d=1.0,
                                 trace=[(0, 0.0)], method="hybrid")
     path = tiny["tmp"] / "q2.npz"
-    gplvm.save_model(path, fit, tiny["names"], space="raw")  # type: ignore[arg-type]
+    gplvm.save_model(path, fit, tiny["names"], space="raw",  # type: ignore[arg-type]
+                     data_digests=gplvm.store_digests(tiny["store"], tiny["names"]))
     return path
 
 

@@ -179,7 +179,8 @@ def _cmd_extrapolate(args: argparse.Namespace) -> int:
         if point is None:
             raise ValueError(f"the albedo at {args.start} itself is outside [0, 1]; nothing to write to {args.out}")
         w = gplvm.blend_weights(gplvm.weights(model, point))
-        table, clamped = gplvm.interpolate_table(args.store, w, materials=model.names, space=model.space)
+        table, clamped = gplvm.interpolate_table(args.store, w, materials=model.names, space=model.space,
+                                                 model=model)
         merl.write_merl(args.out, table)
         summary["clamped_values"] = clamped  # negative interpolated values written as 0
     print(json.dumps(summary, indent=2))
@@ -208,7 +209,7 @@ def _cmd_sample(args: argparse.Namespace) -> int:
     files = [f"sample-{i:03d}.binary" for i in range(args.count)]
     for a in range(0, args.count, 4):
         tables, _ = gplvm.interpolate_tables(args.store, s.weights[a : a + 4], materials=model.names,
-                                             space=model.space)
+                                             space=model.space, model=model)
         for j, table in enumerate(tables):
             merl.write_merl(out_dir / files[a + j], table)
     q = model.X.shape[1]

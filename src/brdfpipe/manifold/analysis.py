@@ -56,7 +56,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import path_name
 from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
 from brdfpipe.data import merl
@@ -280,14 +280,15 @@ def path_analysis(
         raise ValueError(f"steps must be >= 1, got {steps}")
     names = list(model.names)
     check_paths([(a, b)], names, what="path")
-    st = store if isinstance(store, BrdfStore) else open_store(store)
+    st = gplvm.check_store(model, store)
     xa, xb = model.X[names.index(a)], model.X[names.index(b)]
     ts = np.arange(steps + 1) / steps
     pts = (1.0 - ts)[:, None] * xa + ts[:, None] * xb
     W = np.stack([gplvm.blend_weights(gplvm.weights(model, x)) for x in pts])
     feats = []
     for c0 in range(0, len(ts), _MAX_TABLES_IN_MEMORY):
-        tables, _ = gplvm.interpolate_tables(st, W[c0 : c0 + _MAX_TABLES_IN_MEMORY], materials=names, space=model.space)
+        tables, _ = gplvm.interpolate_tables(st, W[c0 : c0 + _MAX_TABLES_IN_MEMORY], materials=names,
+                                             space=model.space, model=model)
         feats.extend(perceptual.pr12_features(t) for t in tables)
         del tables
     d_ab = perceptual.pr12_distance(feats[0], feats[-1])
@@ -326,7 +327,7 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, A
     w.writerow(columns)
     for r in rows:
         w.writerow([_fmt(r[c]) for c in columns])
-    atomic.write_text(path, buf.getvalue())
+    integrity.write_csv(path, buf.getvalue())
 
 
 def analyze_manifold(
@@ -355,11 +356,13 @@ def analyze_manifold(
     """
     st = open_store(store)
     G, d, info = gplvm.load_gram(gram)
+    gplvm.check_gram_store(info, st, gram)
     fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
     names = list(info.materials)
     for q, m in fits.items():
         if list(m.names) != names:
             raise ValueError(f"{models[q]}: its materials differ from those of {gram}")
+        gplvm.check_store(m, st)
     if int(path_q) not in fits:
         raise ValueError(f"path_q = {path_q} has no fitted model (fitted: {sorted(fits)})")
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
@@ -378,7 +381,7 @@ def analyze_manifold(
     for q, target in sorted(albedo_maps_out.items()):
         amap = albedo_map(fits[int(q)], A, n=albedo_grid)
         amap["database"] = np.array(database)
-        atomic.save_npz(target, amap)
+        integrity.save_npz(target, amap)
 
     rows = []
     for a, b in pairs:
@@ -414,7 +417,6 @@ def path_points_to_files(
     table's values in measured cells) and ``weights`` {material: wᵢ} (blend
     weights, Σw = 1), written atomically.  Returns the weights ``(P, N)``.
     """
-    import json
 
     if not (len(points) == len(merl_outs) == len(weights_outs)) or not points:
         raise ValueError(f"need one MERL and one weights output per path point, got {len(points)} points, "
@@ -430,13 +432,13 @@ def path_points_to_files(
         xs.append(x)
         ws.append(gplvm.blend_weights(gplvm.weights(m, x)))
     W = np.stack(ws)
-    tables, clamped = gplvm.interpolate_tables(store, W, materials=names, space=m.space)
+    tables, clamped = gplvm.interpolate_tables(store, W, materials=names, space=m.space, model=m)
     for k, (a, b, t) in enumerate(points):
         merl.write_merl(merl_outs[k], tables[k])
         doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
                "x": [float(v) for v in xs[k]], "clamped": int(clamped[k]),
                "measured_values": int(np.count_nonzero(tables[k] >= 0.0)),
                "weights": {n: float(v) for n, v in zip(names, W[k])}}
-        atomic.write_text(weights_outs[k], json.dumps(doc, indent=1) + "\n")
+        integrity.write_json(weights_outs[k], doc)
         logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped[k], merl_outs[k])
     return W

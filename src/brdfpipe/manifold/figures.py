@@ -29,6 +29,7 @@ from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import MaxNLocator
 
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.plot import (
     COLOURS,
@@ -254,21 +255,14 @@ class AlbedoMap:
 
 
 def read_albedo_map(path: str | os.PathLike[str]) -> AlbedoMap:
-    """Read and check an ``albedo-map-q{q}.npz``."""
+    """Read and check an ``albedo-map-q{q}.npz`` (its digest first: :func:`brdfpipe.core.integrity.load_npz`)."""
     p = _input_file(path, "albedo map")
-    if not zipfile.is_zipfile(p):
-        raise FigureInputError(f"{p}: not an npz (zip) file")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            missing = [k for k in ALBEDO_MAP_KEYS if k not in z]
-            if missing:
-                raise FigureInputError(f"{p}: missing array(s) {', '.join(missing)} "
-                                       f"(required: {', '.join(ALBEDO_MAP_KEYS)})")
-            arrays = {k: np.asarray(z[k]) for k in ALBEDO_MAP_KEYS}
-    except FigureInputError:
-        raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise FigureInputError(f"{p}: not a readable npz file ({exc})") from exc
+    z = integrity.load_npz(p, kind="albedo map", error=FigureInputError)
+    missing = [k for k in ALBEDO_MAP_KEYS if k not in z]
+    if missing:
+        raise FigureInputError(f"{p}: missing array(s) {', '.join(missing)} "
+                               f"(required: {', '.join(ALBEDO_MAP_KEYS)})")
+    arrays = {k: np.asarray(z[k]) for k in ALBEDO_MAP_KEYS}
     try:
         x = arrays["x"].astype(np.float64)
         y = arrays["y"].astype(np.float64)

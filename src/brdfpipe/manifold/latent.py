@@ -81,7 +81,7 @@ import scipy.optimize
 import scipy.spatial
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.data.store import BrdfStore, open_store
+from brdfpipe.data.store import BrdfStore
 from brdfpipe.manifold import analysis, gplvm
 
 __all__ = [
@@ -398,7 +398,7 @@ class _Albedo:
     @classmethod
     def of(cls, model: gplvm.GplvmModel, source: AlbedoSource, exact: bool = False) -> _Albedo:
         if isinstance(source, (BrdfStore, str, os.PathLike)):
-            st = source if isinstance(source, BrdfStore) else open_store(source)
+            st = gplvm.check_store(model, source)  # the store holds the rows the model was fitted on
             if _is_linear(model.space) and not exact:
                 return cls(model, analysis.material_albedos(st, list(model.names)), None)
             unknown = [m for m in model.names if m not in st.materials]
@@ -425,7 +425,7 @@ class _Albedo:
         out = np.empty((W.shape[0], 3))
         for a in range(0, W.shape[0], _LOG_BATCH):
             tables, _ = gplvm.interpolate_tables(self.store, W[a : a + _LOG_BATCH], materials=self.model.names,
-                                                 space=self.model.space)
+                                                 space=self.model.space, model=self.model)
             for j, t in enumerate(tables):
                 out[a + j] = analysis.material_albedo(t)
         return out
