@@ -22,6 +22,7 @@ Skipped with the reason when Mitsuba's LLVM backend is not available.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from pathlib import Path
 
@@ -30,7 +31,7 @@ import pytest
 
 from brdfpipe.acquisition import closedloop, geometry, optimize, reconstruct, svd
 from brdfpipe.acquisition.geometry import Setup
-from brdfpipe.core import exr, filenames
+from brdfpipe.core import exr, filenames, integrity
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.rendering import capture, render
@@ -203,7 +204,7 @@ class Loop:
         out = closedloop.write_closedloop(self.store, self.model, [self.directions], [obs[k][0] for k in keys],
                                           [obs[k][1] for k in keys], self.dir / f"{tag}.csv",
                                           materials=self.test, n_images=[1, 2])
-        with open(out, newline="") as fh:
+        with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
             rows = list(csv.DictReader(fh))
         assert list(rows[0]) == ["database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind",
                                  "value"]
