@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from pathlib import Path
 from typing import Any
 
@@ -537,3 +538,62 @@ def test_floor_check_figure(tmp_path: Path) -> None:
     assert any("I¹⁻" in t for t in res.panel_titles)
     with pytest.raises(FigureInputError, match="this run's is 'merl'"):
         figures.plot_floor_check(table=table, files=[tmp_path / "g.png", tmp_path / "g.pdf"], database="merl")
+
+
+# --------------------------------------------------------------------------
+# Integrity (issue 21): a changed pixel of an input is refused, not blended
+# --------------------------------------------------------------------------
+
+
+def _rewrite_pixel(path: Path, value: float, channel: str = "G") -> None:
+    """Rewrite an EXR with one pixel changed, its header (attributes included) kept: an edit by another tool."""
+    import OpenEXR
+
+    f = OpenEXR.File(str(path), separate_channels=True)
+    header, planes = dict(f.header()), {c: np.array(p.pixels) for c, p in f.channels().items()}
+    planes[channel][3, 4] = value
+    with OpenEXR.File(header, planes) as g:
+        g.write(str(path))
+
+
+@pytest.mark.parametrize("which", ["prerender", "reference"])
+def test_one_changed_pixel_of_an_input_stops_the_error_maps(tmp_path: Path, which: str) -> None:
+    """The tester's case: one 1e6 pixel in a pre-render made an error map's RMSE 3,600x worse with exit 0.
+    Now the job stops, naming the file and the rule to rerun, and writes no summary."""
+    prerenders, points, _ = _setup(tmp_path / "results" / "renders")
+    if which == "prerender":
+        bad = prerenders["chrome"]
+        rule = "prerender_material"
+        moved = tmp_path / "results" / "renders" / "preview" / "materials" / "chrome.exr"
+    else:
+        bad = Path(points[1]["reference"])
+        rule = "render_path_point"
+        moved = tmp_path / "results" / "renders" / "preview" / "paths" / "chrome--silver-t0.5.exr"
+    moved.parent.mkdir(parents=True, exist_ok=True)
+    bad.rename(moved)
+    if which == "prerender":
+        prerenders["chrome"] = moved
+    else:
+        points[1]["reference"] = str(moved)
+    _rewrite_pixel(moved, 1e6)
+    out = tmp_path / "out"
+    summary = out / "summary.csv"
+    with pytest.raises(ExrError, match=re.escape(f"{moved}: its pixels or attributes do not match their recorded "
+                                                 f"digest (damaged or edited); rerun its rule: snakemake "
+                                                 f"--forcerun {rule}")):
+        error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=summary, database="synthetic")
+    assert not summary.exists()
+
+
+def test_a_relabelled_image_is_refused(tmp_path: Path) -> None:
+    """The digest covers the header's attributes too: a pre-render relabelled as another material fails."""
+    import OpenEXR
+
+    prerenders, _, _ = _setup(tmp_path)
+    f = OpenEXR.File(str(prerenders["chrome"]), separate_channels=True)
+    header, planes = dict(f.header()), {c: p.pixels for c, p in f.channels().items()}
+    header["material"] = "silver"
+    with OpenEXR.File(header, planes) as g:
+        g.write(str(prerenders["chrome"]))
+    with pytest.raises(ExrError, match="chrome.exr: its pixels or attributes do not match"):
+        read_exr(prerenders["chrome"])

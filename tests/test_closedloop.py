@@ -24,6 +24,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -298,3 +299,31 @@ def test_closed_loop_figure(loop: Loop, tmp_path: Path) -> None:
     assert "synthetic" in out.title and not out.warnings
     with pytest.raises(ValueError):
         figures.plot_closedloop(csv_path, [tmp_path / "x.png"])
+
+
+@needs_llvm
+@pytest.mark.parametrize("damage", ["rescaled", "truncated", "not a table"])
+def test_a_damaged_observation_table_is_refused(loop: Loop, tmp_path: Path, damage: str) -> None:
+    """The tester's case: a closed-loop table with its rgb rescaled (a valid npz) passed and changed
+    closedloop.csv.  Now its reader refuses it, naming the file and the rule to rerun; a truncated table or
+    another file is one clean error too."""
+    if not (loop.dir / "clean.csv").exists():
+        loop.run("clean", NO_NOISE, spp=16)
+    name = loop.test[0]
+    src = loop.dir / "clean" / name / "n2.npz"
+    bad = tmp_path / filenames.closedloop_observations(name, "nearfield", 25, "error", 2, "sensor")
+    bad.parent.mkdir(parents=True)
+    if damage == "rescaled":
+        with np.load(src) as z:
+            arrays = dict(z)
+        arrays["rgb"] = arrays["rgb"] * 2.0
+        np.savez(bad, **arrays)
+        expect = re.escape(f"{bad}: its arrays do not match their recorded digest (damaged or edited)")
+    elif damage == "truncated":
+        bad.write_bytes(src.read_bytes()[:-200])
+        expect = re.escape(f"{bad}: truncated or corrupt observation table")
+    else:
+        bad.write_bytes(b"\x93NUMPY not a zip")
+        expect = re.escape(f"{bad}: truncated or corrupt observation table (not an npz file: no zip header)")
+    with pytest.raises(ValueError, match=expect + ".*; rerun its rule: snakemake --forcerun capture_closedloop"):
+        closedloop.read_observations(bad)

@@ -12,6 +12,7 @@ import base64
 import functools
 import http.server
 import json
+import re
 import shutil
 import sys
 import threading
@@ -392,18 +393,19 @@ def test_reduced_option_says_approximate_only_above_the_noise_floor(site: Path, 
 
 
 def _damaged_sites(site: Path, root: Path) -> dict[str, Path]:
-    """Copies of the site with layers.js truncated, its payload edited (valid JavaScript), refs.js missing."""
+    """Copies of the site with data/layers.js truncated, its pre-renders' payload shortened to half (still valid
+    JavaScript and JSON: the tester's black image), one base64 digit of it changed, and data/refs.js missing."""
     out = {}
-    for name in ("truncated", "edited", "missing"):
+    for name in ("shortened", "edited", "truncated", "missing"):  # the tester's case (a black image) first
         out[name] = root / name
         shutil.copytree(site, out[name])
-    layers = (site / "data" / "layers.js").read_bytes()
-    (out["truncated"] / "data" / "layers.js").write_bytes(layers[: len(layers) * 2 // 3])
-    text = layers.decode("ascii")
-    head, sep, body = text.partition('\\"data\\":\\"')  # inside the payload's JSON text
-    assert sep and body[:4].isascii()
-    flipped = ("B" if body[0] != "B" else "C") + body[1:]  # one base64 digit of the pre-renders changed
-    (out["edited"] / "data" / "layers.js").write_text(head + sep + flipped, encoding="ascii")
+    layers = (site / "data" / "layers.js").read_text(encoding="ascii")
+    run = max(re.finditer(r"[A-Za-z0-9+/]{64,}={0,2}", layers), key=lambda m: m.end() - m.start())  # the images
+    a, b = run.span()
+    (out["truncated"] / "data" / "layers.js").write_text(layers[: len(layers) * 2 // 3], encoding="ascii")
+    (out["shortened"] / "data" / "layers.js").write_text(layers[: a + (b - a) // 8 * 4] + layers[b:], encoding="ascii")
+    digit = "B" if layers[a + 100] != "B" else "C"
+    (out["edited"] / "data" / "layers.js").write_text(layers[: a + 100] + digit + layers[a + 101 :], encoding="ascii")
     (out["missing"] / "data" / "refs.js").unlink()
     return out
 
@@ -413,9 +415,10 @@ def test_read_data_file_refuses_a_damaged_payload(site: Path, tmp_path: Path) ->
     with pytest.raises(export.ExplorerError, match=r"truncated/data/layers\.js: not an explorer data file, or "
                                                    r"truncated"):
         export.read_data_file(sites["truncated"] / "data" / "layers.js")
-    with pytest.raises(export.ExplorerError, match=r"edited/data/layers\.js: its payload does not match its "
-                                                   r"recorded digest \(damaged or edited\)"):
-        export.read_data_file(sites["edited"] / "data" / "layers.js")
+    for name in ("shortened", "edited"):
+        with pytest.raises(export.ExplorerError, match=name + r"/data/layers\.js: its payload does not match its "
+                                                       r"recorded digest \(damaged or edited\)"):
+            export.read_data_file(sites[name] / "data" / "layers.js")
 
 
 @needs_chromium
@@ -425,6 +428,7 @@ def test_page_names_a_damaged_data_file_instead_of_drawing(site: Path, tmp_path:
     sites = _damaged_sites(site, tmp_path)
     expect = {
         "truncated": "data/layers.js did not load (missing, truncated or not an explorer data file)",
+        "shortened": "data/layers.js: its payload does not match its recorded digest (damaged or edited)",
         "edited": "data/layers.js: its payload does not match its recorded digest (damaged or edited)",
         "missing": "data/refs.js did not load (missing, truncated or not an explorer data file)",
     }
@@ -434,7 +438,7 @@ def test_page_names_a_damaged_data_file_instead_of_drawing(site: Path, tmp_path:
             error = b.evaluate("explorer.error")
             assert error is not None and error.startswith(expect[name]), (name, error)
             assert "snakemake --forcerun write_explorer" in error
-            assert b.evaluate("explorer.ready") is False
+            assert b.evaluate("explorer.ready") is False, name
             shown = b.evaluate("[!document.getElementById('error').hidden, document.getElementById('error')"
                                ".textContent, document.querySelector('main').hidden]")
             assert shown == [True, error, True], (name, shown)

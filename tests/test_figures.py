@@ -13,6 +13,7 @@ import csv
 import io
 import logging
 import math
+import re
 from pathlib import Path
 
 import matplotlib.image
@@ -435,3 +436,22 @@ def test_the_condition_baseline_is_labelled_as_xu_eq6(inputs: dict[str, Path], t
     kappa = [t for t in legends if "κ" in t]
     assert {"point samples, min κ (Xu eq. 6)", "directions: min κ (Xu eq. 6)"} <= set(kappa), legends
     assert not [t for t in legends if "Nielsen" in t], legends
+
+
+def test_an_edited_errors_table_is_refused(inputs: dict[str, Path], tmp_path: Path) -> None:
+    """errors.csv edited by hand (one value) no longer drives the figures: its digest line fails, naming it."""
+    edited = tmp_path / "results" / "evaluation" / "errors.csv"
+    edited.parent.mkdir(parents=True)
+    lines = inputs["errors"].read_text(encoding="utf-8").splitlines(keepends=True)
+    row = lines[3].rstrip("\n").split(",")
+    row[-1] = str(float(row[-1]) * 2)
+    lines[3] = ",".join(row) + "\n"
+    edited.write_text("".join(lines), encoding="utf-8")
+    with pytest.raises(FigureInputError, match=re.escape(f"{edited}: its content does not match its recorded "
+                                                         "digest (damaged or edited); rerun its rule: snakemake "
+                                                         "--forcerun evaluate_directions")):
+        read_errors(edited)
+    with pytest.raises(FigureInputError, match=re.escape(str(edited))):
+        make_acquisition_figures(errors_csv=edited, training_csv=None, directions=[],
+                                 figures=figure_map(tmp_path / "out", POINT_ONLY), fovs=FOVS, n_point=3)
+    assert not (tmp_path / "out").exists()

@@ -62,7 +62,9 @@ Partial file (``.npz``, written atomically)
 Arrays ``gram`` float64 (m, m), ``colsum`` float64 (m,) (the sum of each row
 over the block's columns), ``ncols``, ``block``, ``n_blocks``, ``start``,
 ``stop`` (the column range), ``m``, ``p`` and ``logmap_id`` (the log-map's
-completion-marker id), ``format`` = ``"brdfpipe.gram-partial/1"``.
+completion-marker id), ``format`` = ``"brdfpipe.gram-partial/1"``, and the
+file's digest (:func:`brdfpipe.core.integrity.save_npz`; checked on load, so
+an edited, truncated or foreign partial is a :class:`ModelError` naming it).
 :func:`write_model` refuses partials of another log-map, of mixed
 ``n_blocks``, missing or repeated blocks.
 
@@ -86,7 +88,13 @@ Attributes: ``format`` (``"brdfpipe.pca-model/1"``), ``rows``, ``materials``,
 (from the log-map), ``k``, ``tolerance``, ``brdfpipe_version`` and, last,
 the completion marker ``brdfpipe_complete`` = ``{"rows": m, "columns": p,
 "k": k, "logmap_id": …, "id": <hex digest>}`` (the id: sha256 of the
-log-map's id, the tolerance and Σ, so the same inputs give the same bytes).  Atomic like the log-map: built
+log-map's id, the tolerance and Σ, so the same inputs give the same bytes),
+written together with the integrity record ``brdfpipe_digests`` (CRC-32C of
+every file of the group, digest of the attributes;
+:func:`brdfpipe.core.zgroup.finish_group`).  :func:`open_model` checks the
+record and reads every chunk of ``Q`` against it before any consumer uses
+the model (the direction optimiser, the evaluations, the closed loop,
+``brdfpipe reconstruct`` and ``capture --model``).  Atomic like the log-map: built
 in a temporary sibling and swapped into place (:func:`brdfpipe.core.atomic.atomic_dir`);
 after any error an earlier model at ``out`` is left as it was, and an ``out``
 holding anything but a model is refused before any work.

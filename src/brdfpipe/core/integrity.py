@@ -44,19 +44,25 @@ Rules, per container
   CRC-32C (``google_crc32c``, as the MERL store's shards) of every file of
   the group but its own ``zarr.json`` (array metadata and every chunk), and
   a digest of every other group attribute (completion marker included).
-  Opening checks the attributes, that exactly the recorded files are there
-  with their sizes (a deleted chunk would read back as the fill value; an
-  extra one as data), and the array metadata; chunks are checked when read
+  Opening checks the attributes, that the recorded files are there with
+  their sizes and no other file is in an array's folder (a deleted chunk
+  would read back as the fill value; an extra one as data; files beside the
+  arrays, such as Snakemake's ``.snakemake_timestamp``, are ignored), and
+  the array metadata; chunks are checked when read
   (:meth:`GroupDigests.verify`), all at once or the ones a reader needs.
 * **CSV** (:func:`write_csv` / :func:`read_csv_text` / :func:`read_csv_rows`):
   a first comment line ``# brdfpipe sha256=<hex>`` over the bytes of the rest
   of the file.  Every CSV reader of the library goes through
-  :func:`read_csv_text`.  Other tools: pandas ``pd.read_csv(path,
-  comment="#")`` (or ``skiprows=1``), numpy ``np.loadtxt`` / ``genfromtxt``
-  (``#`` is their default comment), R ``read.csv(path, comment.char="#")``,
-  Python's ``csv`` module after skipping the first line.  Without that,
-  pandas takes the comment for the header (an obviously wrong table, not
-  silently wrong numbers).
+  :func:`read_csv_text`.  Other tools must skip that first line: pandas
+  ``pd.read_csv(path, skiprows=1)`` (or ``comment="#"``; no field of these
+  tables holds a ``#``), numpy ``np.loadtxt(path, delimiter=",",
+  skiprows=2)`` (the comment counts in ``skiprows``, then the header) or
+  ``np.genfromtxt(path, delimiter=",", names=True, skip_header=1)`` (with
+  ``names=True`` alone it takes the names from the comment), R
+  ``read.csv(path, comment.char="#")``, Python's ``csv`` module after
+  ``next(fh)``.  A reader that does not skip it sees a first column named
+  ``# brdfpipe sha256=…`` (pandas, ``csv.DictReader``): an obviously wrong
+  table, not silently wrong numbers.
 * **The explorer's data files** (``data/*.js``, :mod:`brdfpipe.explorer.export`):
   each holds its payload as a JSON text in a string and the CRC-32 (zlib's,
   which the page recomputes in JavaScript) of that text
@@ -511,7 +517,10 @@ def open_group_digests(
     if missing:
         raise error(f"{path}: file {missing[0]} is missing"
                     + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "") + f"; {rerun_hint(path)}")
-    extra = sorted(set(present) - set(files))
+    # a file inside an array's folder would be read as a chunk; others (Snakemake's .snakemake_timestamp
+    # at the top of a directory output) are never read
+    arrays = {f.split("/", 1)[0] for f in files if "/" in f}
+    extra = sorted(f for f in set(present) - set(files) if "/" in f and f.split("/", 1)[0] in arrays)
     if extra:
         raise error(f"{path}: unexpected file {extra[0]} (not recorded when the {what} was written); "
                     f"{rerun_hint(path)}")

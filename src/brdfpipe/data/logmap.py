@@ -58,7 +58,10 @@ the completion marker ``brdfpipe_complete`` = ``{"rows": m_out, "columns": p,
 "id": <hex digest>}``; the ``id`` is a sha256 digest of the attributes, the
 store's source digests and ρ_ref, so it identifies this log-map's content
 (the SVD refuses Gram partials computed from another one) while the same
-inputs still give the same bytes.
+inputs still give the same bytes.  The marker is written together with the
+integrity record ``brdfpipe_digests`` (CRC-32C of every file, digest of the
+attributes; :mod:`brdfpipe.core.integrity`): :func:`open_logmap` checks it,
+and every chunk of ``X`` is checked before it is read.
 
 The output is built in a temporary sibling directory and swapped into place
 (:func:`brdfpipe.core.atomic.atomic_dir`): after any error or interrupt an earlier

@@ -494,8 +494,8 @@ def read_spaces(spaces_csv: str | os.PathLike[str], stability_csv: str | os.Path
         raise FigureInputError(f"{p}: expected exactly one default candidate, found {sorted(defaults)}")
     database = single_database(p, (r["database"] for r in rows))
     sp = _input_file(stability_csv, "stability table")
-    with sp.open(encoding="utf-8") as fh:
-        lines = [line for line in fh.read().splitlines() if line.strip()]
+    text = integrity.read_csv_text(sp, kind="stability table", error=FigureInputError)  # its digest checked
+    lines = [line for line in text.splitlines() if line.strip()]
     header_only = len(lines) == 1
     if header_only and not set(STABILITY_FIGURE_COLUMNS) <= set(lines[0].split(",")):
         raise FigureInputError(f"{sp}: missing column(s) of a stability table (required: {', '.join(STABILITY_FIGURE_COLUMNS)})")

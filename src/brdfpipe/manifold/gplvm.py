@@ -131,6 +131,24 @@ above the kernel's unit amplitude, as in raw units, the likelihood wants the
 points much closer together than ℓ (strongly correlated K), which ``rms`` /
 ``unit`` give (factors 100× smaller than ``nn``'s on the raw store).
 
+Files and their data
+--------------------
+:func:`save_gram` / :func:`save_model` write npz files that carry their own
+digest (:func:`brdfpipe.core.integrity.save_npz`; :func:`load_gram` /
+:func:`load_model` check it, so a truncated, corrupt or edited file is one
+:class:`GplvmFileError` naming it) and the digests of the store rows they
+were computed from (the store's name-bound CRC-32C per row,
+:func:`brdfpipe.data.store.shard_digest`): the Gram file records them
+(``row_digests``) and the fit carries them into the model
+(``data_digests``).  Every use of a model with a store checks them
+(:func:`check_store`: :func:`interpolate_tables` given the model,
+:func:`interpolate_to_file`, :mod:`brdfpipe.manifold.latent`,
+:mod:`brdfpipe.manifold.analysis`, :mod:`brdfpipe.manifold.fidelity`, the
+workflow's path points, the command line), so a store of the same names
+whose rows differ — ingested from other files, rows swapped — is a
+:class:`DataMismatchError` naming the model, the store and the material,
+never another material's BRDF under a name.
+
 Interpolation
 -------------
 ``b(x*) = K⁻¹ k(x*)`` (eq. 4) and the interpolated BRDF is
