@@ -18,7 +18,9 @@ Verification (best of ``--rounds``, warm page cache):
   :func:`~brdfpipe.core.integrity.exr_digest`, sha256 of the CSV body), summed over
   the files the stage reads (the decoding itself the stage needs anyway);
 * the explorer page (with ``chromium``): the page's own time to check its four data
-  files' CRC-32 (``explorer.verifyMs``) next to its time to be ready.
+  files' CRC-32 (``explorer.verifyMs``) next to its time to be ready, for the run's
+  page and for a synthetic page of the default run's size (``--explorer-n 100``
+  pre-renders of 256 × 192, ``tests/explorer_fixture.py``).
 
 Stages (best of ``--rounds``; each includes its own verification), run on the run's
 files into a temporary folder:
@@ -38,7 +40,7 @@ CSV tables             ``claims.compute_claims`` (``write_claims``)
 
 Usage::
 
-    python benches/bench_integrity.py [--run DIR] [--rounds 3] [--work DIR]
+    python benches/bench_integrity.py [--run DIR] [--rounds 3] [--work DIR] [--explorer-n 100]
 
 ``--run``: the working folder of a finished run (holding ``results/``); default the
 repository's own when ``results/merl.zarr`` exists there, else a tiny run
@@ -184,6 +186,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--run", type=Path, help="working folder of a finished run (holding results/)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--work", type=Path, help="folder for temporaries (default: a temporary one)")
+    ap.add_argument("--explorer-n", type=int, default=100,
+                    help="also a synthetic explorer of N pre-renders of 256 x 192, the default run's size "
+                         "(tests/explorer_fixture.py; 0: skip)")
     args = ap.parse_args(argv)
     import logging
 
@@ -315,29 +320,43 @@ def main(argv: list[str] | None = None) -> int:
         measure(f"CSV tables ({len(csvs)})", "write_claims", _csv_cost(csvs, args.rounds),
                 lambda: claims.compute_claims(inputs), f"{sum(p.stat().st_size for p in csvs) / 1e3:.0f} kB")
 
-        # the explorer page
-        site = results / "explorer"
+        # the explorer page: the run's, and a synthetic one of the default run's size
         try:
             from brdfpipe.explorer import chromium
             have = chromium.find_chromium() is not None
         except Exception:  # noqa: BLE001  (an optional part)
             have = False
-        if site.is_dir() and have:
+
+        def page(site: Path, label: str) -> None:
             best_v, best_ready = float("inf"), float("inf")
             for _ in range(args.rounds):
                 with chromium.Browser() as b:
-                    b.open(site / "index.html", ready="window.explorer && (window.explorer.ready || window.explorer.error)")
+                    b.open(site / "index.html", ready="window.explorer && (window.explorer.ready || window.explorer.error)",
+                           timeout=600)
                     if b.evaluate("explorer.error"):
                         raise SystemExit(f"the explorer page failed: {b.evaluate('explorer.error')}")
                     best_v = min(best_v, float(b.evaluate("explorer.verifyMs")) / 1e3)
                     best_ready = min(best_ready, float(b.evaluate("performance.now()")) / 1e3)
             size = sum(p.stat().st_size for p in (site / "data").glob("*.js"))
-            rows.append(("explorer data (4 .js)", "page load to ready", best_v, best_ready, f"{size / 1e6:.1f} MB"))
-            print(f"  {'explorer data (4 .js)':28s} verify {best_v * 1e3:9.2f} ms   {'page load to ready':22s} "
+            rows.append((label, "page load to ready", best_v, best_ready, f"{size / 1e6:.1f} MB"))
+            print(f"  {label:28s} verify {best_v * 1e3:9.2f} ms   {'page load to ready':22s} "
                   f"{best_ready:8.2f} s   {100 * best_v / max(best_ready - best_v, 1e-9):6.2f} %  "
-                  f"{size / 1e6:.1f} MB (headless chromium, CRC-32 in JavaScript)")
-        elif site.is_dir():
+                  f"{size / 1e6:.1f} MB (headless chromium, CRC-32 in JavaScript)", flush=True)
+
+        if not have:
             print("  explorer: no chromium, page verification not measured")
+        else:
+            if (results / "explorer").is_dir():
+                page(results / "explorer", "explorer data (4 .js)")
+            if args.explorer_n > 0:
+                sys.path.insert(0, str(ROOT / "tests"))
+                from explorer_fixture import make_inputs
+
+                from brdfpipe.explorer import export
+
+                inputs = make_inputs(work / "explorer-inputs", n=args.explorer_n, width=256, height=192, qs=(2,))
+                export.write_explorer(out=work / "explorer", **inputs)
+                page(work / "explorer", f"explorer, {args.explorer_n} x 256x192")
 
         worst = max(v / max(t - v, 1e-9) for _, _, v, t, _ in rows) if rows else 0.0
         verdict = "PASS" if worst < TARGET else "FAIL"

@@ -103,7 +103,7 @@ def _open(path: Path, *, header_only: bool) -> Any:
     return exr
 
 
-def read_exr(path: str | os.PathLike[str], *, verify: bool = True) -> NDArray[np.float32]:
+def read_exr(path: str | os.PathLike[str], *, verify: bool = True, require: bool = True) -> NDArray[np.float32]:
     """Read the RGB channels of an OpenEXR file as an ``(H, W, 3)`` float32 array.
 
     Half and float32 channels are accepted (half is widened exactly); an
@@ -114,13 +114,15 @@ def read_exr(path: str | os.PathLike[str], *, verify: bool = True) -> NDArray[np
     sizes, or NaN/Inf pixels; and, with ``verify`` (the default), for a file
     without the ``brdfpipe_digest`` attribute or whose pixels or string
     attributes do not match it (:mod:`brdfpipe.core.integrity`).
-    ``verify=False`` reads images from elsewhere.
+    ``verify=False`` reads images from elsewhere; ``require=False`` checks
+    the digest of a file that carries one and accepts one without (a user's
+    own environment map).
     """
     path = Path(path)
     exr = _open(path, header_only=False)
     channels = exr.channels()
     if verify:
-        _verify(path, exr, channels)
+        _verify(path, exr, channels, require=require)
     missing = [c for c in "RGB" if c not in channels]
     if missing:
         have = ", ".join(sorted(channels)) or "none"
@@ -144,11 +146,13 @@ def read_exr(path: str | os.PathLike[str], *, verify: bool = True) -> NDArray[np
     return np.ascontiguousarray(image)
 
 
-def _verify(path: Path, exr: Any, channels: Mapping[str, Any]) -> None:
+def _verify(path: Path, exr: Any, channels: Mapping[str, Any], *, require: bool = True) -> None:
     """Check the pixels and string attributes of an opened file against its ``brdfpipe_digest``."""
     attrs = {str(k): v for k, v in exr.header().items() if isinstance(v, str)}
     recorded = attrs.get(integrity.DIGEST_KEY)
     if recorded is None:
+        if not require:
+            return
         raise integrity.no_digest(path, "OpenEXR image", error=ExrError)
     planes = {c: np.asarray(channels[c].pixels) for c in "RGB" if c in channels}
     if recorded != integrity.exr_digest(planes, attrs):
