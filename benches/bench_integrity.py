@@ -181,11 +181,61 @@ def _scene(results: Path) -> Path | None:
     return None
 
 
+def _explorer(args: argparse.Namespace, work: Path, site: Path | None,
+              rows: list[tuple[str, str, float, float, str]]) -> None:
+    """The explorer page's check of its data files (``explorer.verifyMs``) against its time to be ready:
+    the run's page (``site``, when there is one) and a synthetic page of ``--explorer-n`` pre-renders."""
+    try:
+        from brdfpipe.explorer import chromium
+        have = chromium.find_chromium() is not None
+    except Exception:  # noqa: BLE001  (an optional part)
+        have = False
+    if not have:
+        print("  explorer: no chromium, page verification not measured")
+        return
+
+    def page(folder: Path, label: str) -> None:
+        best_v, best_ready = float("inf"), float("inf")
+        for _ in range(args.rounds):
+            with chromium.Browser() as b:
+                b.open(folder / "index.html", ready="window.explorer && (window.explorer.ready || window.explorer.error)",
+                       timeout=600)
+                if b.evaluate("explorer.error"):
+                    raise SystemExit(f"the explorer page failed: {b.evaluate('explorer.error')}")
+                best_v = min(best_v, float(b.evaluate("explorer.verifyMs")) / 1e3)
+                best_ready = min(best_ready, float(b.evaluate("performance.now()")) / 1e3)
+        size = sum(p.stat().st_size for p in (folder / "data").glob("*.js"))
+        rows.append((label, "page load to ready", best_v, best_ready, f"{size / 1e6:.1f} MB"))
+        print(f"  {label:28s} verify {best_v * 1e3:9.2f} ms   {'page load to ready':22s} "
+              f"{best_ready:8.2f} s   {100 * best_v / max(best_ready - best_v, 1e-9):6.2f} %  "
+              f"{size / 1e6:.1f} MB (headless chromium, CRC-32 in JavaScript)", flush=True)
+
+    if site is not None and site.is_dir():
+        page(site, "explorer data (4 .js)")
+    if args.explorer_n > 0:
+        sys.path.insert(0, str(ROOT / "tests"))
+        from explorer_fixture import make_inputs
+
+        from brdfpipe.explorer import export
+
+        inputs = make_inputs(work / "explorer-inputs", n=args.explorer_n, width=256, height=192, qs=(2,))
+        export.write_explorer(out=work / "explorer", **inputs)
+        page(work / "explorer", f"explorer, {args.explorer_n} x 256x192")
+
+
+def _verdict(rows: list[tuple[str, str, float, float, str]]) -> None:
+    worst = max(v / max(t - v, 1e-9) for _, _, v, t, _ in rows) if rows else 0.0
+    verdict = "PASS" if worst < TARGET else "FAIL"
+    print(f"{verdict}: verification adds at most {100 * worst:.2f} % to a consuming stage "
+          f"(target < {100 * TARGET:.0f} %)")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument("--run", type=Path, help="working folder of a finished run (holding results/)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--work", type=Path, help="folder for temporaries (default: a temporary one)")
+    ap.add_argument("--explorer-only", action="store_true", help="only the synthetic explorer page (no run needed)")
     ap.add_argument("--explorer-n", type=int, default=100,
                     help="also a synthetic explorer of N pre-renders of 256 x 192, the default run's size "
                          "(tests/explorer_fixture.py; 0: skip)")
@@ -203,6 +253,12 @@ def main(argv: list[str] | None = None) -> int:
 
     work = Path(tempfile.mkdtemp(prefix="bench-integrity-", dir=args.work))
     try:
+        if args.explorer_only:
+            print(f"machine: {os.cpu_count()} cores, {_cpu_name()}; best of {args.rounds}")
+            rows: list[tuple[str, str, float, float, str]] = []
+            _explorer(args, work, None, rows)
+            _verdict(rows)
+            return 0
         run = args.run
         if run is None:
             run = ROOT if (ROOT / "results" / "merl.zarr").is_dir() else _tiny_run(work)
@@ -212,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"run {run}: {st.n_materials} materials ({st.database}), {len(splits['test'])} held out")
         print(f"machine: {os.cpu_count()} cores, {_cpu_name()}; python {sys.version.split()[0]}; "
               f"best of {args.rounds}, warm page cache")
-        rows: list[tuple[str, str, float, float, str]] = []  # intermediate, stage, verify, stage, note
+        rows = []  # intermediate, stage, verify, stage, note
 
         def measure(what: str, stage_name: str, verify_s: float, stage: Callable[[], Any], note: str = "") -> None:
             t = best_time(stage, args.rounds)
@@ -320,48 +376,9 @@ def main(argv: list[str] | None = None) -> int:
         measure(f"CSV tables ({len(csvs)})", "write_claims", _csv_cost(csvs, args.rounds),
                 lambda: claims.compute_claims(inputs), f"{sum(p.stat().st_size for p in csvs) / 1e3:.0f} kB")
 
-        # the explorer page: the run's, and a synthetic one of the default run's size
-        try:
-            from brdfpipe.explorer import chromium
-            have = chromium.find_chromium() is not None
-        except Exception:  # noqa: BLE001  (an optional part)
-            have = False
+        _explorer(args, work, results / "explorer", rows)
 
-        def page(site: Path, label: str) -> None:
-            best_v, best_ready = float("inf"), float("inf")
-            for _ in range(args.rounds):
-                with chromium.Browser() as b:
-                    b.open(site / "index.html", ready="window.explorer && (window.explorer.ready || window.explorer.error)",
-                           timeout=600)
-                    if b.evaluate("explorer.error"):
-                        raise SystemExit(f"the explorer page failed: {b.evaluate('explorer.error')}")
-                    best_v = min(best_v, float(b.evaluate("explorer.verifyMs")) / 1e3)
-                    best_ready = min(best_ready, float(b.evaluate("performance.now()")) / 1e3)
-            size = sum(p.stat().st_size for p in (site / "data").glob("*.js"))
-            rows.append((label, "page load to ready", best_v, best_ready, f"{size / 1e6:.1f} MB"))
-            print(f"  {label:28s} verify {best_v * 1e3:9.2f} ms   {'page load to ready':22s} "
-                  f"{best_ready:8.2f} s   {100 * best_v / max(best_ready - best_v, 1e-9):6.2f} %  "
-                  f"{size / 1e6:.1f} MB (headless chromium, CRC-32 in JavaScript)", flush=True)
-
-        if not have:
-            print("  explorer: no chromium, page verification not measured")
-        else:
-            if (results / "explorer").is_dir():
-                page(results / "explorer", "explorer data (4 .js)")
-            if args.explorer_n > 0:
-                sys.path.insert(0, str(ROOT / "tests"))
-                from explorer_fixture import make_inputs
-
-                from brdfpipe.explorer import export
-
-                inputs = make_inputs(work / "explorer-inputs", n=args.explorer_n, width=256, height=192, qs=(2,))
-                export.write_explorer(out=work / "explorer", **inputs)
-                page(work / "explorer", f"explorer, {args.explorer_n} x 256x192")
-
-        worst = max(v / max(t - v, 1e-9) for _, _, v, t, _ in rows) if rows else 0.0
-        verdict = "PASS" if worst < TARGET else "FAIL"
-        print(f"{verdict}: verification adds at most {100 * worst:.2f} % to a consuming stage "
-              f"(target < {100 * TARGET:.0f} %)")
+        _verdict(rows)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return 0
