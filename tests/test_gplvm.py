@@ -449,3 +449,17 @@ def test_pca_init_is_kernel_pca() -> None:
     with pytest.raises(ValueError, match="exceeds the number of materials"):
         gplvm.pca_init(Zc @ Zc.T, 11)
 
+
+
+def test_a_model_or_gram_file_of_the_retired_format_is_refused(tmp_path: Path) -> None:
+    """Format /1 files record no digests of the store rows they came from: refused, saying what to do."""
+    G = _random_gram(6, 3, 100.0)
+    info = gplvm.GramInfo(tuple(f"m{i}" for i in range(6)), "raw", np.zeros(6), G)
+    gplvm.save_gram(tmp_path / "g.npz", G, 100, info)
+    z = integrity.load_npz(tmp_path / "g.npz")
+    z["format"] = np.array("brdfpipe.manifold.gplvm.gram/1")
+    integrity.save_npz(tmp_path / "old.npz", z)
+    with pytest.raises(gplvm.GplvmFileError, match=r"old\.npz: GPLVM Gram file format 'brdfpipe\.manifold\.gplvm\."
+                                                   r"gram/1' is no longer supported: it records no digests of the "
+                                                   r"store rows it was computed from; compute it again \(write it"):
+        gplvm.load_gram(tmp_path / "old.npz")

@@ -245,10 +245,11 @@ METHODS: Final = ("hybrid", "hooke-jeeves")
 MODEL_FORMAT: Final = "brdfpipe.gplvm/2"
 #: /2: the digests of the store rows (``row_digests``) and the file's digest.
 GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/2"
-#: Earlier formats: refused with these messages.
+#: Earlier formats: refused with (why, what to do).
 RETIRED_FORMATS: Final = {
-    "brdfpipe.gplvm/1": "it records no digests of the store rows it was fitted on; refit it",
-    "brdfpipe.manifold.gplvm.gram/1": "it records no digests of the store rows it was computed from; compute it again",
+    "brdfpipe.gplvm/1": ("it records no digests of the store rows it was fitted on", "refit it"),
+    "brdfpipe.manifold.gplvm.gram/1": ("it records no digests of the store rows it was computed from",
+                                       "compute it again"),
 }
 _SUB_COLS: Final = 16384
 
@@ -459,8 +460,9 @@ def _load(path: str | os.PathLike[str], fmt: str, kind: str) -> dict[str, NDArra
     z = integrity.load_npz(path, kind=kind, error=GplvmFileError)
     found = str(z["format"]) if "format" in z and z["format"].shape == () else None
     if found in RETIRED_FORMATS:
-        raise GplvmFileError(f"{path}: {kind} format {found!r} is no longer supported ({RETIRED_FORMATS[found]}: "
-                             f"{integrity.rerun_hint(path)})")
+        why, todo = RETIRED_FORMATS[found]
+        raise GplvmFileError(f"{path}: {kind} format {found!r} is no longer supported: {why}; {todo} "
+                             f"({integrity.rerun_hint(path)})")
     if found != fmt:
         raise GplvmFileError(f"{path}: not a brdfpipe {kind} (format {found!r}, expected {fmt!r})")
     return z
