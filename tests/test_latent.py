@@ -428,19 +428,29 @@ def test_samples_uniform_in_an_irregular_polygon(method: str) -> None:
 
 @pytest.fixture(scope="module")
 def fitted(tiny: dict) -> dict:
-    """A q = 2 fit of the tiny store through the workflow's functions, and a store of the same names whose
-    first two rows are swapped (ingested from each other's file)."""
+    """A store of measurement-like files (the tiny tables, unmeasured cells all -1: no synthetic watermark
+    or mark binding them to a name), a q = 2 fit of it through the workflow's functions, and a store of the
+    same names whose first two rows are swapped (each ingested from the other's file, as a folder of real
+    MERL files could be)."""
     tmp = tiny["tmp"] / "fitted"
-    tmp.mkdir()
-    gplvm.write_gram(tiny["store"], tmp / "gram-raw.npz")
-    gplvm.fit_to_files(tmp / "gram-raw.npz", tmp / "q2.npz", tmp / "q2-trace.csv", q=2, seed=1, max_sweeps=10)
+    plain = tmp / "plain"
+    plain.mkdir(parents=True)
     names = tiny["names"]
-    sources = {n: tiny["tmp"] / "db" / f"{n}.binary" for n in names}
+    sources = {}
+    for n in names:
+        table = merl.read_merl(tiny["tmp"] / "db" / f"{n}.binary")
+        table[table < 0] = -1.0
+        sources[n] = plain / f"{n}.binary"
+        merl.write_merl(sources[n], table)
+    same = tmp / "merl.zarr"
+    store.ingest(sources, same, database="merl")
+    gplvm.write_gram(same, tmp / "gram-raw.npz")
+    gplvm.fit_to_files(tmp / "gram-raw.npz", tmp / "q2.npz", tmp / "q2-trace.csv", q=2, seed=1, max_sweeps=10)
     a, b = names[0], names[1]
     swapped = tmp / "swapped.zarr"
-    store.ingest({**sources, a: sources[b], b: sources[a]}, swapped, database="synthetic")
+    store.ingest({**sources, a: sources[b], b: sources[a]}, swapped, database="merl")
     assert list(store.open_store(swapped).materials) == names  # the same names, in the same order
-    return {"model": tmp / "q2.npz", "gram": tmp / "gram-raw.npz", "swapped": swapped, "a": a, "b": b}
+    return {"model": tmp / "q2.npz", "gram": tmp / "gram-raw.npz", "store": same, "swapped": swapped, "a": a, "b": b}
 
 
 def test_interpolate_with_a_store_whose_rows_were_swapped_is_refused(
@@ -452,7 +462,7 @@ def test_interpolate_with_a_store_whose_rows_were_swapped_is_refused(
     out = tmp_path / "a.binary"
     args = ["interpolate", "--model", str(fitted["model"]), "--between", fitted["a"], tiny["names"][2],
             "--t", "0", "--out", str(out)]
-    assert cli.main([*args, "--store", str(tiny["store"])]) == 0  # the store it was fitted on
+    assert cli.main([*args, "--store", str(fitted["store"])]) == 0  # the store it was fitted on
     out.unlink()
     capsys.readouterr()
     assert cli.main([*args, "--store", str(fitted["swapped"])]) == 1
