@@ -15,11 +15,18 @@ from brdfpipe.manifold import gplvm
 
 
 def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, qs: tuple[int, ...] = (2, 5),
-                space: str = "standardised", seed: int = 3) -> dict[str, Any]:
-    """Write a synthetic explorer input under ``root`` and return the write_explorer keyword arguments."""
+                space: str = "standardised", seed: int = 3, names: list[str] | None = None,
+                database: str = "synthetic") -> dict[str, Any]:
+    """Write a synthetic explorer input under ``root`` and return the write_explorer keyword arguments.
+
+    ``names``: the ``n`` material names (default ``mat-00`` …); files are named by index, so any
+    string works (hostile-name tests).  ``database``: the label passed on.
+    """
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
-    names = [f"mat-{i:02d}" for i in range(n)]
+    names = [f"mat-{i:02d}" for i in range(n)] if names is None else list(names)
+    if len(names) != n or len(set(names)) != n:
+        raise ValueError(f"need {n} distinct names, got {names}")
     # images: a few smooth patterns mixed per material, plus noise: low rank + noise like pre-renders
     yy, xx = np.mgrid[0:height, 0:width] / max(width, height)
     patterns = np.stack([np.ones_like(xx), xx, yy, np.sin(6 * xx) ** 2, np.exp(-20 * ((xx - .5) ** 2 + (yy - .4) ** 2))])
@@ -29,8 +36,8 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
     # a background the camera sees directly: the same in every image (the left 3/8, not on a tile edge)
     images[:, :, : width * 3 // 8] = images[0, :, : width * 3 // 8]
     prerenders = {}
-    for name, img in zip(names, images):
-        prerenders[name] = str(root / f"{name}.exr")
+    for i, (name, img) in enumerate(zip(names, images)):
+        prerenders[name] = str(root / f"mat-{i:02d}.exr")
         exr.write_exr(prerenders[name], img)
     # GPLVM fits on a random structured Gram matrix
     Z = rng.standard_normal((n, 4)) @ rng.standard_normal((4, 400)) + 0.1 * rng.standard_normal((n, 400))
@@ -69,4 +76,4 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
     summary = root / "summary.csv"
     integrity.write_csv(summary, [list(rows[0]), *([r[k] for k in rows[0]] for r in rows)])
     return {"models": models, "prerenders": prerenders, "albedo": str(albedo), "path_points": points,
-            "summary": str(summary), "database": "synthetic"}
+            "summary": str(summary), "database": database}

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import re
 from pathlib import Path
@@ -262,6 +263,19 @@ def test_closed_loop_with_the_default_sensor(loop: Loop) -> None:
 
 
 @needs_llvm
+def test_a_sensor_that_masks_every_pixel_gives_the_mean_reconstruction(loop: Loop) -> None:
+    """min_snr above any pixel's SNR: the evaluation runs to the end and reports 0 observations, all masked."""
+    got = loop.run("all-masked", capture.Sensor(), spp=4, min_snr=1e6)
+    for n in (1, 2):
+        assert got[("mean", "closedloop_observations", n)] == 0
+        assert got[("mean", "closedloop_masked", n)] == 1.0
+        assert math.isfinite(got[("mean", "closedloop_rms_log", n)])
+        # no observation: eq. 4 gives the model's mean, the same reconstruction for n = 1 and n = 2
+        assert got[("mean", "closedloop_rms_log", n)] == got[("mean", "closedloop_rms_log", 1)]
+        assert got[("mean", "closedloop_noiseless_rms_log", n)] < got[("mean", "closedloop_rms_log", n)]
+
+
+@needs_llvm
 def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from brdfpipe.cli import main
 
@@ -269,13 +283,26 @@ def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixtu
     out = tmp_path / "cap"
     assert main(["-q", "capture", str(loop.sources[name]), str(loop.directions), "--out", str(out), "--n", "2",
                  "--spp", "4", "--model", str(loop.model)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["n2-0-render.exr", "n2-0-sensor.exr", "n2-1-render.exr",
-                                                     "n2-1-sensor.exr", "n2-noiseless.npz", "n2-sensor.npz",
-                                                     "n2.binary"]
+    assert sorted(p.name for p in out.iterdir()) == ["capture.json", "n2-0-render.exr", "n2-0-sensor.exr",
+                                                     "n2-1-render.exr", "n2-1-sensor.exr", "n2-noiseless.npz",
+                                                     "n2-sensor.npz", "n2.binary"]
+    assert json.loads((out / "capture.json").read_text())["files"] == sorted(
+        p.name for p in out.iterdir() if p.name != "capture.json")
     table = merl.read_merl(out / "n2.binary")
     assert table.shape == merl.SHAPE and np.isfinite(table).all()
+    from brdfpipe.data import provenance
+
+    mark = provenance.read_mark(out / "n2.binary")  # a reconstruction, never taken for a measurement
+    assert mark.kind == "derived" and mark.fields["operation"] == "capture-reconstruct"
+    assert mark.fields["inputs"]["material"]["sha256"] == provenance.file_sha256(loop.sources[name])
+    assert mark.fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(out / "n2-sensor.npz")
     cells, rgb, counts = closedloop.read_observations(out / "n2-sensor.npz")
     assert cells.size == rgb.shape[0] == counts["kept"] > 100
+    # its own earlier output is replaced whole (no n2 files left from the first capture)
+    assert main(["-q", "capture", str(loop.sources[name]), str(loop.directions), "--out", str(out), "--n", "1",
+                 "--spp", "2", "--no-noise"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["capture.json", "n1-0-render.exr", "n1-0-sensor.exr",
+                                                     "n1-noiseless.npz", "n1-sensor.npz"]
     # Bad input: one line naming the file, exit 1, nothing written.
     bad = tmp_path / "not-directions.json"
     bad.write_text('{"format": "something else"}')

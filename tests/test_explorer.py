@@ -447,3 +447,54 @@ def test_page_names_a_damaged_data_file_instead_of_drawing(site: Path, tmp_path:
 @needs_chromium
 def test_page_verifies_its_payload_when_intact(page: chromium.Browser) -> None:
     assert page.evaluate("explorer.error") is None and page.evaluate("explorer.verifyMs") >= 0
+
+
+#: Material names and a database label that would run script or inject markup if the page
+#: treated them as HTML, or end the data's script if it were inline.
+HOSTILE_NAMES = [
+    '<img src=x onerror="window.__pwned=1">',
+    '</script><script>window.__pwned=2</script>',
+    '"><svg onload="window.__pwned=3">',
+    "javascript:window.__pwned=4",
+    "<!-- x",
+    "line\u2028sep\u2029para",
+    "&lt;b&gt; &amp;",
+    "{{7*7}} ${7*7}",
+    "<b>bold</b>",
+    "mat-09", "mat-10", "mat-11",
+]
+HOSTILE_DB = '<img src=y onerror="window.__pwned=5">'
+
+
+def test_script_json_escapes_what_ends_a_script() -> None:
+    value = {"n": HOSTILE_NAMES, "d": HOSTILE_DB}
+    text = export.script_json(value)
+    assert json.loads(text) == value and text.isascii()
+    for bad in ("<", ">", "&", "\u2028", "\u2029"):
+        assert bad not in text
+
+
+@needs_chromium
+def test_hostile_material_names_display_literally_and_run_nothing(tmp_path: Path) -> None:
+    """Names and the database label from the data are shown as text: no script runs, no element appears."""
+    kwargs = make_inputs(tmp_path / "in", names=HOSTILE_NAMES, database=HOSTILE_DB)
+    site = tmp_path / "explorer"
+    export.write_explorer(out=site, **kwargs)
+    for js in (site / "data").glob("*.js"):
+        text = js.read_text(encoding="ascii")
+        assert "</script" not in text.lower() and "<!--" not in text and "<" not in text
+    with chromium.Browser() as b:
+        b.open(site / "index.html", ready=READY)
+        assert b.evaluate("explorer.error") is None and b.errors == [], b.errors
+        b.evaluate("explorer.setPath(explorer.manifest.materials[0], explorer.manifest.materials[1], 0.25)")
+        b.evaluate("explorer.setMode('map')")
+        b.evaluate("new Promise((r) => setTimeout(r, 300))")  # an <img onerror> would have fired by now
+        assert b.evaluate("window.__pwned === undefined"), b.evaluate("String(window.__pwned)")
+        assert b.evaluate("document.querySelectorAll('img, svg, script:not([src]), b').length") == 0
+        shown = b.evaluate("Array.from(document.querySelectorAll('#path-a option'), (o) => o.textContent)")
+        assert shown == HOSTILE_NAMES
+        cells = b.evaluate("Array.from(document.querySelectorAll('#weights tbody tr td:first-child'), "
+                           "(td) => td.textContent)")
+        assert len(cells) == 8 and set(cells) <= set(HOSTILE_NAMES)
+        assert HOSTILE_DB in b.evaluate("document.getElementById('subtitle').textContent")
+        assert b.errors == [], b.errors

@@ -14,7 +14,7 @@ import scipy.spatial
 import scipy.stats
 
 from brdfpipe import cli
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import merl, provenance, store, synth
 from brdfpipe.manifold import analysis, gplvm, latent
 
 # --------------------------------------------------------------------------
@@ -343,6 +343,13 @@ def test_cli_nearest(tiny: dict, model_file: Path, capsys: pytest.CaptureFixture
     _one_line_error(capsys, "missing.npz")
 
 
+def _unmarked(table: np.ndarray) -> np.ndarray:
+    """A copy of a table without the red channel's provenance-mark cells (a written file holds the mark there)."""
+    out = np.array(table, dtype=np.float64).reshape(3, -1)
+    out[0, provenance.MARK_CELLS] = 0.0
+    return out
+
+
 def test_cli_extrapolate_writes_the_last_valid_material(
     tiny: dict, model_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -359,7 +366,10 @@ def test_cli_extrapolate_writes_the_last_valid_material(
     assert max(got["albedo_at_stop"]) > 1 and max(got["albedo_last_valid"]) <= 1
     w = gplvm.blend_weights(gplvm.weights(model, e.last_valid_point))
     table, _ = gplvm.interpolate_table(tiny["store"], w, materials=model.names, space="raw")
-    assert np.allclose(merl.read_merl(out), table, rtol=1e-12)
+    assert np.allclose(_unmarked(merl.read_merl(out)), _unmarked(table), rtol=1e-12)
+    mark = provenance.read_mark(out)
+    assert mark.kind == "derived" and mark.fields["operation"] == "extrapolate"
+    assert mark.fields["inputs"]["start"] == names[0] and mark.fields["inputs"]["through"] == names[1]
     capsys.readouterr()
     assert cli.main(["-q", "extrapolate", "--model", str(model_file), "--store", st, "--from", names[0],
                      "--through", "nope"]) == 1
@@ -387,7 +397,10 @@ def test_cli_sample_writes_seeded_plausible_materials(
         assert np.allclose(w, latent.blend_weights_at(model, np.array(r["latent"]))[0])
         assert np.allclose(alb, w @ tiny["albedos"])
         table, _ = gplvm.interpolate_table(tiny["store"], w, materials=model.names, space="raw")
-        assert np.allclose(merl.read_merl(tmp_path / "a" / r["file"]), table, rtol=1e-12)
+        assert np.allclose(_unmarked(merl.read_merl(tmp_path / "a" / r["file"])), _unmarked(table), rtol=1e-12)
+        mark = provenance.read_mark(tmp_path / "a" / r["file"])
+        assert mark.kind == "derived" and mark.fields["operation"] == "sample" and mark.fields["inputs"]["seed"] == 5
+        assert mark.fields["inputs"]["latent"] == r["latent"]
     rows = (tmp_path / "a" / "samples.csv").read_text().splitlines()
     assert len(rows) == 4 and rows[0].startswith("file,x1,x2,albedo_r")
     # the same seed gives the same files; another seed other points

@@ -61,7 +61,7 @@ def const_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
         merl.write_merl(path, table.reshape(merl.SHAPE))
         sources[name] = path
     out = d / "merl.zarr"
-    store.ingest(sources, out, database="synthetic", jobs=1)
+    store.ingest(sources, out, database="merl", jobs=1)
     return out
 
 

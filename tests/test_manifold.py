@@ -8,7 +8,7 @@ import pytest
 
 from brdfpipe.core import integrity
 from brdfpipe.core.plan import ConfigError
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import merl, provenance, store, synth
 from brdfpipe.manifold import analysis, gplvm
 
 
@@ -73,6 +73,38 @@ def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
     assert rows[0]["bound"] == 0.0
     with pytest.raises(ValueError, match="unknown material 'zzz'"):
         analysis.path_analysis(small["store"], model, G, a, "zzz")
+
+
+def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    """manifold.path_steps: each point's 53 MB perceptual features are dropped once its distances are known.
+
+    (Holding all of them took one job to 22.7 GB.)  Chunks of two tables: the values are those of the
+    one-chunk computation, and the peak of 13 points stays that of 3.
+    """
+    import tracemalloc
+
+    model = gplvm.load_model(small["models"][3])
+    G, _, _ = gplvm.load_gram(small["gram"])
+    a, b = small["names"][0], small["names"][4]
+    whole = analysis.path_analysis(small["store"], model, G, a, b, steps=12)
+    monkeypatch.setattr(analysis, "_MAX_TABLES_IN_MEMORY", 2)
+    peaks = {}
+    for steps in (2, 12):
+        tracemalloc.start()
+        rows = analysis.path_analysis(small["store"], model, G, a, b, steps=steps)
+        peaks[steps] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    for r, w in zip(rows, whole):
+        for k in ("perceptual_a", "perceptual_b", "perceptual_ab"):
+            assert r[k] == pytest.approx(w[k], rel=1e-9, abs=1e-9)
+    feature_bytes = 8 * __import__("brdfpipe.manifold.perceptual", fromlist=["x"]).pr12_n_features()
+    assert peaks[12] < peaks[2] + 2 * feature_bytes, peaks
+
+
+def test_the_memory_model_counts_the_path_points_held_at_once() -> None:
+    from brdfpipe.core import plan
+
+    assert plan.PATH_CHUNK == analysis._MAX_TABLES_IN_MEMORY + 1  # a chunk and the path's end
 
 
 def test_check_and_default_paths() -> None:
@@ -189,7 +221,12 @@ def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
         table = merl.read_merl(merls[k]).reshape(-1)
         expect = np.maximum(w @ small["brdf"][[names.index(n) for n in m.names]], 0.0)
         np.testing.assert_allclose(table[valid], expect[valid], rtol=1e-9, atol=1e-12)
-        assert np.all(table[~valid] == -1.0)
+        marked = np.zeros(table.size, dtype=bool)
+        marked[provenance.MARK_CELLS] = True  # red channel: the provenance mark (negative, unmeasured)
+        assert np.all(table[~valid & ~marked] == -1.0) and np.all(table[marked] < 0.0)
+        mark = provenance.read_mark(merls[k])
+        assert mark is not None and mark.kind == "derived" and mark.fields["operation"] == "path-point"
+        assert mark.fields["inputs"]["path"] == [a, b] and mark.fields["inputs"]["t"] == t
     # t = 0 is the first material itself (exact reproduction at training points)
     first = np.maximum(small["brdf"][names.index(points[0][0])], 0.0)
     np.testing.assert_allclose(merl.read_merl(merls[0]).reshape(-1)[valid], first[valid], rtol=1e-6, atol=1e-9)

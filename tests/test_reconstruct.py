@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from brdfpipe.acquisition import geometry, metrics, optimize, reconstruct, svd
 from brdfpipe.cli import main as cli_main
 from brdfpipe.core import filenames, integrity
-from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.data import logmap, merl, provenance, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.acquisition.reconstruct import (
     CONSISTENCY_COLUMNS,
@@ -218,18 +218,43 @@ def test_write_reconstruction_and_cli(data: Data, tmp_path: Path) -> None:
     assert reconstruct.write_reconstruction(data.model_path, files["npz-angles"], out) == out
     back = merl.read_merl(out)
     table = reconstruct.reconstruct_brdf(data.model, cells, rgb)
-    np.testing.assert_allclose(back, table, rtol=1e-14, atol=0)
+    unmarked = np.ones((3, merl.N_CELLS), dtype=bool)
+    unmarked[0, provenance.MARK_CELLS] = False  # the provenance mark (unmeasurable cells, negative)
+    np.testing.assert_allclose(back.reshape(3, -1)[unmarked], table.reshape(3, -1)[unmarked], rtol=1e-14, atol=0)
     flat = back.reshape(3, merl.N_CELLS)
     measured = np.zeros(merl.N_CELLS, dtype=bool)
     measured[data.model.cells] = True
     assert (flat[:, ~measured] < 0).all() and (flat[:, measured] >= 0).all()
-    np.testing.assert_array_equal(merl.read_merl_raw(out).reshape(3, -1)[:, ~measured], -1.0)
+    raw = merl.read_merl_raw(out).reshape(3, -1)
+    np.testing.assert_array_equal(raw[:, ~measured][unmarked[:, ~measured]], -1.0)
+    mark = provenance.read_mark(out)
+    assert mark is not None and mark.kind == "derived" and mark.fields["operation"] == "reconstruct"
+    assert mark.fields["source_database"] == data.model.database and mark.fields["name"] == "rec"
+    assert mark.fields["inputs"]["model"]["id"] == data.model.id
+    assert mark.fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(files["npz-angles"])
     out2 = tmp_path / "cli.binary"
     assert cli_main(["-q", "reconstruct", str(files["csv-dirs"]), "--model", str(data.model_path),
                      "--out", str(out2), "--eta", "40"]) == 0
-    np.testing.assert_array_equal(merl.read_merl(out2), back)
+    np.testing.assert_array_equal(merl.read_merl(out2).reshape(3, -1)[unmarked], back.reshape(3, -1)[unmarked])
+    assert provenance.read_mark(out2).fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(
+        files["csv-dirs"])
     bad = _write(tmp_path / "bad.csv", "theta_h,theta_d,r,g,b\n1,2,3,4,5\n")
     assert cli_main(["-q", "reconstruct", str(bad), "--model", str(data.model_path), "--out", str(out2)]) == 1
+
+
+def test_reconstructions_are_derived_and_ingest_as_derived(data: Data, tmp_path: Path) -> None:
+    """A reconstruction (and that of a capture) is marked derived; a folder of them is never 'merl'."""
+    files, _, _ = _observation_files(data, tmp_path)
+    folder = tmp_path / "recs"
+    reconstruct.write_reconstruction(data.model_path, files["npz-dirs"], folder / "rec.binary")
+    source = folder_database(data.dir / "db").sources[data.test[0]]
+    reconstruct.write_reconstruction(data.model_path, files["csv-angles"], folder / "captured.binary", material=source)
+    mark = provenance.read_mark(folder / "captured.binary")
+    assert mark.fields["operation"] == "capture-reconstruct"
+    assert mark.fields["inputs"]["material"] == {"sha256": provenance.file_sha256(source), "database": "synthetic"}
+    assert provenance.read_mark(folder / "rec.binary").fields["operation"] == "reconstruct"
+    assert cli_main(["-q", "ingest", str(folder), "--out", str(tmp_path / "recs.zarr"), "--jobs", "1"]) == 0
+    assert store.open_store(tmp_path / "recs.zarr").database == "derived"
 
 
 def _write(path: Path, text: str) -> Path:

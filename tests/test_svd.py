@@ -23,7 +23,7 @@ from brdfpipe.acquisition.svd import ModelError
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
-from brdfpipe.data import logmap, store, synth
+from brdfpipe.data import logmap, merl, provenance, store, synth
 from brdfpipe.data.database import folder_database
 
 # --------------------------------------------------------------------------
@@ -257,7 +257,12 @@ def test_duplicate_material_is_rank_deficient(data: dict[str, Path], tmp_path: P
     names = db.materials[:3]
     sources = {n: db.sources[n] for n in names}
     sources["twin"] = tmp_path / "twin.binary"
-    shutil.copyfile(db.sources[names[1]], sources["twin"])
+    # a byte copy of the data; its provenance mark names "twin" (a plain copy is refused at ingest as a
+    # file copied over another material)
+    raw = merl.read_merl_raw(db.sources[names[1]]).reshape(3, -1)
+    mark = provenance.read_mark(db.sources[names[1]])
+    provenance.stamp(raw, provenance.Mark("synthetic", {**mark.fields, "name": "twin"}))
+    sources["twin"].write_bytes(np.asarray(merl.DIMS, dtype="<i4").tobytes() + raw.astype("<f8").tobytes())
     st_path = tmp_path / "merl.zarr"
     store.ingest(sources, st_path, database="synthetic", jobs=1)
     lm_path = tmp_path / "lm.zarr"

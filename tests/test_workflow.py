@@ -203,22 +203,26 @@ def check_floor(workdir: Path, names: list[str]) -> None:
     ("overrides", "message"),
     [
         ({"test_materials": ["no-such-material"]}, "unknown material"),
-        ({"render": {"floor_check": {"candidates": "some"}}}, "is not one of"),
-        ({"render": {"floor_check": {"spp": 0}}}, "less than the minimum of 1"),
-        ({"synthetic": {"count": 0}}, "minimum"),
-        ({"colour": "red"}, "Additional properties"),
+        ({"render": {"floor_check": {"candidates": "some"}}}, "render.floor_check.candidates = 'some': must be one of"),
+        ({"render": {"floor_check": {"spp": 0}}}, "render.floor_check.spp = 0: must be ≥ 1"),
+        ({"synthetic": {"count": 0}}, "synthetic.count = 0: must be ≥ 1"),
+        ({"colour": "red"}, "config colour: unknown key"),
+        ({"render": {"resolutoin": [3, 4]}}, "render.resolutoin: unknown key; did you mean 'resolution'?"),
+        ({"render": {"spp": "1e5"}}, "render.spp = '1e5': must be an integer"),
+        ({"acquisition": {"fovs": [25, 25]}}, "acquisition.fovs: 25 is listed more than once"),
+        ({"materials": []}, "config materials: must not be empty"),
         ({"merl_dir": "/nonexistent/merl"}, "does not exist"),
-        ({"acquisition": {"setups": ["gonioreflectometer"]}}, "is not one of"),
-        ({"acquisition": {"fovs": [0]}}, "less than or equal to the minimum of 0"),
-        ({"acquisition": {"fovs": [90]}}, "greater than or equal to the maximum of 90"),
-        ({"acquisition": {"n_max_images": 0}}, "less than the minimum of 1"),
-        ({"acquisition": {"eta": 0}}, "less than or equal to the minimum of 0"),
-        ({"manifold": {"latent_dims": [0]}}, "less than the minimum of 1"),
-        ({"manifold": {"ell": 0}}, "less than or equal to the minimum of 0"),
-        ({"manifold": {"mu": -1e-4}}, "less than the minimum of 0"),
+        ({"acquisition": {"setups": ["gonioreflectometer"]}}, "acquisition.setups[0] = 'gonioreflectometer': must be one of"),
+        ({"acquisition": {"fovs": [0]}}, "acquisition.fovs[0] = 0: must be > 0"),
+        ({"acquisition": {"fovs": [90]}}, "acquisition.fovs[0] = 90: must be < 90"),
+        ({"acquisition": {"n_max_images": 0}}, "acquisition.n_max_images = 0: must be ≥ 1"),
+        ({"acquisition": {"eta": 0}}, "acquisition.eta = 0: must be ≥ 1e-06"),
+        ({"manifold": {"latent_dims": [0]}}, "manifold.latent_dims[0] = 0: must be ≥ 1"),
+        ({"manifold": {"ell": 0}}, "manifold.ell = 0: must be ≥ 1e-06"),
+        ({"manifold": {"mu": -1e-4}}, "manifold.mu = -0.0001: must be ≥ 1e-10"),
         ({"manifold": {"paths": [["no-such-material", "other"]]}}, "unknown material 'no-such-material'"),
         ({"manifold": {"path_q": 3}}, "is not one of manifold.latent_dims"),
-        ({"render": {"variant": "scalar_spectral"}}, "is not one of"),
+        ({"render": {"variant": "scalar_spectral"}}, "render.variant = 'scalar_spectral': must be one of"),
         ({"render": {"noise_seed": 0}}, "must differ from render.seed"),
         ({"manifold": {"ell": float("nan")}}, "manifold.ell"),
         ({"manifold": {"mu": float("inf")}}, "manifold.mu"),
@@ -229,13 +233,18 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"closed_loop": {"n_images": [3]}}, "closed_loop.n_images"),
         ({"merl_dir": ""}, "merl_dir"),
         ({"materials": ["no-such-*"]}, "materials: 'no-such-*' match"),
+        ({"render": {"envmap": {"width": 100000, "height": 50000}}}, "render.envmap.width × height = 5,000,000,000"),
+        ({"closed_loop": {"sensor": {"enabled": True, "brackets": [2, 8]}}}, "closed_loop.sensor.brackets"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:
     cfg = write_config(tmp_path / "bad.yaml", **overrides)
     r = snakemake(tmp_path, "-n", configfile=cfg)
     assert r.returncode != 0
-    assert message in r.stdout + r.stderr
+    out = r.stdout + r.stderr
+    assert message in out
+    # one line naming the key: no schema dump, no traceback (Snakemake adds its header and the Snakefile line)
+    assert "Failed validating" not in out and "Traceback" not in out and len(out.splitlines()) <= 5, out
     assert not (tmp_path / "results").exists()
 
 
@@ -345,7 +354,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
     assert not planned & untouched, planned & untouched
 
 
-@pytest.mark.parametrize("name", ["brace{x}", "with space", "café", "x" * 101])
+@pytest.mark.parametrize("name", ["brace{x}", "with space", "café", "x" * 101, "mean"])
 def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, name: str) -> None:
     folder = tmp_path / "merl"
     folder.mkdir()
@@ -363,7 +372,10 @@ def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, nam
 
 
 def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
-    """A folder written by `brdfpipe synth` and given as merl_dir: the store says synthetic, like the CLI."""
+    """A folder written by `brdfpipe synth` and given as merl_dir: the store says synthetic, like the CLI.
+
+    The folder is read as it is: the workflow does not plan synthesis (or a manifest) of its own for it.
+    """
     from brdfpipe import cli
 
     folder = tmp_path / "db"
@@ -372,12 +384,15 @@ def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
     names = sorted(p.stem for p in folder.glob("*.binary"))
     cfg = write_config(tmp_path / "synth.yaml", merl_dir=str(folder), test_materials=names[:1],
                        manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
-    r = snakemake(tmp_path, "results/merl.zarr", configfile=cfg)
+    r = snakemake(tmp_path, "results/splits.json", configfile=cfg)
     assert r.returncode == 0, r.stderr[-3000:]
     assert store.open_store(tmp_path / "results" / "merl.zarr").database == "synthetic"
+    assert json.loads((tmp_path / "results" / "splits.json").read_text())["test"] == names[:1]
+    assert not (tmp_path / "results" / "synthetic").exists()
 
 
 def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None:
+    """A `materials` subset of the synthetic database: jobs for those only, and the data stage runs through."""
     from brdfpipe.data import database
 
     names = database.synthetic_database("x", 12, 7).materials
@@ -388,3 +403,8 @@ def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None
     assert r.returncode == 0, r.stderr[-3000:]
     out = r.stdout + r.stderr
     assert any(line.split()[:2] == ["ingest_material", str(len(subset))] for line in out.splitlines()), out
+    r = snakemake(tmp_path, "results/splits.json", configfile=cfg)  # synthesis, manifest, ingest, store, split
+    assert r.returncode == 0, r.stderr[-3000:]
+    manifest = json.loads((tmp_path / "results" / "synthetic" / "manifest.json").read_text())
+    assert sorted(m["name"] for m in manifest["materials"]) == subset and manifest["count"] == 12
+    assert json.loads((tmp_path / "results" / "splits.json").read_text())["materials"] == subset

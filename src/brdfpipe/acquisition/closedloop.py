@@ -26,7 +26,11 @@ the table lookup), per channel, with the means over the material-channels
 as material ``mean``, channel ``all``.  Counts per (material, set), channel
 ``all``: ``observations`` (table lookup), ``closedloop_observations`` (sensor
 pixels used) and ``closedloop_masked`` (share of the disk's pixels not used:
-masked by the sensor or on a cell that is not a model column).
+masked by the sensor or on a cell that is not a model column).  A set whose
+photographs leave no usable pixel (every one masked: dark, below
+``min_snr`` or saturated) is reconstructed from no observation, which eq. 4
+makes the model's mean: its rows say so (``closedloop_observations`` 0,
+``closedloop_masked`` 1) and the job logs a warning; it does not fail.
 
 Cost: one streamed pass over Q for all (material, set, kind) coefficient
 columns at once (as the evaluation's pass 2).
@@ -208,7 +212,12 @@ def evaluate_closedloop(
                     c_cells, rgb, px = read_observations(path)
                     c_cols, v = _model_columns(lut, c_cells, rgb)
                     if c_cols.size == 0:
-                        raise ValueError(f"{path}: no observation falls on a model column")
+                        # Every pixel masked (dark, below min_snr, saturated) or off the model's cells: eq. 4
+                        # with no observation gives c̄ = 0, the model's mean; reported as such (0 observations,
+                        # all masked), not an error.
+                        logger.warning("%s: no pixel of %s %s n = %d is usable (%s); its reconstruction is the "
+                                       "model's mean", path, name, Path(directions[d]).name, n,
+                                       ", ".join(f"{k} {v}" for k, v in px.items()))
                     obs.append((i, d, n, source, c_cols, v))
                     if source == "sensor":
                         cnt["closedloop_observations"] = int(c_cols.size)

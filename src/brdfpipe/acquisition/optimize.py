@@ -131,7 +131,7 @@ logger = logging.getLogger("brdfpipe.acquisition.optimize")
 DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
 _METRICS = ("error", "condition")
 _REL_IMPROVE: float = 1e-12
-_CELL_CACHE_MAX: int = 10_000  # configurations whose observed cells are cached (≤ ~40 MB)
+_CELL_CACHE_MAX: int = 10_000 * 1024  # observed cells cached over all configurations (int32: ≤ ~40 MB at any grid)
 _EVAL_CHUNK_ROWS: int = 4096  # distinct candidate rows gathered from Q at a time (≤ ~9 MB as float64)
 _MAX_UPDATE_DEPTH: int = 32  # the current set's statistics are rebuilt after this many derivations
 _Q_READ_ROWS: int = 36_450 * 4
@@ -289,6 +289,7 @@ class _Optimizer:
         self.axes: tuple[int, ...] = (1, 2) if self.fixed else (0, 1, 2)
         self.wrap = (False, False, setup.kind != "nearfield")
         self._cache: dict[Config, NDArray[np.int32] | None] = {}
+        self._cached_cells = 0
         self.evaluations = 0
         # "fast": candidates by low-rank updates where cheaper; "direct": each one afresh (reference).
         self.method: Literal["auto", "direct"] = "direct" if evaluation == "direct" else "auto"
@@ -310,9 +311,12 @@ class _Optimizer:
             cells = observation_cells(self.setup, config, self.valid)
             if cells.size:
                 result = cells.astype(np.int32)
-        if len(self._cache) >= _CELL_CACHE_MAX:
+        size = 1 if result is None else int(result.size)
+        if self._cached_cells + size > _CELL_CACHE_MAX:
             self._cache.clear()
+            self._cached_cells = 0
         self._cache[config] = result
+        self._cached_cells += size
         return result
 
     def rows_of(self, cells: NDArray[np.int32]) -> NDArray[np.intp]:

@@ -144,7 +144,7 @@ from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import Directions, read_directions
 from brdfpipe.acquisition.svd import Model, open_model
 from brdfpipe.core import integrity
-from brdfpipe.data import logmap, merl
+from brdfpipe.data import logmap, merl, provenance
 from brdfpipe.data.logmap import Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
@@ -162,6 +162,7 @@ __all__ = [
     "load_observations",
     "reconstruct_log",
     "reconstruct_brdf",
+    "reconstruction_mark",
     "write_reconstruction",
     "evaluate",
     "evaluate_selections",
@@ -488,26 +489,54 @@ def reconstruct_brdf(
     return table.reshape(merl.SHAPE)
 
 
+def reconstruction_mark(
+    model: Model, observations_path: str | os.PathLike[str], out: str | os.PathLike[str], eta: float,
+    material: str | os.PathLike[str] | None = None,
+) -> provenance.Mark:
+    """The ``derived`` provenance mark of a reconstruction written to ``out``.
+
+    Records the model (``id``, ``database``, ``k``, number of materials), the
+    sha256 of the observations file and ``eta``; with ``material`` (the
+    captured file of ``brdfpipe capture --model``) also that file's sha256
+    and label, as operation ``capture-reconstruct``.
+    """
+    inputs: dict[str, Any] = {
+        "model": {"id": model.id, "database": model.database, "k": model.k, "materials": len(model.materials)},
+        "observations": {"sha256": provenance.file_sha256(observations_path)},
+        "eta": float(eta),
+    }
+    if material is not None:
+        inputs["material"] = {"sha256": provenance.file_sha256(material), "database": provenance.file_label(material)}
+    operation = "reconstruct" if material is None else "capture-reconstruct"
+    return provenance.derived_mark(name=provenance.output_name(out), operation=operation,
+                                   source_database=model.database, inputs=inputs)
+
+
 def write_reconstruction(
     model_path: Model | str | os.PathLike[str],
     observations_path: str | os.PathLike[str],
     out: str | os.PathLike[str],
     eta: float = DEFAULT_ETA,
+    *,
+    material: str | os.PathLike[str] | None = None,
 ) -> Path:
     """Reconstruct the material of ``observations_path`` and write it as a MERL file at ``out``.
 
     :func:`load_observations` → :func:`reconstruct_brdf` → :func:`brdfpipe.data.merl.write_merl`
-    (atomic).  Parent folders are created.  Returns ``out``.
+    (atomic) with the ``derived`` mark of :func:`reconstruction_mark`
+    (``material``: the file the observations were captured from, if known).
+    Parent folders are created.  Returns ``out``.
     """
     out = Path(out)
     mdl = _as_model(model_path)
     cells, rgb = load_observations(observations_path)
+    mark = reconstruction_mark(mdl, observations_path, out, eta, material)
     try:
         table = reconstruct_brdf(mdl, cells, rgb, eta)
     except ValueError as exc:
         raise ValueError(f"{observations_path}: {exc}") from exc
     out.parent.mkdir(parents=True, exist_ok=True)
-    merl.write_merl(out, table)
+    merl.write_merl(out, table, mark=mark)
     logger.info("wrote %s", out)
     return out
 

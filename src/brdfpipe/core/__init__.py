@@ -14,6 +14,7 @@ this ``__init__`` imports nothing.
 * :mod:`brdfpipe.core.logutil`   – logging set-up of the command line and the workflow scripts;
 * :mod:`brdfpipe.core.plan`      – what the workflow plans from its configuration;
 * :mod:`brdfpipe.core.plot`      – figure helpers shared by every track (style, inputs, atomic saving);
+* :mod:`brdfpipe.core.resources` – the machine's memory and free disk, for bounds checked before work starts;
 * :mod:`brdfpipe.core.threads`   – the BLAS threads of a job (its rule's declared threads);
 * :mod:`brdfpipe.core.version`   – content digests of the library's source (provenance, reruns);
 * :mod:`brdfpipe.core.zgroup`    – opening finished brdfpipe Zarr groups.

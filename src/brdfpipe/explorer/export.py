@@ -106,6 +106,7 @@ __all__ = [
     "noise_floor",
     "hull_data",
     "read_data_file",
+    "script_json",
     "write_data_file",
     "write_explorer",
 ]
@@ -347,12 +348,35 @@ def _model_doc(model: gplvm.GplvmModel, path: Path) -> dict[str, Any]:
 # --------------------------------------------------------------------------
 
 
+#: Characters a JSON text may hold that would end or alter a ``<script>`` (HTML parser) or a JS source
+#: line, as ``\\uXXXX`` escapes, which JSON and JavaScript read back as the same characters.
+_SCRIPT_UNSAFE: Final = str.maketrans({"<": "\\u003c", ">": "\\u003e", "&": "\\u0026",
+                                        "\u2028": "\\u2028", "\u2029": "\\u2029"})
+
+
+def script_json(value: Any) -> str:
+    """``value`` as JSON (sorted keys, compact) that is safe inside a ``<script>`` element or a JS file.
+
+    The one place where data becomes JavaScript source: ASCII only, and
+    ``<``, ``>``, ``&``, U+2028 and U+2029 are ``\\u`` escapes, so no
+    material, path or database name can close the script (``</script>``),
+    open an HTML comment (``<!--``) or break a line of the source.  The
+    value read back (``JSON.parse``, :func:`read_data_file`) is unchanged.
+    """
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return text.translate(_SCRIPT_UNSAFE)
+
+
 def _script(key: str, value: Any) -> str:
-    """A ``data/*.js`` file: ``value`` as JSON text in a string, with the text's CRC-32 (checked by the page)."""
-    text = json.dumps(value, sort_keys=True, separators=(",", ":"))
+    """A ``data/*.js`` file: ``value`` as JSON text in a string, with the text's CRC-32 (checked by the page).
+
+    The record is written with :func:`script_json` (safe inside a script); the string the page reads back,
+    and checks the CRC-32 of, is the JSON text itself.
+    """
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
     record = {"crc32": integrity.text_crc32(text), "json": text}
-    return f"window.{_GLOBAL} = window.{_GLOBAL} || {{}};\nwindow.{_GLOBAL}[{json.dumps(key)}] = " \
-           f"{json.dumps(record, sort_keys=True, separators=(',', ':'))};\n"
+    return f"window.{_GLOBAL} = window.{_GLOBAL} || {{}};\nwindow.{_GLOBAL}[{script_json(key)}] = " \
+           f"{script_json(record)};\n"
 
 
 def write_data_file(path: str | os.PathLike[str], key: str, value: Any) -> None:

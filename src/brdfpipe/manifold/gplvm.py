@@ -189,6 +189,7 @@ from brdfpipe.data.store import (
     material_indices,
     open_store,
 )
+from brdfpipe.manifold import derivation
 
 __all__ = [
     "SPACES",
@@ -1499,11 +1500,13 @@ def interpolate_to_file(
     way from material A to material B of ``between`` (linear in the latent
     space).  The blend is Σ w_i z_i of the store's materials with the weights
     of :func:`blend_weights`, taken in the model's data space
-    (:func:`interpolate_table`).  ValueError for a point of the wrong length,
-    an unknown material, both or neither of ``at`` / ``between``, a damaged
-    model file (:class:`GplvmFileError`), or a store that does not hold the
-    rows the model was fitted on (:class:`DataMismatchError`, naming the
-    model, the store and the material: :func:`check_store`).
+    (:func:`interpolate_table`).  The file carries a ``derived`` provenance
+    mark (:mod:`brdfpipe.manifold.derivation`: model and store digests, the
+    latent point, ``between`` and ``t``).  ValueError for a point of the wrong
+    length, an unknown material, both or neither of ``at`` / ``between``, a
+    damaged model file (:class:`GplvmFileError`), or a store that does not
+    hold the rows the model was fitted on (:class:`DataMismatchError`, naming
+    the model, the store and the material: :func:`check_store`).
     """
     model = load_model(model_path)
     st = check_store(model, store_path)
@@ -1521,6 +1524,9 @@ def interpolate_to_file(
         x_star = np.asarray(at, dtype=np.float64)
     w = blend_weights(weights(model, x_star))
     table, clamped = interpolate_table(st, w, materials=model.names, space=model.space, model=model)
-    merl.write_merl(out, table)
+    details: dict[str, Any] = {"between": list(between), "t": float(t)} if between is not None else {}
+    mark = derivation.BlendSource.of(model_path, model, st).mark(
+        out=out, operation="interpolate", point=x_star, weights=w, **details)
+    merl.write_merl(out, table, mark=mark)
     logger.info("interpolated BRDF at x* = %s -> %s (%d clamped values)", np.round(x_star, 4).tolist(), out, clamped)
     return clamped

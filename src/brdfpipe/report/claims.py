@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from brdfpipe.core import atomic, integrity
+from brdfpipe.report import rst
 
 __all__ = [
     "ClaimsInputError",
@@ -705,11 +706,8 @@ def read_claims(path: str | os.PathLike[str]) -> list[dict[str, str]]:
 
 
 def rst_cell(text: str) -> str:
-    """Table-cell text safe for reStructuredText (no markup, no line breaks)."""
-    text = " ".join(str(text).split())
-    for ch in ("\\", "*", "`", "|", "_"):
-        text = text.replace(ch, "\\" + ch)
-    return text or "–"
+    """Table-cell text safe for reStructuredText: renders exactly ``text`` (:func:`brdfpipe.report.rst.text`)."""
+    return rst.text(text)
 
 
 _MARK = {"yes": "**yes**", "no": "**NO**", "not measured": "not measured"}
