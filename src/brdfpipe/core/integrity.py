@@ -324,7 +324,7 @@ def read_json(
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise corrupt(path, kind, f"not JSON: {exc.msg}, line {exc.lineno} column {exc.colno}", error=error) from None
+        raise corrupt(path, kind, f"not JSON: {exc}", error=error) from None
     except RecursionError:
         raise corrupt(path, kind, "nested too deeply", error=error) from None
     if not isinstance(doc, dict):
