@@ -28,7 +28,8 @@ with log_to(snakemake.log[0]):
         rst_path=snakemake.output.rst,
     )
     splits = integrity.read_json(inp.splits, kind="splits file")  # its digest checked
-    captions.write_captions(snakemake.params.entries, found, database=splits["database"])
+    captions.write_captions(snakemake.params.entries, found,
+                            database=splits.get("database_title") or splits["database"])
     runinfo.write_front(
         snakemake.output.front,
         claims=found,

@@ -31,6 +31,7 @@ from matplotlib.ticker import MaxNLocator
 
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
+from brdfpipe.data.databases import title as database_label
 from brdfpipe.core.plot import (
     COLOURS,
     RC_PARAMS,
@@ -38,7 +39,6 @@ from brdfpipe.core.plot import (
     FigureOutput,
     Warnings,
     check_keys,
-    database_label,
     figure_stem,
     finish,
     new_figure,
