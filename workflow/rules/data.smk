@@ -5,6 +5,8 @@
 if SYNTHETIC:
 
     rule synthesize_material:
+        input:
+            stamp=stamp_of("synthesize_material"),
         output:
             binary=fn.synthetic_binary("{material}"),
             record=fn.synthetic_record("{material}"),
@@ -29,6 +31,7 @@ if SYNTHETIC:
     rule write_manifest:
         input:
             records=expand(fn.synthetic_record("{material}"), material=MATERIALS),
+            stamp=stamp_of("write_manifest"),
         output:
             manifest=fn.manifest(),
         log:
@@ -54,6 +57,7 @@ if SYNTHETIC:
 rule ingest_material:
     input:
         binary=source_file,
+        stamp=stamp_of("ingest_material"),
     output:
         row=temp(directory(fn.ingest_row("{material}"))),
     log:
@@ -75,6 +79,7 @@ rule ingest_material:
 rule assemble_store:
     input:
         rows=expand(fn.ingest_row("{material}"), material=MATERIALS),
+        stamp=stamp_of("assemble_store"),
     output:
         store=directory(fn.store()),
     log:
@@ -98,6 +103,7 @@ rule write_splits:
     input:
         store=fn.store(),
         manifest=fn.manifest() if SYNTHETIC else [],
+        stamp=stamp_of("write_splits"),
     output:
         splits=fn.splits(),
     log:
