@@ -82,6 +82,9 @@ def test_a_run_rewrites_a_stamp_only_when_the_record_changed(tmp_path: Path,
     assert stamps.stamp_input(path, a, "run") == path and Path(path).stat().st_mtime == 1  # same record: untouched
     assert stamps.stamp_input(path, b, "run") == path and Path(path).read_text() == b + "\n"
     assert Path(path).stat().st_mtime > 1  # newer than the outputs: Snakemake reruns the job
+    os.utime(path, (1, 1))
+    stamps.stamp_input(path, b, "run", outputs_missing=True)  # same record, an output gone: rerun too
+    assert Path(path).stat().st_mtime > 1 and Path(path).read_text() == b + "\n"
     assert sorted(p.name for p in Path(path).parent.iterdir()) == ["material=m"]  # no temporary left
 
 
@@ -97,6 +100,7 @@ def test_a_dry_run_plans_with_a_fresh_copy_and_leaves_results_alone(tmp_path: Pa
     assert stamps.stamp_input(path, a, "plan") == path  # up to date
     planned_b = stamps.stamp_input(path, b, "plan")
     assert planned_b != path and Path(path).read_text() == a + "\n"
+    assert stamps.stamp_input(path, a, "plan", outputs_missing=True) != path
     assert stamps.stamp_input(path, b, "read") == path  # a job's own process writes nothing
     assert Path(path).read_text() == a + "\n"
     with pytest.raises(ValueError, match="unknown stamp mode"):

@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
+from snakemake.io import apply_wildcards, is_flagged
 
 from brdfpipe.data import database as brdf_db
 from brdfpipe.core import filenames as fn
@@ -30,9 +31,9 @@ def code(script):
 # Job stamps (brdfpipe.core.stamps): every rule takes its own stamp as an input,
 # `stamp=stamp_of("<rule>")`: a file holding the record of the job's rule,
 # wildcards, params (by name: code digest included) and input list, rewritten
-# while a run builds its DAG when the record changed, so Snakemake reruns the
-# job from modification times, whatever its metadata says. The Snakefile
-# refuses a rule without its stamp.
+# while a run builds its DAG when the record changed or an output is missing,
+# so Snakemake reruns the job from modification times, whatever its metadata
+# says. The Snakefile refuses a rule without its stamp.
 # Params function -> its argument names.
 _PARAM_ARGS = {}
 _STAMP_MODE = []
@@ -94,7 +95,14 @@ def stamp_of(rule_name):
         except job_stamps.StampError as err:
             raise WorkflowError(str(err)) from None
         path = fn.stamp(rule_name, job_stamps.job_key(wc))
-        return job_stamps.stamp_input(path, record, _stamp_mode())
+        missing = any(
+            not Path(apply_wildcards(str(f), wc)).exists()
+            for f in spec.output
+            if not is_flagged(f, "temp")
+        )
+        return job_stamps.stamp_input(
+            path, record, _stamp_mode(), outputs_missing=missing
+        )
 
     stamp_input.brdfpipe_stamp = rule_name
     return stamp_input

@@ -37,6 +37,10 @@ downstream) from modification times alone:
   job's stamp newer than its (old) outputs: the next run reruns it;
 * a temporary output (``temp()``) may be gone: its job's stamp stays, so a
   change upstream of it is still seen;
+* a job with an output missing (not a temporary one) is out of date too:
+  Snakemake would not rebuild a missing file that nothing out of date asks
+  for (a job that an interrupted run started, whose outputs it removed, or
+  that failed while the files downstream were already there);
 * a job whose stamp does not exist yet (a fresh working directory, or
   results made before stamps existed) runs: nothing tells what made its
   outputs.
@@ -147,15 +151,19 @@ def job_key(wildcards: Mapping[str, str]) -> str:
 PLAN_DIR = ".snakemake/brdfpipe-stamps"
 
 
-def stamp_input(path: str, record: str, mode: str) -> str:
+def stamp_input(path: str, record: str, mode: str, *, outputs_missing: bool = False) -> str:
     """The file a job takes as its stamp input; ``path``: its stamp, ``record``: its current :func:`job_record`.
 
-    ``mode``:
+    The stamp is out of date when ``path`` does not hold ``record``, or when
+    ``outputs_missing`` (an output of the job that is not temporary is
+    missing: an interrupted run removed it before its job could write it
+    again, and Snakemake does not rebuild a missing file that nothing out of
+    date asks for).  ``mode``:
 
-    * ``"run"`` (a run's main process): if ``path`` does not hold ``record``,
-      write it there (atomically, a new modification time); return ``path``;
+    * ``"run"`` (a run's main process): write an out-of-date stamp
+      (atomically: a new modification time); return ``path``;
     * ``"plan"`` (a dry run, a report, a working directory locked by another
-      Snakemake): return ``path`` if it holds ``record``, else a copy of the
+      Snakemake): return ``path`` if it is up to date, else a copy of the
       record under :data:`PLAN_DIR`, written now (a fresh modification
       time, as a run will give ``path``);
     * ``"read"`` (a job's own Snakemake process): return ``path``, write nothing.
@@ -168,12 +176,11 @@ def stamp_input(path: str, record: str, mode: str) -> str:
         current = Path(path).read_text(encoding="utf-8")
     except (FileNotFoundError, NotADirectoryError, UnicodeDecodeError):
         current = None
-    if current == record + "\n":
+    if current == record + "\n" and not outputs_missing:
         return path
     if mode == "run":
         atomic.write_text(path, record + "\n")
         return path
     plan = Path(PLAN_DIR) / f"{path}.{record_digest(record)}"
-    if not plan.is_file():
-        atomic.write_text(plan, record + "\n")
+    atomic.write_text(plan, record + "\n")
     return str(plan)
