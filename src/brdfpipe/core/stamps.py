@@ -48,8 +48,8 @@ downstream) from modification times alone:
 Only a run writes stamps, in Snakemake's main process and when no other
 Snakemake holds the working directory's lock; a dry run (or a report, or a
 run that will stop at the lock) that finds a stamp out of date points the
-job to a fresh copy of it under ``.snakemake/`` instead (:data:`PLAN_DIR`),
-so a dry run plans what the run will do and leaves ``results/`` alone.  Jobs never share a stamp (its name is the
+job to a fresh file under ``.snakemake/`` instead (:data:`PLAN_FILE`), so a
+dry run plans what the run will do and leaves ``results/`` alone.  Jobs never share a stamp (its name is the
 job's rule and wildcards).  The record is canonical JSON (sorted keys): the
 order of a mapping's keys changes nothing.  Not covered: the rule's
 ``threads`` and ``resources``, and the versions of third-party packages.
@@ -71,7 +71,7 @@ from brdfpipe.core import atomic
 
 __all__ = [
     "DIGEST_CHARS",
-    "PLAN_DIR",
+    "PLAN_FILE",
     "StampError",
     "job_record",
     "record_digest",
@@ -147,8 +147,10 @@ def job_key(wildcards: Mapping[str, str]) -> str:
     return key
 
 
-#: Where a dry run puts the fresh copies of out-of-date stamps (under the working directory).
-PLAN_DIR = ".snakemake/brdfpipe-stamps"
+#: What a dry run gives a job whose stamp is out of date instead of it (under the working directory):
+#: one empty file, written when the first such job is met, newer than every output.
+PLAN_FILE = ".snakemake/brdfpipe-stamps/out-of-date"
+_planned: set[str] = set()
 
 
 def stamp_input(path: str, record: str, mode: str, *, outputs_missing: bool = False) -> str:
@@ -163,9 +165,9 @@ def stamp_input(path: str, record: str, mode: str, *, outputs_missing: bool = Fa
     * ``"run"`` (a run's main process): write an out-of-date stamp
       (atomically: a new modification time); return ``path``;
     * ``"plan"`` (a dry run, a report, a working directory locked by another
-      Snakemake): return ``path`` if it is up to date, else a copy of the
-      record under :data:`PLAN_DIR`, written now (a fresh modification
-      time, as a run will give ``path``);
+      Snakemake): return ``path`` if it is up to date, else
+      :data:`PLAN_FILE`, written by this process once (a modification time
+      as fresh as a run will give ``path``);
     * ``"read"`` (a job's own Snakemake process): return ``path``, write nothing.
     """
     if mode == "read":
@@ -181,6 +183,8 @@ def stamp_input(path: str, record: str, mode: str, *, outputs_missing: bool = Fa
     if mode == "run":
         atomic.write_text(path, record + "\n")
         return path
-    plan = Path(PLAN_DIR) / f"{path}.{record_digest(record)}"
-    atomic.write_text(plan, record + "\n")
-    return str(plan)
+    here = os.path.abspath(PLAN_FILE)
+    if here not in _planned:
+        atomic.write_text(PLAN_FILE, "")
+        _planned.add(here)
+    return PLAN_FILE
