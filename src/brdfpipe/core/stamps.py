@@ -184,7 +184,8 @@ def stamp_input(path: str, record: str, mode: str, *, outputs_missing: bool = Fa
         atomic.write_text(path, record + "\n")
         return path
     here = os.path.abspath(PLAN_FILE)
-    if here not in _planned:
-        atomic.write_text(PLAN_FILE, "")
+    if here not in _planned:  # a marker, not a result: no atomic write, no fsync
+        Path(PLAN_FILE).parent.mkdir(parents=True, exist_ok=True)
+        Path(PLAN_FILE).touch()
         _planned.add(here)
     return PLAN_FILE
