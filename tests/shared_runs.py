@@ -16,6 +16,7 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -61,6 +62,35 @@ def shared_run(factory: pytest.TempPathFactory, config: Path, *, cores: int = 2,
     result = json.loads(status.read_text())
     if result["returncode"] != 0:
         pytest.fail(f"the shared run of {config.name} failed ({result['returncode']}):\n{result['tail']}")
+    return work
+
+
+def shared_build(factory: pytest.TempPathFactory, name: str, build: Callable[[Path], None]) -> Path:
+    """A folder that ``build(folder)`` fills once per session (the first caller builds, under a lock).
+
+    A build that raised fails every caller, with its message.  Readers must
+    not write into the folder.
+    """
+    folder = _shared_root(factory) / f"shared-{name}"
+    folder.mkdir(exist_ok=True)
+    work, status = folder / "work", folder / "status.json"
+    with open(folder / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not status.exists():
+                work.mkdir(exist_ok=True)
+                try:
+                    build(work)
+                    result = {"ok": True}
+                except BaseException as err:  # recorded for the other callers, then raised here
+                    status.write_text(json.dumps({"ok": False, "error": f"{type(err).__name__}: {err}"[-4000:]}))
+                    raise
+                status.write_text(json.dumps(result))
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    result = json.loads(status.read_text())
+    if not result["ok"]:
+        pytest.fail(f"the shared build {name} failed: {result['error']}")
     return work
 
 

@@ -29,7 +29,7 @@ summed from ``benchmarks/``.
 from __future__ import annotations
 
 import contextlib
-import hashlib
+import filecmp
 import os
 import re
 import shutil
@@ -43,7 +43,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from shared_runs import copy_run, run_state, shared_run, workflow_env
+from shared_runs import copy_run, run_state, shared_build, shared_run, workflow_env
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEFILE = ROOT / "workflow" / "Snakefile"
@@ -127,19 +127,20 @@ def run_and_kill(work: Path, config: Path, env: dict[str, str], *, sig: int, rul
     return killed.is_set(), "".join(lines)
 
 
-def results_digests(work: Path) -> dict[str, str]:
-    """sha256 of every file under ``work/results`` but the run-dependent ones."""
+def results_files(work: Path) -> set[str]:
     results = work / "results"
-    out = {}
-    for p in sorted(results.rglob("*")):
-        rel = p.relative_to(results).as_posix()
-        if p.is_file() and rel not in RUN_DEPENDENT:
-            out[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
-    return out
+    return {p.relative_to(results).as_posix() for p in results.rglob("*") if p.is_file()} - RUN_DEPENDENT
 
 
-def differences(a: dict[str, str], b: dict[str, str]) -> list[str]:
-    return sorted({k for k in a.keys() | b.keys() if a.get(k) != b.get(k)})
+def differences(work: Path, ref: Path) -> list[str]:
+    """The files under ``results/`` (the run-dependent ones left out) that differ between two runs, or that one lacks."""
+    a, b = results_files(work), results_files(ref)
+    diff = a ^ b
+    for rel in a & b:
+        p, q = work / "results" / rel, ref / "results" / rel
+        if not os.path.samefile(p, q) and not filecmp.cmp(p, q, shallow=False):  # hard links of the base: same
+            diff.add(rel)
+    return sorted(diff)
 
 
 def changed_config(path: Path, **sections: dict) -> Path:
@@ -204,25 +205,47 @@ def {function}(**kwargs):  # an edit: {keyword} + {delta}
     return {**os.environ, "PYTHONPATH": str(pkg)}
 
 
-def check_against_reference(base: Path, work: Path, ref: Path, *, config: Path, env: dict[str, str],
-                            forcerun: list[str], changed: str, log: str) -> None:
-    """Run the reference (``ref``: a copy of ``base``, the change, ``--forcerun``) and compare ``work`` with it."""
+def build_reference(base: Path, ref: Path, *, config: Path, env: dict[str, str], forcerun: list[str],
+                    changed: str) -> None:
+    """The reference: at ``ref``, a copy of ``base`` run with the change and ``--forcerun`` on ``forcerun``."""
+    copy_run(base, ref)
     run(ref, config, env, "--forcerun", *forcerun)
-    got, want = results_digests(work), results_digests(ref)
-    assert want[changed] != results_digests(base)[changed], f"the change leaves {changed} as it was: it tests nothing"
-    diff = differences(got, want)
+    assert not filecmp.cmp(ref / "results" / changed, base / "results" / changed, shallow=False), (
+        f"the change leaves {changed} as it was: it tests nothing")
+
+
+def swap_reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """closed_loop.seed and .spp swapped: the config (one path, for the front page) and its reference, once a session."""
+    base = shared_run(tmp_path_factory, TINY)
+
+    def build(folder: Path) -> None:
+        closed = yaml.safe_load(TINY.read_text())["closed_loop"]
+        config = changed_config(folder / "changed.yaml", closed_loop={"seed": closed["spp"], "spp": closed["seed"]})
+        build_reference(base, folder / "reference", config=config, env=workflow_env(),
+                        forcerun=["capture_closedloop", "write_claims"], changed="evaluation/closedloop.csv")
+
+    folder = shared_build(tmp_path_factory, "reference-closed-loop-swap", build)
+    return folder / "changed.yaml", folder / "reference"
+
+
+def check_same(work: Path, ref: Path, *, config: Path, env: dict[str, str], log: str) -> None:
+    """``work`` has every output of ``ref`` (byte for byte), and a dry run of it has nothing to do."""
+    diff = differences(work, ref)
     assert not diff, f"{len(diff)} files under results/ differ from a clean run of the change: {diff[:20]}\n{log}"
     again = run(work, config, env, "-n")
     assert "Nothing to be done" in again, again[-3000:]
 
 
 def check_resume(tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, *, config: Path, env: dict[str, str],
-                 sig: int, after_kill: str, forcerun: list[str], changed: str, rule: str | None = None,
-                 hold: bool = False, cores: int = 2) -> None:
-    """Kill a run of the change at a known point, resume it, compare it with the reference."""
+                 sig: int, after_kill: str, changed: str, forcerun: list[str] | None = None, ref: Path | None = None,
+                 rule: str | None = None, hold: bool = False, cores: int = 2) -> None:
+    """Kill a run of the change at a known point, resume it, compare it with the reference.
+
+    The reference: ``ref`` (built already), or one built here with ``forcerun``.
+    """
     base = shared_run(tmp_path_factory, TINY)
     before = run_state(base)
-    work, ref = copy_run(base, tmp_path / "resumed"), copy_run(base, tmp_path / "reference")
+    work = copy_run(base, tmp_path / "resumed")
 
     held = tmp_path / "held" if hold else None
     run_env = {**env, HOLD_AFTER: str(held)} if held else env
@@ -233,8 +256,12 @@ def check_resume(tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, *, co
         shutil.rmtree(work / ".snakemake")
     resumed = run(work, config, env)
 
-    check_against_reference(base, work, ref, config=config, env=env, forcerun=forcerun, changed=changed,
-                            log=f"--- interrupted run:\n{out[-3000:]}\n--- resumed run:\n{resumed[-3000:]}")
+    if ref is None:
+        assert forcerun is not None
+        ref = tmp_path / "reference"
+        build_reference(base, ref, config=config, env=env, forcerun=forcerun, changed=changed)
+    check_same(work, ref, config=config, env=env,
+               log=f"--- interrupted run:\n{out[-3000:]}\n--- resumed run:\n{resumed[-3000:]}")
     assert killed, f"the run was not interrupted:\n{out[-3000:]}"
     assert run_state(base) == before, "a copy wrote into the shared run through a hard link"
 
@@ -249,11 +276,9 @@ def test_closed_loop_config_change_killed_and_resumed(tmp_path: Path,
     whole config) was: the front page showed the new config over the old
     closed-loop table and claims.
     """
-    closed = yaml.safe_load(TINY.read_text())["closed_loop"]
-    config = changed_config(tmp_path / "changed.yaml", closed_loop={"seed": closed["spp"], "spp": closed["seed"]})
+    config, ref = swap_reference(tmp_path_factory)
     check_resume(tmp_path, tmp_path_factory, config=config, env=workflow_env(), rule="capture_closedloop",
-                 sig=signal.SIGKILL, after_kill="unlock", forcerun=["capture_closedloop", "write_claims"],
-                 changed="evaluation/closedloop.csv")
+                 sig=signal.SIGKILL, after_kill="unlock", ref=ref, changed="evaluation/closedloop.csv")
 
 
 def test_closed_loop_code_change_interrupted_and_resumed(tmp_path: Path,
@@ -302,9 +327,10 @@ def test_closed_loop_orphan_of_an_interrupted_run_writes_nothing_over_the_resume
     to evaluate_closedloop.  With it, it stops at its first rename; what its
     Snakemake removes on failing, the next run makes again.
     """
+    config, ref = swap_reference(tmp_path_factory)
     base = shared_run(tmp_path_factory, TINY)
     before = run_state(base)
-    work, ref = copy_run(base, tmp_path / "resumed"), copy_run(base, tmp_path / "reference")
+    work = copy_run(base, tmp_path / "resumed")
     old = patched_library(tmp_path, "rendering.capture", "capture_to_files", "seed", 0)
     held = tmp_path / "held"
     first = tmp_path / "first-run.log"  # the orphan's output goes on to it
@@ -312,6 +338,7 @@ def test_closed_loop_orphan_of_an_interrupted_run_writes_nothing_over_the_resume
         proc = subprocess.Popen(snakemake_cmd(work, TINY, "--forcerun", "capture_closedloop", cores=1), cwd=work,
                                 env={**old, HOLD_BEFORE: str(held)}, stdout=fh, stderr=subprocess.STDOUT,
                                 start_new_session=True)
+    env = workflow_env()
     try:
         end = time.monotonic() + 600
         while not held.exists() and proc.poll() is None and time.monotonic() < end:
@@ -319,10 +346,6 @@ def test_closed_loop_orphan_of_an_interrupted_run_writes_nothing_over_the_resume
         assert held.exists(), "no capture started"
         os.kill(proc.pid, signal.SIGKILL)  # Snakemake alone: its job goes on
         proc.wait(timeout=60)
-
-        closed = yaml.safe_load(TINY.read_text())["closed_loop"]
-        config = changed_config(tmp_path / "changed.yaml", closed_loop={"seed": closed["spp"], "spp": closed["seed"]})
-        env = workflow_env()
         run(work, config, env, "--unlock")
         resumed = run(work, config, env)
         Path(f"{held}.release").touch()  # the orphan goes on
@@ -331,9 +354,30 @@ def test_closed_loop_orphan_of_an_interrupted_run_writes_nothing_over_the_resume
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
     after = run(work, config, env)
-    check_against_reference(base, work, ref, config=config, env=env, forcerun=["capture_closedloop", "write_claims"],
-                            changed="evaluation/closedloop.csv",
-                            log=f"--- resumed run:\n{resumed[-3000:]}\n--- the run after the orphan:\n{after[-3000:]}")
+    check_same(work, ref, config=config, env=env,
+               log=f"--- resumed run:\n{resumed[-3000:]}\n--- the run after the orphan:\n{after[-3000:]}")
     orphan = first.read_text()
     assert "this job was started again by a newer run" in orphan, orphan[-3000:]
     assert run_state(base) == before, "a copy wrote into the shared run through a hard link"
+
+
+def test_a_change_snakemake_cannot_see_replans_its_jobs(tmp_path: Path,
+                                                        tmp_path_factory: pytest.TempPathFactory) -> None:
+    """acquisition.eta 40 → 7 on tiny: optimize_directions' values stay the set {…, 40, 7} (candidates, seed).
+
+    Before job stamps Snakemake replanned the evaluations (whose params changed
+    visibly) over the nine direction sets optimised with η = 40; a dry run now
+    plans every job that reads η.
+    """
+    base = shared_run(tmp_path_factory, TINY)
+    acq = yaml.safe_load(TINY.read_text())["acquisition"]
+    assert (acq["eta"], acq["candidates"], acq["seed"]) == (40, 40, 7)  # what makes the change invisible
+    work = copy_run(base, tmp_path / "work")
+    config = changed_config(tmp_path / "changed.yaml", acquisition={"eta": 7})
+    before = run_state(work)
+    out = run(work, config, workflow_env(), "-n", "--quiet", "rules")
+    assert run_state(work) == before  # a dry run writes nothing under results/
+    planned = {line.split()[0]: int(line.split()[1]) for line in out.splitlines()
+               if len(line.split()) == 2 and line.split()[1].isdigit()}
+    assert planned.get("optimize_directions") == 9, out[-3000:]
+    assert {"evaluate_directions", "capture_closedloop", "evaluate_closedloop"} <= set(planned), out[-3000:]
