@@ -1,10 +1,13 @@
 #!/usr/bin/env python
 """Fit time and final log-likelihood of the GPLVM (Soler et al. 2018 §3).
 
-Target (from the GPLVM issue): :func:`brdfpipe.manifold.gplvm.fit` for N = 100,
-q = 5 takes ≤ 2 s on one core (the paper: 122 s for q = 2) and reaches a
-log-likelihood, under our objective, at least that of GPy's GPLVM with the
-same fixed kernel.  Also compared: scipy L-BFGS-B with analytic gradients.
+Targets: :func:`brdfpipe.manifold.gplvm.fit` for N = 100, q = 5 takes ≤ 2 s
+on one core (the paper: 122 s for q = 2) and reaches a log-likelihood, under
+our objective, at least that of GPy's GPLVM with the same fixed kernel from
+the same start (the GPLVM issue); and (issue 23) at least 10× faster than
+that GPy run.  Also compared: scipy L-BFGS-B with analytic gradients from
+the same start, and the previous default optimiser (``hybrid``) and the
+paper's (``hooke-jeeves``).
 
 Objective (eq. 6), kernel (eq. 5), ``ℓ = 1``, ``μ = 1e-4`` fixed::
 
@@ -31,8 +34,10 @@ What it does
    to max|grad|.
 3. For q in ``--q`` (default 2 5):
 
-   * ours: ``gplvm.fit(G, d, q=q, seed=0)`` (default ``init_scale="best"``),
-     best of ``--repeats`` wall times, final L;
+   * ours: ``gplvm.fit(G, d, q=q, seed=0)`` (default ``method="newton"``,
+     ``init_scale="best"``), best of ``--repeats`` wall times, final L,
+     gradient and Hessian evaluations; ``method="hybrid"`` (the default
+     before issue 23) and ``"hooke-jeeves"`` (the paper) the same way;
    * scipy L-BFGS-B (analytic gradient ``dL/dX`` through
      ``dL/dK = −(d/2)K⁻¹ + ½K⁻¹GK⁻¹``) from the same start as ours:
      ``pca_init(G, q) × FitResult.init_factor`` (the scale of the rule our
@@ -57,11 +62,22 @@ What it does
      run): how far our result is from a stationary point.
 4. Prints a table (method, q, wall s, final L under our objective, ratio of
    times to ours, relative L gap to ours) and PASS/FAIL lines:
-   "ours ≤ 2 s at q = 5", "ours L ≥ L-BFGS L", "ours L ≥ GPy L".  Exit
-   status 0 either way: benches report, they do not gate CI.
+   "ours ≤ 2 s at q = 5", "ours L ≥ L-BFGS L", "ours L ≥ GPy L", "GPy
+   time / ours ≥ 10" (GPy on our objective, both from the same start; the
+   ratio of two timings of the same run, on a shared machine the only
+   comparable number) and the speed-up over ``hybrid``.  The optimisers
+   land in different local maxima from the same start (the objective is
+   multimodal), so "ours L ≥ …" can fail by a few per cent either way on
+   another data set; see the module docstring of
+   :mod:`brdfpipe.manifold.gplvm`.  Exit status 0 either way: benches
+   report, they do not gate CI.
 
 Single-threaded: OPENBLAS_NUM_THREADS / OMP_NUM_THREADS / MKL_NUM_THREADS
-are set to 1 before numpy is imported (also for the GPy subprocess).
+are set to 1 before numpy is imported (also for the GPy subprocess).  The
+fits are timed by the CPU time of their process (``--clock cpu``, the
+default; ``--clock wall`` for wall time): on a shared machine the wall time
+of a short fit varies several-fold with the other users' load, its CPU
+time much less.
 
 Usage::
 
@@ -97,6 +113,8 @@ from brdfpipe.manifold import gplvm  # noqa: E402
 ELL = 1.0
 MU = 1e-4
 TARGET_S = 2.0
+#: Issue 23: ours at least this many times faster than GPy (same objective, same start).
+GPY_RATIO_TARGET = 10.0
 DEFAULT_GRAM = ROOT / "results" / "gplvm" / "gram-raw.npz"
 #: Two optima equal to this relative tolerance count as equal (rounding of L ~ 1e9 at a stationary point).
 RTOL = 1e-9
@@ -171,15 +189,16 @@ for key in [k for k in a.files if k.startswith("Y_")]:
     for q in [int(s) for s in sys.argv[2].split(",")]:
         X0 = a[f"X0_{q}"]
         best, X, info = None, None, None
+        clock = time.process_time if sys.argv[5] == "cpu" else time.perf_counter
         for _ in range(int(sys.argv[3])):
             k = GPy.kern.RBF(q, variance=1.0, lengthscale=1.0) + GPy.kern.White(q, variance=1e-4)
             m = GPy.models.GPLVM(Y, q, X=X0.copy(), kernel=k)
             m.kern.fix()
             m.likelihood.variance = 1e-10
             m.likelihood.variance.fix()
-            t = time.perf_counter()
+            t = clock()
             m.optimize("lbfgsb", max_iters=20000)
-            dt = time.perf_counter() - t
+            dt = clock() - t
             if best is None or dt < best:
                 best = dt
             X = np.array(m.X.values)
@@ -193,7 +212,8 @@ print(json.dumps(out))
 """
 
 
-def run_gpy(python: str, G: np.ndarray, d: float, X0s: dict[int, np.ndarray], repeats: int) -> tuple[dict | None, str]:
+def run_gpy(python: str, G: np.ndarray, d: float, X0s: dict[int, np.ndarray], repeats: int,
+            clock: str = "cpu") -> tuple[dict | None, str]:
     if not Path(python).exists():
         return None, f"not installed ({python} missing; python3 -m venv /tmp/gpyenv && /tmp/gpyenv/bin/pip install GPy numpy scipy)"
     lam, V = np.linalg.eigh(0.5 * (G + G.T))
@@ -209,7 +229,7 @@ def run_gpy(python: str, G: np.ndarray, d: float, X0s: dict[int, np.ndarray], re
         env = dict(os.environ)
         try:
             p = subprocess.run(
-                [python, str(script), str(npz), ",".join(str(q) for q in X0s), str(repeats), tmp],
+                [python, str(script), str(npz), ",".join(str(q) for q in X0s), str(repeats), tmp, clock],
                 capture_output=True, text=True, env=env, timeout=1800,
             )
         except subprocess.TimeoutExpired:
@@ -243,12 +263,16 @@ def random_gram(n: int = 100, d: float = 4e6, seed: int = 0) -> np.ndarray:
     return (d / r) * (Z @ Z.T)
 
 
+#: The clock of the timings (``--clock``): CPU time of this single-threaded process by default.
+CLOCK = time.process_time
+
+
 def best_of(fn, repeats: int):
     best, out = None, None
     for _ in range(repeats):
-        t = time.perf_counter()
+        t = CLOCK()
         out = fn()
-        dt = time.perf_counter() - t
+        dt = CLOCK() - t
         best = dt if best is None or dt < best else best
     return best, out
 
@@ -268,7 +292,12 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--gpy-python", default="/tmp/gpyenv/bin/python")
     ap.add_argument("--no-gpy", action="store_true")
+    ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
+                    help="time the fits by CPU time of their (single-threaded) process (default: robust on a "
+                         "shared machine) or by wall time")
     args = ap.parse_args()
+    global CLOCK
+    CLOCK = time.process_time if args.clock == "cpu" else time.perf_counter
     scalings = (["normalised"] if args.normalise else
                 {"both": ["raw", "normalised"], "all": ["raw", "normalised", "entry"]}.get(args.scaling, [args.scaling]))
 
@@ -313,10 +342,19 @@ def main() -> None:
             L0 = gplvm.log_likelihood(X0, G, d, ELL, MU)
             rows.append(("ref: all points coincide (L∞)", q, None, L_inf, "closed form, centred G"))
             rows.append(("start: pca_init × init_factor", q, None, L0, f"rule {res.init_scale}, factor {res.init_factor:.4g}"))
-            rows.append(("ours (fit, hybrid: HJ + L-BFGS)", q, t_ours, res.log_likelihood,
-                         f"{res.sweeps} sweeps, {res.evaluations} evals, {res.polish_iterations} L-BFGS its, "
-                         f"HJ stage L {res.hj_log_likelihood:.6g}; trials "
+            rows.append((f"ours (fit, {res.method})", q, t_ours, res.log_likelihood,
+                         f"{res.gradient_evaluations} gradients, {res.hessian_evaluations} Hessians, "
+                         f"{res.polish_iterations} L-BFGS its ({res.trial_iterations} in the trial), "
+                         f"{res.newton_iterations} Newton steps; trials "
                          + ", ".join(f"{k} {v:.4g}" for k, v in res.scale_trials.items())))
+            t = time.perf_counter()
+            t_hy, res_hy = best_of(lambda: gplvm.fit(G, d, q=q, seed=0, method="hybrid"), args.repeats)
+            part_times[f"{scaling} hybrid q={q}"] = time.perf_counter() - t
+            rows.append(("hybrid (HJ + L-BFGS, before issue 23)", q, t_hy, res_hy.log_likelihood,
+                         f"{res_hy.sweeps} sweeps, {res_hy.evaluations} evals, {res_hy.polish_iterations} L-BFGS its, "
+                         f"start {res_hy.init_scale}"))
+            verdicts.append(f"INFO  [{scaling}] q = {q}: ours {t_ours:.3f} s vs hybrid {t_hy:.3f} s: "
+                            f"{t_hy / t_ours:.1f}x faster; L rel. gap {(res.log_likelihood - res_hy.log_likelihood) / abs(res_hy.log_likelihood):+.2e}")
             t_hj, res_hj = best_of(lambda: gplvm.fit(G, d, q=q, seed=0, method="hooke-jeeves"), args.repeats)
             rows.append(("ours (Hooke-Jeeves only, the paper)", q, t_hj, res_hj.log_likelihood,
                          f"{res_hj.sweeps} sweeps, {res_hj.evaluations} evals"))
@@ -329,9 +367,9 @@ def main() -> None:
             L_lb = gplvm.log_likelihood(Xlb, G, d, ELL, MU)
             rows.append(("scipy L-BFGS-B (analytic grad)", q, t_lb, L_lb,
                          f"nit {info.nit}, nfev {info.nfev}, {info.message if isinstance(info.message, str) else info.message.decode()}"))
-            t = time.perf_counter()
+            t = CLOCK()
             Xpol, ipol = run_lbfgs(res.X, G, d)
-            t_pol = time.perf_counter() - t
+            t_pol = CLOCK() - t
             rows.append(("L-BFGS polish of ours (1 run)", q, t_pol, gplvm.log_likelihood(Xpol, G, d, ELL, MU),
                          f"nit {ipol.nit}, nfev {ipol.nfev}, time excludes ours"))
             ok = res.log_likelihood >= L_lb - RTOL * abs(L_lb)
@@ -340,7 +378,7 @@ def main() -> None:
         gpy_out, gpy_msg = (None, "skipped (--no-gpy)") if args.no_gpy else (None, "")
         if not args.no_gpy:
             t = time.perf_counter()
-            gpy_out, gpy_msg = run_gpy(args.gpy_python, G, d, X0s, args.repeats)
+            gpy_out, gpy_msg = run_gpy(args.gpy_python, G, d, X0s, args.repeats, args.clock)
             part_times[f"{scaling} GPy (all q, subprocess)"] = time.perf_counter() - t
         if gpy_out is None:
             print(f"GPy: {gpy_msg}")
@@ -355,8 +393,13 @@ def main() -> None:
                     ok = ours[q][1] >= L_g - RTOL * abs(L_g)
                     verdicts.append(f"{'PASS' if ok else 'FAIL'}  [{scaling}] q = {q}: ours L {ours[q][1]:.6g} ≥ {label} L {L_g:.6g} (to {RTOL:g})"
                                     f" (rel. gap {(ours[q][1] - L_g) / abs(L_g):+.2e})")
+                    if key == "Y_scaled":
+                        ratio = o["seconds"] / ours[q][0]
+                        verdicts.append(f"{'PASS' if ratio >= GPY_RATIO_TARGET else 'FAIL'}  [{scaling}] q = {q}: GPy "
+                                        f"{o['seconds']:.3f} s / ours {ours[q][0]:.3f} s = {ratio:.1f} ≥ {GPY_RATIO_TARGET:g} "
+                                        f"(same objective and start, timed in this run)")
         rows.sort(key=lambda r: r[1])
-        print(f"{'method':38s} {'q':>2s} {'wall s':>9s} {'final L (ours)':>16s} {'t/ours':>7s} {'(L−L_ours)/|L_ours|':>20s}  notes")
+        print(f"{'method':38s} {'q':>2s} {args.clock + ' s':>9s} {'final L (ours)':>16s} {'t/ours':>7s} {'(L−L_ours)/|L_ours|':>20s}  notes")
         for name, q, tt, L, note in rows:
             t_o, L_o = ours[q]
             print(f"{name:38s} {q:2d} {('-' if tt is None else f'{tt:9.3f}'):>9s} {L:16.8g} {fmt_ratio(tt, t_o):>7s} "
@@ -365,7 +408,7 @@ def main() -> None:
             t5 = ours[5][0]
             verdicts.insert(0, f"{'PASS' if t5 <= TARGET_S else 'FAIL'}  [{scaling}] ours q = 5 fit {t5:.3f} s ≤ {TARGET_S:.0f} s "
                                f"(best of {args.repeats}, 1 thread; paper: 122 s for q = 2)")
-        print("(wall s: best of %d; GPy timed inside its subprocess, import excluded)" % args.repeats)
+        print(f"({args.clock} s: best of {args.repeats}; GPy timed inside its subprocess, import excluded)")
 
     print("\nverdicts:")
     for v in verdicts:

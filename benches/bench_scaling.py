@@ -19,8 +19,18 @@ svd                 ``svd.fit``: Gram of the log-mapped rows + decomposition (Gr
 optimize            ``optimize.optimize`` point, error, n = 1…``--n``, t = ``--candidates``,
                     model load included (``optimize_directions``)
 gram                ``gplvm.write_gram``, the workflow's space (``compute_gram``)
-fit_gplvm           ``gplvm.fit_to_files`` q = ``--q``, normalised, hybrid (``fit_gplvm``)
+fit_gplvm           ``gplvm.fit_to_files`` q = ``--q``, normalised, the default method
+                    (``newton``; ``fit_gplvm``)
 ==================  =====================================================================
+
+At the largest size (unless ``--no-gplvm-reference``) a reference fit runs
+after ``fit_gplvm`` in its own process: scipy's L-BFGS-B on the analytic
+gradient (:func:`brdfpipe.manifold.gplvm.log_likelihood_grad`) from the same
+start as ours (``pca_init`` × the factor ours chose), to convergence (ftol
+1e-13, gtol 1e-10 on −L/|L₀|): the plain first-order method that the
+``newton`` method accelerates.  Printed: both times, their ratio and the
+gap of the final log-likelihoods (not a verdict: the objective is
+multimodal, and the two can land in different maxima).
 
 **Fewer cells.**  The materials are those of ``synth.plan_database(max N,
 seed)``, each size taking every (max N / N)-th one (nested sets, the same
@@ -35,7 +45,9 @@ Prints a table (seconds and peak MB per stage and size), the growth
 exponent of each stage (least-squares slope of log t against log N), a
 log-log figure (PNG, ``--out``), and PASS/FAIL against the issue's targets
 that this setting measures: the optimiser's growth exponent ≤ 2 at fixed
-candidates, and ``fit_gplvm`` q = 5 at N = 400 ≤ 60 s.  (The optimiser's
+candidates, and ``fit_gplvm`` q = 5 at N = 400 ≤ 60 s on one core (issue 23; judged by
+the fit's CPU time — one BLAS thread, so one core's worth — and printed with
+its wall time, which the other users' load inflates).  (The optimiser's
 15-s target at N = 100 is on full cells: ``benches/bench_optimize.py``.)
 Exit status 0 either way: benches report, they do not gate.
 
@@ -201,11 +213,47 @@ def stage_gram(args: argparse.Namespace, size: int, work: Path) -> dict:
 def stage_fit_gplvm(args: argparse.Namespace, size: int, work: Path) -> dict:
     from brdfpipe.manifold import gplvm
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     r = gplvm.fit_to_files(work / f"n{size}" / "gram.npz", work / f"n{size}" / f"q{args.q}.npz",
                            work / f"n{size}" / f"q{args.q}-trace.csv", q=args.q, seed=0, normalise=True)
-    return {"seconds": time.perf_counter() - t0,
-            "note": f"L {r.log_likelihood:.6g}, {r.polish_iterations} L-BFGS its, {r.evaluations} HJ evals"}
+    sec, cpu = time.perf_counter() - t0, time.process_time() - c0
+    (work / f"n{size}" / "fit.json").write_text(json.dumps(
+        {"init_factor": r.init_factor, "log_likelihood": r.log_likelihood, "seconds": sec, "cpu": cpu}))
+    return {"seconds": sec, "cpu": cpu,
+            "note": f"{r.method}: L {r.log_likelihood:.8g}, start {r.init_scale}, {r.gradient_evaluations} gradients, "
+                    f"{r.hessian_evaluations} Hessians, {r.polish_iterations} L-BFGS its, {r.newton_iterations} Newton "
+                    f"steps, {r.evaluations} HJ evals"}
+
+
+def stage_fit_gplvm_ref(args: argparse.Namespace, size: int, work: Path) -> dict:
+    """Plain L-BFGS-B from the start ``fit_gplvm`` chose (its fit.json), to convergence."""
+    import numpy as np
+    import scipy.optimize
+
+    from brdfpipe.manifold import gplvm
+
+    ours = json.loads((work / f"n{size}" / "fit.json").read_text())
+    G, d, _ = gplvm.load_gram(work / f"n{size}" / "gram.npz")
+    G = G / gplvm.gram_scale(G, d)
+    t0, c0 = time.perf_counter(), time.process_time()
+    X0 = gplvm.pca_init(G, args.q) * ours["init_factor"]
+    n, q = X0.shape
+    scale = abs(gplvm.log_likelihood(X0, G, d))
+
+    def f(x: np.ndarray) -> tuple[float, np.ndarray]:
+        try:
+            L, g = gplvm.log_likelihood_grad(x.reshape(n, q), G, d)
+        except np.linalg.LinAlgError:
+            return np.inf, np.zeros_like(x)
+        return -L / scale, -g.ravel() / scale
+
+    res = scipy.optimize.minimize(f, X0.ravel(), jac=True, method="L-BFGS-B",
+                                  options={"maxiter": 20000, "maxfun": 100000, "ftol": 1e-13, "gtol": 1e-10})
+    sec, cpu = time.perf_counter() - t0, time.process_time() - c0
+    L = gplvm.log_likelihood(res.x.reshape(n, q), G, d)
+    return {"seconds": sec, "cpu": cpu, "log_likelihood": L, "ours_seconds": ours["seconds"], "ours_cpu": ours["cpu"],
+            "ours_L": ours["log_likelihood"],
+            "note": f"L-BFGS-B from ours' start: L {L:.8g}, {res.nit} iterations, {res.nfev} evaluations"}
 
 
 def run_child(args: argparse.Namespace) -> None:
@@ -298,7 +346,9 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2, help="processes of synthesize and ingest")
     ap.add_argument("--space", default="standardised", help="GPLVM data space (the workflow's default)")
     ap.add_argument("--out", type=Path, default=None, help="figure folder (default: the work folder)")
-    ap.add_argument("--stage", choices=STAGES, help=argparse.SUPPRESS)
+    ap.add_argument("--no-gplvm-reference", action="store_true",
+                    help="skip the plain L-BFGS reference fit at the largest size")
+    ap.add_argument("--stage", choices=(*STAGES, "fit_gplvm_ref"), help=argparse.SUPPRESS)
     ap.add_argument("--size", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.stage:
@@ -335,6 +385,11 @@ def main() -> None:
             results[(stage, n)] = r
             print(f"  N = {n:4d}  {stage:11s} {r['seconds']:9.2f} s  peak {r['peak_mb']:8.0f} MB  {r.get('note', '')}",
                   flush=True)
+            if stage == "fit_gplvm" and n == max(sizes) and not args.no_gplvm_reference:
+                ref = child(args, "fit_gplvm_ref", n)
+                results[("fit_gplvm_ref", n)] = ref
+                print(f"  N = {n:4d}  {'(reference)':11s} {ref['seconds']:9.2f} s  peak {ref['peak_mb']:8.0f} MB  "
+                      f"{ref.get('note', '')}", flush=True)
         shutil.rmtree(work / f"n{n}", ignore_errors=True)  # stores and models: GBs at N = 400
 
     print("\nwall seconds per stage (peak MB)")
@@ -365,10 +420,17 @@ def main() -> None:
           f"t = {args.candidates}) growth exponent {b:.2f} ≤ {OPT_EXPONENT_TARGET:g}")
     if 400 in sizes:
         t = results[("fit_gplvm", 400)]["seconds"]
-        print(f"  {'PASS' if t <= GPLVM_TARGET_S else 'FAIL'}  fit_gplvm q = {args.q} at N = 400: {t:.1f} s "
-              f"≤ {GPLVM_TARGET_S:g} s")
+        c = results[("fit_gplvm", 400)].get("cpu", float("nan"))
+        print(f"  {'PASS' if c <= GPLVM_TARGET_S else 'FAIL'}  fit_gplvm q = {args.q} at N = 400: {c:.1f} CPU-s "
+              f"≤ {GPLVM_TARGET_S:g} s on one core (one BLAS thread; wall {t:.1f} s at this load)")
     else:
         print("  SKIPPED  fit_gplvm at N = 400 (not among the sizes)")
+    ref = results.get(("fit_gplvm_ref", max(sizes)))
+    if ref is not None and "log_likelihood" in ref:
+        print(f"  INFO  fit_gplvm at N = {max(sizes)}: ours {ref['ours_cpu']:.1f} CPU-s (L {ref['ours_L']:.8g}) vs plain "
+              f"L-BFGS-B from the same start {ref['cpu']:.1f} CPU-s (L {ref['log_likelihood']:.8g}): "
+              f"{ref['cpu'] / ref['ours_cpu']:.1f}x faster, L rel. gap "
+              f"{(ref['ours_L'] - ref['log_likelihood']) / abs(ref['log_likelihood']):+.2e}")
     print(f"total {time.perf_counter() - t_all:.0f} s; load average {load0:.2f} -> {os.getloadavg()[0]:.2f}")
 
 

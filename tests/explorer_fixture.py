@@ -5,23 +5,28 @@ Used by tests/test_explorer.py and benches/bench_explorer.py (when no workflow r
 
 from __future__ import annotations
 
-import csv
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from brdfpipe.core import exr
+from brdfpipe.core import exr, integrity
 from brdfpipe.manifold import gplvm
 
 
 def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, qs: tuple[int, ...] = (2, 5),
-                space: str = "standardised", seed: int = 3) -> dict[str, Any]:
-    """Write a synthetic explorer input under ``root`` and return the write_explorer keyword arguments."""
+                space: str = "standardised", seed: int = 3, names: list[str] | None = None,
+                database: str = "synthetic") -> dict[str, Any]:
+    """Write a synthetic explorer input under ``root`` and return the write_explorer keyword arguments.
+
+    ``names``: the ``n`` material names (default ``mat-00`` …); files are named by index, so any
+    string works (hostile-name tests).  ``database``: the label passed on.
+    """
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
-    names = [f"mat-{i:02d}" for i in range(n)]
+    names = [f"mat-{i:02d}" for i in range(n)] if names is None else list(names)
+    if len(names) != n or len(set(names)) != n:
+        raise ValueError(f"need {n} distinct names, got {names}")
     # images: a few smooth patterns mixed per material, plus noise: low rank + noise like pre-renders
     yy, xx = np.mgrid[0:height, 0:width] / max(width, height)
     patterns = np.stack([np.ones_like(xx), xx, yy, np.sin(6 * xx) ** 2, np.exp(-20 * ((xx - .5) ** 2 + (yy - .4) ** 2))])
@@ -31,8 +36,8 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
     # a background the camera sees directly: the same in every image (the left 3/8, not on a tile edge)
     images[:, :, : width * 3 // 8] = images[0, :, : width * 3 // 8]
     prerenders = {}
-    for name, img in zip(names, images):
-        prerenders[name] = str(root / f"{name}.exr")
+    for i, (name, img) in enumerate(zip(names, images)):
+        prerenders[name] = str(root / f"mat-{i:02d}.exr")
         exr.write_exr(prerenders[name], img)
     # GPLVM fits on a random structured Gram matrix
     Z = rng.standard_normal((n, 4)) @ rng.standard_normal((4, 400)) + 0.1 * rng.standard_normal((n, 400))
@@ -47,11 +52,9 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
         models.append(str(path))
     albedo = root / "albedo.csv"
     alb = rng.uniform(0.02, 0.9, size=(n, 3))
-    with albedo.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["database", "material", "r", "g", "b", "luminance"])
-        for name, a in zip(names, alb):
-            w.writerow(["synthetic", name, *a, a.mean()])
+    # tables and weights as the workflow writes them: with their digests (brdfpipe.core.integrity)
+    integrity.write_csv(albedo, [["database", "material", "r", "g", "b", "luminance"],
+                                 *(["synthetic", name, *a, a.mean()] for name, a in zip(names, alb))])
     # two path points on the largest-q model, like manifold.path_points_to_files
     m = gplvm.load_model(models[-1])
     points, rows = [], []
@@ -63,7 +66,7 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
                "x": [float(v) for v in x], "clamped": 0, "measured_values": 100,
                "weights": {nm: float(v) for nm, v in zip(names, wts)}}
         wpath = root / f"point-{t:g}-weights.json"
-        wpath.write_text(json.dumps(doc))
+        integrity.write_json(wpath, doc)
         ref = np.abs(np.einsum("i,ihwc->hwc", wts, images) * (1 + 0.02 * rng.standard_normal(images.shape[1:])))
         ipath = root / f"point-{t:g}.exr"
         exr.write_exr(ipath, ref.astype(np.float32))
@@ -71,9 +74,6 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
         rows.append({"path": f"{a}--{b}", "t": f"{t:g}", "rmse_noise": "0.05", "rmse_blend_seed2": "0.052",
                      "ratio_seed2": "1.04"})
     summary = root / "summary.csv"
-    with summary.open("w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        wr.writeheader()
-        wr.writerows(rows)
+    integrity.write_csv(summary, [list(rows[0]), *([r[k] for k in rows[0]] for r in rows)])
     return {"models": models, "prerenders": prerenders, "albedo": str(albedo), "path_points": points,
-            "summary": str(summary), "database": "synthetic"}
+            "summary": str(summary), "database": database}

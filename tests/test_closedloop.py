@@ -22,7 +22,10 @@ Skipped with the reason when Mitsuba's LLVM backend is not available.
 from __future__ import annotations
 
 import csv
+import io
+import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +33,7 @@ import pytest
 
 from brdfpipe.acquisition import closedloop, geometry, optimize, reconstruct, svd
 from brdfpipe.acquisition.geometry import Setup
-from brdfpipe.core import exr, filenames
+from brdfpipe.core import exr, filenames, integrity
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.rendering import capture, render
@@ -203,7 +206,7 @@ class Loop:
         out = closedloop.write_closedloop(self.store, self.model, [self.directions], [obs[k][0] for k in keys],
                                           [obs[k][1] for k in keys], self.dir / f"{tag}.csv",
                                           materials=self.test, n_images=[1, 2])
-        with open(out, newline="") as fh:
+        with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
             rows = list(csv.DictReader(fh))
         assert list(rows[0]) == ["database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind",
                                  "value"]
@@ -260,6 +263,19 @@ def test_closed_loop_with_the_default_sensor(loop: Loop) -> None:
 
 
 @needs_llvm
+def test_a_sensor_that_masks_every_pixel_gives_the_mean_reconstruction(loop: Loop) -> None:
+    """min_snr above any pixel's SNR: the evaluation runs to the end and reports 0 observations, all masked."""
+    got = loop.run("all-masked", capture.Sensor(), spp=4, min_snr=1e6)
+    for n in (1, 2):
+        assert got[("mean", "closedloop_observations", n)] == 0
+        assert got[("mean", "closedloop_masked", n)] == 1.0
+        assert math.isfinite(got[("mean", "closedloop_rms_log", n)])
+        # no observation: eq. 4 gives the model's mean, the same reconstruction for n = 1 and n = 2
+        assert got[("mean", "closedloop_rms_log", n)] == got[("mean", "closedloop_rms_log", 1)]
+        assert got[("mean", "closedloop_noiseless_rms_log", n)] < got[("mean", "closedloop_rms_log", n)]
+
+
+@needs_llvm
 def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from brdfpipe.cli import main
 
@@ -267,13 +283,26 @@ def test_capture_command(loop: Loop, tmp_path: Path, capsys: pytest.CaptureFixtu
     out = tmp_path / "cap"
     assert main(["-q", "capture", str(loop.sources[name]), str(loop.directions), "--out", str(out), "--n", "2",
                  "--spp", "4", "--model", str(loop.model)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["n2-0-render.exr", "n2-0-sensor.exr", "n2-1-render.exr",
-                                                     "n2-1-sensor.exr", "n2-noiseless.npz", "n2-sensor.npz",
-                                                     "n2.binary"]
+    assert sorted(p.name for p in out.iterdir()) == ["capture.json", "n2-0-render.exr", "n2-0-sensor.exr",
+                                                     "n2-1-render.exr", "n2-1-sensor.exr", "n2-noiseless.npz",
+                                                     "n2-sensor.npz", "n2.binary"]
+    assert json.loads((out / "capture.json").read_text())["files"] == sorted(
+        p.name for p in out.iterdir() if p.name != "capture.json")
     table = merl.read_merl(out / "n2.binary")
     assert table.shape == merl.SHAPE and np.isfinite(table).all()
+    from brdfpipe.data import provenance
+
+    mark = provenance.read_mark(out / "n2.binary")  # a reconstruction, never taken for a measurement
+    assert mark.kind == "derived" and mark.fields["operation"] == "capture-reconstruct"
+    assert mark.fields["inputs"]["material"]["sha256"] == provenance.file_sha256(loop.sources[name])
+    assert mark.fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(out / "n2-sensor.npz")
     cells, rgb, counts = closedloop.read_observations(out / "n2-sensor.npz")
     assert cells.size == rgb.shape[0] == counts["kept"] > 100
+    # its own earlier output is replaced whole (no n2 files left from the first capture)
+    assert main(["-q", "capture", str(loop.sources[name]), str(loop.directions), "--out", str(out), "--n", "1",
+                 "--spp", "2", "--no-noise"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["capture.json", "n1-0-render.exr", "n1-0-sensor.exr",
+                                                     "n1-noiseless.npz", "n1-sensor.npz"]
     # Bad input: one line naming the file, exit 1, nothing written.
     bad = tmp_path / "not-directions.json"
     bad.write_text('{"format": "something else"}')
@@ -297,3 +326,31 @@ def test_closed_loop_figure(loop: Loop, tmp_path: Path) -> None:
     assert "synthetic" in out.title and not out.warnings
     with pytest.raises(ValueError):
         figures.plot_closedloop(csv_path, [tmp_path / "x.png"])
+
+
+@needs_llvm
+@pytest.mark.parametrize("damage", ["rescaled", "truncated", "not a table"])
+def test_a_damaged_observation_table_is_refused(loop: Loop, tmp_path: Path, damage: str) -> None:
+    """The tester's case: a closed-loop table with its rgb rescaled (a valid npz) passed and changed
+    closedloop.csv.  Now its reader refuses it, naming the file and the rule to rerun; a truncated table or
+    another file is one clean error too."""
+    if not (loop.dir / "clean.csv").exists():
+        loop.run("clean", NO_NOISE, spp=16)
+    name = loop.test[0]
+    src = loop.dir / "clean" / name / "n2.npz"
+    bad = tmp_path / filenames.closedloop_observations(name, "nearfield", 25, "error", 2, "sensor")
+    bad.parent.mkdir(parents=True)
+    if damage == "rescaled":
+        with np.load(src) as z:
+            arrays = dict(z)
+        arrays["rgb"] = arrays["rgb"] * 2.0
+        np.savez(bad, **arrays)
+        expect = re.escape(f"{bad}: its arrays do not match their recorded digest (damaged or edited)")
+    elif damage == "truncated":
+        bad.write_bytes(src.read_bytes()[:-200])
+        expect = re.escape(f"{bad}: truncated or corrupt observation table")
+    else:
+        bad.write_bytes(b"\x93NUMPY not a zip")
+        expect = re.escape(f"{bad}: truncated or corrupt observation table (not an npz file: no zip header)")
+    with pytest.raises(ValueError, match=expect + ".*; rerun its rule: snakemake --forcerun capture_closedloop"):
+        closedloop.read_observations(bad)

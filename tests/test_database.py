@@ -79,3 +79,12 @@ def test_select_materials_by_name_and_pattern() -> None:
     assert db.select_materials(full, None) is full
     with pytest.raises(db.DatabaseError, match=r"materials: 'no-such-\*' match"):
         db.select_materials(full, ["metal-*", "no-such-*"])
+
+
+def test_a_material_named_like_the_mean_rows_is_refused(tmp_path: Path) -> None:
+    """errors.csv, closedloop.csv and training_size.csv call their mean rows material 'mean'."""
+    _touch_merl(tmp_path, ["alpha", "mean"])
+    with pytest.raises(db.DatabaseError, match=r"mean\.binary: material name 'mean' is reserved") as e:
+        db.database_from_folder(tmp_path)
+    assert "\n" not in str(e.value)
+    assert db.check_material_name("meaning", "x") == "meaning"

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.manifold import gplvm
@@ -206,13 +207,20 @@ def test_gradient_matches_finite_differences() -> None:
     assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
 
 
-def test_hybrid_reaches_a_stationary_point_above_hooke_jeeves() -> None:
-    """Hybrid: L-BFGS from the chosen start, then Hooke–Jeeves, (then L-BFGS): ends at a tiny gradient."""
+@pytest.fixture(scope="module")
+def hj_and_hybrid() -> tuple[np.ndarray, float, gplvm.FitResult, gplvm.FitResult]:
+    """N = 40, q = 2 (normalised): the Hooke–Jeeves and hybrid fits that the newton test compares with too."""
     d = 4e6
     G = _random_gram(40, 4, d)
     G = G / gplvm.gram_scale(G, d)
     hj = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hooke-jeeves")
     hy = gplvm.fit(G, d, q=2, seed=1, max_sweeps=40, method="hybrid")
+    return G, d, hj, hy
+
+
+def test_hybrid_reaches_a_stationary_point_above_hooke_jeeves(hj_and_hybrid: tuple) -> None:
+    """Hybrid: L-BFGS from the chosen start, then Hooke–Jeeves, (then L-BFGS): ends at a tiny gradient."""
+    G, d, hj, hy = hj_and_hybrid
     assert hy.init_factor == hj.init_factor  # same start
     assert hy.log_likelihood > hj.log_likelihood and hy.polish_iterations > 0
     assert hy.method == "hybrid" and len(hy.stages) == len(hy.trace)
@@ -223,6 +231,103 @@ def test_hybrid_reaches_a_stationary_point_above_hooke_jeeves() -> None:
     _, g_hy = gplvm.log_likelihood_grad(hy.X, G, d)
     assert np.abs(g_hy).max() < 1e-3 * np.abs(g_hj).max()
     assert gplvm.log_likelihood(hy.X, G, d) == pytest.approx(hy.log_likelihood, rel=1e-12)
+
+
+def test_hessian_matches_finite_differences_and_is_blind_to_rigid_motions() -> None:
+    rng = np.random.default_rng(8)
+    for n, q in ((9, 3), (7, 1), (8, 5)):
+        G = _random_gram(n, 3, 50.0)
+        X = 0.8 * rng.normal(size=(n, q))
+        L, g, H = gplvm.log_likelihood_hessian(X, G, 50.0, ell=1.3, mu=1e-3)
+        L2, g2 = gplvm.log_likelihood_grad(X, G, 50.0, ell=1.3, mu=1e-3)
+        assert L == L2 and np.array_equal(g, g2)
+        assert H.shape == (n * q, n * q) and np.array_equal(H, H.T)
+        fd = np.zeros_like(H)
+        h = 1e-6
+        for m in range(n * q):
+            xp, xm = X.ravel().copy(), X.ravel().copy()
+            xp[m] += h
+            xm[m] -= h
+            gp = gplvm.log_likelihood_grad(xp.reshape(n, q), G, 50.0, 1.3, 1e-3)[1].ravel()
+            gm = gplvm.log_likelihood_grad(xm.reshape(n, q), G, 50.0, 1.3, 1e-3)[1].ravel()
+            fd[:, m] = (gp - gm) / (2 * h)
+        assert np.abs(H - fd).max() <= 1e-6 * np.abs(fd).max()
+        # L is invariant under translations and rotations of the latent points: H annihilates them
+        for k in range(q):
+            t = np.zeros((n, q))
+            t[:, k] = 1.0
+            assert np.abs(H @ t.ravel()).max() <= 1e-9 * np.abs(H).max() * n
+        if q >= 2:
+            rot = np.zeros((n, q))
+            rot[:, 0], rot[:, 1] = -X[:, 1], X[:, 0]
+            assert np.abs(H @ rot.ravel() + g.ravel() * 0).max() <= 1e-6 * np.abs(H).max() * n + np.abs(g).max()
+    with pytest.raises(ValueError, match="X has 3 rows"):
+        gplvm.log_likelihood_hessian(np.zeros((3, 2)), np.eye(4), 10.0)
+
+
+def test_newton_ends_at_a_local_maximum_above_the_references(hj_and_hybrid: tuple) -> None:
+    """Default method: L-BFGS trials of two start scales, Hessian-preconditioned L-BFGS, Newton steps.
+    Same data and q as the hybrid test: it ends above Hooke–Jeeves alone, above the hybrid, and above
+    plain L-BFGS from the same start (on this case; it is not a global optimiser), with a gradient at
+    rounding level and a negative semi-definite Hessian (a maximum, not a saddle)."""
+    G, d, hj, hy = hj_and_hybrid
+    r = gplvm.fit(G, d, q=2)
+    assert r.method == "newton" and r.init_scale in gplvm.NEWTON_TRIAL_SCALES
+    assert set(r.scale_trials) == set(gplvm.NEWTON_TRIAL_SCALES) and r.scale_trials[r.init_scale] == max(r.scale_trials.values())
+    X0 = gplvm.pca_init(G, 2) * r.init_factor
+    X_ref, _, _ = gplvm._lbfgs_polish(X0, G, d, 1.0, 1e-4, max_iter=20000, ftol=1e-13, gtol=1e-10)
+    L_ref = gplvm.log_likelihood(X_ref, G, d)
+    assert r.log_likelihood > max(hj.log_likelihood, hy.log_likelihood, L_ref)
+    L, g, H = gplvm.log_likelihood_hessian(r.X, G, d)
+    assert L == pytest.approx(r.log_likelihood, rel=1e-12)
+    _, g_hj = gplvm.log_likelihood_grad(hj.X, G, d)
+    assert np.abs(g).max() <= min(1e-7 * abs(L), 1e-4 * np.abs(g_hj).max())  # the gain left is at rounding level
+    w = np.linalg.eigvalsh(H)
+    assert w.max() <= 1e-9 * np.abs(w).max()
+    # the work: far fewer gradient evaluations than plain L-BFGS's iterations to its (lower) maximum
+    assert r.gradient_evaluations > 0 and r.hessian_evaluations > 0 and r.polish_iterations > 0
+
+
+def test_newton_trace_is_monotone_and_staged() -> None:
+    d = 4e6
+    G = _random_gram(30, 2, d)
+    G = G / gplvm.gram_scale(G, d)
+    r = gplvm.fit(G, d, q=3)
+    Ls = np.array([v for _, v in r.trace])
+    assert [s for s, _ in r.trace] == list(range(len(Ls))) and len(r.stages) == len(Ls)
+    assert np.all(np.diff(Ls) >= -1e-12 * np.abs(Ls).max())
+    assert r.stages[0] == "start" and set(r.stages[1:]) <= {"lbfgs", "newton"} and r.stages[1] == "lbfgs"
+    assert r.stages.count("lbfgs") == r.polish_iterations and r.trial_iterations <= r.polish_iterations
+    assert Ls[0] == r.initial_log_likelihood and r.log_likelihood == Ls[-1] > Ls[0]
+    assert gplvm.log_likelihood(r.X, G, d) == r.log_likelihood
+    # one start scale given: no trials
+    u = gplvm.fit(G, d, q=3, init_scale="unit")
+    assert u.init_scale == "unit" and u.scale_trials == {} and u.trial_iterations == 0
+
+
+def test_newton_leaves_a_saddle_point() -> None:
+    """Latent points on a line (q = 2, second coordinates 0) of data that are not: by symmetry every
+    gradient, and so every (preconditioned) L-BFGS step, keeps them on the line, which ends at a saddle
+    point.  The Newton stage finds the direction of positive curvature and leaves it."""
+    d = 4e6
+    G = _random_gram(30, 3, d)
+    G = G / gplvm.gram_scale(G, d)
+    Y = gplvm.pca_init(G, 2)
+    X0 = Y * gplvm._scale_factor(Y, "rms", 1.0)
+    X0[:, 1] = 0.0
+    root = gplvm._GramRoot(G)
+    kw = dict(restart_every=30, max_restarts=200, shift=1e-3, newton_iterations=50, gtol=1e-10)
+    X_line, _ = gplvm._newton_stages(X0, root, d, 1.0, 1e-4, max_escapes=0, counts=gplvm._Counts(), **kw)
+    X_esc, hist = gplvm._newton_stages(X0, root, d, 1.0, 1e-4, max_escapes=10, counts=gplvm._Counts(), **kw)
+    assert np.abs(X_line[:, 1]).max() == 0.0
+    L_line, _, H_line = gplvm.log_likelihood_hessian(X_line, G, d)
+    L_esc, _, H_esc = gplvm.log_likelihood_hessian(X_esc, G, d)
+    w_line, w_esc = np.linalg.eigvalsh(H_line), np.linalg.eigvalsh(H_esc)
+    assert w_line.max() > 1e-3 * np.abs(w_line).max()  # a saddle: L curves up along some direction
+    assert w_esc.max() <= 1e-6 * np.abs(w_esc).max()  # a maximum
+    assert L_esc > L_line + 1e-3 * abs(L_line) and np.abs(X_esc[:, 1]).max() > 0.1
+    stages = [s for s, _ in hist]
+    assert "newton" in stages and stages.index("newton") < len(stages) - 1 - stages[::-1].index("lbfgs")
 
 
 def test_gram_scale_is_mean_entry_variance_and_leaves_weights_alone() -> None:
@@ -247,13 +352,13 @@ def test_fit_to_files_normalises_and_records_stages(tmp_path: Path) -> None:
     gplvm.save_gram(tmp_path / "g.npz", G, int(d), info)
     r = gplvm.fit_to_files(tmp_path / "g.npz", tmp_path / "m.npz", tmp_path / "t.csv", q=2, seed=0, max_sweeps=30)
     m = gplvm.load_model(tmp_path / "m.npz")
-    assert m.gram_scale == pytest.approx(gplvm.gram_scale(G, d)) and m.method == "hybrid"
+    assert m.gram_scale == pytest.approx(gplvm.gram_scale(G, d)) and m.method == "newton"
     # the saved L is that of G / gram_scale, recomputed independently from the saved X
     assert gplvm.log_likelihood(m.X, G / m.gram_scale, d, m.ell, m.mu) == pytest.approx(m.log_likelihood, rel=1e-8)
-    lines = (tmp_path / "t.csv").read_text().splitlines()
+    lines = integrity.read_csv_text(tmp_path / "t.csv").splitlines()  # after its digest line
     assert lines[0] == "step,stage,log_likelihood"
     stages = [ln.split(",")[1] for ln in lines[1:]]
-    assert stages == r.stages and stages[0] == "start" and set(stages) <= {"start", "lbfgs", "hooke-jeeves"}
+    assert stages == r.stages and stages[0] == "start" and set(stages) <= {"start", "lbfgs", "newton"}
     # the latent points are spread on the kernel's scale, not collapsed
     D = np.sqrt(((m.X[:, None] - m.X[None]) ** 2).sum(-1))
     assert np.median(D[np.triu_indices(20, 1)]) > 0.05 * m.ell
@@ -267,10 +372,27 @@ def test_fit_is_deterministic_and_seeded() -> None:
     c = gplvm.fit(G, 1e5, seed=4, method="hooke-jeeves", **kw)
     assert np.array_equal(a.X, b.X) and a.trace == b.trace
     assert not np.array_equal(a.X, c.X)  # the seed orders the sweeps
-    h1 = gplvm.fit(G, 1e5, seed=3, **kw)
-    h2 = gplvm.fit(G, 1e5, seed=3, **kw)
+    h1 = gplvm.fit(G, 1e5, seed=3, method="hybrid", **kw)
+    h2 = gplvm.fit(G, 1e5, seed=3, method="hybrid", **kw)
     assert np.array_equal(h1.X, h2.X) and h1.trace == h2.trace and h1.stages == h2.stages
+    # newton: no random element, so the same bytes whatever the seed
+    n1 = gplvm.fit(G, 1e5, q=2, seed=3)
+    n2 = gplvm.fit(G, 1e5, q=2, seed=4)
+    assert n1.method == "newton" and np.array_equal(n1.X, n2.X) and n1.trace == n2.trace and n1.stages == n2.stages
     assert set(a.scale_trials) == set(gplvm.INIT_SCALES) and a.init_scale in gplvm.INIT_SCALES
+
+
+def test_fit_to_files_same_bytes_twice(tmp_path: Path) -> None:
+    """The workflow's fit (default method): the same Gram file gives the same bytes of model and trace."""
+    d = 4e6
+    G = _random_gram(20, 9, d) * 1e3
+    info = gplvm.GramInfo(tuple(f"m{i}" for i in range(20)), "raw", np.zeros(20), G)
+    gplvm.save_gram(tmp_path / "g.npz", G, int(d), info)
+    for k in (1, 2):
+        gplvm.fit_to_files(tmp_path / "g.npz", tmp_path / f"m{k}.npz", tmp_path / f"t{k}.csv", q=2, seed=k)
+    assert (tmp_path / "m1.npz").read_bytes() == (tmp_path / "m2.npz").read_bytes()
+    assert (tmp_path / "t1.csv").read_bytes() == (tmp_path / "t2.csv").read_bytes()
+    assert "newton" in (tmp_path / "t1.csv").read_text() or ",lbfgs," in (tmp_path / "t1.csv").read_text()
 
 
 @pytest.mark.parametrize("q", [2, 5])
@@ -279,7 +401,7 @@ def test_fit_at_full_database_size(q: int) -> None:
     the bookkeeping exact (speed belongs to a benchmark, not to this test; the polish
     is capped at 300 L-BFGS iterations, as its ~1,500 to convergence take minutes here)."""
     G = _random_gram(100, 0, 4e6)
-    r = gplvm.fit(G, 4e6, q=q, seed=0, max_sweeps=400, init_scale="rms", polish_iterations=300)
+    r = gplvm.fit(G, 4e6, q=q, seed=0, max_sweeps=400, init_scale="rms", polish_iterations=300, method="hybrid")
     assert r.log_likelihood >= r.hj_log_likelihood - 1e-12 * abs(r.hj_log_likelihood)
     assert r.hj_log_likelihood > r.initial_log_likelihood
     direct = gplvm.log_likelihood(r.X, G, 4e6, ell=1.0, mu=1e-4)
@@ -294,7 +416,13 @@ def test_fit_at_full_database_size(q: int) -> None:
         ({"q": 2, "ell": -1.0}, "length scale ell"),
         ({"q": 2, "mu": -1e-4}, "noise parameter mu"),
         ({"q": 2, "init_scale": "huge"}, "unknown init_scale"),
-        ({"q": 2, "method": "newton"}, "unknown method"),
+        ({"q": 2, "method": "quasi-newton"}, "unknown method"),
+        ({"q": 2, "trial_iterations": -1}, "trial_iterations must be an integer >= 0"),
+        ({"q": 2, "restart_every": 0}, "restart_every must be an integer >= 1"),
+        ({"q": 2, "newton_iterations": 1.5}, "newton_iterations must be an integer >= 0"),
+        ({"q": 2, "hessian_shift": 0.0}, "hessian_shift must be a finite number > 0"),
+        ({"q": 2, "newton_gtol": float("nan")}, "newton_gtol must be a finite number > 0"),
+        ({"q": 2, "init_scale": -2.0}, "init_scale factor must be > 0"),
     ],
 )
 def test_fit_bad_parameters(kwargs: dict, message: str) -> None:
@@ -429,6 +557,9 @@ def test_model_load_gives_same_weights(fitted: gplvm.FitResult, tmp_path: Path) 
     assert m.space == "log" and m.trace.shape == (len(fitted.trace), 2)
     bad = tmp_path / "bad.npz"
     np.savez(bad, x=np.zeros(2))
+    with pytest.raises(ValueError, match="bad.npz: GPLVM model carries no brdfpipe digest"):
+        gplvm.load_model(bad)
+    integrity.save_npz(bad, {"x": np.zeros(2)})
     with pytest.raises(ValueError, match="not a brdfpipe GPLVM model"):
         gplvm.load_model(bad)
     with pytest.raises(ValueError, match="names for"):
@@ -445,3 +576,17 @@ def test_pca_init_is_kernel_pca() -> None:
     with pytest.raises(ValueError, match="exceeds the number of materials"):
         gplvm.pca_init(Zc @ Zc.T, 11)
 
+
+
+def test_a_model_or_gram_file_of_the_retired_format_is_refused(tmp_path: Path) -> None:
+    """Format /1 files record no digests of the store rows they came from: refused, saying what to do."""
+    G = _random_gram(6, 3, 100.0)
+    info = gplvm.GramInfo(tuple(f"m{i}" for i in range(6)), "raw", np.zeros(6), G)
+    gplvm.save_gram(tmp_path / "g.npz", G, 100, info)
+    z = integrity.load_npz(tmp_path / "g.npz")
+    z["format"] = np.array("brdfpipe.manifold.gplvm.gram/1")
+    integrity.save_npz(tmp_path / "old.npz", z)
+    with pytest.raises(gplvm.GplvmFileError, match=r"old\.npz: GPLVM Gram file format 'brdfpipe\.manifold\.gplvm\."
+                                                   r"gram/1' is no longer supported: it records no digests of the "
+                                                   r"store rows it was computed from; compute it again \(write it"):
+        gplvm.load_gram(tmp_path / "old.npz")

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import csv
 
 import numpy as np
 import pytest
 
+from brdfpipe.core import integrity
 from brdfpipe.core.plan import ConfigError
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import merl, provenance, store, synth
 from brdfpipe.manifold import analysis, gplvm
 
 
@@ -75,6 +75,38 @@ def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
         analysis.path_analysis(small["store"], model, G, a, "zzz")
 
 
+def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    """manifold.path_steps: each point's 53 MB perceptual features are dropped once its distances are known.
+
+    (Holding all of them took one job to 22.7 GB.)  Chunks of two tables: the values are those of the
+    one-chunk computation, and the peak of 13 points stays that of 3.
+    """
+    import tracemalloc
+
+    model = gplvm.load_model(small["models"][3])
+    G, _, _ = gplvm.load_gram(small["gram"])
+    a, b = small["names"][0], small["names"][4]
+    whole = analysis.path_analysis(small["store"], model, G, a, b, steps=12)
+    monkeypatch.setattr(analysis, "_MAX_TABLES_IN_MEMORY", 2)
+    peaks = {}
+    for steps in (2, 12):
+        tracemalloc.start()
+        rows = analysis.path_analysis(small["store"], model, G, a, b, steps=steps)
+        peaks[steps] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    for r, w in zip(rows, whole):
+        for k in ("perceptual_a", "perceptual_b", "perceptual_ab"):
+            assert r[k] == pytest.approx(w[k], rel=1e-9, abs=1e-9)
+    feature_bytes = 8 * __import__("brdfpipe.manifold.perceptual", fromlist=["x"]).pr12_n_features()
+    assert peaks[12] < peaks[2] + 2 * feature_bytes, peaks
+
+
+def test_the_memory_model_counts_the_path_points_held_at_once() -> None:
+    from brdfpipe.core import plan
+
+    assert plan.PATH_CHUNK == analysis._MAX_TABLES_IN_MEMORY + 1  # a chunk and the path's end
+
+
 def test_check_and_default_paths() -> None:
     names = [f"m{i}" for i in range(10)]
     p1 = analysis.default_paths(names, seed=4)
@@ -139,17 +171,14 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
     written = sorted(p for p in out.rglob("*") if p.is_file())
     assert written == sorted([outputs["albedo_out"], *outputs["albedo_maps_out"].values(), outputs["paths_out"],
                               outputs["reproduction_out"]])
-    with open(outputs["paths_out"]) as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(outputs["paths_out"])[1]
     assert len(rows) == 3 and tuple(rows[0]) == analysis.PATH_COLUMNS and rows[0]["database"] == "synthetic"
-    with open(outputs["reproduction_out"]) as fh:
-        rep = list(csv.DictReader(fh))
+    rep = integrity.read_csv_rows(outputs["reproduction_out"])[1]
     assert {(r["method"], r["k"]) for r in rep} == {("pca", "2"), ("pca", "3"), ("gplvm", "2"), ("gplvm", "3")}
     for q, target in outputs["albedo_maps_out"].items():
-        with np.load(target) as z:
-            assert z["albedo"].shape == (6, 6, 3) and str(z["database"]) == "synthetic" and int(z["q"]) == q
-    with open(outputs["albedo_out"]) as fh:
-        assert len(list(csv.DictReader(fh))) == 6
+        z = integrity.load_npz(target)
+        assert z["albedo"].shape == (6, 6, 3) and str(z["database"]) == "synthetic" and int(z["q"]) == q
+    assert len(integrity.read_csv_rows(outputs["albedo_out"])[1]) == 6
     # Only the albedo maps asked for are written.
     only = small["tmp"] / "only-q3"
     analysis.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
@@ -172,7 +201,6 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
 
 def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
     """One pass over the store writes, per point, the table Σ wᵢ Zᵢ of that point's own weights."""
-    import json
 
     names = small["names"]
     points = [(names[0], names[3], 0.0), (names[0], names[3], 0.5), (names[1], names[4], 0.25)]
@@ -187,13 +215,18 @@ def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
         x = (1 - t) * m.X[m.names.index(a)] + t * m.X[m.names.index(b)]
         w = gplvm.blend_weights(gplvm.weights(m, x))
         np.testing.assert_allclose(W[k], w, rtol=1e-12, atol=1e-15)
-        doc = json.loads(jsons[k].read_text())
+        doc = integrity.read_json(jsons[k])
         assert (doc["material_a"], doc["material_b"], doc["t"]) == (a, b, t)
         assert np.allclose([doc["weights"][n] for n in m.names], w, rtol=1e-12, atol=1e-15)
         table = merl.read_merl(merls[k]).reshape(-1)
         expect = np.maximum(w @ small["brdf"][[names.index(n) for n in m.names]], 0.0)
         np.testing.assert_allclose(table[valid], expect[valid], rtol=1e-9, atol=1e-12)
-        assert np.all(table[~valid] == -1.0)
+        marked = np.zeros(table.size, dtype=bool)
+        marked[provenance.MARK_CELLS] = True  # red channel: the provenance mark (negative, unmeasured)
+        assert np.all(table[~valid & ~marked] == -1.0) and np.all(table[marked] < 0.0)
+        mark = provenance.read_mark(merls[k])
+        assert mark is not None and mark.kind == "derived" and mark.fields["operation"] == "path-point"
+        assert mark.fields["inputs"]["path"] == [a, b] and mark.fields["inputs"]["t"] == t
     # t = 0 is the first material itself (exact reproduction at training points)
     first = np.maximum(small["brdf"][names.index(points[0][0])], 0.0)
     np.testing.assert_allclose(merl.read_merl(merls[0]).reshape(-1)[valid], first[valid], rtol=1e-6, atol=1e-9)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import math
 import shutil
 import subprocess
 import sys
@@ -14,8 +15,20 @@ import yaml
 from brdfpipe.core import filenames as fn, plan, version
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
-TINY = yaml.safe_load((ROOT / "tests" / "config" / "tiny.yaml").read_text())
+SCHEMA_PATH = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+
+
+def _with_defaults(path: Path) -> dict:
+    """A config file as the workflow sees it: validated, the schema's defaults filled in."""
+    from snakemake.utils import validate
+
+    cfg = yaml.safe_load(path.read_text())
+    validate(cfg, str(SCHEMA_PATH), set_default=True)
+    return cfg
+
+
+DEFAULT = _with_defaults(ROOT / "config" / "config.yaml")
+TINY = _with_defaults(ROOT / "tests" / "config" / "tiny.yaml")
 NAMES = [f"m{i:02d}" for i in range(12)]
 
 
@@ -62,12 +75,40 @@ def test_closed_loop_captures_the_configured_sets() -> None:
         ({"closed_loop": {"metric": "condition"}, "acquisition": {"metrics": ["error"]}}, "closed_loop.metric"),
         ({"closed_loop": {"fovs": [30]}}, "closed_loop.fovs"),
         ({"closed_loop": {"n_images": [1, 3]}}, "closed_loop.n_images"),
+        ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "brackets": [2, 8]}}},
+         "config closed_loop.sensor.brackets = [2, 8]: the shortest exposure must be 1"),
+        ({"closed_loop": {"min_snr": 250}}, "config closed_loop.min_snr = 250: no pixel can reach it"),
+        ({"manifold": {"mu": 1e-5, "candidates": [{"space": "standardised", "mu": 1.0000001e-5}]}},
+         "config manifold.candidates[0]: mu = 1.0000001e-05 differs from manifold.mu = 1e-05 only past 6"),
+        ({"closed_loop": {"spp": 65536}, "acquisition": {"grid": 512}},
+         "config closed_loop.spp = 65536: at most 16320 with acquisition.grid = 512"),
+        ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "read_noise": 1e4, "brackets": [1]}}},
+         "config closed_loop.min_snr = 3: no pixel can reach it"),
     ],
 )
 def test_bad_values_name_their_key(sections: dict, key: str) -> None:
     with pytest.raises(plan.ConfigError) as err:
         plan.check_config(tiny(**sections), materials=NAMES, train=NAMES[3:])
     assert key in str(err.value)
+
+
+def test_two_paths_whose_file_names_collide_are_refused() -> None:
+    names = ["a", "b", "c", "a--b", "b--c"]
+    with pytest.raises(plan.ConfigError, match=r"^manifold.paths\[0\] \['a--b', 'c'\] and \[1\] \['a', 'b--c'\] "
+                                               "share the file name a--b--c"):
+        plan.check_paths([["a--b", "c"], ["a", "b--c"]], names)
+
+
+def test_sensor_checks_follow_what_the_capture_uses() -> None:
+    """min_snr is checked against the sensor's best SNR only when the sensor is on; nothing when the loop is off."""
+    sensor = TINY["closed_loop"]["sensor"]
+    best = plan.sensor_max_snr(sensor)  # [1, 8] brackets of the default sensor: √2 · 20000 / √(20025 + lsb²/12)
+    assert best == pytest.approx(math.sqrt(2) * 20000 / math.sqrt(20000 + 25 + (20000 / 4095) ** 2 / 12))
+    plan.check_config(tiny(closed_loop={"min_snr": 0.99 * best}), materials=NAMES, train=NAMES[3:])
+    plan.check_config(tiny(closed_loop={"min_snr": 1e6, "sensor": {**sensor, "enabled": False}}),
+                      materials=NAMES, train=NAMES[3:])
+    plan.check_config(tiny(closed_loop={"enabled": False, "sensor": {**sensor, "brackets": [4]}}),
+                      materials=NAMES, train=NAMES[3:])
 
 
 def test_default_paths_are_seeded_and_prefer_soler() -> None:
@@ -264,3 +305,169 @@ def test_floor_check_candidates() -> None:
         "standardised-mu1e-06"]
     assert plan.floor_check_candidates({"floor_check": {"candidates": "none"}}, cands, 9) == []
     assert plan.floor_check_candidates(render, cands, 0) == []  # no path point, nothing to check
+
+
+# --------------------------------------------------------------------------
+# Schema violations: one line naming the key (not Snakemake's dump of the schema)
+# --------------------------------------------------------------------------
+
+SCHEMA = yaml.safe_load(SCHEMA_PATH.read_text())
+
+
+def test_the_shipped_configs_satisfy_the_schema() -> None:
+    for cfg in (DEFAULT, TINY, *(yaml.safe_load(p.read_text()) for p in (ROOT / "tests" / "config").glob("*.yaml"))):
+        assert plan.schema_problem(cfg, SCHEMA) is None
+
+
+@pytest.mark.parametrize(
+    ("config", "line"),
+    [
+        ({"colour": "red"}, "config colour: unknown key; top-level keys are: merl_dir, synthetic, materials, "
+                            "test_materials, acquisition, manifold, render, closed_loop"),
+        ({"render": {"resolutoin": [3, 4]}}, "config render.resolutoin: unknown key; did you mean 'resolution'? "
+                                              "render has: variant, scene, resolution, spp"),
+        ({"closed_loop": {"sensor": {"gain": 2, "iso": 100}}}, "config closed_loop.sensor.gain: unknown key "
+                                                                "(and iso); closed_loop.sensor has: enabled"),
+        ({"render": {"spp": "1e5"}}, "config render.spp = '1e5': must be an integer"),
+        ({"render": {"spp": True}}, "config render.spp = True: must be an integer"),
+        ({"merl_dir": 3}, "config merl_dir = 3: must be a string or null"),
+        ({"synthetic": None}, "config synthetic = None: must be a mapping (key: value)"),
+        ({"render": {"spp": 0}}, "config render.spp = 0: must be ≥ 1"),
+        ({"acquisition": {"fovs": [25, 90]}}, "config acquisition.fovs[1] = 90: must be < 90"),
+        ({"acquisition": {"eta": 0}}, "config acquisition.eta = 0: must be ≥ 1e-06"),
+        ({"acquisition": {"eta": 1e-16}}, "config acquisition.eta = 1e-16: must be ≥ 1e-06 (η is relative"),
+        ({"manifold": {"mu": 0}}, "config manifold.mu = 0: must be ≥ 1e-10 (K + μI must stay positive definite"),
+        ({"manifold": {"candidates": [{"space": "raw", "mu": 0.0}]}}, "config manifold.candidates[0].mu = 0: must be ≥"),
+        ({"manifold": {"ell": 1e300}}, "config manifold.ell = 1e+300: must be ≤ 1000000 (ℓ² divides"),
+        ({"acquisition": {"eta": 1e30}}, "config acquisition.eta = 1e+30: must be ≤ 1000000 (η is relative"),
+        ({"render": {"variant": "cpu"}}, "config render.variant = 'cpu': must be one of llvm_ad_rgb, cuda_ad_rgb"),
+        ({"render": {"resolution": [64]}}, "config render.resolution: needs at least 2 entries (has 1)"),
+        ({"render": {"resolution": [64, 48, 3]}}, "config render.resolution: at most 2 entries (has 3)"),
+        ({"materials": []}, "config materials: must not be empty"),
+        ({"materials": [""]}, "config materials[0]: must not be empty"),
+        ({"acquisition": {"fovs": [25, 25]}}, "config acquisition.fovs: 25 is listed more than once"),
+        ({"manifold": {"candidates": [{"space": "raw"}]}}, "config manifold.candidates[0]: missing key mu"),
+        ({"render": {"scene": "a/b"}}, "config render.scene = 'a/b': must"),
+        ({"render": {"spp": 0, "colour": 1}}, "(and 1 more problem after it)"),
+        ({"render": {"resolution": [2, 100]}}, "config render.resolution[0] = 2: must be ≥ 8 (the preview object"),
+        ({"acquisition": {"training_sizes": [3, 3]}}, "config acquisition.training_sizes: 3 is listed more than once"),
+        ({"manifold": {"paths": []}}, "config manifold.paths: must not be empty"),
+        ({"acquisition": {"n_max_point": 5000}}, "config acquisition.n_max_point = 5000: must be ≤ 1000 (a directions"),
+        ({"acquisition": {"candidates": 10**9}}, "config acquisition.candidates = 1000000000: must be ≤ 1458000"),
+        ({"manifold": {"path_steps": 10**6}}, "config manifold.path_steps = 1000000: must be ≤ 1000"),
+        ({"test_materials": ["a/b"]}, "config test_materials[0] = 'a/b': must be a material name"),
+    ],
+)
+def test_schema_violations_are_one_line_naming_the_key(config: dict, line: str) -> None:
+    problem = plan.schema_problem(config, SCHEMA)
+    assert problem is not None and "\n" not in problem and len(problem) < 400
+    assert problem.startswith(line) if line.startswith("config") else line in problem
+
+
+def _schema_at(*path: str) -> dict:
+    node = SCHEMA
+    for key in path:
+        node = node["items"] if key == "[]" else node["properties"][key]
+    return node
+
+
+def test_render_limits_in_the_schema_are_what_the_renderer_takes() -> None:
+    """spp and seeds the schema accepts render (passes of rendering.scene); one more is refused in one line."""
+    from brdfpipe.rendering import scene
+
+    most = scene._MAX_PASSES * scene.DEFAULT_PASS_SPP
+    for path in (("render", "spp"), ("render", "floor_check", "spp")):
+        assert _schema_at(*path)["maximum"] == most
+        scene.pass_seeds(most, 0)  # accepted
+        with pytest.raises(ValueError):
+            scene.pass_seeds(most + 1, 0)
+    for key in ("seed", "noise_seed"):
+        top = _schema_at("render", key)["maximum"]
+        assert max(s for s, _ in scene.pass_seeds(most, top)) < 2**32
+        with pytest.raises(ValueError, match="32-bit"):  # the renderer refuses one more
+            scene.pass_seeds(most, top + 1)
+    for cfg, key in [({"render": {"spp": most + 1}}, "render.spp = 32001: must be ≤ 32000 (a render runs in at most"),
+                     ({"render": {"seed": 4294967}}, "render.seed = 4294967: must be ≤ 4294966 (pass p of a render"),
+                     ({"render": {"floor_check": {"spp": 10**6}}}, "render.floor_check.spp = 1000000: must be ≤ 32000"),
+                     ({"closed_loop": {"sensor": {"full_well": 1e12}}}, "closed_loop.sensor.full_well = 1e+12: must be ≤ 1000000000"),
+                     ({"closed_loop": {"sensor": {"brackets": [1, 1e9]}}}, "closed_loop.sensor.brackets[1] = 1000000000: must be ≤ 1000000"),
+                     ({"render": {"scene": "x" * 65}}, "render.scene = 'xxxx")]:
+        problem = plan.schema_problem(cfg, SCHEMA)
+        assert problem is not None and problem.startswith(f"config {key}"), problem
+
+
+# --------------------------------------------------------------------------
+# Sizes: no job may need more than a job may have (plan.check_memory)
+# --------------------------------------------------------------------------
+
+
+def _memory_problem(cfg: dict, n: int = 100, points: int = 9) -> str | None:
+    floor = cfg["render"]["floor_check"]["resolution"]
+    rules = plan.planned_rules(cfg, generated=True, path_points=points > 0, floor_check=True)
+    try:
+        plan.check_memory(cfg, n, rules, outputs={r: points for r in plan.PER_OUTPUT_MB}, floor_resolution=floor,
+                          materials_key="synthetic.count")
+    except plan.ConfigError as err:
+        return str(err)
+    return None
+
+
+def _sections(base: dict, **sections: dict) -> dict:
+    cfg = copy.deepcopy(base)
+    for key, value in sections.items():
+        for k, v in value.items():
+            cfg[key][k] = {**cfg[key][k], **v} if isinstance(v, dict) else v
+    return cfg
+
+
+def test_the_shipped_configs_fit_the_memory_limit() -> None:
+    assert _memory_problem(DEFAULT) is None
+    assert _memory_problem(TINY, n=12, points=3) is None
+    # the declared memory of the default sizes is the measured model's, and grows with a size
+    sizes = plan.job_sizes(DEFAULT)
+    assert all(plan.mem_mb(r, 100, sizes=sizes) == plan.mem_mb(r, 100) for r in plan.MEMORY_MB)
+    big = plan.job_sizes(_sections(DEFAULT, render={"resolution": [1024, 768]}))
+    assert plan.mem_mb("prerender_material", 100, sizes=big) > plan.mem_mb("prerender_material", 100)
+    assert plan.mem_mb("write_explorer", 200, sizes=big) > 1.9 * plan.mem_mb("write_explorer", 100, sizes=big) - 500
+
+
+@pytest.mark.parametrize(
+    ("sections", "n", "start"),
+    [
+        ({"render": {"resolution": [4096, 3072]}}, 100, "config render.resolution = 12,582,912 pixels: one "),
+        ({"render": {"floor_check": {"resolution": [20000, 20000]}}}, 100,
+         "config render.floor_check.resolution = 400,000,000 pixels: one "),
+        ({"render": {"envmap": {"width": 100000, "height": 50000}}}, 100,
+         "config render.envmap.width × height = 5,000,000,000 pixels: one make_envmap job would need"),
+        ({}, 1000, "config synthetic.count: 1000 materials: one "),
+        ({"manifold": {"albedo_grid": 2000}}, 100, "config manifold.albedo_grid = 2000: one analyze_manifold job"),
+    ],
+)
+def test_a_size_beyond_the_memory_limit_names_its_key_and_largest_value(sections: dict, n: int, start: str) -> None:
+    cfg = _sections(DEFAULT, **sections)
+    problem = _memory_problem(cfg, n=n)
+    assert problem is not None and problem.startswith(start) and "above the 16,000 MB a job may have" in problem
+    # the largest value it names fits; a little more does not
+    most = int(problem.rsplit("at most ", 1)[1].split()[0].replace(",", ""))
+    if "materials" in start:
+        assert _memory_problem(cfg, n=most) is None and _memory_problem(cfg, n=most + 1) is not None
+        return
+    if "albedo_grid" in start:
+        assert _memory_problem(_sections(DEFAULT, manifold={"albedo_grid": most})) is None
+        assert _memory_problem(_sections(DEFAULT, manifold={"albedo_grid": most + 1})) is not None
+        return
+    side = math.isqrt(most)
+    key = "floor_check" if "floor_check" in start else "envmap" if "envmap" in start else None
+    for w, fits in ((side, True), (side + 2, False)):
+        if key == "envmap":
+            patch = {"render": {"envmap": {"width": w, "height": w}}}
+        elif key == "floor_check":
+            patch = {"render": {"floor_check": {"resolution": [w, w]}}}
+        else:
+            patch = {"render": {"resolution": [w, w]}}
+        assert (_memory_problem(_sections(DEFAULT, **patch)) is None) == fits, (w, fits)
+
+
+def test_many_path_points_are_refused_by_the_outputs_a_job_holds() -> None:
+    problem = _memory_problem(DEFAULT, points=400)
+    assert problem is not None and problem.startswith("config render.path_points × manifold.paths: 400 path points")

@@ -150,7 +150,8 @@ def test_out_of_space_is_one_line_naming_the_path(
     tmp = tmp_path / ".out.binary.tmp-1-abcdef12"
     _reconstruct_raising(monkeypatch, OSError(errno.EDQUOT, os.strerror(errno.EDQUOT), str(tmp)))
     assert cli.main(argv) == 1
-    assert _one_error_line(capsys, "reconstruct").endswith(f"no space left on device writing {tmp}")
+    # the output the user named, not the hidden temporary file the OS error carries
+    assert _one_error_line(capsys, "reconstruct").endswith(f"no space left on device writing {tmp_path / 'out.binary'}")
 
 
 def test_other_os_errors_name_the_path(
@@ -208,8 +209,12 @@ def test_memory_error_in_render_names_the_settings(
         raise MemoryError
 
     monkeypatch.setattr(brdfpipe.rendering.scene, "render_material", fail)
+    import numpy as np
+
+    from brdfpipe.core import exr
+
     envmap = tmp_path / "sky.exr"
-    envmap.write_bytes(b"x")
+    exr.write_exr(envmap, np.ones((3, 6, 3), dtype=np.float32))  # read before rendering: must be an image
     argv = ["-q", "render", str(material), "--envmap", str(envmap), "--out", str(tmp_path / "img.exr"),
             "--resolution", "4000", "3000", "--spp", "1024"]
     assert cli.main(argv) == 1

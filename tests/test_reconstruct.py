@@ -10,6 +10,7 @@ references hold Q (p × k float64, 150 MB) and the log-mapped rows in memory.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import logging
 from pathlib import Path
@@ -21,8 +22,8 @@ from numpy.typing import NDArray
 
 from brdfpipe.acquisition import geometry, metrics, optimize, reconstruct, svd
 from brdfpipe.cli import main as cli_main
-from brdfpipe.core import filenames
-from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.core import filenames, integrity
+from brdfpipe.data import logmap, merl, provenance, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.acquisition.reconstruct import (
     CONSISTENCY_COLUMNS,
@@ -217,18 +218,43 @@ def test_write_reconstruction_and_cli(data: Data, tmp_path: Path) -> None:
     assert reconstruct.write_reconstruction(data.model_path, files["npz-angles"], out) == out
     back = merl.read_merl(out)
     table = reconstruct.reconstruct_brdf(data.model, cells, rgb)
-    np.testing.assert_allclose(back, table, rtol=1e-14, atol=0)
+    unmarked = np.ones((3, merl.N_CELLS), dtype=bool)
+    unmarked[0, provenance.MARK_CELLS] = False  # the provenance mark (unmeasurable cells, negative)
+    np.testing.assert_allclose(back.reshape(3, -1)[unmarked], table.reshape(3, -1)[unmarked], rtol=1e-14, atol=0)
     flat = back.reshape(3, merl.N_CELLS)
     measured = np.zeros(merl.N_CELLS, dtype=bool)
     measured[data.model.cells] = True
     assert (flat[:, ~measured] < 0).all() and (flat[:, measured] >= 0).all()
-    np.testing.assert_array_equal(merl.read_merl_raw(out).reshape(3, -1)[:, ~measured], -1.0)
+    raw = merl.read_merl_raw(out).reshape(3, -1)
+    np.testing.assert_array_equal(raw[:, ~measured][unmarked[:, ~measured]], -1.0)
+    mark = provenance.read_mark(out)
+    assert mark is not None and mark.kind == "derived" and mark.fields["operation"] == "reconstruct"
+    assert mark.fields["source_database"] == data.model.database and mark.fields["name"] == "rec"
+    assert mark.fields["inputs"]["model"]["id"] == data.model.id
+    assert mark.fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(files["npz-angles"])
     out2 = tmp_path / "cli.binary"
     assert cli_main(["-q", "reconstruct", str(files["csv-dirs"]), "--model", str(data.model_path),
                      "--out", str(out2), "--eta", "40"]) == 0
-    np.testing.assert_array_equal(merl.read_merl(out2), back)
+    np.testing.assert_array_equal(merl.read_merl(out2).reshape(3, -1)[unmarked], back.reshape(3, -1)[unmarked])
+    assert provenance.read_mark(out2).fields["inputs"]["observations"]["sha256"] == provenance.file_sha256(
+        files["csv-dirs"])
     bad = _write(tmp_path / "bad.csv", "theta_h,theta_d,r,g,b\n1,2,3,4,5\n")
     assert cli_main(["-q", "reconstruct", str(bad), "--model", str(data.model_path), "--out", str(out2)]) == 1
+
+
+def test_reconstructions_are_derived_and_ingest_as_derived(data: Data, tmp_path: Path) -> None:
+    """A reconstruction (and that of a capture) is marked derived; a folder of them is never 'merl'."""
+    files, _, _ = _observation_files(data, tmp_path)
+    folder = tmp_path / "recs"
+    reconstruct.write_reconstruction(data.model_path, files["npz-dirs"], folder / "rec.binary")
+    source = folder_database(data.dir / "db").sources[data.test[0]]
+    reconstruct.write_reconstruction(data.model_path, files["csv-angles"], folder / "captured.binary", material=source)
+    mark = provenance.read_mark(folder / "captured.binary")
+    assert mark.fields["operation"] == "capture-reconstruct"
+    assert mark.fields["inputs"]["material"] == {"sha256": provenance.file_sha256(source), "database": "synthetic"}
+    assert provenance.read_mark(folder / "rec.binary").fields["operation"] == "reconstruct"
+    assert cli_main(["-q", "ingest", str(folder), "--out", str(tmp_path / "recs.zarr"), "--jobs", "1"]) == 0
+    assert store.open_store(tmp_path / "recs.zarr").database == "derived"
 
 
 def _write(path: Path, text: str) -> Path:
@@ -346,7 +372,7 @@ def test_all_cells_tiny_eta_equals_deviation(data: Data, evaluation: list[dict[s
 
 def test_evaluation_rows_are_tidy(data: Data, evaluation: list[dict[str, Any]], tmp_path: Path) -> None:
     path = reconstruct.write_errors(tmp_path / "evaluation" / "errors.csv", evaluation)
-    with open(path, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
         rows = list(csv.reader(fh))
     assert tuple(rows[0]) == ERROR_COLUMNS
     body = [dict(zip(ERROR_COLUMNS, r)) for r in rows[1:]]
@@ -379,10 +405,10 @@ def test_evaluation_refuses_bad_inputs(data: Data, tmp_path: Path) -> None:
         reconstruct.evaluate(data.store, data.model_path, dirs, test_materials=[data.train[0]])
     with pytest.raises(ValueError, match="unknown material"):
         reconstruct.evaluate(data.store, data.model_path, dirs, test_materials=["no-such-material"])
-    doc = json.loads(data.dirs["point"].read_text())
+    doc = integrity.read_json(data.dirs["point"])
     doc["split"] = "all"
     other = tmp_path / "point-all.json"
-    other.write_text(json.dumps(doc))
+    integrity.write_json(other, doc)
     with pytest.raises(ValueError, match="split"):
         reconstruct.evaluate(data.store, data.model_path, [other], test_materials=data.test)
     with pytest.raises(ValueError, match="also comes from"):
@@ -399,7 +425,7 @@ def test_consistency_check_passes(data: Data, tmp_path: Path) -> None:
     rows = reconstruct.check_consistency(data.logmap, data.model_path, list(data.dirs.values()), out=out)
     assert len(rows) == 3 + 2
     assert max(r["rel_diff"] for r in rows) <= 1e-6
-    with open(out, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
         back = list(csv.reader(fh))
     assert tuple(back[0]) == CONSISTENCY_COLUMNS and len(back) == 1 + len(rows)
     # The Gram-style direct value equals metrics.direct_training_error in p-space.
@@ -425,10 +451,15 @@ def test_consistency_check_passes(data: Data, tmp_path: Path) -> None:
 
 
 def test_consistency_check_detects_tampering(data: Data, tmp_path: Path) -> None:
-    doc = json.loads(data.dirs["nearfield"].read_text())
-    doc["sets"][1]["expected_error"] *= 1 + 1e-5
+    raw = json.loads(data.dirs["nearfield"].read_text())
+    raw["sets"][1]["expected_error"] *= 1 + 1e-5
     bad = tmp_path / "nearfield-fov25-error.json"
-    bad.write_text(json.dumps(doc))
+    bad.write_text(json.dumps(raw))  # edited by hand (its recorded digest kept): no longer matches
+    with pytest.raises(ValueError, match=r"nearfield-fov25-error\.json: its content does not match its recorded "
+                                         r"digest \(damaged or edited\)"):
+        reconstruct.check_consistency(data.logmap, data.model_path, [data.dirs["point"], bad])
+    raw.pop(integrity.DIGEST_KEY)
+    integrity.write_json(bad, raw)  # a sealed tamper: the E(S) check catches it
     out = tmp_path / "consistency.csv"
     with pytest.raises(ConsistencyError, match=r"n = 2 .*relative difference") as exc:
         reconstruct.check_consistency(data.logmap, data.model_path, [data.dirs["point"], bad], out=out)
@@ -473,7 +504,7 @@ def test_training_size_curve(data: Data, evaluation: list[dict[str, Any]], tmp_p
     assert _value(rows, n_train=3, material="mean") == pytest.approx(rms.mean(), rel=1e-7)
     # Tidy CSV.
     path = reconstruct.write_errors(tmp_path / "training_size.csv", rows, TRAINING_SIZE_COLUMNS)
-    with open(path, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
         back = list(csv.reader(fh))
     assert tuple(back[0]) == TRAINING_SIZE_COLUMNS and len(back) == 1 + 2 * (3 * len(data.test) + 1)
     assert {r[2] for r in back[1:]} == {"5"} and {r[5] for r in back[1:]} == {"rms_log"}
@@ -498,7 +529,7 @@ def test_evaluation_functions_write_one_file_each(data: Data, evaluation: list[d
     tables = {}
     for path, cols in ((errors_out, ERROR_COLUMNS), (consistency_out, CONSISTENCY_COLUMNS),
                        (curve_out, TRAINING_SIZE_COLUMNS)):
-        with open(path, newline="") as fh:
+        with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
             tables[path] = list(csv.reader(fh))
         assert tuple(tables[path][0]) == cols
     # The errors CSV is the evaluation, written by write_errors.

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import html
+import io
 import json
 import math
 import re
@@ -20,16 +21,18 @@ from pathlib import Path
 
 import pytest
 
-from brdfpipe.core import filenames, plan
+from brdfpipe.core import filenames, integrity, plan
 from brdfpipe.report import captions, claims, items, runinfo
 
 
 def write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, object]]) -> Path:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(columns), lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow(r)
+    """A table as the workflow writes it: with its digest line (brdfpipe.core.integrity)."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow(r)
+    integrity.write_csv(path, buf.getvalue())
     return path
 
 
@@ -221,8 +224,13 @@ def test_bad_input_names_the_file_and_two_databases_are_refused(tmp_path: Path) 
     with pytest.raises(claims.ClaimsInputError, match="nothing.csv: no such file"):
         claims.read_errors(tmp_path / "nothing.csv")
     text = errors_csv(tmp_path / "t.csv", {("point", 0.0, "error", 1): 0.5})
-    text.write_text(text.read_text().replace("0.5", "zero", 1))
-    with pytest.raises(claims.ClaimsInputError, match=r"t\.csv: line 2: column 'value' is not a number"):
+    edited = text.read_text().replace("0.5", "zero", 1)
+    text.write_text(edited)  # an edit by hand: refused, naming the file and what to rerun
+    with pytest.raises(claims.ClaimsInputError, match=r"t\.csv: its content does not match its recorded digest "
+                                                      r"\(damaged or edited\)"):
+        claims.read_errors(text)
+    integrity.write_csv(text, edited.split("\n", 1)[1])  # the same table, sealed: its value is checked
+    with pytest.raises(claims.ClaimsInputError, match=r"t\.csv: line 3: column 'value' is not a number"):
         claims.read_errors(text)
     e = errors_csv(tmp_path / "e.csv", README, database="synthetic")
     b = write_csv(tmp_path / "b.csv", ("database", "material", "share_object"),
@@ -377,6 +385,7 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
     assert f"over {n_bench} jobs." in front
     # two claims recomputed from the run's CSVs, independently of brdfpipe.report
     with open(results / "evaluation" / "errors.csv", newline="") as fh:
+        assert next(fh).startswith(integrity.CSV_PREFIX)  # what a csv user skips: the digest line
         mean = {(r["setup"], r["metric"], r["n"]): float(r["value"]) for r in csv.DictReader(fh)
                 if r["split"] == "train" and r["material"] == "mean" and r["kind"] == "rms_log" and r["fov"] in ("25", "25.0")}
     row = next(r for r in rows if r["key"] == "xu-eq15-vs-kappa-nearfield")
@@ -384,6 +393,7 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
     assert float(row["value"]) == pytest.approx(want, rel=1e-8)
     assert row["holds"] == ("yes" if want >= 1 else "no")
     with open(results / "errormaps" / "preview" / "summary.csv", newline="") as fh:
+        next(fh)  # the digest line
         worst = max(float(r["ratio_seed2"]) for r in csv.DictReader(fh))
     row = next(r for r in rows if r["key"] == "soler-blend-vs-noise-floor")
     assert float(row["value"]) == pytest.approx(worst, rel=1e-8) and row["holds"] == ("yes" if worst <= 1 else "no")
@@ -437,3 +447,93 @@ def test_closed_loop_claim_follows_the_numbers(tmp_path: Path) -> None:
     keys = {it.key: it for it in its}
     assert keys["xu-closedloop"].path.endswith(".png") and keys["xu-closedloop-table"].path.endswith(".csv")
     assert all(k in captions.DESCRIPTIONS for k in keys)
+
+
+# -- hostile names ----------------------------------------------------------------------
+
+#: Strings a config file name, a config value, a file name or a CSV cell could hold: markup, links,
+#: directives, template code, control and layout characters.  Each must reach the page as plain text.
+HOSTILE: tuple[str, ...] = (
+    "x``\n\n.. raw:: html\n\n   <script>window.pwned=1</script>\n\n``y",
+    ".. raw:: html\n\n   <script>window.pwned=2</script>",
+    ".. include:: /etc/passwd",
+    ".. image:: javascript:alert(3)",
+    "`click <javascript:alert(4)>`_",
+    "javascript:alert(5)",
+    ":raw-html:`<script>window.pwned=6</script>`",
+    "<script>window.pwned=7</script>",
+    "{%endraw%}{{ 7 * 191 }}{% raw %}",
+    "{%- endraw -%}{{ 7 * 193 }}",
+    "|sub| name_ [1]_ *e* **s** ``l``",
+    "a\u2028.. raw:: html\u2029   <script>window.pwned=8</script>",
+    "- item\n#. item\n===\n+--+\n| line\n>>> x\n:: \\ tail\\",
+    "nul\x00bell\x07del\x7f \u202eevil",
+)
+
+
+def _publish_like_snakemake(text: str, **overrides: object) -> str:
+    """A caption or the front page as Snakemake 9 builds it: Jinja2 (its settings), then docutils' defaults.
+
+    Docutils' defaults are Snakemake's: the ``raw`` and ``include`` directives are enabled.
+    """
+    jinja2 = pytest.importorskip("jinja2")
+    docutils_core = pytest.importorskip("docutils.core")
+    rendered = jinja2.Environment(trim_blocks=True, lstrip_blocks=True).from_string(text).render(snakemake=None)
+    return docutils_core.publish_parts(rendered, writer_name="html",
+                                       settings_overrides={"report_level": 5, **overrides})["html_body"]
+
+
+def _assert_inert(page: str, hostile: Sequence[str]) -> None:
+    """No element, link, script or included file came from ``hostile``; each is shown as its text."""
+    for bad in ("<script", "javascript:alert(3)\"", "href=\"javascript", "src=\"javascript", "<img", "<object",
+                "<iframe", "root:x:0:0", "1337", "1351", "pwned=1</script>", "system-message"):
+        assert bad not in page, (bad, page[:3000])
+    assert not re.search(r"<a [^>]*href=\"(?!#)", page), page  # no link at all (our text makes none)
+    shown = _text(page)
+    for h in hostile:
+        visible = "".join(c if c.isprintable() or c.isspace() else f"\\x{ord(c):02x}" if ord(c) < 0x100
+                          else f"\\u{ord(c):04x}" for c in h)
+        assert " ".join(visible.split()) in shown, (h, shown[:3000])
+
+
+def test_hostile_names_reach_the_report_as_text(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Config file names, config strings, material and rule names, database labels: escaped in every rst.
+
+    Renders the front page through ``workflow/report/workflow.rst`` (its ``include``), every caption and
+    the claims table as Snakemake does; nothing of the hostile strings acts as markup.
+    """
+    from brdfpipe.report import rst
+
+    # claims whose text carries a hostile material name and database label (from a CSV)
+    bs = write_csv(tmp_path / "bs.csv", ("database", "material", "share_object"),
+                   [{"database": HOSTILE[1], "material": h, "share_object": 0.01 * (i + 1)}
+                    for i, h in enumerate(HOSTILE)])
+    found = claims.compute_claims(claims.ClaimInputs(bounce_shares=bs))
+    worst = HOSTILE[-1]  # largest share: named in the measured text
+    assert worst in by_key(found)["soler-second-bounce"].measured
+    paths = {k: tmp_path / f"claims.{k}" for k in ("csv", "json", "rst")}
+    claims.write_claims(found, csv_path=paths["csv"], json_path=paths["json"], rst_path=paths["rst"])
+    _assert_inert(_publish_like_snakemake(paths["rst"].read_text()), [HOSTILE[1], worst])
+
+    # every caption, with a hostile database label and hostile file names (path and scene names)
+    files = [f"results/errormaps/{h}/a--b-t0.5-error.png" for h in HOSTILE[:1]]
+    for key in captions.DESCRIPTIONS:
+        cap = captions.caption_rst(key, found, database=HOSTILE[0], files=files)
+        _assert_inert(_publish_like_snakemake(cap), [HOSTILE[0]])
+
+    # the front page: configuration file names, config strings, held-out names, rule names of benchmarks
+    results = tmp_path / "results" / "report"
+    splits = {"database": HOSTILE[3], "materials": list(HOSTILE), "train": [], "test": list(HOSTILE[4:8])}
+    runinfo.write_front(results / "front.rst", claims=found, splits=splits,
+                        config={"render": {"scene": HOSTILE[0]}, HOSTILE[1]: HOSTILE[2]},
+                        configfiles=list(HOSTILE[:3]), targets={HOSTILE[5]: 1}, versions={"x": HOSTILE[6]})
+    bench = tmp_path / "benchmarks"
+    (bench / "rule`_x").mkdir(parents=True)
+    (bench / "rule`_x" / "job.tsv").write_text("s\tmax_rss\tcpu_time\n1\t2\t3\n")
+    runinfo.write_stage_times(bench, csv_path=results / "stage-times.csv", rst_path=results / "stage-times.rst")
+    workflow_rst = Path(__file__).resolve().parents[1] / "workflow" / "report" / "workflow.rst"
+    monkeypatch.chdir(tmp_path)
+    page = _publish_like_snakemake(workflow_rst.read_text(encoding="utf-8"))
+    assert "What ran" in page and "Wall time per stage" in page and "rule`_x" in _text(page)
+    _assert_inert(page, list(HOSTILE[:8]))
+    assert "{{" not in rst.text("{{ x }}") and "{%" not in rst.text("{% x %}")

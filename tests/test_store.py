@@ -21,7 +21,9 @@ import pytest
 import zarr
 from numpy.typing import NDArray
 
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
+from brdfpipe.core.zgroup import COMPLETE_ATTR
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl, store
 from brdfpipe.data.merl import MerlFormatError, N_CELLS
@@ -70,7 +72,7 @@ def expected(sources: dict[str, Path]) -> NDArray[np.float32]:
 def built(sources: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A store made by ``ingest`` with two worker processes."""
     out = tmp_path_factory.mktemp("built") / "merl.zarr"
-    store.ingest(sources, out, database="synthetic", jobs=2)
+    store.ingest(sources, out, database="merl", jobs=2)
     return out
 
 
@@ -128,7 +130,7 @@ def test_attributes(built: Path, sources: dict[str, Path]) -> None:
     st = store.open_store(built)
     attrs = dict(st.group.attrs)
     assert attrs["materials"] == list(sources) and st.materials == tuple(sources)
-    assert attrs["database"] == "synthetic"
+    assert attrs["database"] == "merl"
     for name, path in sources.items():
         assert attrs["sources"][name] == hashlib.sha256(path.read_bytes()).hexdigest()
         assert attrs["source_files"][name] == path.name
@@ -268,7 +270,7 @@ def test_ingest_with_a_bad_file_fails(sources: dict[str, Path], tmp_path: Path) 
     out = tmp_path / "store" / "merl.zarr"
     srcs = {"a": sources["mat-0"], "bad": bad, "c": sources["mat-2"]}
     with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
-        store.ingest(srcs, out, database="synthetic", jobs=2)
+        store.ingest(srcs, out, database="merl", jobs=2)
     assert not out.exists() and _leftovers(out.parent) == []
 
 
@@ -329,7 +331,7 @@ def test_assemble_bad_row_fails_and_leaves_nothing(
     out = tmp_path / "out" / "merl.zarr"
     for link in (False, True):
         with pytest.raises(StoreError, match=message) as err:
-            store.assemble_store(copies, out, database="synthetic", link=link)
+            store.assemble_store(copies, out, database="merl", link=link)
         assert str(bad) in str(err.value)
         assert not out.exists() and _leftovers(out.parent) == []
 
@@ -399,7 +401,7 @@ def test_open_store_refuses_inconsistent(built: Path, tmp_path: Path) -> None:
 
 def test_rerun_replaces_existing(sources: dict[str, Path], expected: NDArray[np.float32], tmp_path: Path) -> None:
     out = tmp_path / "merl.zarr"
-    store.ingest(list(sources.values()), out, database="synthetic", jobs=1)
+    store.ingest(list(sources.values()), out, database="merl", jobs=1)
     assert store.open_store(out).materials == ("mat-0", "mat-1", "mat-2")
     store.ingest({"only": sources["mat-2"]}, out, database="merl", jobs=1)
     st = store.open_store(out, verify=True)
@@ -410,7 +412,7 @@ def test_rerun_replaces_existing(sources: dict[str, Path], expected: NDArray[np.
 
 def test_ingest_keeps_rows_in_workdir(sources: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "merl.zarr"
-    store.ingest(sources, out, database="synthetic", jobs=1, workdir=tmp_path / "rows")
+    store.ingest(sources, out, database="merl", jobs=1, workdir=tmp_path / "rows")
     kept = sorted(p.name for p in (tmp_path / "rows").iterdir())
     assert kept == ["0000-mat-0.zarr", "0001-mat-1.zarr", "0002-mat-2.zarr"]
     assert (out / "brdf" / "c" / "0" / "0").stat().st_nlink == 1  # kept rows are copied, not linked
@@ -445,8 +447,8 @@ def test_writers_refuse_a_foreign_output_before_any_work(
     monkeypatch.setattr(store, "_encode_source", no_work)
     monkeypatch.setattr(store, "_open_row", no_work)
     calls = [
-        lambda: store.ingest(sources, out, database="synthetic", jobs=1),
-        lambda: store.assemble_store(rows, out, database="synthetic"),
+        lambda: store.ingest(sources, out, database="merl", jobs=1),
+        lambda: store.assemble_store(rows, out, database="merl"),
     ]
     if kind != "row store":
         calls.append(lambda: store.ingest_material(sources["mat-0"], out, name="x"))
@@ -464,12 +466,12 @@ def test_failed_reingest_keeps_the_old_store(
     before = _tree(out)
     bad = _with_nan(sources["mat-1"], tmp_path / "bad.binary")
     with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
-        store.ingest({"a": sources["mat-0"], "bad": bad}, out, database="synthetic", jobs=2)
+        store.ingest({"a": sources["mat-0"], "bad": bad}, out, database="merl", jobs=2)
     assert _tree(out) == before and _leftovers(tmp_path) == []
     copies = _copy_rows(rows, tmp_path / "rows")
     (copies[2] / "brdf" / "c" / "0" / "0").unlink()
     with pytest.raises(StoreError, match="missing"):
-        store.assemble_store(copies, out, database="synthetic")
+        store.assemble_store(copies, out, database="merl")
     assert _tree(out) == before and _leftovers(tmp_path) == []
 
     # An interrupt (Ctrl-C) in the middle of the assembly.
@@ -493,21 +495,21 @@ def test_stale_siblings_of_dead_runs_are_removed(sources: dict[str, Path], tmp_p
         (d / "sub" / "junk").write_bytes(b"x" * 100)
     alive = tmp_path / f".merl.zarr.tmp-{os.getpid()}-00000001"  # a live writer's: left alone
     alive.mkdir()
-    store.ingest({"only": sources["mat-0"]}, out, database="synthetic", jobs=1)
+    store.ingest({"only": sources["mat-0"]}, out, database="merl", jobs=1)
     assert sorted(os.listdir(tmp_path)) == sorted([alive.name, "merl.zarr"])
 
 
 def test_same_sources_give_the_same_bytes(sources: dict[str, Path], tmp_path: Path) -> None:
     """Determinism: two ingests (different worker counts) write byte-identical stores."""
     a, b = tmp_path / "a.zarr", tmp_path / "b.zarr"
-    store.ingest(sources, a, database="synthetic", jobs=1)
-    store.ingest(sources, b, database="synthetic", jobs=2)
+    store.ingest(sources, a, database="merl", jobs=1)
+    store.ingest(sources, b, database="merl", jobs=2)
 
     def tree(root: Path) -> dict[str, bytes]:
         return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
     ta, tb = tree(a), tree(b)
-    assert json.loads(ta["zarr.json"])["attributes"]["format"] == "brdfpipe.data.merl-store/2"
+    assert json.loads(ta["zarr.json"])["attributes"]["format"] == "brdfpipe.data.merl-store/3"
     assert ta.keys() == tb.keys() and len(ta) > 4
     assert all(ta[k] == tb[k] for k in ta)
 
@@ -552,6 +554,11 @@ def test_swapped_names_fail_verification(built: Path, tmp_path: Path) -> None:
         doc["attributes"]["sources"] = dict(doc["attributes"]["sources"])  # same keys: still consistent
 
     _edit_json(bad / "zarr.json", swap)
+    # every open (verify=False too) checks the attributes against their digest
+    with pytest.raises(StoreError, match=re.escape(str(bad)) + ": its attributes .*do not match their recorded "
+                                         r"digest \(damaged or edited\); re-ingest the store"):
+        store.open_store(bad, verify=False)
+    _edit_json(bad / "zarr.json", _reseal)  # a deliberate re-seal: the shards' name-bound digests still fail
     store.open_store(bad, verify=False)  # the metadata alone is consistent
     with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*'mat-1'.*corrupt"):
         store.open_store(bad)
@@ -580,12 +587,50 @@ def test_damaged_valid_chunk_is_a_store_error(damage: str, built: Path, tmp_path
             store.open_store(bad, verify=verify)
 
 
-def test_old_format_is_refused_with_a_reingest_hint(built: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("version", [1, 2])
+def test_old_format_is_refused_with_a_reingest_hint(built: Path, tmp_path: Path, version: int) -> None:
     old = Path(shutil.copytree(built, tmp_path / "old.zarr"))
-    _edit_json(old / "zarr.json", lambda d: d["attributes"].update(format="brdfpipe.data.merl-store/1"))
-    with pytest.raises(StoreError, match=re.escape(str(old)) + ".*no longer supported.*re-ingest"):
+
+    def older(doc: dict) -> None:
+        doc["attributes"].update(format=f"brdfpipe.data.merl-store/{version}")
+        doc["attributes"]["digests"].pop("attributes")  # format 2 had no digest of its attributes
+
+    _edit_json(old / "zarr.json", older)
+    why = "material names" if version == 1 else "'database', 'materials' and 'sources'"
+    with pytest.raises(StoreError, match=re.escape(str(old)) + f".*no longer supported.*{why}.*re-ingest the store"):
         store.open_store(old)
     assert store.is_store(old)  # an ingest may replace it
+
+
+@pytest.mark.parametrize("edit", ["database", "sources", "materials", "source_files", "layout"])
+def test_an_edited_attribute_is_refused_on_every_open(built: Path, tmp_path: Path, edit: str) -> None:
+    """The 'database' label (and the other attributes) is covered by a digest checked on every open."""
+    bad = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
+
+    def change(doc: dict) -> None:
+        a = doc["attributes"]
+        if edit == "database":
+            a["database"] = "merl" if a["database"] == "synthetic" else "synthetic"
+        elif edit == "sources":
+            a["sources"][a["materials"][0]] = "0" * 64
+        elif edit == "materials":
+            a["materials"][0], a["materials"][1] = a["materials"][1], a["materials"][0]
+        elif edit == "source_files":
+            a["source_files"][a["materials"][0]] = "other.binary"
+        else:
+            a["layout"] += " (edited)"
+
+    _edit_json(bad / "zarr.json", change)
+    for verify in (False, True):
+        with pytest.raises(StoreError, match=re.escape(str(bad)) + r": its attributes \(database, materials, "
+                                             r"sources, \.\.\.\) do not match their recorded digest"):
+            store.open_store(bad, verify=verify)
+
+
+def _reseal(doc: dict) -> None:
+    """Recompute the store's attributes digest after an edit (what only a deliberate forger does)."""
+    attrs = doc["attributes"]
+    attrs["digests"]["attributes"] = integrity.attributes_digest(attrs, ("digests", COMPLETE_ATTR))
 
 
 # --------------------------------------------------------------------------
@@ -611,10 +656,10 @@ def test_file_removing_many_cells_is_warned(
     merl.write_merl(holey, table.reshape(merl.SHAPE))
     with caplog.at_level(logging.WARNING, logger="brdfpipe.data.store"):
         store.ingest({"a": sources["mat-0"], "holey": holey, "c": sources["mat-2"]},
-                     tmp_path / "merl.zarr", database="synthetic", jobs=1)
+                     tmp_path / "merl.zarr", database="merl", jobs=1)
     warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warned) == 1 and re.match(r"holey\.binary: material 'holey' leaves .* \(5\.\d%\)", warned[0])
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="brdfpipe.data.store"):
-        store.ingest(sources, tmp_path / "fine.zarr", database="synthetic", jobs=1)
+        store.ingest(sources, tmp_path / "fine.zarr", database="merl", jobs=1)
     assert not [r for r in caplog.records if r.levelno == logging.WARNING]  # 2000 of ~1 M cells: 0.2 %

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.core.version import full_version
-from brdfpipe.data import merl, synth
+from brdfpipe.data import merl, provenance, synth
 
 SEED = 11
 NOISE = 0.01
@@ -285,6 +285,13 @@ def test_noise_is_relative_and_unbiased(generated, specs5, mask) -> None:
 # --------------------------------------------------------------------------
 
 
+def _unmarked(table: np.ndarray) -> np.ndarray:
+    """A copy of a (3, 90, 90, 180) table without the red channel's provenance-mark cells (the file holds the mark there)."""
+    out = np.array(table, dtype=np.float64).reshape(3, -1)
+    out[0, provenance.MARK_CELLS] = 0.0
+    return out.reshape(table.shape)
+
+
 def test_write_material_round_trips(tmp_path: Path, generated, specs5, mask) -> None:
     spec = specs5[0]
     table, record = generated[spec.name]
@@ -292,11 +299,12 @@ def test_write_material_round_trips(tmp_path: Path, generated, specs5, mask) -> 
     assert synth.write_material(spec, path, NOISE) == record
     assert path.stat().st_size == merl.FILE_SIZE
     raw = merl.read_merl_raw(path)
-    np.testing.assert_array_equal(raw, table / merl.SCALES[:, None, None, None])
+    np.testing.assert_array_equal(_unmarked(raw), _unmarked(table / merl.SCALES[:, None, None, None]))
+    assert provenance.read_mark(path) == synth.material_mark(spec, NOISE)
     assert (raw[:, ~mask] < 0.0).all()
     assert (raw.reshape(3, -1)[:, synth.WATERMARK_CELLS] == synth.WATERMARK_RAW).all()
     assert synth.is_synthetic_file(path)
-    np.testing.assert_allclose(merl.read_merl(path), table, rtol=1e-15)
+    np.testing.assert_allclose(_unmarked(merl.read_merl(path)), _unmarked(table), rtol=1e-15)
     assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary left
 
 
@@ -308,7 +316,10 @@ def test_write_named_material(tmp_path: Path, generated, specs5) -> None:
     )
     table, want = generated[spec.name]
     assert record == want
-    np.testing.assert_array_equal(merl.read_merl_raw(path), table / merl.SCALES[:, None, None, None])
+    np.testing.assert_array_equal(_unmarked(merl.read_merl_raw(path)),
+                                  _unmarked(table / merl.SCALES[:, None, None, None]))
+    mark = provenance.read_mark(path)
+    assert mark is not None and mark.name == spec.name and (mark.fields["count"], mark.fields["seed"]) == (5, SEED)
     with pytest.raises(ValueError, match="no material named"):
         synth.write_named_material(name="metal-gold-999", count=5, seed=SEED, noise=NOISE,
                                    path=tmp_path / "x.binary")
@@ -340,7 +351,8 @@ def test_synthesize_writes_files_and_manifest(
         assert entry["seed"] == spec.seed
         assert entry["params"] == {**spec.params, **record}
         raw = merl.read_merl_raw(out / f"{spec.name}.binary")
-        assert raw.tobytes() == (table / merl.SCALES[:, None, None, None]).tobytes()
+        assert _unmarked(raw).tobytes() == _unmarked(table / merl.SCALES[:, None, None, None]).tobytes()
+        assert provenance.read_mark(out / f"{spec.name}.binary") == synth.material_mark(spec, NOISE, (5, SEED))
     # the manifest describes the materials completely
     meta, specs = synth.read_manifest(manifest)
     assert [s.name for s in specs] == [s.name for s in specs5]
@@ -422,3 +434,22 @@ def test_database_manifest_collects_job_records(tmp_path: Path) -> None:
     )
     doc = json.loads(out.read_text())
     assert [m["params"]["energy_scale"] for m in doc["materials"]] == [0.9] * 4 + [1.0]
+
+
+def test_database_manifest_of_a_subset_lists_the_generated_materials(tmp_path: Path) -> None:
+    """The workflow's `materials` subset of the synthetic database: the manifest lists what was generated."""
+    specs = synth.plan_database(5, 3)
+    part = [specs[1].name, specs[3].name]
+    files = []
+    for name in part:
+        f = tmp_path / f"{name}.json"
+        f.write_text(json.dumps({"name": name, "energy_scale": 0.9, "max_albedo": 1.07}))
+        files.append(f)
+    out = tmp_path / "manifest.json"
+    synth.write_database_manifest(out, count=5, seed=3, noise=0.0, test_materials=part[:1], record_files=files,
+                                  materials=part)
+    doc = json.loads(out.read_text())
+    assert [m["name"] for m in doc["materials"]] == part and doc["count"] == 5 and doc["test_materials"] == part[:1]
+    with pytest.raises(ValueError, match="not materials of this synthetic database: nope"):
+        synth.write_database_manifest(out, count=5, seed=3, noise=0.0, test_materials=[], record_files=files,
+                                      materials=[*part, "nope"])

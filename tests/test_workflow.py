@@ -6,7 +6,6 @@ directory (``--directory``), so the repository's own ``results/`` is untouched.
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import shutil
@@ -18,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
-from brdfpipe.core import filenames
+from brdfpipe.core import filenames, integrity
 from brdfpipe.data import merl, store
 from shared_runs import copy_run, shared_run
 
@@ -112,21 +111,18 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     assert (tmp_path / "results" / "directions" / "all" / "nearfield-fov25-error.json").is_file()
     # evaluation: every predicted E(S) matched its direct recomputation (else the rule fails)
 
-    with open(tmp_path / "results" / "evaluation" / "consistency-train.csv") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "consistency-train.csv")[1]
     # one row per (file, n): point 3 + three image setups x 2, for both metrics
     assert len(rows) == 2 * (3 + 3 * 2)
     assert all(float(r["rel_diff"]) <= 1e-6 for r in rows)
-    with open(tmp_path / "results" / "evaluation" / "errors.csv") as fh:
-        errors = list(csv.DictReader(fh))
+    errors = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "errors.csv")[1]
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
     assert len(figures) == 16 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
     assert "closedloop-vs-table.png" in figures
     # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
-    with open(tmp_path / "results" / "evaluation" / "closedloop.csv") as fh:
-        closed = list(csv.DictReader(fh))
+    closed = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "closedloop.csv")[1]
     assert list(closed[0]) == list(errors[0]) and {r["database"] for r in closed} == {"synthetic"}
     assert {r["material"] for r in closed} == set(splits["test"]) | {"mean"}
     assert {r["kind"] for r in closed} >= {"rms_log", "closedloop_rms_log", "closedloop_noiseless_rms_log"}
@@ -143,17 +139,15 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
         for q in (2, 5):
             fit = gplvm.load_model(tmp_path / "results" / "gplvm" / cand / f"q{q}.npz")
             assert fit.X.shape == (12, q) and list(fit.names) == names and fit.space == space
-            trace = (tmp_path / "results" / "gplvm" / cand / f"q{q}-trace.csv").read_text().splitlines()
+            trace = integrity.read_csv_text(tmp_path / "results" / "gplvm" / cand / f"q{q}-trace.csv").splitlines()
             assert trace[0] == "step,stage,log_likelihood" and len(trace) > 2
-    with open(tmp_path / "results" / "manifold" / "spaces.csv") as fh:
-        spaces = list(csv.DictReader(fh))
+    spaces = integrity.read_csv_rows(tmp_path / "results" / "manifold" / "spaces.csv")[1]
     assert sorted((r["candidate"], r["q"], r["default"]) for r in spaces) == [
         ("raw-mu0.0001", "2", "false"), ("raw-mu0.0001", "5", "false"),
         ("standardised-mu1e-06", "2", "true"), ("standardised-mu1e-06", "5", "true")]
     assert all(0.0 <= float(r["albedo_bad_hull"]) <= 1.0 for r in spaces)
     # manifold analyses: three seeded paths of path_steps + 1 points, exact ends
-    with open(tmp_path / "results" / "manifold" / "paths.csv") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(tmp_path / "results" / "manifold" / "paths.csv")[1]
     assert len(rows) == 3 * 5 and {r["database"] for r in rows} == {"synthetic"}
     ends = [r for r in rows if r["step"] in ("0", "4")]
     assert all(float(r["deviation"]) <= 1e-6 * max(float(x["deviation"]) for x in rows) for r in ends)
@@ -161,15 +155,13 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     renders = tmp_path / "results" / "renders" / "preview"
     assert sorted(p.stem for p in (renders / "materials").glob("*.exr")) == sorted(names)
     assert len(list((renders / "paths").glob("*-t0.5-noise.exr"))) == 3
-    with open(tmp_path / "results" / "errormaps" / "preview" / "summary.csv") as fh:
-        summary = list(csv.DictReader(fh))
+    summary = integrity.read_csv_rows(tmp_path / "results" / "errormaps" / "preview" / "summary.csv")[1]
     assert len(summary) == 3 and all(float(r["rmse_noise"]) > 0 for r in summary)
     assert all(float(r["rmse_noise_one"]) > 0 and float(r["ratio_one_seed2"]) > 0 for r in summary)
     # the I¹⁻ part of every render, and the I²⁺ share of every material
     assert sorted(p.stem for p in (renders / "materials-one").glob("*.exr")) == sorted(names)
     assert len(list((renders / "paths").glob("*-t0.5-one-noise.exr"))) == 3
-    with open(renders / "bounce-shares.csv") as fh:
-        shares = list(csv.DictReader(fh))
+    shares = integrity.read_csv_rows(renders / "bounce-shares.csv")[1]
     assert sorted(r["material"] for r in shares) == sorted(names)
     assert all(-1e-3 <= float(r["share_image"]) < 0.5 and int(r["object_pixels"]) > 0 for r in shares)
     check_floor(tmp_path, names)
@@ -188,8 +180,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
 
     floor = workdir / "results" / "renders" / "preview-16x12-64spp"
     assert sorted(p.stem for p in (floor / "materials-one").glob("*.exr")) == sorted(names)
-    with open(workdir / "results" / "errormaps" / "preview-16x12-64spp" / "floor-check.csv") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(workdir / "results" / "errormaps" / "preview-16x12-64spp" / "floor-check.csv")[1]
     assert sorted({(r["candidate"], r["default"]) for r in rows}) == [
         ("raw-mu0.0001", "0"), ("standardised-mu1e-06", "1")]
     assert len(rows) == 2 * 3 and {r["database"] for r in rows} == {"synthetic"}
@@ -213,22 +204,26 @@ def check_floor(workdir: Path, names: list[str]) -> None:
     ("overrides", "message"),
     [
         ({"test_materials": ["no-such-material"]}, "unknown material"),
-        ({"render": {"floor_check": {"candidates": "some"}}}, "is not one of"),
-        ({"render": {"floor_check": {"spp": 0}}}, "less than the minimum of 1"),
-        ({"synthetic": {"count": 0}}, "minimum"),
-        ({"colour": "red"}, "Additional properties"),
+        ({"render": {"floor_check": {"candidates": "some"}}}, "render.floor_check.candidates = 'some': must be one of"),
+        ({"render": {"floor_check": {"spp": 0}}}, "render.floor_check.spp = 0: must be ≥ 1"),
+        ({"synthetic": {"count": 0}}, "synthetic.count = 0: must be ≥ 1"),
+        ({"colour": "red"}, "config colour: unknown key"),
+        ({"render": {"resolutoin": [3, 4]}}, "render.resolutoin: unknown key; did you mean 'resolution'?"),
+        ({"render": {"spp": "1e5"}}, "render.spp = '1e5': must be an integer"),
+        ({"acquisition": {"fovs": [25, 25]}}, "acquisition.fovs: 25 is listed more than once"),
+        ({"materials": []}, "config materials: must not be empty"),
         ({"merl_dir": "/nonexistent/merl"}, "does not exist"),
-        ({"acquisition": {"setups": ["gonioreflectometer"]}}, "is not one of"),
-        ({"acquisition": {"fovs": [0]}}, "less than or equal to the minimum of 0"),
-        ({"acquisition": {"fovs": [90]}}, "greater than or equal to the maximum of 90"),
-        ({"acquisition": {"n_max_images": 0}}, "less than the minimum of 1"),
-        ({"acquisition": {"eta": 0}}, "less than or equal to the minimum of 0"),
-        ({"manifold": {"latent_dims": [0]}}, "less than the minimum of 1"),
-        ({"manifold": {"ell": 0}}, "less than or equal to the minimum of 0"),
-        ({"manifold": {"mu": -1e-4}}, "less than the minimum of 0"),
+        ({"acquisition": {"setups": ["gonioreflectometer"]}}, "acquisition.setups[0] = 'gonioreflectometer': must be one of"),
+        ({"acquisition": {"fovs": [0]}}, "acquisition.fovs[0] = 0: must be > 0"),
+        ({"acquisition": {"fovs": [90]}}, "acquisition.fovs[0] = 90: must be < 90"),
+        ({"acquisition": {"n_max_images": 0}}, "acquisition.n_max_images = 0: must be ≥ 1"),
+        ({"acquisition": {"eta": 0}}, "acquisition.eta = 0: must be ≥ 1e-06"),
+        ({"manifold": {"latent_dims": [0]}}, "manifold.latent_dims[0] = 0: must be ≥ 1"),
+        ({"manifold": {"ell": 0}}, "manifold.ell = 0: must be ≥ 1e-06"),
+        ({"manifold": {"mu": -1e-4}}, "manifold.mu = -0.0001: must be ≥ 1e-10"),
         ({"manifold": {"paths": [["no-such-material", "other"]]}}, "unknown material 'no-such-material'"),
         ({"manifold": {"path_q": 3}}, "is not one of manifold.latent_dims"),
-        ({"render": {"variant": "scalar_spectral"}}, "is not one of"),
+        ({"render": {"variant": "scalar_spectral"}}, "render.variant = 'scalar_spectral': must be one of"),
         ({"render": {"noise_seed": 0}}, "must differ from render.seed"),
         ({"manifold": {"ell": float("nan")}}, "manifold.ell"),
         ({"manifold": {"mu": float("inf")}}, "manifold.mu"),
@@ -239,13 +234,18 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"closed_loop": {"n_images": [3]}}, "closed_loop.n_images"),
         ({"merl_dir": ""}, "merl_dir"),
         ({"materials": ["no-such-*"]}, "materials: 'no-such-*' match"),
+        ({"render": {"envmap": {"width": 100000, "height": 50000}}}, "render.envmap.width × height = 5,000,000,000"),
+        ({"closed_loop": {"sensor": {"enabled": True, "brackets": [2, 8]}}}, "closed_loop.sensor.brackets"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:
     cfg = write_config(tmp_path / "bad.yaml", **overrides)
     r = snakemake(tmp_path, "-n", configfile=cfg)
     assert r.returncode != 0
-    assert message in r.stdout + r.stderr
+    out = r.stdout + r.stderr
+    assert message in out
+    # one line naming the key: no schema dump, no traceback (Snakemake adds its header and the Snakefile line)
+    assert "Failed validating" not in out and "Traceback" not in out and len(out.splitlines()) <= 5, out
     assert not (tmp_path / "results").exists()
 
 
@@ -326,8 +326,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
     if floor_checked:
         render |= set(filenames.figure_files(filenames.FLOOR_CHECK_STEM))
         (table,) = (work / "results" / "errormaps").glob("*/floor-check.csv")
-        with open(table) as fh:
-            rows = list(csv.DictReader(fh))
+        rows = integrity.read_csv_rows(table)[1]
         assert len(rows) == len(cfg["manifold"]["paths"]) * len(cfg["render"]["path_points"])  # the default candidate
     assert figures == declared_outputs(config) | render
     assert store.open_store(work / "results" / "merl.zarr").database == "synthetic"
@@ -337,8 +336,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
         assert not (work / "results" / "errormaps").exists()
         assert not list((work / "results" / "manifold").glob("albedo-map-*.npz"))
     else:
-        with open(work / "results" / "errormaps" / "preview" / "summary.csv") as fh:
-            assert len(list(csv.DictReader(fh))) == 1
+        assert len(integrity.read_csv_rows(work / "results" / "errormaps" / "preview" / "summary.csv")[1]) == 1
     again = subprocess.run([*cmd, "-n"], capture_output=True, text=True, cwd=work, env=env, timeout=300)
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
     if shape != "tiny-point":
@@ -357,7 +355,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
     assert not planned & untouched, planned & untouched
 
 
-@pytest.mark.parametrize("name", ["brace{x}", "with space", "café", "x" * 101])
+@pytest.mark.parametrize("name", ["brace{x}", "with space", "café", "x" * 101, "mean"])
 def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, name: str) -> None:
     folder = tmp_path / "merl"
     folder.mkdir()
@@ -375,7 +373,10 @@ def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, nam
 
 
 def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
-    """A folder written by `brdfpipe synth` and given as merl_dir: the store says synthetic, like the CLI."""
+    """A folder written by `brdfpipe synth` and given as merl_dir: the store says synthetic, like the CLI.
+
+    The folder is read as it is: the workflow does not plan synthesis (or a manifest) of its own for it.
+    """
     from brdfpipe import cli
 
     folder = tmp_path / "db"
@@ -384,12 +385,15 @@ def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
     names = sorted(p.stem for p in folder.glob("*.binary"))
     cfg = write_config(tmp_path / "synth.yaml", merl_dir=str(folder), test_materials=names[:1],
                        manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
-    r = snakemake(tmp_path, "results/merl.zarr", configfile=cfg)
+    r = snakemake(tmp_path, "results/splits.json", configfile=cfg)
     assert r.returncode == 0, r.stderr[-3000:]
     assert store.open_store(tmp_path / "results" / "merl.zarr").database == "synthetic"
+    assert json.loads((tmp_path / "results" / "splits.json").read_text())["test"] == names[:1]
+    assert not (tmp_path / "results" / "synthetic").exists()
 
 
 def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None:
+    """A `materials` subset of the synthetic database: jobs for those only, and the data stage runs through."""
     from brdfpipe.data import database
 
     names = database.synthetic_database("x", 12, 7).materials
@@ -400,3 +404,8 @@ def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None
     assert r.returncode == 0, r.stderr[-3000:]
     out = r.stdout + r.stderr
     assert any(line.split()[:2] == ["ingest_material", str(len(subset))] for line in out.splitlines()), out
+    r = snakemake(tmp_path, "results/splits.json", configfile=cfg)  # synthesis, manifest, ingest, store, split
+    assert r.returncode == 0, r.stderr[-3000:]
+    manifest = json.loads((tmp_path / "results" / "synthetic" / "manifest.json").read_text())
+    assert sorted(m["name"] for m in manifest["materials"]) == subset and manifest["count"] == 12
+    assert json.loads((tmp_path / "results" / "splits.json").read_text())["materials"] == subset

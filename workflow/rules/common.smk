@@ -127,7 +127,10 @@ def _load_database():
 DATABASE, TEST_MATERIALS = _load_database()
 MATERIALS = DATABASE.materials
 TRAIN_MATERIALS = [m for m in MATERIALS if m not in TEST_MATERIALS]
-SYNTHETIC = DATABASE.kind == "synthetic"
+# The workflow generates the synthetic database (rules synthesize_material and
+# write_manifest) only without merl_dir: a folder written by `brdfpipe synth`
+# given as merl_dir is labelled synthetic but is read as it is.
+GENERATED = config["merl_dir"] is None
 ACQ = config["acquisition"]
 MAN = config["manifold"]
 RENDER = config["render"]
@@ -195,11 +198,46 @@ else:
     FLOOR_FIGURE = []
 
 
+# Sizes the memory model reads, per scene folder (the floor check renders smaller).
+JOB_SIZES = {
+    scene: plan.job_sizes(config, resolution=res, n_test=len(TEST_MATERIALS))
+    for scene, (res, _) in RENDER_SETTINGS.items()
+}
+# No job may need more memory than one job may have: sizes and materials are
+# checked against the memory model here, naming the key (brdfpipe.core.plan).
+if config["materials"] is not None:
+    MATERIALS_KEY = "materials"
+else:
+    MATERIALS_KEY = "synthetic.count" if GENERATED else "merl_dir"
+PLANNED_RULES = plan.planned_rules(
+    config,
+    generated=GENERATED,
+    path_points=bool(PATH_POINTS),
+    floor_check=bool(FLOOR_CANDIDATES),
+)
+POINT_OUTPUTS = {r: len(PATH_POINTS) for r in plan.PER_OUTPUT_MB}
+try:
+    plan.check_memory(
+        config,
+        len(MATERIALS),
+        PLANNED_RULES,
+        outputs=POINT_OUTPUTS,
+        floor_resolution=FLOOR["resolution"] if FLOOR_CANDIDATES else None,
+        materials_key=MATERIALS_KEY,
+        n_test=len(TEST_MATERIALS),
+    )
+except plan.ConfigError as err:
+    raise WorkflowError(f"invalid configuration: {err}") from None
+
+
 def mem(rule, outputs=1):
-    """A rule's mem_mb: measured peak for this many materials and outputs, growing by half per retry (brdfpipe.core.plan)."""
+    """A rule's mem_mb: modelled peak for this many materials, outputs and sizes, growing by half per retry (brdfpipe.core.plan)."""
+
+    own_scene = FLOOR_SCENE if rule in plan.FLOOR_RULES else SCENE
 
     def mem_mb(wildcards, attempt):
-        return plan.mem_mb(rule, len(MATERIALS), attempt, outputs=outputs)
+        sizes = JOB_SIZES[wildcards.get("scene", own_scene)]
+        return plan.mem_mb(rule, len(MATERIALS), attempt, outputs=outputs, sizes=sizes)
 
     return mem_mb
 

@@ -2,7 +2,7 @@
 # validated Zarr store, plus the train/test split.
 
 
-if SYNTHETIC:
+if GENERATED:
 
     rule synthesize_material:
         input:
@@ -49,9 +49,22 @@ if SYNTHETIC:
             seed=config["synthetic"]["seed"],
             noise=config["synthetic"]["noise"],
             test_materials=TEST_MATERIALS,
+            materials=MATERIALS,
             code=code("write_manifest.py"),
         script:
             "../scripts/write_manifest.py"
+
+
+# What every ingested file must be (brdfpipe.data.provenance.check_source): of the
+# database labelled at parse time and, for the workflow's own synthetic files,
+# made with this configuration (the material name is checked for every marked file).
+INGEST_EXPECT = {"database": DATABASE.kind}
+if GENERATED:
+    INGEST_EXPECT.update(
+        count=config["synthetic"]["count"],
+        seed=config["synthetic"]["seed"],
+        noise=float(config["synthetic"]["noise"]),
+    )
 
 
 rule ingest_material:
@@ -71,6 +84,7 @@ rule ingest_material:
         mem_mb=mem("ingest_material"),
         runtime=10,
     params:
+        expect=INGEST_EXPECT,
         code=code("ingest_material.py"),
     script:
         "../scripts/ingest_material.py"
@@ -102,7 +116,7 @@ rule assemble_store:
 rule write_splits:
     input:
         store=fn.store(),
-        manifest=fn.manifest() if SYNTHETIC else [],
+        manifest=fn.manifest() if GENERATED else [],
         stamp=stamp_of("write_splits"),
     output:
         splits=fn.splits(),

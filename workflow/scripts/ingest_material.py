@@ -8,4 +8,5 @@ with log_to(snakemake.log[0]):
         snakemake.input.binary,
         snakemake.output.row,
         name=snakemake.wildcards.material,
+        expect=snakemake.params.expect,
     )

@@ -11,4 +11,5 @@ with log_to(snakemake.log[0]):
         noise=snakemake.params.noise,
         test_materials=snakemake.params.test_materials,
         record_files=snakemake.input.records,
+        materials=snakemake.params.materials,
     )

@@ -26,7 +26,11 @@ the table lookup), per channel, with the means over the material-channels
 as material ``mean``, channel ``all``.  Counts per (material, set), channel
 ``all``: ``observations`` (table lookup), ``closedloop_observations`` (sensor
 pixels used) and ``closedloop_masked`` (share of the disk's pixels not used:
-masked by the sensor or on a cell that is not a model column).
+masked by the sensor or on a cell that is not a model column).  A set whose
+photographs leave no usable pixel (every one masked: dark, below
+``min_snr`` or saturated) is reconstructed from no observation, which eq. 4
+makes the model's mean: its rows say so (``closedloop_observations`` 0,
+``closedloop_masked`` 1) and the job logs a warning; it does not fail.
 
 Cost: one streamed pass over Q for all (material, set, kind) coefficient
 columns at once (as the evaluation's pass 2).
@@ -49,6 +53,7 @@ from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import read_directions
 from brdfpipe.acquisition.reconstruct import CHANNELS, ERROR_COLUMNS, write_errors
 from brdfpipe.acquisition.svd import Model, open_model
+from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import material_indices, open_store
@@ -79,17 +84,19 @@ _Q_ROWS: Final = 8192  # rows of Q per block of the error pass
 def read_observations(path: str | os.PathLike[str]) -> tuple[NDArray[np.intp], F64, dict[str, int]]:
     """(cells, rgb, counts) of a capture's observation table (NPZ of :mod:`brdfpipe.rendering.capture`).
 
-    ValueError naming the file when it is missing or malformed.
+    ValueError naming the file (and what to rerun) when it is missing,
+    truncated, corrupt, edited (its digest is checked:
+    :func:`brdfpipe.core.integrity.load_npz`) or malformed.
     """
     path = Path(path)
+    z = integrity.load_npz(path, kind="observation table")
     try:
-        with np.load(path, allow_pickle=False) as z:
-            wi = np.asarray(z["wi"], dtype=np.float64)
-            wo = np.asarray(z["wo"], dtype=np.float64)
-            rgb = np.asarray(z["rgb"], dtype=np.float64)
-            counts = {str(k): int(v) for k, v in zip(z["counts_keys"], z["counts"])}
-    except (OSError, KeyError, ValueError) as exc:
-        raise ValueError(f"{path}: not a capture observation table ({exc})") from exc
+        wi = np.asarray(z["wi"], dtype=np.float64)
+        wo = np.asarray(z["wo"], dtype=np.float64)
+        rgb = np.asarray(z["rgb"], dtype=np.float64)
+        counts = {str(k): int(v) for k, v in zip(z["counts_keys"], z["counts"])}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: not a capture observation table ({type(exc).__name__}: {exc})") from exc
     n = rgb.shape[0]
     if wi.shape != (n, 3) or wo.shape != (n, 3) or rgb.shape != (n, 3) or not np.isfinite(rgb).all() or (rgb < 0).any():
         raise ValueError(f"{path}: observation arrays have wrong shapes or values")
@@ -205,7 +212,12 @@ def evaluate_closedloop(
                     c_cells, rgb, px = read_observations(path)
                     c_cols, v = _model_columns(lut, c_cells, rgb)
                     if c_cols.size == 0:
-                        raise ValueError(f"{path}: no observation falls on a model column")
+                        # Every pixel masked (dark, below min_snr, saturated) or off the model's cells: eq. 4
+                        # with no observation gives c̄ = 0, the model's mean; reported as such (0 observations,
+                        # all masked), not an error.
+                        logger.warning("%s: no pixel of %s %s n = %d is usable (%s); its reconstruction is the "
+                                       "model's mean", path, name, Path(directions[d]).name, n,
+                                       ", ".join(f"{k} {v}" for k, v in px.items()))
                     obs.append((i, d, n, source, c_cols, v))
                     if source == "sensor":
                         cnt["closedloop_observations"] = int(c_cols.size)

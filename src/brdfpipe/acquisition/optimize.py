@@ -12,7 +12,6 @@ comment below the imports describes the search, its moves, metrics and cost.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
@@ -25,7 +24,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl
@@ -132,7 +131,7 @@ logger = logging.getLogger("brdfpipe.acquisition.optimize")
 DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
 _METRICS = ("error", "condition")
 _REL_IMPROVE: float = 1e-12
-_CELL_CACHE_MAX: int = 10_000  # configurations whose observed cells are cached (≤ ~40 MB)
+_CELL_CACHE_MAX: int = 10_000 * 1024  # observed cells cached over all configurations (int32: ≤ ~40 MB at any grid)
 _EVAL_CHUNK_ROWS: int = 4096  # distinct candidate rows gathered from Q at a time (≤ ~9 MB as float64)
 _MAX_UPDATE_DEPTH: int = 32  # the current set's statistics are rebuilt after this many derivations
 _Q_READ_ROWS: int = 36_450 * 4
@@ -290,6 +289,7 @@ class _Optimizer:
         self.axes: tuple[int, ...] = (1, 2) if self.fixed else (0, 1, 2)
         self.wrap = (False, False, setup.kind != "nearfield")
         self._cache: dict[Config, NDArray[np.int32] | None] = {}
+        self._cached_cells = 0
         self.evaluations = 0
         # "fast": candidates by low-rank updates where cheaper; "direct": each one afresh (reference).
         self.method: Literal["auto", "direct"] = "direct" if evaluation == "direct" else "auto"
@@ -311,9 +311,12 @@ class _Optimizer:
             cells = observation_cells(self.setup, config, self.valid)
             if cells.size:
                 result = cells.astype(np.int32)
-        if len(self._cache) >= _CELL_CACHE_MAX:
+        size = 1 if result is None else int(result.size)
+        if self._cached_cells + size > _CELL_CACHE_MAX:
             self._cache.clear()
+            self._cached_cells = 0
         self._cache[config] = result
+        self._cached_cells += size
         return result
 
     def rows_of(self, cells: NDArray[np.int32]) -> NDArray[np.intp]:
@@ -830,7 +833,7 @@ def write_directions(
         "sets": out_sets,
     }
     path = Path(path)
-    atomic.write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    integrity.write_json(path, doc, indent=1, allow_nan=False)  # with its digest
     return path
 
 
@@ -838,16 +841,15 @@ def read_directions(path: str | os.PathLike[str]) -> Directions:
     """Read a directions file written by :func:`write_directions`.
 
     Configurations are rebuilt from their records (:func:`config_from_dict`);
-    a null κ reads as inf.  :class:`ValueError` naming the file for a wrong
-    format or inconsistent content.
+    a null κ reads as inf.  :class:`ValueError` naming the file for a
+    missing, truncated or edited file (its digest is checked,
+    :func:`brdfpipe.core.integrity.read_json`), a wrong format or inconsistent
+    content.
     """
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not JSON ({exc})") from exc
-    if not isinstance(doc, dict) or doc.get("format") != DIRECTIONS_FORMAT:
-        raise ValueError(f"{path}: not a directions file (format {doc.get('format') if isinstance(doc, dict) else None!r})")
+    doc = integrity.read_json(path, kind="directions file")  # its digest checked
+    if doc.get("format") != DIRECTIONS_FORMAT:
+        raise ValueError(f"{path}: not a directions file (format {doc.get('format')!r})")
     try:
         setup = Setup(doc["setup"], doc["fov"], doc["grid"])
         metric = doc["metric"]

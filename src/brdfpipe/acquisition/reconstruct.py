@@ -143,8 +143,8 @@ from brdfpipe.acquisition import geometry, metrics, svd
 from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import Directions, read_directions
 from brdfpipe.acquisition.svd import Model, open_model
-from brdfpipe.core import atomic
-from brdfpipe.data import logmap, merl
+from brdfpipe.core import integrity
+from brdfpipe.data import logmap, merl, provenance
 from brdfpipe.data.logmap import Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
@@ -162,6 +162,7 @@ __all__ = [
     "load_observations",
     "reconstruct_log",
     "reconstruct_brdf",
+    "reconstruction_mark",
     "write_reconstruction",
     "evaluate",
     "evaluate_selections",
@@ -261,6 +262,8 @@ def _pick_format(path: Path, names: Iterable[str]) -> str:
 
 def _read_csv(path: Path) -> tuple[str, dict[str, F64]]:
     index, skip = _csv_columns(path)
+    # a brdfpipe table carries a digest line (checked); a user's file need not
+    integrity.read_csv_text(path, kind="observations file", error=ObservationError, require=False)
     fmt = _pick_format(path, index)
     names = (_DIR_COLS if fmt == "directions" else _ANG_COLS) + _RGB_COLS
     try:
@@ -276,13 +279,8 @@ def _read_csv(path: Path) -> tuple[str, dict[str, F64]]:
 
 
 def _read_npz(path: Path) -> tuple[str, dict[str, F64]]:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {name: np.asarray(z[name]) for name in z.files}
-    except FileNotFoundError:
-        raise ObservationError(f"{path}: no such observations file") from None
-    except Exception as exc:
-        raise ObservationError(f"{path}: not a readable NPZ file ({exc})") from exc
+    # truncated / corrupt files are one clean error; a brdfpipe table's digest is checked, a user's file needs none
+    arrays = integrity.load_npz(path, kind="observations file", error=ObservationError, require=False)
     have = set(arrays)
     if "rgb" not in have:
         raise ObservationError(f"{path}: missing array 'rgb' (arrays: {', '.join(sorted(have)) or 'none'})")
@@ -491,26 +489,54 @@ def reconstruct_brdf(
     return table.reshape(merl.SHAPE)
 
 
+def reconstruction_mark(
+    model: Model, observations_path: str | os.PathLike[str], out: str | os.PathLike[str], eta: float,
+    material: str | os.PathLike[str] | None = None,
+) -> provenance.Mark:
+    """The ``derived`` provenance mark of a reconstruction written to ``out``.
+
+    Records the model (``id``, ``database``, ``k``, number of materials), the
+    sha256 of the observations file and ``eta``; with ``material`` (the
+    captured file of ``brdfpipe capture --model``) also that file's sha256
+    and label, as operation ``capture-reconstruct``.
+    """
+    inputs: dict[str, Any] = {
+        "model": {"id": model.id, "database": model.database, "k": model.k, "materials": len(model.materials)},
+        "observations": {"sha256": provenance.file_sha256(observations_path)},
+        "eta": float(eta),
+    }
+    if material is not None:
+        inputs["material"] = {"sha256": provenance.file_sha256(material), "database": provenance.file_label(material)}
+    operation = "reconstruct" if material is None else "capture-reconstruct"
+    return provenance.derived_mark(name=provenance.output_name(out), operation=operation,
+                                   source_database=model.database, inputs=inputs)
+
+
 def write_reconstruction(
     model_path: Model | str | os.PathLike[str],
     observations_path: str | os.PathLike[str],
     out: str | os.PathLike[str],
     eta: float = DEFAULT_ETA,
+    *,
+    material: str | os.PathLike[str] | None = None,
 ) -> Path:
     """Reconstruct the material of ``observations_path`` and write it as a MERL file at ``out``.
 
     :func:`load_observations` → :func:`reconstruct_brdf` → :func:`brdfpipe.data.merl.write_merl`
-    (atomic).  Parent folders are created.  Returns ``out``.
+    (atomic) with the ``derived`` mark of :func:`reconstruction_mark`
+    (``material``: the file the observations were captured from, if known).
+    Parent folders are created.  Returns ``out``.
     """
     out = Path(out)
     mdl = _as_model(model_path)
     cells, rgb = load_observations(observations_path)
+    mark = reconstruction_mark(mdl, observations_path, out, eta, material)
     try:
         table = reconstruct_brdf(mdl, cells, rgb, eta)
     except ValueError as exc:
         raise ValueError(f"{observations_path}: {exc}") from exc
     out.parent.mkdir(parents=True, exist_ok=True)
-    merl.write_merl(out, table)
+    merl.write_merl(out, table, mark=mark)
     logger.info("wrote %s", out)
     return out
 
@@ -954,7 +980,7 @@ def check_consistency(
 
     def residuals() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float64]]]:
         for a, b in _q_chunks(mdl):
-            x = np.asarray(lm.X[:, a:b], dtype=np.float64)
+            x = lm.read_columns(a, b).astype(np.float64)
             yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), x - mdl.mean[a:b]
 
     qtq, qty, yy, q_obs, y_obs = _gram_pass(mdl, keep, residuals(), m, "consistency pass")
@@ -1072,7 +1098,7 @@ def training_size_curve(
         width = lm.chunk_cols
         for a in range(0, p, width):
             b = min(a + width, p)
-            yield a, b, np.asarray(lm.X[:, a:b], dtype=np.float32), reader.get(a, b)
+            yield a, b, lm.read_columns(a, b), reader.get(a, b)
 
     prog = _Progress("training-size pass (cross-Gram)", p)
     for a, b, x32, rho in read_ahead(blocks()):
@@ -1139,7 +1165,9 @@ def write_errors(
     """Write ``rows`` (dicts with at least ``columns``) as a CSV with a header line, atomically.
 
     Parent folders are created; the file is written under a temporary name
-    and renamed into place.  ValueError if a row lacks a column.  Returns the path.
+    and renamed into place, with its digest line first
+    (:func:`brdfpipe.core.integrity.write_csv`).  ValueError if a row lacks a
+    column.  Returns the path.
     """
     path = Path(path)
     buf = io.StringIO()
@@ -1150,7 +1178,7 @@ def write_errors(
         if missing:
             raise ValueError(f"row {i} lacks column(s) {', '.join(missing)}")
         w.writerow([_fmt(r[c]) for c in columns])
-    atomic.write_text(path, buf.getvalue())
+    integrity.write_csv(path, buf.getvalue())
     return path
 
 

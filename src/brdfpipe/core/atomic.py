@@ -17,7 +17,10 @@ the complete new one.  Every writer of the library goes through this module:
   SIGKILL can leave one behind; the next writer of the same output removes
   such siblings whose process is gone (:func:`clean_stale_siblings`).
 * :func:`check_not_input` refuses an output path that names one of the
-  command's inputs.
+  command's inputs; :func:`check_writable` refuses, before any work, an
+  output whose folder cannot be written (permissions, a read-only file
+  system); :func:`output_of` maps a temporary name back to its output for
+  error messages.
 * A workflow job holds a *lease* on its log file (:func:`job_lease`, taken by
   :func:`brdfpipe.core.logutil.log_to`): before each rename into place the
   writer checks that the log path still names the file it opened.  Snakemake
@@ -43,6 +46,7 @@ import os
 import re
 import secrets
 import shutil
+import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -66,6 +70,9 @@ __all__ = [
     "check_replaceable",
     "check_not_input",
     "is_out_of_space",
+    "output_of",
+    "check_writable",
+    "existing_ancestor",
 ]
 
 logger = logging.getLogger("brdfpipe.core.atomic")
@@ -73,6 +80,8 @@ logger = logging.getLogger("brdfpipe.core.atomic")
 #: Temporary sibling tags used by the library (``.NAME.TAG-PID-RANDOM``).
 _TAGS = ("tmp", "old", "rows")
 _SIBLING = re.compile(r"^\.(?P<name>.+)\.(?P<tag>[a-z]+)-(?P<pid>\d+)-[0-9a-f]{8}$")
+#: The same, with the extension :func:`atomic_path` may append (``suffix``).
+_SIBLING_ANY = re.compile(r"^\.(?P<name>.+)\.(?P<tag>[a-z]+)-(?P<pid>\d+)-[0-9a-f]{8}(?:\.[A-Za-z0-9]{1,8})?$")
 
 
 class OutputError(ValueError):
@@ -370,3 +379,48 @@ def check_not_input(
 def is_out_of_space(err: BaseException) -> bool:
     """True for the OS errors of a full disk or quota."""
     return isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT)
+
+
+def output_of(path: str | os.PathLike[str]) -> Path:
+    """The output a temporary sibling (``.NAME.TAG-PID-RANDOM[.SUFFIX]``) stands for; other paths unchanged.
+
+    Error messages name the output the user asked for, not the hidden
+    temporary name an OS error carries.
+    """
+    p = Path(path)
+    m = _SIBLING_ANY.match(p.name)
+    if m and m["tag"] in _TAGS:
+        return p.parent / m["name"]
+    return p
+
+
+def existing_ancestor(path: str | os.PathLike[str]) -> Path:
+    """``path`` (made absolute) or its nearest ancestor that exists."""
+    p = Path(os.path.abspath(path))
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def check_writable(out: str | os.PathLike[str], *, what: str = "--out", inside: bool = False) -> None:
+    """Raise :class:`OutputError` unless a file can be created where ``out`` will be written.
+
+    The folder probed is ``out``'s parent (``inside``: ``out`` itself, for a
+    command that writes into an existing folder), or its nearest existing
+    ancestor when it does not exist yet.  A file is created there and
+    removed at once, so permissions, a read-only file system and a full
+    inode table are all seen before any work starts; nothing else is
+    written.  The message names the option and the folder.
+    """
+    out = Path(out)
+    folder = out if inside and out.is_dir() else out.parent
+    probe_dir = existing_ancestor(folder)
+    if not probe_dir.is_dir():
+        raise OutputError(f"{what} {out}: {probe_dir} is not a folder; cannot write there")
+    try:
+        fd, name = tempfile.mkstemp(prefix=".brdfpipe-probe-", dir=probe_dir)
+    except OSError as err:
+        why = err.strerror or type(err).__name__
+        raise OutputError(f"{what} {out}: cannot write in {probe_dir} ({why}); nothing was written") from None
+    os.close(fd)
+    os.unlink(name)

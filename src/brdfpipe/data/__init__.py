@@ -6,6 +6,7 @@ materials × cells store, and mapped to the log-relative space of Xu et al.
 reuses).  Imports only :mod:`brdfpipe.core`.
 
 * :mod:`brdfpipe.data.merl`     – the MERL ``.binary`` format, lookup and cell geometry;
+* :mod:`brdfpipe.data.provenance` – provenance marks: measured, synthetic or derived, and from what;
 * :mod:`brdfpipe.data.synth`    – a synthetic, physically based MERL-format database;
 * :mod:`brdfpipe.data.database` – which database a run uses (a folder of MERL files, or synthetic);
 * :mod:`brdfpipe.data.store`    – the chunked Zarr store of the materials × cells matrix;

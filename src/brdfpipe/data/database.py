@@ -7,9 +7,10 @@ database (:mod:`brdfpipe.data.synth`).  This module resolves either into a
 ``test_materials`` against it, with clear errors for a missing folder or an
 unknown name.
 
-A folder's label (``merl`` or ``synthetic``) is decided in one place,
-:func:`database_from_folder`, from the files' own bytes (the synthetic
-watermark of :mod:`brdfpipe.data.synth`), never from a manifest alone; material
+A folder's label (``merl``, ``synthetic``, ``derived``: see
+:func:`brdfpipe.data.provenance.database_labels`) is decided in one place,
+:func:`database_from_folder`, from the files' own bytes (their provenance
+marks, :mod:`brdfpipe.data.provenance`), never from a manifest alone; material
 names are checked by :func:`check_material_name`.
 """
 
@@ -21,11 +22,10 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.version import full_version
-from brdfpipe.data import synth
+from brdfpipe.data import provenance, synth
 from brdfpipe.data.synth import default_test_count
 
 __all__ = [
@@ -34,6 +34,7 @@ __all__ = [
     "Database",
     "DatabaseError",
     "MAX_NAME_LENGTH",
+    "RESERVED_NAMES",
     "check_material_name",
     "database_from_folder",
     "merl_database",
@@ -70,6 +71,9 @@ _NAME_RULE = (
     f"letter or digit and have at most {MAX_NAME_LENGTH} characters"
 )
 _SHOWN = 8  # files named in one error message
+#: Names the results use for something else: ``mean`` is the material of the mean rows of
+#: ``errors.csv``, ``closedloop.csv`` and ``training_size.csv``.
+RESERVED_NAMES: frozenset[str] = frozenset({"mean"})
 
 
 class DatabaseError(ValueError):
@@ -80,11 +84,13 @@ class DatabaseError(ValueError):
 class Database:
     """A database of MERL-format materials.
 
-    ``sources`` maps each material name to its ``.binary`` file (for the
-    synthetic database, the file the workflow will generate).
+    ``kind`` is its label (:func:`brdfpipe.data.provenance.database_labels`:
+    ``merl`` for measurements, ``synthetic``, ``derived``).  ``sources`` maps
+    each material name to its ``.binary`` file (for the synthetic database,
+    the file the workflow will generate).
     """
 
-    kind: Literal["merl", "synthetic"]
+    kind: str
     sources: dict[str, Path]
     default_test: tuple[str, ...] = field(default=())
 
@@ -100,7 +106,7 @@ def check_material_name(name: str, source: str) -> str:
     A material name becomes file and folder names and Snakemake wildcards:
     it must consist of ASCII letters, digits, ``.``, ``_``, ``+`` and ``-``,
     start with a letter or digit and be at most :data:`MAX_NAME_LENGTH`
-    characters long.  ``source`` says where the name comes from (a file, or a
+    characters long; it must not be one of :data:`RESERVED_NAMES`.  ``source`` says where the name comes from (a file, or a
     config key such as ``test_materials``) and starts the one-line message,
     which also names the broken rule.
     """
@@ -115,6 +121,11 @@ def check_material_name(name: str, source: str) -> str:
         problem = "contains " + ", ".join(repr(c) for c in bad)
     elif not name[0].isascii() or not name[0].isalnum():
         problem = f"starts with {name[0]!r}"
+    elif name in RESERVED_NAMES:
+        raise DatabaseError(
+            f"{source}: material name {name!r} is reserved (the results' tables name their mean rows "
+            f"{name!r}); rename the file"
+        )
     else:
         return name
     raise DatabaseError(f"{source}: material name {name!r} {problem}; {_NAME_RULE}")
@@ -147,24 +158,34 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     This is the one place that decides whether a folder is the real MERL
     database or a synthetic one (the workflow's ``merl_dir`` and ``brdfpipe
     ingest`` both use it).  Every ``*.binary`` file is a material named by
-    its stem (:func:`check_material_name`).  A file written by
-    :mod:`brdfpipe.data.synth` carries a watermark in cells no measurement can
-    fill (:func:`brdfpipe.data.synth.is_synthetic_file`, 64 bytes read per file):
+    its stem (:func:`check_material_name`).  A file written by brdfpipe
+    carries a provenance mark in cells no measurement can fill
+    (:func:`brdfpipe.data.provenance.read_mark`: 88 bytes read per unmarked
+    file, a few hundred more per marked one):
 
-    * all files watermarked → ``kind == "synthetic"`` (with or without
-      ``manifest.json``; the manifest only supplies the default held-out
-      materials, and must then agree with the files);
-    * none watermarked → ``kind == "merl"``, default held-out materials
+    * all files synthetic (a ``synthetic`` mark, or the old watermark alone)
+      → ``kind == "synthetic"`` (with or without ``manifest.json``; the
+      manifest only supplies the default held-out materials, and must then
+      agree with the files);
+    * all files of another kind of mark (``derived``: interpolated,
+      sampled, extrapolated, reconstructed) → that kind, no default held-out
+      materials;
+    * none marked → ``kind == "merl"``, default held-out materials
       :data:`XU2016_TEST_MATERIALS` + :data:`EXTRA_TEST_MATERIAL`;
-    * some of each → :class:`DatabaseError` listing which files are which.
+    * files of several kinds → :class:`DatabaseError` listing the files of
+      each kind.
+
+    A mark that names its material (synthetic) must name the file's stem: a
+    file copied over another is an error naming both.
 
     ``key`` names the setting in messages (``merl_dir`` for the workflow).
     Raises :class:`DatabaseError` (one line naming ``key``, the folder or the
     file) for an empty or blank path, a missing folder, a folder without
     ``*.binary`` files, a file whose suffix is ``.binary`` in another case
     (``.BINARY``), an entry that is not a file, an unsafe material name, a
-    file that cannot be read, a mixed folder, or a ``manifest.json`` that
-    disagrees with the files.  The files' contents are validated at ingest
+    file that cannot be read, a damaged provenance mark, a file marked as
+    another material, a mixed folder, or a ``manifest.json`` that disagrees
+    with the files.  The files' contents are validated at ingest
     (:func:`brdfpipe.data.store.ingest_material`).
     """
     text = os.fspath(folder)
@@ -193,32 +214,37 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     not_files = [e for e in files if not e.is_file()]
     if not_files:
         raise DatabaseError(f"{key} {path}: {_listing(not_files)}: not a file (a folder or a broken link)")
-    synthetic: list[Path] = []
-    measured: list[Path] = []
+    by_label: dict[str, list[Path]] = {}
     for f in files:
-        check_material_name(f.name[: -len(MERL_SUFFIX)], f"{key} {f}")
+        stem = f.name[: -len(MERL_SUFFIX)]
+        check_material_name(stem, f"{key} {f}")
         try:
-            (synthetic if synth.is_synthetic_file(f) else measured).append(f)
+            mark = provenance.check_source(f, name=stem)
         except OSError as err:
             raise DatabaseError(f"{key} {f}: cannot be read ({err.strerror or err})") from None
-    if synthetic and measured:
-        raise DatabaseError(
-            f"{key} {path}: mixes synthetic files written by `brdfpipe synth` ({_listing(synthetic)}) "
-            f"with other MERL files ({_listing(measured)}); keep one kind per folder"
-        )
+        except provenance.ProvenanceError as err:
+            raise DatabaseError(f"{key} {err}") from None
+        by_label.setdefault(provenance.UNMARKED if mark is None else mark.kind, []).append(f)
+    if len(by_label) > 1:
+        order = [label for label in (*provenance.KINDS, provenance.UNMARKED) if label in by_label]
+        kinds = " with ".join(f"{provenance.kind_title(label)} ({_listing(by_label[label])})" for label in order)
+        raise DatabaseError(f"{key} {path}: mixes {kinds}; keep one kind per folder")
+    (label,) = by_label
     sources = {f.name[: -len(MERL_SUFFIX)]: f.resolve() for f in files}
     manifest_path = path / "manifest.json"
     manifest = _read_manifest(manifest_path)
     says_synthetic = manifest is not None and manifest.get("kind") == "synthetic"
-    if measured:
+    if label != "synthetic":
         if says_synthetic:
             raise DatabaseError(
-                f"{key} {manifest_path}: says the folder is synthetic but no file carries the synthetic "
-                f"watermark ({_listing(measured)}); remove the stray manifest.json, or regenerate the "
-                "database with `brdfpipe synth` (files from before the watermark are not recognised)"
+                f"{key} {manifest_path}: says the folder is synthetic but its files are "
+                f"{provenance.kind_title(label)} ({_listing(by_label[label])}); remove the stray manifest.json, "
+                "or regenerate the database with `brdfpipe synth`"
             )
-        default = tuple(sorted((*XU2016_TEST_MATERIALS, EXTRA_TEST_MATERIAL)))
-        return Database("merl", sources, default)
+        if label == provenance.UNMARKED:
+            default = tuple(sorted((*XU2016_TEST_MATERIALS, EXTRA_TEST_MATERIAL)))
+            return Database(label, sources, default)
+        return Database(label, sources, ())
     if not says_synthetic:
         return Database("synthetic", sources, ())
     assert manifest is not None
@@ -332,7 +358,7 @@ def write_splits(
     The material names and the database kind are read from the validated
     store, so the split always describes the data downstream stages see.
     Raises :class:`DatabaseError` if a test material is not in the store.
-    Written atomically (:func:`brdfpipe.core.atomic.write_text`).
+    Written atomically with its digest (:func:`brdfpipe.core.integrity.write_json`).
     """
     from brdfpipe.data.store import open_store
 
@@ -349,4 +375,4 @@ def write_splits(
         "train": [m for m in materials if m not in test_set],
         "brdfpipe_version": full_version(),
     }
-    atomic.write_text(path, json.dumps(doc, indent=2) + "\n")
+    integrity.write_json(path, doc, indent=2)  # with its digest (brdfpipe.core.integrity)

@@ -23,12 +23,15 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
+
+if TYPE_CHECKING:
+    from brdfpipe.data.provenance import Mark
 
 __all__ = [
     "N_THETA_H",
@@ -140,17 +143,26 @@ def _check_table(table: ArrayLike, what: str = "table") -> NDArray[np.float64]:
     return arr
 
 
-def write_merl(path: str | os.PathLike[str], table: ArrayLike) -> None:
+def write_merl(path: str | os.PathLike[str], table: ArrayLike, *, mark: Mark | None = None) -> None:
     """Write a table in physical units as a MERL file (inverse of :func:`read_merl`).
 
     The table must have shape ``(3, 90, 90, 180)`` and be finite; negative
-    (unmeasured) cells are written negative.  The file is written under a
-    temporary name in the same folder and renamed into place, so a crash never
-    leaves a partial file under ``path`` (:func:`brdfpipe.core.atomic.write_bytes`:
-    fsync'ed, mode 0644, stale temporaries of killed writers removed).
+    (unmeasured) cells are written negative.  ``mark``: a provenance mark
+    (:mod:`brdfpipe.data.provenance`) written into cells no measurement can
+    fill, at the raw-file level (exact); every table the project derives or
+    generates is written with one, so that it is never taken for a
+    measurement.  Without a mark the file reads as measured data.  The file
+    is written under a temporary name in the same folder and renamed into
+    place, so a crash never leaves a partial file under ``path``
+    (:func:`brdfpipe.core.atomic.write_bytes`: fsync'ed, mode 0644, stale
+    temporaries of killed writers removed).
     """
     arr = _check_table(table)
     raw = np.ascontiguousarray(arr / SCALES[:, None, None, None], dtype="<f8")
+    if mark is not None:
+        from brdfpipe.data import provenance
+
+        provenance.stamp(raw.reshape(3, N_CELLS), mark)
     header = np.asarray(DIMS, dtype="<i4").tobytes()
     atomic.write_bytes(path, (header, memoryview(raw).cast("B")))
 

@@ -15,24 +15,32 @@ A Zarr v3 group holding
 * ``valid`` – bool ``(1_458_000,)``: the cell is measured (≥ 0 in all three
   channels, judged on the float64 source values) in *every* material.
 
-Group attributes: ``format`` (``"brdfpipe.data.merl-store/2"``), ``materials``
-(row order), ``database`` (``"merl"`` or ``"synthetic"``), ``sources``
+Group attributes: ``format`` (``"brdfpipe.data.merl-store/3"``), ``materials``
+(row order), ``database`` (the label of every row's source file:
+``"merl"`` for unmarked measurements, ``"synthetic"``, ``"derived"``, see
+:mod:`brdfpipe.data.provenance`), ``sources``
 (sha256 of each source file, by material name), ``source_files`` (file
 names, by material name), ``channel_scales``, ``layout`` (human-readable
 description), ``digests`` (see below), ``brdfpipe_version`` and, written
 last, the completion marker ``brdfpipe_complete``.  Format ``/1`` stores
-(digests not bound to names, no ``valid`` digest) are refused with a message
-to re-ingest; an ingest may replace them.
+(digests not bound to names, no ``valid`` digest) and ``/2`` stores (no
+digest of the attributes) are refused with a message to re-ingest; an ingest
+may replace them.
 
 Integrity (verification on read)
 --------------------------------
 ``digests`` = ``{"algorithm": "crc32c(utf8(name) NUL shard file)", "shards":
-[...], "shard_nbytes": [...], "valid": ...}``: for row *i* the CRC-32C of
-``materials[i]`` (UTF-8), a NUL byte and the bytes of its shard file
-(:func:`shard_digest`), and the shard's size; for ``valid`` the CRC-32C of
-its chunk file.  Binding the digest to the name means that swapped names (or
-swapped shard files) fail verification naming the material, not only
-flipped bits.
+[...], "shard_nbytes": [...], "valid": ..., "attributes": "sha256:…"}``:
+for row *i* the CRC-32C of ``materials[i]`` (UTF-8), a NUL byte and the
+bytes of its shard file (:func:`shard_digest`), and the shard's size; for
+``valid`` the CRC-32C of its chunk file; for the attributes the digest of
+every other group attribute (``database``, ``materials``, ``sources``,
+``source_files``, ``channel_scales``, ``layout``, ``format``,
+``brdfpipe_version``; :func:`brdfpipe.core.integrity.attributes_digest`),
+checked on every open, so a store relabelled ``merl`` by hand, or whose
+sources were edited, is refused.  Binding the digest to the name means that
+swapped names (or swapped shard files) fail verification naming the
+material, not only flipped bits.
 
 Every :func:`open_store` checks the metadata, the presence and size of every
 shard file (a deleted shard can never read back as the NaN fill value) and
@@ -146,7 +154,11 @@ Checks at ingest: a file without any measured cell is a
 :class:`~brdfpipe.data.merl.MerlFormatError` naming it (it would empty ``valid``
 for the whole store), and the assembly logs a warning naming the source file
 of any material that alone leaves more than 1 % of the cells measured by all
-the others unmeasured.
+the others unmeasured.  Provenance: each row records its file's label and
+mark (:func:`brdfpipe.data.provenance.check_source`: a synthetic file must be
+the material it is ingested as, and of the expected database and
+configuration), and the assembly refuses a row whose label is not the
+store's ``database``.
 
 Every writer builds its output in a temporary sibling directory and swaps it
 into place (:func:`brdfpipe.core.atomic.atomic_dir`): after any error or
@@ -190,9 +202,10 @@ from zarr.core.buffer import default_buffer_prototype
 from zarr.core.group import GroupMetadata
 
 from brdfpipe.core.atomic import atomic_dir, check_replaceable, clean_stale_siblings, remove_tree, tmp_sibling
+from brdfpipe.core.integrity import attributes_digest
 from brdfpipe.core.version import full_version
 from brdfpipe.core.zgroup import COMPLETE_ATTR, format_predicate, open_finished_group
-from brdfpipe.data import merl
+from brdfpipe.data import merl, provenance
 from brdfpipe.data.merl import DIMS, FILE_SIZE, HEADER_BYTES, MerlFormatError, N_CELLS, SCALES
 
 __all__ = [
@@ -245,13 +258,16 @@ _MASK_CODEC: Final[Mapping[str, Any]] = {
     "blocksize": 0,
 }
 _SHUFFLE: Final = {"noshuffle": Blosc.NOSHUFFLE, "shuffle": Blosc.SHUFFLE, "bitshuffle": Blosc.BITSHUFFLE}
-#: Allowed values of the ``database`` attribute.
-DATABASES: Final = ("merl", "synthetic")
-#: ``format`` attribute of a store.  /2: shard digests bound to the material names, ``valid`` digest.
-STORE_FORMAT: Final = "brdfpipe.data.merl-store/2"
+#: Allowed values of the ``database`` attribute (:func:`brdfpipe.data.provenance.database_labels`).
+DATABASES: Final = provenance.database_labels()
+#: ``format`` attribute of a store.  /2: shard digests bound to the material names, ``valid`` digest;
+#: /3: and a digest of the attributes (``database``, ``materials``, ``sources``, …).
+STORE_FORMAT: Final = "brdfpipe.data.merl-store/3"
 #: Earlier store formats: recognised (an ingest may replace them) but refused by :func:`open_store`.
 RETIRED_STORE_FORMATS: Final = {
     "brdfpipe.data.merl-store/1": "its shard digests do not cover the material names; re-ingest the store",
+    "brdfpipe.data.merl-store/2": "no digest covers its 'database', 'materials' and 'sources' attributes; "
+                                  "re-ingest the store",
 }
 ROW_FORMAT: Final = "brdfpipe.data.merl-row/1"
 #: Algorithm of the ``digests`` attribute (recorded in it, checked on open).
@@ -496,7 +512,13 @@ def _encode_source(path: Path) -> _EncodedRow:
     return _EncodedRow(sha.hexdigest(), measured, parts, crc, offset + len(parts[-1]))
 
 
-def ingest_material(src: str | os.PathLike[str], out: str | os.PathLike[str], *, name: str) -> None:
+def ingest_material(
+    src: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    name: str,
+    expect: Mapping[str, Any] | None = None,
+) -> None:
     """Convert one MERL file into a one-row Zarr v3 store at ``out``.
 
     The row store holds ``brdf`` (float32, shape ``(1, N_COLS)``, the final
@@ -509,6 +531,14 @@ def ingest_material(src: str | os.PathLike[str], out: str | os.PathLike[str], *,
     beyond the float32 range is also a :class:`MerlFormatError`.
 
     A file without any measured cell is a :class:`MerlFormatError` too.
+
+    Provenance (:func:`brdfpipe.data.provenance.check_source`): a file whose
+    mark names another material (a synthetic file copied over another), a
+    damaged mark, a file whose label is not ``expect["database"]`` or whose
+    mark disagrees with the other keys of ``expect`` (the workflow's
+    synthetic files: ``count``, ``seed``, ``noise``) is a
+    :class:`brdfpipe.data.provenance.ProvenanceError` naming the file.  The row
+    records the label (``database``) and the mark (``mark``, JSON or null).
 
     The store is built in a temporary sibling directory and renamed into
     place (:func:`brdfpipe.core.atomic.atomic_dir`), replacing an earlier row
@@ -527,6 +557,7 @@ def ingest_material(src: str | os.PathLike[str], out: str | os.PathLike[str], *,
     check_replaceable(out, replaceable=_is_row_store)
     with atomic_dir(out, replaceable=_is_row_store) as tmp:
         row = _encode_source(src)
+        mark = provenance.check_source(src, name=name, expect=expect)
         brdf_doc, measured_doc = _row_array_docs()
         for d in (tmp / "brdf", tmp / "brdf" / "c", tmp / "brdf" / "c" / "0", tmp / "measured", tmp / "measured" / "c"):
             os.mkdir(d)
@@ -541,6 +572,8 @@ def ingest_material(src: str | os.PathLike[str], out: str | os.PathLike[str], *,
             "sha256": row.sha256,
             "shard_crc32c": row.shard_crc32c,
             "shard_nbytes": row.shard_nbytes,
+            "database": provenance.UNMARKED if mark is None else mark.kind,
+            "mark": None if mark is None else mark.to_json(),
             "channel_scales": [float(s) for s in SCALES],
             "brdfpipe_version": full_version(),
             COMPLETE_ATTR: {"format": ROW_FORMAT},
@@ -560,6 +593,7 @@ class _RowInfo:
     source_file: str
     shard_crc32c: int
     shard_nbytes: int
+    database: str
 
 
 def _open_row(path: Path) -> _RowInfo:
@@ -598,7 +632,10 @@ def _open_row(path: Path) -> _RowInfo:
         raise StoreError(f"{path}: row store lacks its shard digest")
     if [float(s) for s in attrs.get("channel_scales", [])] != [float(s) for s in SCALES]:
         raise StoreError(f"{path}: channel_scales {attrs.get('channel_scales')} differ from {list(SCALES)}")
-    return _RowInfo(path, name, sha, str(attrs.get("source_file", "")), crc, nbytes)
+    label = attrs.get("database")
+    if label not in DATABASES:
+        raise StoreError(f"{path}: row store lacks its source file's database label (got {label!r}); re-run its ingest")
+    return _RowInfo(path, name, sha, str(attrs.get("source_file", "")), crc, nbytes, label)
 
 
 def _read_measured(info: _RowInfo) -> NDArray[np.bool_]:
@@ -656,7 +693,8 @@ def assemble_store(
     is swapped into place (:func:`brdfpipe.core.atomic.atomic_dir`).
 
     Raises :class:`StoreError` naming the offending row store for a missing,
-    incomplete or damaged row, duplicate names or a mismatched layout,
+    incomplete or damaged row, duplicate names, a mismatched layout or a row
+    whose source file's label (recorded at ingest) is not ``database``,
     :class:`ValueError` for an unknown ``database`` and
     :class:`brdfpipe.core.atomic.OutputError` (before reading any row) for an
     ``out`` that exists and is not a brdfpipe store.  After any error (or an
@@ -684,6 +722,13 @@ def assemble_store(
                 f"{info.path}: duplicate material name {info.name!r} (row {k}; also row {j}, {infos[j].path})"
             )
         seen[info.name] = k
+    for info in infos:
+        if info.database != database:
+            raise StoreError(
+                f"{info.path}: material {info.name!r} was ingested from {info.source_file or 'a file'} labelled "
+                f"{info.database!r} (its provenance mark), but the store is assembled as the {database!r} database; "
+                "one kind per store: re-plan the run or replace the file"
+            )
     names = [info.name for info in infos]
     n = len(infos)
     logger.info("assembling %d rows into %s", n, out)
@@ -732,24 +777,24 @@ def assemble_store(
         valid = missing_count == 0
         _warn_removals(infos, missing, missing_count)
         valid_arr[:] = valid
-        group.attrs.update(
-            {
-                "format": STORE_FORMAT,
-                "materials": names,
-                "database": database,
-                "sources": {info.name: info.sha256 for info in infos},
-                "source_files": {info.name: info.source_file for info in infos},
-                "channel_scales": [float(s) for s in SCALES],
-                "layout": LAYOUT,
-                "digests": {
-                    "algorithm": DIGEST_ALGORITHM,
-                    "shards": digests,
-                    "shard_nbytes": [info.shard_nbytes for info in infos],
-                    "valid": google_crc32c.value(_read_file(tmp / "valid" / "c" / "0")),
-                },
-                "brdfpipe_version": full_version(),
-            }
-        )
+        attrs: dict[str, Any] = {
+            "format": STORE_FORMAT,
+            "materials": names,
+            "database": database,
+            "sources": {info.name: info.sha256 for info in infos},
+            "source_files": {info.name: info.source_file for info in infos},
+            "channel_scales": [float(s) for s in SCALES],
+            "layout": LAYOUT,
+            "brdfpipe_version": full_version(),
+        }
+        attrs["digests"] = {
+            "algorithm": DIGEST_ALGORITHM,
+            "shards": digests,
+            "shard_nbytes": [info.shard_nbytes for info in infos],
+            "valid": google_crc32c.value(_read_file(tmp / "valid" / "c" / "0")),
+            "attributes": attributes_digest(attrs),
+        }
+        group.attrs.update(attrs)
         _validate_store(tmp, names=names, sources={i.name: i.sha256 for i in infos}, valid=valid)
         group.attrs[COMPLETE_ATTR] = _marker(n)  # last
         _load_store(tmp)
@@ -939,6 +984,11 @@ def _load_store(path: Path, *, need_marker: bool = True) -> BrdfStore:
     dig = attrs.get("digests")
     if not isinstance(dig, dict) or dig.get("algorithm") != DIGEST_ALGORITHM:
         raise StoreError(f"{path}: attribute 'digests' is missing or not {DIGEST_ALGORITHM!r}")
+    if dig.get("attributes") != attributes_digest(attrs, ("digests", COMPLETE_ATTR)):
+        raise StoreError(
+            f"{path}: its attributes (database, materials, sources, ...) do not match their recorded digest "
+            "(damaged or edited); re-ingest the store"
+        )
     n = len(materials)
     digests = _attr_int_list(path, dig.get("shards"), n, "shards")
     nbytes = _attr_int_list(path, dig.get("shard_nbytes"), n, "shard_nbytes")
@@ -1229,8 +1279,11 @@ def ingest(
     error or interrupt it is left exactly as it was.  An ``out`` that exists
     and is not a brdfpipe store is refused
     (:class:`brdfpipe.core.atomic.OutputError`) before any file is read.
+    Every file must be of the ``database`` label
+    (:func:`brdfpipe.data.provenance.check_source`).
     """
     database = _normalise_database(database)
+    expect = {"database": database}
     out = Path(out)
     if isinstance(sources, Mapping):
         items = [(str(k), Path(v)) for k, v in sources.items()]
@@ -1254,13 +1307,14 @@ def ingest(
         logger.info("ingesting %d materials into %s with %d job(s)", n, out, jobs)
         if jobs <= 1 or n == 1:
             for k, ((name, src), row) in enumerate(zip(items, row_paths), 1):
-                ingest_material(src, row, name=name)
+                ingest_material(src, row, name=name, expect=expect)
                 if k % 10 == 0 or k == n:
                     logger.info("ingested %d/%d materials", k, n)
         else:
             with ProcessPoolExecutor(max_workers=min(jobs, n), mp_context=_mp_context()) as ex:
                 futures: list[Future[None]] = [
-                    ex.submit(ingest_material, src, row, name=name) for (name, src), row in zip(items, row_paths)
+                    ex.submit(ingest_material, src, row, name=name, expect=expect)
+                    for (name, src), row in zip(items, row_paths)
                 ]
                 wait(futures, return_when=FIRST_EXCEPTION)
                 for f in futures:

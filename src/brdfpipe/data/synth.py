@@ -23,7 +23,11 @@ behaviour.  Every material is
 and every cell outside :func:`brdfpipe.data.merl.measured_mask` holds
 ``-SCALES[c]`` (raw value −1 in the file), like MERL's unmeasured cells, except
 the eight watermark cells (:data:`WATERMARK_CELLS`), which hold other negative
-values that mark the file as synthetic (:func:`is_synthetic_file`).
+values that mark the file as synthetic (:func:`is_synthetic_file`).  A file
+written by :func:`write_material` also carries a ``synthetic`` provenance mark
+(:mod:`brdfpipe.data.provenance`: the material's name, the plan's count and
+seed, the noise, …) in other unmeasurable cells of the red channel, which
+binds the file to its name and configuration.
 
 Watermark
 ---------
@@ -157,7 +161,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
 from brdfpipe.core.version import full_version
-from brdfpipe.data import merl
+from brdfpipe.data import merl, provenance
+from brdfpipe.data.provenance import WATERMARK_CELLS, WATERMARK_MAGIC, WATERMARK_RAW
 
 __all__ = [
     "FAMILIES",
@@ -178,6 +183,7 @@ __all__ = [
     "evaluate",
     "generate_table",
     "generate_material",
+    "material_mark",
     "write_material",
     "write_named_material",
     "write_manifest",
@@ -209,16 +215,7 @@ ALBEDO_THETA_I: Final = np.radians(np.linspace(0.0, 89.5, 46))
 #: Material names: lower-case words joined by hyphens, ending in the running number.
 NAME_RE: Final = re.compile(r"^[a-z0-9]+(?:-[a-z0-9]+)*-[0-9]{3,}$")
 
-#: The watermark of synthetic files, one byte per watermark cell.
-WATERMARK_MAGIC: Final = b"brdfsyn1"
-#: Flat cell indices (inside a channel) of the watermark: iθh = 89, iθd = 89, iφd = 0 … 7.
-#: Light or view direction lies below the horizon for every pair in these cells.
-WATERMARK_CELLS: Final = np.arange(len(WATERMARK_MAGIC)) + (
-    (merl.N_THETA_H - 1) * merl.N_THETA_D + (merl.N_THETA_D - 1)
-) * merl.N_PHI_D
-#: Raw (file) values of the watermark cells, negative (unmeasured): −(1 + b/2²⁰).  (Chosen so
-#: that in every channel some float64 divides by the channel scale to exactly this value.)
-WATERMARK_RAW: Final = np.array([-(1.0 + b / 2.0**20) for b in WATERMARK_MAGIC], dtype="<f8")
+# The watermark of synthetic files (its home is brdfpipe.data.provenance, with the marks).
 _WATERMARK_BYTES: Final = WATERMARK_RAW.tobytes()
 _WATERMARK_OFFSET: Final = merl.HEADER_BYTES + int(WATERMARK_CELLS[0]) * 8
 
@@ -1004,15 +1001,32 @@ def generate_table(spec: MaterialSpec, noise: float = DEFAULT_NOISE) -> NDArray[
     return generate_material(spec, noise)[0]
 
 
-def write_material(
-    spec: MaterialSpec, path: str | os.PathLike[str], noise: float = DEFAULT_NOISE
-) -> dict[str, float]:
-    """Generate a material and write it as a MERL file (atomically).
+def material_mark(spec: MaterialSpec, noise: float, plan: tuple[int, int] | None = None) -> provenance.Mark:
+    """The provenance mark of a material's file: its name and how it was made.
 
-    Returns the generation record of :func:`generate_material`.
+    ``plan``: ``(count, seed)`` of :func:`plan_database` that planned ``spec``
+    (recorded as null when not given).
+    """
+    count, seed = (_check_int(plan[0], "count", 1), _check_int(plan[1], "seed", 0)) if plan else (None, None)
+    return provenance.synthetic_mark(name=spec.name, count=count, seed=seed, noise=_check_noise(noise),
+                                     family=spec.family, index=spec.index, material_seed=spec.seed)
+
+
+def write_material(
+    spec: MaterialSpec,
+    path: str | os.PathLike[str],
+    noise: float = DEFAULT_NOISE,
+    *,
+    plan: tuple[int, int] | None = None,
+) -> dict[str, float]:
+    """Generate a material and write it as a MERL file (atomically) with its mark (:func:`material_mark`).
+
+    ``plan``: ``(count, seed)`` of the plan the spec comes from (the
+    workflow checks it at ingest).  Returns the generation record of
+    :func:`generate_material`.
     """
     table, record = generate_material(spec, noise)
-    merl.write_merl(path, table)
+    merl.write_merl(path, table, mark=material_mark(spec, noise, plan))
     return record
 
 
@@ -1045,7 +1059,7 @@ def write_named_material(
     noise = _check_noise(noise)
     spec = _find_spec(plan_database(count, seed), name)
     t0 = time.perf_counter()
-    record = write_material(spec, path, noise)
+    record = write_material(spec, path, noise, plan=(count, seed))
     log.info(
         "%s (%s): %.2f s, energy_scale %.4f, max albedo %.4f -> %s",
         spec.name, spec.family, time.perf_counter() - t0, record["energy_scale"],
@@ -1069,11 +1083,15 @@ def write_manifest(
     noise: float,
     test_materials: Sequence[str],
     records: Mapping[str, Mapping[str, float]] | None = None,
+    count: int | None = None,
 ) -> None:
     """Write the database's ``manifest.json`` (atomically: temporary file + rename).
 
     ``records`` (optional) maps material names to their generation records
     (:func:`generate_material`); they are stored in the materials' params.
+    ``count``: the size of the planned database (``plan_database(count,
+    seed)``) when ``specs`` are only the part of it that was generated;
+    default ``len(specs)``.
     Raises :class:`ValueError` for duplicate names or unknown test materials.
     """
     seed = _check_int(seed, "seed", 0)
@@ -1097,7 +1115,7 @@ def write_manifest(
         "generator": "brdfpipe.data.synth",
         "version": full_version(),
         "seed": seed,
-        "count": len(specs),
+        "count": len(specs) if count is None else _check_int(count, "count", len(specs)),
         "noise": noise,
         "materials": materials,
         "test_materials": list(test_materials),
@@ -1113,14 +1131,24 @@ def write_database_manifest(
     noise: float,
     test_materials: Sequence[str],
     record_files: Sequence[str | os.PathLike[str]],
+    materials: Sequence[str] | None = None,
 ) -> None:
     """Write the manifest of ``plan_database(count, seed)`` with the records of its jobs.
 
     ``record_files`` are the JSON records that :func:`write_named_material`
     wrote, one per material; a missing or foreign record is an error naming
-    the file.
+    the file.  ``materials``: the names generated when the run uses a part
+    of the database (the workflow's ``materials`` key); the manifest then
+    lists those only (its ``count`` stays the planned database's).
     """
     specs = plan_database(count, seed)
+    if materials is not None:
+        planned = {s.name for s in specs}
+        unknown = sorted(set(materials) - planned)
+        if unknown:
+            raise ValueError(f"not materials of this synthetic database: {', '.join(unknown)}")
+        keep = set(materials)
+        specs = [s for s in specs if s.name in keep]
     names = {s.name for s in specs}
     records: dict[str, dict[str, float]] = {}
     for f in record_files:
@@ -1133,7 +1161,7 @@ def write_database_manifest(
     if missing:
         raise ValueError(f"no generation record for: {', '.join(missing)}")
     write_manifest(
-        specs, path, seed=seed, noise=noise, test_materials=test_materials, records=records
+        specs, path, seed=seed, noise=noise, test_materials=test_materials, records=records, count=count
     )
 
 
@@ -1171,7 +1199,9 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
 
     ``out`` may be absent, empty (hidden entries aside) or a folder that this
     generator wrote before (a synthetic ``manifest.json``), whose ``*.binary``
-    files are all watermarked materials of ``specs`` (regenerated in place).
+    files are all watermarked materials of ``specs`` (regenerated in place);
+    a folder of watermarked materials of ``specs`` alone (a run interrupted
+    before it wrote its manifest) is completed the same way.
     Anything else — a file, a folder of other data, a real MERL file or a
     material of another plan — raises :class:`brdfpipe.core.atomic.OutputError`
     naming the path, before anything is written.  Nothing is ever deleted.
@@ -1186,12 +1216,14 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
     entries = sorted(e for e in out.iterdir() if not e.name.startswith("."))
     if not entries:
         return
-    if not _is_synthetic_manifest(out / "manifest.json"):
+    planned = {f"{s.name}.binary" for s in specs}
+    interrupted = all(e.name in planned and e.is_file() and not e.is_symlink() and is_synthetic_file(e)
+                      for e in entries)  # an earlier run of this plan stopped before its manifest
+    if not interrupted and not _is_synthetic_manifest(out / "manifest.json"):
         raise atomic.OutputError(
             f"--out {out}: folder is not empty and holds no synthetic manifest.json (not written by "
             "`brdfpipe synth`); refusing to write into it: choose a new or empty folder"
         )
-    planned = {f"{s.name}.binary" for s in specs}
     foreign: list[str] = []
     other_plan: list[str] = []
     for e in entries:
@@ -1214,10 +1246,10 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
         )
 
 
-def _synth_one(args: tuple[MaterialSpec, str, float]) -> tuple[dict[str, float], float]:
-    spec, path, noise = args
+def _synth_one(args: tuple[MaterialSpec, str, float, tuple[int, int]]) -> tuple[dict[str, float], float]:
+    spec, path, noise, plan = args
     t0 = time.perf_counter()
-    record = write_material(spec, path, noise)
+    record = write_material(spec, path, noise, plan=plan)
     return record, time.perf_counter() - t0
 
 
@@ -1247,7 +1279,7 @@ def synthesize(
     specs = plan_database(count, seed)
     check_output_folder(out, specs)
     out.mkdir(parents=True, exist_ok=True)
-    tasks = [(s, str(out / f"{s.name}{'.binary'}"), noise) for s in specs]
+    tasks = [(s, str(out / f"{s.name}{'.binary'}"), noise, (count, seed)) for s in specs]
     level = logging.INFO if progress else logging.DEBUG
     records: dict[str, dict[str, float]] = {}
     t_start = time.perf_counter()

@@ -56,12 +56,12 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import path_name
 from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
 from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, iter_column_blocks, open_store
-from brdfpipe.manifold import gplvm, latent, perceptual
+from brdfpipe.manifold import derivation, gplvm, latent, perceptual
 
 __all__ = [
     "ALBEDO_NODES",
@@ -280,17 +280,34 @@ def path_analysis(
         raise ValueError(f"steps must be >= 1, got {steps}")
     names = list(model.names)
     check_paths([(a, b)], names, what="path")
-    st = store if isinstance(store, BrdfStore) else open_store(store)
+    st = gplvm.check_store(model, store)
     xa, xb = model.X[names.index(a)], model.X[names.index(b)]
     ts = np.arange(steps + 1) / steps
     pts = (1.0 - ts)[:, None] * xa + ts[:, None] * xb
     W = np.stack([gplvm.blend_weights(gplvm.weights(model, x)) for x in pts])
-    feats = []
-    for c0 in range(0, len(ts), _MAX_TABLES_IN_MEMORY):
-        tables, _ = gplvm.interpolate_tables(st, W[c0 : c0 + _MAX_TABLES_IN_MEMORY], materials=names, space=model.space)
-        feats.extend(perceptual.pr12_features(t) for t in tables)
+    # Points in chunks of _MAX_TABLES_IN_MEMORY, the last point (B) in the first chunk: only each point's
+    # distances to the ends are kept, so memory does not grow with ``steps`` (a feature vector is ~53 MB).
+    n_pts = len(ts)
+    chunks = [list(range(c0, min(c0 + _MAX_TABLES_IN_MEMORY, n_pts))) for c0 in range(0, n_pts, _MAX_TABLES_IN_MEMORY)]
+    if n_pts - 1 not in chunks[0]:
+        chunks[-1].pop()
+        chunks[0].append(n_pts - 1)
+        chunks = [c for c in chunks if c]
+    to_a = np.zeros(n_pts)
+    to_b = np.zeros(n_pts)
+    f_a = f_b = None
+    for chunk in chunks:
+        tables, _ = gplvm.interpolate_tables(st, W[chunk], materials=names, space=model.space,
+                                             model=model)
+        feats = {k: perceptual.pr12_features(tab) for k, tab in zip(chunk, tables)}
         del tables
-    d_ab = perceptual.pr12_distance(feats[0], feats[-1])
+        if f_a is None:
+            f_a, f_b = feats[0], feats[n_pts - 1]
+        for k, f in feats.items():
+            to_a[k] = perceptual.pr12_distance(f, f_a)
+            to_b[k] = perceptual.pr12_distance(f, f_b)
+        del feats
+    d_ab = perceptual.pr12_distance(f_a, f_b)
     g = np.asarray(gram, dtype=np.float64)
     rows = []
     for k, (t, x) in enumerate(zip(ts, pts)):
@@ -298,8 +315,8 @@ def path_analysis(
         rows.append({
             "path": path_name(a, b), "material_a": a, "material_b": b, "step": k, "t": float(t),
             "latent_distance": float(t * np.linalg.norm(xb - xa)),
-            "perceptual_a": perceptual.pr12_distance(feats[k], feats[0]),
-            "perceptual_b": perceptual.pr12_distance(feats[k], feats[-1]),
+            "perceptual_a": float(to_a[k]),
+            "perceptual_b": float(to_b[k]),
             "perceptual_ab": d_ab,
             "nearest": names[j],
             "deviation": deviation(g, W[k], j),
@@ -326,7 +343,7 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, A
     w.writerow(columns)
     for r in rows:
         w.writerow([_fmt(r[c]) for c in columns])
-    atomic.write_text(path, buf.getvalue())
+    integrity.write_csv(path, buf.getvalue())
 
 
 def analyze_manifold(
@@ -355,11 +372,13 @@ def analyze_manifold(
     """
     st = open_store(store)
     G, d, info = gplvm.load_gram(gram)
+    gplvm.check_gram_store(info, st, gram)
     fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
     names = list(info.materials)
     for q, m in fits.items():
         if list(m.names) != names:
             raise ValueError(f"{models[q]}: its materials differ from those of {gram}")
+        gplvm.check_store(m, st)
     if int(path_q) not in fits:
         raise ValueError(f"path_q = {path_q} has no fitted model (fitted: {sorted(fits)})")
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
@@ -378,7 +397,7 @@ def analyze_manifold(
     for q, target in sorted(albedo_maps_out.items()):
         amap = albedo_map(fits[int(q)], A, n=albedo_grid)
         amap["database"] = np.array(database)
-        atomic.save_npz(target, amap)
+        integrity.save_npz(target, amap)
 
     rows = []
     for a, b in pairs:
@@ -412,15 +431,18 @@ def path_points_to_files(
     ``t``, ``q``, the latent point ``x``, ``clamped`` (values of measured cells
     that came out negative and were clamped to 0), ``measured_values`` (the
     table's values in measured cells) and ``weights`` {material: wᵢ} (blend
-    weights, Σw = 1), written atomically.  Returns the weights ``(P, N)``.
+    weights, Σw = 1), written atomically.  Each MERL file carries a
+    ``derived`` provenance mark (operation ``path-point``, :mod:`brdfpipe.manifold.derivation`).
+    Returns the weights ``(P, N)``.
     """
-    import json
 
     if not (len(points) == len(merl_outs) == len(weights_outs)) or not points:
         raise ValueError(f"need one MERL and one weights output per path point, got {len(points)} points, "
                          f"{len(merl_outs)} MERL and {len(weights_outs)} weights outputs")
     m = gplvm.load_model(model)
     check_paths(sorted({(a, b) for a, b, _ in points}), m.names, what=f"path of {model}")
+    st = open_store(store)
+    source = derivation.BlendSource.of(model, m, st)
     names = list(m.names)
     xs, ws = [], []
     for a, b, t in points:
@@ -430,13 +452,15 @@ def path_points_to_files(
         xs.append(x)
         ws.append(gplvm.blend_weights(gplvm.weights(m, x)))
     W = np.stack(ws)
-    tables, clamped = gplvm.interpolate_tables(store, W, materials=names, space=m.space)
+    tables, clamped = gplvm.interpolate_tables(st, W, materials=names, space=m.space, model=m)
     for k, (a, b, t) in enumerate(points):
-        merl.write_merl(merl_outs[k], tables[k])
+        mark = source.mark(out=merl_outs[k], operation="path-point", point=xs[k],
+                           weights=W[k], path=[a, b], t=float(t))
+        merl.write_merl(merl_outs[k], tables[k], mark=mark)
         doc = {"path": path_name(a, b), "material_a": a, "material_b": b, "t": float(t), "q": int(m.X.shape[1]),
                "x": [float(v) for v in xs[k]], "clamped": int(clamped[k]),
                "measured_values": int(np.count_nonzero(tables[k] >= 0.0)),
                "weights": {n: float(v) for n, v in zip(names, W[k])}}
-        atomic.write_text(weights_outs[k], json.dumps(doc, indent=1) + "\n")
+        integrity.write_json(weights_outs[k], doc)
         logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped[k], merl_outs[k])
     return W

@@ -29,6 +29,7 @@ from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import MaxNLocator
 
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.plot import (
     COLOURS,
@@ -87,8 +88,8 @@ logger = logging.getLogger("brdfpipe.manifold.figures")
 # Inputs (written by brdfpipe.manifold.analysis and the fit_gplvm jobs):
 #
 # * models ``gplvm/q{q}.npz`` (:func:`brdfpipe.manifold.gplvm.load_model`) and traces
-#   ``gplvm/q{q}-trace.csv`` (``step,stage,log_likelihood``; stage
-#   ``hooke-jeeves``, then ``lbfgs`` for the polish);
+#   ``gplvm/q{q}-trace.csv`` (``step,stage,log_likelihood``; stages
+#   ``start``, ``lbfgs``, ``newton``, ``hooke-jeeves``: :data:`TRACE_STAGES`);
 # * ``manifold/albedo.csv`` (``database,material,r,g,b,luminance``);
 # * albedo maps ``manifold/albedo-map-q{q}.npz`` (arrays x (W,), y (H,),
 #   dims (2,), albedo (H, W, 3), luminance (H, W), fixed (q,), q, database);
@@ -103,8 +104,8 @@ logger = logging.getLogger("brdfpipe.manifold.figures")
 
 #: Columns of a GPLVM trace CSV (gplvm.write_trace).
 TRACE_COLUMNS: tuple[str, ...] = ("step", "stage", "log_likelihood")
-#: Trace stages: the start point, Hooke–Jeeves sweeps, L-BFGS iterations (in any order).
-TRACE_STAGES: tuple[str, ...] = ("start", "hooke-jeeves", "lbfgs")
+#: Trace stages: the start point, Hooke–Jeeves sweeps, L-BFGS iterations, Newton steps (in any order).
+TRACE_STAGES: tuple[str, ...] = ("start", "hooke-jeeves", "lbfgs", "newton")
 #: Columns of ``albedo.csv``.
 ALBEDO_COLUMNS: tuple[str, ...] = ("database", "material", "r", "g", "b", "luminance")
 #: Columns of ``paths.csv``.
@@ -254,21 +255,14 @@ class AlbedoMap:
 
 
 def read_albedo_map(path: str | os.PathLike[str]) -> AlbedoMap:
-    """Read and check an ``albedo-map-q{q}.npz``."""
+    """Read and check an ``albedo-map-q{q}.npz`` (its digest first: :func:`brdfpipe.core.integrity.load_npz`)."""
     p = _input_file(path, "albedo map")
-    if not zipfile.is_zipfile(p):
-        raise FigureInputError(f"{p}: not an npz (zip) file")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            missing = [k for k in ALBEDO_MAP_KEYS if k not in z]
-            if missing:
-                raise FigureInputError(f"{p}: missing array(s) {', '.join(missing)} "
-                                       f"(required: {', '.join(ALBEDO_MAP_KEYS)})")
-            arrays = {k: np.asarray(z[k]) for k in ALBEDO_MAP_KEYS}
-    except FigureInputError:
-        raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise FigureInputError(f"{p}: not a readable npz file ({exc})") from exc
+    z = integrity.load_npz(p, kind="albedo map", error=FigureInputError)
+    missing = [k for k in ALBEDO_MAP_KEYS if k not in z]
+    if missing:
+        raise FigureInputError(f"{p}: missing array(s) {', '.join(missing)} "
+                               f"(required: {', '.join(ALBEDO_MAP_KEYS)})")
+    arrays = {k: np.asarray(z[k]) for k in ALBEDO_MAP_KEYS}
     try:
         x = arrays["x"].astype(np.float64)
         y = arrays["y"].astype(np.float64)
@@ -500,8 +494,8 @@ def read_spaces(spaces_csv: str | os.PathLike[str], stability_csv: str | os.Path
         raise FigureInputError(f"{p}: expected exactly one default candidate, found {sorted(defaults)}")
     database = single_database(p, (r["database"] for r in rows))
     sp = _input_file(stability_csv, "stability table")
-    with sp.open(encoding="utf-8") as fh:
-        lines = [line for line in fh.read().splitlines() if line.strip()]
+    text = integrity.read_csv_text(sp, kind="stability table", error=FigureInputError)  # its digest checked
+    lines = [line for line in text.splitlines() if line.strip()]
     header_only = len(lines) == 1
     if header_only and not set(STABILITY_FIGURE_COLUMNS) <= set(lines[0].split(",")):
         raise FigureInputError(f"{sp}: missing column(s) of a stability table (required: {', '.join(STABILITY_FIGURE_COLUMNS)})")
@@ -947,7 +941,7 @@ def manifold_fig05_likelihood(inp: ManifoldInputs, stem: str | os.PathLike[str])
                 if last > 200:
                     a_.set_xscale("symlog", linthresh=10.0, linscale=0.6)
                 a_.set_xlim(left=0.0)
-            ax.set_xlabel("step (an L-BFGS iteration or a Hooke–Jeeves sweep; stage changes marked)")
+            ax.set_xlabel("step (L-BFGS iteration, Newton step or Hooke–Jeeves sweep; stage changes marked)")
             ax.set_ylabel("log-likelihood L (eq. 6)")
             ax.set_title("log-likelihood")
             ax.legend(loc="lower right")

@@ -34,7 +34,7 @@ Kernel (eq. 5) ``c(x, x′) = μ·δ(x, x′) + exp(−‖x − x′‖²/2ℓ²
 ``K = exp(−D²/2ℓ²) + μI``; objective (eq. 6)
 ``L(X) = −(d/2)·log|K| − ½·tr(K⁻¹ Gc)``, with ``Gc`` the centred Gram.
 
-Optimisation (:func:`fit`): Hooke–Jeeves direct search over the latent points.
+Hooke–Jeeves (``method="hooke-jeeves"``, ``"hybrid"``): direct search over the latent points.
 Moving point ``i`` changes row and column ``i`` of ``K`` (its diagonal stays
 1 + μ): ``K′ = K + u e_iᵀ + e_i uᵀ`` with ``u = k′_i − k_i`` (``u_i = 0``),
 i.e. a symmetric rank-2 update ``K′ = K + U C Uᵀ``, ``U = [u, e_i]``,
@@ -72,8 +72,51 @@ degenerate "all points coincide"; measured in ``benches/bench_gplvm.py``.)
 
 Optimisation
 ------------
+``method="newton"`` (the default since issue 23; :func:`_newton_stages`):
+
+1. start: :func:`pca_init` scaled by the rules ``rms`` and ``unit``
+   (:data:`NEWTON_TRIAL_SCALES`; below), 100 plain L-BFGS iterations from
+   each, the higher L continues;
+2. L-BFGS preconditioned by the exact Hessian
+   (:func:`log_likelihood_hessian`, ≈ 20 gradients' worth at q = 5): every
+   30 iterations the Hessian is recomputed, shifted into a positive
+   definite matrix where it is not (far from a maximum) and factorised, and
+   L-BFGS continues in the coordinates where it is the identity;
+3. Newton steps (a Levenberg–Marquardt trust region) with the exact Hessian
+   until the gain is at rounding level; where the Hessian shows a stationary
+   point to be a saddle, a step along its direction of positive curvature
+   and back to 2.  The result is a local maximum: gradient at rounding
+   level, Hessian negative semi-definite up to the rigid motions.
+
+It has no random element (``seed`` is not used).  Why: plain L-BFGS needs
+up to thousands of iterations on these data (the curvature spans many
+decades: nearly coincident materials make K nearly singular along a few
+directions), and the ``hybrid`` optimiser (below) adds Hooke–Jeeves trials
+and sweeps around it.  Measured on the default synthetic store's 18 fits
+(the nine ``(space, μ)`` candidates × q ∈ {2, 5}, normalised, N = 100, one
+thread, CPU seconds on the shared 2-core machine): 8.8–10.3 s for all 18
+(two runs) against 95.4 s for ``hybrid``; 111–778 L-BFGS iterations
+(median 300) plus 3–26 Hessians, where plain L-BFGS from the same start
+needs 217–5,166 iterations (median 2,250).  Final L against ``hybrid``:
+higher by more than 1e-4 in 11 fits (by up to 40 %: its Hooke–Jeeves
+trials picked the ``nn`` start, from which no gradient method recovers),
+within 1e-4 in 4, lower in 3 (−0.08 %, −0.3 %, −0.7 %); against plain
+L-BFGS from the same start run to convergence: higher or equal in 13,
+lower in 5 (−0.3 % to −6.5 %).  The objective is multimodal (several
+maxima within a few per cent of each other), and a different path from the
+same start can end in a different one, either way; no optimiser here is
+global.  Hooke–Jeeves sweeps run after this method's end points accepted no
+move in 17 of the 18 fits (one: +9e-11), so the direct search's gains that
+motivated ``hybrid`` (leaving the stationary points where L-BFGS stops) are
+what step 3 now does.  At N = 400 (``benches/bench_scaling.py``'s
+synthetic case, standardised, q = 5, μ = 1e-4; CPU seconds, same script):
+21.6 s, L = 2.4051e8, against 254 s and L = 1.9817e8 for ``hybrid`` (both
+of its L-BFGS stages stopped at their 5,000-iteration caps) and 221 s and
+L = 2.4233e8 (−0.75 % for ours) for plain L-BFGS-B from the same start
+(5,314 iterations).  Against GPy: ``benches/bench_gplvm.py``.
+
 ``method="hooke-jeeves"`` is the paper's direct search alone (below).
-``method="hybrid"`` (the default): the initial scale is chosen by short
+``method="hybrid"`` (the default before issue 23): the initial scale is chosen by short
 Hooke–Jeeves trials (below), then scipy's L-BFGS-B on the analytic gradient
 (:func:`log_likelihood_grad`) runs from that start to a stationary point,
 then the Hooke–Jeeves search continues from there (its finite steps can
@@ -122,7 +165,12 @@ random    5      3.37e8           3.76e8           **4.05e8**
 ========  =====  ===============  ===============  ===============
 
 so ``init_scale="best"`` (the default) runs every rule for ``trial_sweeps``
-sweeps (10) and continues the search from the one with the highest L; on the
+sweeps (10) and continues the search from the one with the highest L (that
+is ``hybrid`` and ``hooke-jeeves``; ``newton`` tries ``rms`` and ``unit``
+with 100 L-BFGS iterations each: under L-BFGS to convergence, on the 18
+default fits, ``nn`` never ended best — its final L was 0.43–0.97 of the
+best rule's — and the L after 100 iterations picked the better of ``rms``
+/ ``unit`` in 15, losing 0.3 % on average, against 13 and 2.3 % after 50); on the
 eight cases above it ends within 2 % of the best single rule or above it
 (raw q = 2: −1.36e16), for about 30 % more time.  The tendencies: ``nn``
 (points spread so neighbours sit at ℓ) wins at q = 2 when the data are on
@@ -130,6 +178,24 @@ the kernel's scale; when the data variance per column (tr Gc / (N·d)) is far
 above the kernel's unit amplitude, as in raw units, the likelihood wants the
 points much closer together than ℓ (strongly correlated K), which ``rms`` /
 ``unit`` give (factors 100× smaller than ``nn``'s on the raw store).
+
+Files and their data
+--------------------
+:func:`save_gram` / :func:`save_model` write npz files that carry their own
+digest (:func:`brdfpipe.core.integrity.save_npz`; :func:`load_gram` /
+:func:`load_model` check it, so a truncated, corrupt or edited file is one
+:class:`GplvmFileError` naming it) and the digests of the store rows they
+were computed from (the store's name-bound CRC-32C per row,
+:func:`brdfpipe.data.store.shard_digest`): the Gram file records them
+(``row_digests``) and the fit carries them into the model
+(``data_digests``).  Every use of a model with a store checks them
+(:func:`check_store`: :func:`interpolate_tables` given the model,
+:func:`interpolate_to_file`, :mod:`brdfpipe.manifold.latent`,
+:mod:`brdfpipe.manifold.analysis`, :mod:`brdfpipe.manifold.fidelity`, the
+workflow's path points, the command line), so a store of the same names
+whose rows differ — ingested from other files, rows swapped — is a
+:class:`DataMismatchError` naming the model, the store and the material,
+never another material's BRDF under a name.
 
 Interpolation
 -------------
@@ -159,17 +225,28 @@ import scipy.linalg.blas
 import scipy.linalg.lapack
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.data.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
+from brdfpipe.data.store import (
+    DIGEST_ALGORITHM as STORE_DIGEST_ALGORITHM,
+    BrdfStore,
+    iter_cell_blocks,
+    iter_column_blocks,
+    material_indices,
+    open_store,
+)
+from brdfpipe.manifold import derivation
 
 __all__ = [
     "SPACES",
     "LINEAR_SPACES",
     "INIT_SCALES",
+    "NEWTON_TRIAL_SCALES",
     "MEAN_HANDLING",
+    "GplvmFileError",
+    "DataMismatchError",
     "GramInfo",
     "FitResult",
     "GplvmModel",
@@ -180,6 +257,7 @@ __all__ = [
     "kernel_vector",
     "log_likelihood",
     "log_likelihood_grad",
+    "log_likelihood_hessian",
     "METHODS",
     "gram_scale",
     "pca_init",
@@ -191,6 +269,9 @@ __all__ = [
     "interpolate_tables",
     "save_model",
     "load_model",
+    "store_digests",
+    "check_store",
+    "check_gram_store",
     "write_gram",
     "fit_to_files",
     "write_trace",
@@ -208,12 +289,30 @@ RELATIVE_FLOOR: Final = 1e-3
 STANDARDISED_FLOOR: Final = 1e-6
 #: Initial-scale rules of :func:`fit` (plus ``"best"``: try all, keep the best L).
 INIT_SCALES: Final = ("nn", "rms", "unit")
+#: The rules ``init_scale="best"`` tries with ``method="newton"`` (module docstring, "Optimisation").
+NEWTON_TRIAL_SCALES: Final = ("rms", "unit")
 MEAN_HANDLING: Final = "mean subtracted"
 #: Optimisers of :func:`fit` (see the module docstring, "Optimisation").
-METHODS: Final = ("hybrid", "hooke-jeeves")
-MODEL_FORMAT: Final = "brdfpipe.gplvm/1"
-GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/1"
+METHODS: Final = ("newton", "hybrid", "hooke-jeeves")
+#: /2: the digests of the store rows the model was fitted on (``data_digests``) and the file's digest.
+MODEL_FORMAT: Final = "brdfpipe.gplvm/2"
+#: /2: the digests of the store rows (``row_digests``) and the file's digest.
+GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/2"
+#: Earlier formats: refused with (why, what to do).
+RETIRED_FORMATS: Final = {
+    "brdfpipe.gplvm/1": ("it records no digests of the store rows it was fitted on", "refit it"),
+    "brdfpipe.manifold.gplvm.gram/1": ("it records no digests of the store rows it was computed from",
+                                       "compute it again"),
+}
 _SUB_COLS: Final = 16384
+
+
+class GplvmFileError(ValueError):
+    """A GPLVM model or Gram file is missing, damaged, of another format or inconsistent; names the file."""
+
+
+class DataMismatchError(ValueError):
+    """A model (or Gram file) used with a store whose rows are not the data it was fitted on (computed from)."""
 
 
 # --------------------------------------------------------------------------
@@ -279,6 +378,9 @@ class GramInfo:
     #: The un-centred Gram matrix ``Z Zᵀ``.
     raw_gram: NDArray[np.float64] = field(repr=False)
     mean_handling: str = MEAN_HANDLING
+    #: Digest of each material's store row (:func:`brdfpipe.data.store.shard_digest`, in ``materials`` order);
+    #: empty when not computed from a store.
+    digests: tuple[int, ...] = field(default=(), repr=False)
 
 
 def _select(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
@@ -368,7 +470,7 @@ def gram_matrix(
     s = s[inv]
     d = 3 * int(cells.size)
     Gc = centre_gram(G)
-    return Gc, d, GramInfo(tuple(names), space, s, G)
+    return Gc, d, GramInfo(tuple(names), space, s, G, digests=tuple(int(st.digests[i]) for i in idx))
 
 
 def centre_gram(G: ArrayLike) -> NDArray[np.float64]:
@@ -396,11 +498,34 @@ def gram_scale(gram: ArrayLike, d: float) -> float:
 
 
 def _atomic_savez(path: Path, **arrays: Any) -> None:
-    atomic.save_npz(path, arrays)
+    integrity.save_npz(path, arrays)
+
+
+def _digest_array(path: str | os.PathLike[str], digests: Sequence[int], n: int, what: str) -> NDArray[np.uint32]:
+    d = np.asarray(list(digests), dtype=np.int64)
+    if d.size and (d.shape != (n,) or d.min() < 0 or d.max() >= 2**32):
+        raise ValueError(f"{path}: {what} must give one 32-bit digest per material ({n}), got shape {d.shape}")
+    return d.astype(np.uint32)
+
+
+def _load(path: str | os.PathLike[str], fmt: str, kind: str) -> dict[str, NDArray[Any]]:
+    """The arrays of a model / Gram npz, its digest and format checked; :class:`GplvmFileError` naming it."""
+    z = integrity.load_npz(path, kind=kind, error=GplvmFileError)
+    found = str(z["format"]) if "format" in z and z["format"].shape == () else None
+    if found in RETIRED_FORMATS:
+        why, todo = RETIRED_FORMATS[found]
+        raise GplvmFileError(f"{path}: {kind} format {found!r} is no longer supported: {why}; {todo} "
+                             f"({integrity.rerun_hint(path)})")
+    if found != fmt:
+        raise GplvmFileError(f"{path}: not a brdfpipe {kind} (format {found!r}, expected {fmt!r})")
+    return z
 
 
 def save_gram(path: str | os.PathLike[str], gram: ArrayLike, d: int, info: GramInfo) -> None:
-    """Write a Gram matrix, ``d`` and its :class:`GramInfo` to an npz file atomically (tmp + rename)."""
+    """Write a Gram matrix, ``d`` and its :class:`GramInfo` (with the store rows' digests) to an npz, atomically.
+
+    The file carries its own digest (:func:`brdfpipe.core.integrity.save_npz`).
+    """
     _atomic_savez(
         Path(path),
         format=np.array(GRAM_FORMAT),
@@ -411,19 +536,32 @@ def save_gram(path: str | os.PathLike[str], gram: ArrayLike, d: int, info: GramI
         mean_handling=np.array(info.mean_handling),
         row_sums=info.row_sums,
         raw_gram=info.raw_gram,
+        row_digests=_digest_array(path, info.digests, len(info.materials), "the row digests"),
+        digest_algorithm=np.array(STORE_DIGEST_ALGORITHM),
     )
 
 
 def load_gram(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], int, GramInfo]:
-    """Read what :func:`save_gram` wrote; ValueError naming the path if it is not such a file."""
-    with np.load(Path(path), allow_pickle=False) as z:
-        if "format" not in z or str(z["format"]) != GRAM_FORMAT:
-            raise ValueError(f"{path}: not a brdfpipe GPLVM Gram file")
-        info = GramInfo(
-            tuple(str(m) for m in z["materials"]), str(z["space"]), z["row_sums"], z["raw_gram"],
-            str(z["mean_handling"]),
-        )
-        return z["gram"], int(z["d"]), info
+    """Read what :func:`save_gram` wrote, its digest checked.
+
+    :class:`GplvmFileError` (a ValueError) naming the file and what to rerun
+    for a missing, truncated, corrupt, unverifiable or edited file, another
+    format or inconsistent arrays.
+    """
+    z = _load(path, GRAM_FORMAT, "GPLVM Gram file")
+    try:
+        materials = tuple(str(m) for m in z["materials"])
+        digests = tuple(int(v) for v in z["row_digests"])
+        if str(z["digest_algorithm"]) != STORE_DIGEST_ALGORITHM or (digests and len(digests) != len(materials)):
+            raise ValueError("row digests of another kind or count")
+        info = GramInfo(materials, str(z["space"]), z["row_sums"], z["raw_gram"], str(z["mean_handling"]),
+                        digests=digests)
+        gram, d = z["gram"], int(z["d"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise GplvmFileError(f"{path}: inconsistent GPLVM Gram file ({type(exc).__name__}: {exc})") from None
+    if gram.shape != (len(materials), len(materials)):
+        raise GplvmFileError(f"{path}: Gram matrix of shape {gram.shape} for {len(materials)} materials")
+    return gram, d, info
 
 
 # --------------------------------------------------------------------------
@@ -573,6 +711,132 @@ def _loglik_grad(
     grad -= A.sum(axis=1)[:, None] * x
     grad *= 2.0 * s
     return L, grad
+
+
+def log_likelihood_hessian(
+    X: ArrayLike, gram: ArrayLike, d: float, ell: float = 1.0, mu: float = 1e-4
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+    """``L`` (eq. 6), ``∂L/∂X`` (N × q) and the Hessian ``∂²L/∂x∂x`` (Nq × Nq, in the order of ``X.ravel()``).
+
+    With ``P = K⁻¹``, ``Q = K⁻¹GK⁻¹`` and ``W = −(d/2)P + ½Q`` (= ∂L/∂K),
+    the second differential is ``d²L = tr(W d²K) + (d/2)·tr(P dK₁ P dK₂) −
+    tr(P dK₁ Q dK₂)``.  Moving coordinate k of point i changes only row and
+    column i of K: ``∂K/∂x_ik = e_i aᵀ + a e_iᵀ`` with ``a`` row i of
+    ``A_k = −E ∘ Δ_k / ℓ²`` (``Δ_k[i, j] = x_ik − x_jk``, antisymmetric), so
+    for any symmetric P, Q
+    ``tr(P dK₁ Q dK₂) = (A_kQ)_ij (A_lP)_ji + (A_kP)_ij (A_lQ)_ji + P_ij (A_kQA_lᵀ)_ij + Q_ij (A_kPA_lᵀ)_ij``
+    for the pair (x_ik, x_jl).  The block (k, l) over all point pairs is
+    therefore a few element-wise products of N × N matrices and the two
+    products ``(dA_kP − A_kQ)A_lᵀ`` and ``A_kPA_lᵀ``; the ``tr(W d²K)`` term
+    is ``−2F_ij(Δ_kΔ_l/ℓ⁴ − δ_kl/ℓ²)`` off the diagonal (``F = W ∘ E``) and
+    minus its row sum on it (L is invariant under translations).  Cost:
+    ``2q + q(q + 1)`` products of N × N matrices (≈ 80N³ flops for q = 5,
+    20 gradients' worth) on top of the gradient's factorisations; memory
+    ``(Nq)²`` doubles.  The Hessian is singular along the rigid motions of the
+    latent points (q translations, q(q − 1)/2 rotations).  Used by the
+    ``newton`` method of :func:`fit`; checked against finite differences of
+    the gradient in the tests.
+    """
+    g, d_f = _check_gram(gram, d)
+    ell, mu = _check_hyper(ell, mu)
+    x = _check_X(X)
+    if x.shape[0] != g.shape[0]:
+        raise ValueError(f"X has {x.shape[0]} rows but gram is {g.shape[0]} x {g.shape[0]}")
+    return _loglik_grad_hess(x, _GramRoot(g), d_f, ell, mu)
+
+
+def _loglik_only(x: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float) -> float:
+    """L alone (one Cholesky and one triangular solve): the trial points of the Newton stage."""
+    blas, lapack = scipy.linalg.blas, scipy.linalg.lapack
+    K = np.exp(_sqdist(x) * (-0.5 / (ell * ell)))
+    np.fill_diagonal(K, 1.0 + mu)
+    c, info = lapack.dpotrf(K, lower=1, clean=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("K is not positive definite")
+    logdet = 2.0 * float(np.log(np.diag(c)).sum())
+    tr = 0.0
+    for R, sign in ((root.plus, 1.0), (root.minus, -1.0)):
+        if R is None or R.shape[1] == 0:
+            continue
+        S = blas.dtrsm(1.0, c, R, lower=1)
+        tr += sign * float(np.einsum("ij,ij->", S, S))
+    return -0.5 * d * logdet - 0.5 * tr
+
+
+def _loglik_grad_hess(
+    x: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`log_likelihood_hessian` without validation."""
+    blas, lapack = scipy.linalg.blas, scipy.linalg.lapack
+    n, q = x.shape
+    s = 1.0 / (ell * ell)
+    E = np.exp(_sqdist(x) * (-0.5 * s))
+    K = E.copy()
+    np.fill_diagonal(K, 1.0 + mu)
+    c, info = lapack.dpotrf(K, lower=1, clean=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("K is not positive definite")
+    logdet = 2.0 * float(np.log(np.diag(c)).sum())
+    P, info = lapack.dpotri(c, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("K could not be inverted")
+    P = np.tril(P)
+    P += np.tril(P, -1).T
+    Q = np.zeros((n, n))
+    tr = 0.0
+    for R, sign in ((root.plus, 1.0), (root.minus, -1.0)):
+        if R is None or R.shape[1] == 0:
+            continue
+        S = blas.dtrsm(1.0, c, R, lower=1)  # L⁻¹R
+        tr += sign * float(np.einsum("ij,ij->", S, S))
+        T = blas.dtrsm(1.0, c, S, lower=1, trans_a=1)  # K⁻¹R
+        Q = blas.dsyrk(sign, T, beta=1.0, c=Q, lower=1, overwrite_c=1)
+    Q = np.tril(Q)
+    Q += np.tril(Q, -1).T
+    L = -0.5 * d * logdet - 0.5 * tr
+    F = (-0.5 * d) * P
+    F += 0.5 * Q
+    F *= E  # F = W ∘ E
+    np.fill_diagonal(F, 0.0)
+    grad = F @ x
+    grad -= F.sum(axis=1)[:, None] * x
+    grad *= 2.0 * s
+    Dl = x.T[:, :, None] - x.T[:, None, :]  # (q, N, N): Δ_k[i, j] = x_ik − x_jk
+    A = Dl * E[None]
+    A *= -s  # A_k = ∂K/∂x_ik along row i; zero diagonal
+    AP = (A.reshape(q * n, n) @ P).reshape(q, n, n)
+    AQ = (A.reshape(q * n, n) @ Q).reshape(q, n, n)
+    B = d * AP
+    B -= AQ  # A_k(dP − Q)
+    H = np.empty((n, q, n, q))
+    m2F = -2.0 * F
+    diag = np.diag_indices(n)
+    for l_ in range(q):
+        AlT = A[l_].T
+        BA = (B[: l_ + 1].reshape(-1, n) @ AlT).reshape(l_ + 1, n, n)
+        PA = (AP[: l_ + 1].reshape(-1, n) @ AlT).reshape(l_ + 1, n, n)
+        APlT, AQlT = AP[l_].T, AQ[l_].T
+        dAPlT = d * APlT - AQlT
+        for k in range(l_ + 1):
+            blk = AP[k] * dAPlT
+            blk -= AQ[k] * APlT
+            blk += P * BA[k]
+            blk -= Q * PA[k]
+            t2 = m2F * Dl[k]
+            t2 *= Dl[l_]
+            t2 *= s * s
+            if k == l_:
+                t2 -= s * m2F
+            t2[diag] = 0.0
+            blk += t2
+            blk[diag] -= t2.sum(axis=1)
+            if k == l_:
+                blk += blk.T
+                blk *= 0.5  # symmetric to the last bit (it is, up to rounding)
+            H[:, k, :, l_] = blk
+            if k != l_:
+                H[:, l_, :, k] = blk.T
+    return L, grad, H.reshape(n * q, n * q)
 
 
 # --------------------------------------------------------------------------
@@ -753,14 +1017,22 @@ class FitResult:
     seconds: float
     #: The best L reached from each initial-scale rule tried (``init_scale="best"``).
     scale_trials: dict[str, float] = field(default_factory=dict)
-    #: ``"hybrid"`` or ``"hooke-jeeves"`` (:data:`METHODS`).
+    #: ``"newton"``, ``"hybrid"`` or ``"hooke-jeeves"`` (:data:`METHODS`).
     method: str = "hooke-jeeves"
-    #: Stage of each trace entry: ``start``, ``hooke-jeeves`` (a sweep) or ``lbfgs`` (an iteration).
+    #: Stage of each trace entry: ``start``, ``hooke-jeeves`` (a sweep), ``lbfgs`` (an iteration) or
+    #: ``newton`` (a Newton step, or a step out of a saddle point).
     stages: list[str] = field(default_factory=list)
     #: L when the Hooke–Jeeves stage ended.
     hj_log_likelihood: float = float("nan")
-    #: L-BFGS iterations of the polish (0 for ``"hooke-jeeves"``).
+    #: L-BFGS iterations of the polish (0 for ``"hooke-jeeves"``); for ``"newton"`` all its L-BFGS iterations.
     polish_iterations: int = 0
+    #: ``"newton"``: L-BFGS iterations of the chosen start's trial (included in ``polish_iterations``).
+    trial_iterations: int = 0
+    #: ``"newton"``: Newton steps taken after the preconditioned L-BFGS.
+    newton_iterations: int = 0
+    #: ``"newton"``: evaluations of L and its gradient (trials of every rule included) and of the Hessian.
+    gradient_evaluations: int = 0
+    hessian_evaluations: int = 0
 
 
 def _hooke_jeeves(
@@ -896,6 +1168,313 @@ def _lbfgs_polish(
     return X, history, int(res.nit)
 
 
+@dataclass
+class _Counts:
+    """Work of the ``newton`` method: gradient evaluations, Hessians, factorisations of the preconditioner."""
+
+    gradients: int = 0
+    hessians: int = 0
+    factorisations: int = 0
+    lbfgs_iterations: int = 0
+    newton_iterations: int = 0
+
+
+def _lbfgs_run(
+    X0: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *, scale: float,
+    max_iter: int, ftol: float, gtol: float, chol: NDArray[np.float64] | None, counts: _Counts,
+) -> tuple[NDArray[np.float64], list[float]]:
+    """scipy L-BFGS-B on ``−L/scale`` in the coordinates ``y``, ``X = X₀ + C⁻ᵀy``; returns X and L per iteration.
+
+    ``chol``: the lower Cholesky factor ``C`` of a preconditioner ``M = CCᵀ``
+    (an approximation of the Hessian of −L/scale), so that the Hessian in
+    ``y`` is ``C⁻¹(−∇²L/scale)C⁻ᵀ`` ≈ I; None for plain L-BFGS (``C = I``).
+    A point where K is not positive definite scores +∞.  The iterates are
+    monotone (L-BFGS-B's line search); the result is never worse than X₀.
+    """
+    import scipy.optimize
+
+    n, q = X0.shape
+    x0 = X0.ravel()
+    trsv = scipy.linalg.blas.dtrsv
+    last: dict[bytes, float] = {}
+
+    def to_x(y: NDArray[np.float64]) -> NDArray[np.float64]:
+        return x0 + (y if chol is None else trsv(chol, y, lower=1, trans=1))
+
+    def f(y: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+        counts.gradients += 1
+        try:
+            L, g = _loglik_grad(to_x(y).reshape(n, q), root, d, ell, mu)
+        except np.linalg.LinAlgError:
+            return np.inf, np.zeros_like(y)
+        last.clear()
+        last[y.tobytes()] = L
+        gy = g.ravel() * (-1.0 / scale)
+        return -L / scale, (gy if chol is None else trsv(chol, gy, lower=1))
+
+    history: list[float] = []
+
+    def record(yk: NDArray[np.float64]) -> None:
+        key = yk.tobytes()
+        history.append(last[key] if key in last else _loglik_only(to_x(yk).reshape(n, q), root, d, ell, mu))
+
+    res = scipy.optimize.minimize(
+        f, np.zeros(n * q), jac=True, method="L-BFGS-B", callback=record,
+        options={"maxiter": int(max_iter), "maxfun": 4 * int(max_iter) + 20, "ftol": ftol, "gtol": gtol,
+                 "maxcor": 20},
+    )
+    counts.lbfgs_iterations += int(res.nit)
+    X = to_x(res.x).reshape(n, q)
+    L0 = _loglik_only(X0, root, d, ell, mu)
+    if not history or not np.isfinite(res.fun) or -res.fun * scale < L0:
+        return X0.copy(), history[:0]
+    return X, history
+
+
+def _shifted_cholesky(
+    B: NDArray[np.float64], lam: float, counts: _Counts
+) -> tuple[NDArray[np.float64], float]:
+    """Lower Cholesky factor of ``B + λI`` for the first ``λ`` of ``lam, 8·lam, 64·lam, …`` that makes it positive definite."""
+    lapack = scipy.linalg.lapack
+    diag = np.diag_indices_from(B)
+    base = B[diag].copy()
+    if not lam > 0:  # a zero Hessian (every point far from all others): any positive shift
+        lam = 1e-12 * max(float(np.abs(base).max()), 1e-300)
+    for _ in range(120):
+        B[diag] = base + lam
+        counts.factorisations += 1
+        c, info = lapack.dpotrf(B, lower=1, clean=1)
+        if info == 0:
+            B[diag] = base
+            return c, lam
+        lam *= 8.0
+    B[diag] = base
+    raise np.linalg.LinAlgError("the Hessian could not be shifted to a positive definite matrix")
+
+
+def _newton_stages(
+    X0: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *,
+    restart_every: int, max_restarts: int, shift: float, newton_iterations: int, gtol: float,
+    max_escapes: int, counts: _Counts,
+) -> tuple[NDArray[np.float64], list[tuple[str, float]]]:
+    """The ``newton`` method's stages from X₀; returns the final X and ``(stage, L)`` per iteration.
+
+    1. Restarted L-BFGS (stage ``lbfgs``): at the restart point compute the
+       exact Hessian (:func:`log_likelihood_hessian`), shift ``M = −∇²L/s``
+       into a positive definite ``M + λI`` (``λ`` = ``shift`` × the mean
+       |diagonal| of M, ×8 until the Cholesky factorisation succeeds: far
+       from a maximum the Hessian is indefinite) and run ``restart_every``
+       L-BFGS iterations in the coordinates where ``M + λI`` is the
+       identity.  Repeat from where it stopped while a run gains more than
+       1e-10·|L| (when a preconditioned run cannot, a plain L-BFGS run is
+       tried before giving up), at most ``max_restarts`` times.  Plain L-BFGS needs
+       1,000–5,000 iterations on these data (the curvature spans several
+       decades); preconditioned, a few hundred.
+    2. Newton (stage ``newton``) with the exact Hessian, in the
+       Levenberg–Marquardt form of a trust region: step ``p = (M + λI)⁻¹∇L/s``,
+       accepted only if L increases by at least 1e-4 of the quadratic
+       model's prediction (else ``λ`` ×4 and retry), ``λ`` ÷4 after a good
+       step.  Stops when the largest gradient entry is ≤ ``gtol``·|L|, when a
+       step gains less than 1e-15·|L| (rounding level), after three steps in
+       a row that gain less than 1e-9·|L| each (converging quadratically,
+       the step after such a one gains ~1e-18·|L|; creeping along an almost
+       flat direction — a point far from all others, whose kernel entries
+       are ~0 — it would go on for such gains), or after
+       ``newton_iterations``.
+    3. Saddle points (stage ``newton``): a first-order method can stop at a
+       stationary point that is not a maximum (L-BFGS did, on the default
+       store).  When M is not positive semi-definite there (its smallest
+       eigenvalue below −1e-6 × its mean |diagonal|, from LAPACK's
+       ``dsyevr`` for that one eigenpair), the step goes along the
+       eigenvector of that eigenvalue (the direction of positive curvature
+       of L), its length doubled or halved from 0.01ℓ while L increases,
+       and stage 1 resumes from there; at most ``max_escapes`` times.  So
+       the result is a local maximum: gradient at rounding level, Hessian
+       negative semi-definite up to the rigid motions.
+    """
+    lapack = scipy.linalg.lapack
+    n, q = X0.shape
+    x = X0.copy()
+    scale = max(abs(_loglik_only(x, root, d, ell, mu)), 1.0)
+    hist: list[tuple[str, float]] = []
+    newton_left = int(newton_iterations)
+    restarts_left = int(max_restarts)
+    for round_ in range(int(max_escapes) + 1):
+        # 1. restarted, preconditioned L-BFGS
+        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+        counts.hessians += 1
+        while restarts_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
+            restarts_left -= 1
+            B = H * (-1.0 / scale)
+            c, _ = _shifted_cholesky(B, shift * float(np.abs(np.diag(B)).mean()), counts)
+            x_new, h = _lbfgs_run(x, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15, gtol=1e-13,
+                                  chol=c, counts=counts)
+            if not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0):
+                # no progress with this preconditioner: a plain L-BFGS run before giving up
+                x_new, h_p = _lbfgs_run(x_new, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15,
+                                        gtol=1e-13, chol=None, counts=counts)
+                h += h_p
+            hist += [("lbfgs", v) for v in h]
+            x = x_new
+            stop = not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0)
+            L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+            counts.hessians += 1
+            if stop:
+                break
+        # 2. Newton steps; 3. a step out of a saddle point, then stage 1 again
+        lam: float | None = None
+        escaped = checked = False
+        small = 0
+        while newton_left > 0:
+            B = H * (-1.0 / scale)
+            dB = float(np.abs(np.diag(B)).mean())
+            diag = np.diag_indices_from(B)
+            B[diag] += 1e-8 * dB
+            counts.factorisations += 1
+            _, info = lapack.dpotrf(B, lower=1, clean=1)
+            B[diag] -= 1e-8 * dB
+            if info != 0 and not checked:  # one eigenpair (≈ 2n³ flops), at most once per round
+                checked = True
+                w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
+                if w[0] < -1e-6 * dB and round_ < int(max_escapes):
+                    x_esc = _escape_saddle(x, v[:, 0], L, root, d, ell, mu, hist, counts)
+                    if x_esc is not None:
+                        x, escaped = x_esc, True
+                        newton_left -= 1
+                    break
+            if np.abs(g).max() <= gtol * max(abs(L), 1.0):
+                break
+            gf = g.ravel() * (-1.0 / scale)  # gradient of f = −L/scale
+            lam = 1e-8 * dB if lam is None else max(lam, 1e-14 * dB)
+            step = None
+            while lam <= 1e12 * dB:
+                c, lam = _shifted_cholesky(B, lam, counts)
+                p = -lapack.dpotrs(c, gf, lower=1)[0]
+                pred = -(gf @ p + 0.5 * p @ (B @ p))
+                try:
+                    L_new = _loglik_only(x + p.reshape(n, q), root, d, ell, mu)
+                except np.linalg.LinAlgError:
+                    L_new = -np.inf
+                gain = (L_new - L) / scale
+                if pred > 0 and gain > 1e-4 * pred:
+                    step = (p, gain / pred)
+                    break
+                lam *= 4.0
+            if step is None:
+                break
+            p, rho = step
+            L_old = L
+            x = x + p.reshape(n, q)
+            L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+            counts.hessians += 1
+            counts.newton_iterations += 1
+            newton_left -= 1
+            hist.append(("newton", L))
+            lam = lam / 4.0 if rho > 0.75 else (lam * 2.0 if rho < 0.25 else lam)
+            small = small + 1 if L - L_old <= 1e-9 * abs(L) else 0
+            if L - L_old <= 1e-15 * abs(L) or small >= 3:
+                break  # gains at rounding level, or creeping along a flat direction
+        if not escaped:
+            break
+    return x, hist
+
+
+def _escape_saddle(
+    x: NDArray[np.float64], v: NDArray[np.float64], L: float, root: _GramRoot, d: float, ell: float, mu: float,
+    hist: list[tuple[str, float]], counts: _Counts,
+) -> NDArray[np.float64] | None:
+    """Move from a saddle point along ``±v`` (a direction of positive curvature of L), the length doubled or
+    halved from 0.01ℓ while L increases; returns the new X (its L appended to ``hist``) or None."""
+    n, q = x.shape
+    best: tuple[float, NDArray[np.float64]] | None = None
+    for sign in (1.0, -1.0):
+        u = (sign * v).reshape(n, q)
+
+        def value(a: float) -> float:
+            try:
+                return _loglik_only(x + a * u, root, d, ell, mu)
+            except np.linalg.LinAlgError:
+                return -np.inf
+
+        a = 0.01 * ell
+        La = value(a)
+        if La > L:
+            while True:
+                Lb = value(2.0 * a)
+                if not Lb > La or a > 1e3 * ell:
+                    break
+                a, La = 2.0 * a, Lb
+        else:
+            for _ in range(30):
+                a *= 0.5
+                La = value(a)
+                if La > L:
+                    break
+        if La > L and (best is None or La > best[0]):
+            best = (La, x + a * u)
+    if best is None:
+        return None
+    counts.newton_iterations += 1
+    hist.append(("newton", best[0]))
+    return best[1]
+
+
+def _fit_newton(
+    g: NDArray[np.float64], d: float, Y: NDArray[np.float64], *, ell: float, mu: float, init_scale: str | float,
+    trial_iterations: int, restart_every: int, max_restarts: int, shift: float, newton_iterations: int, gtol: float,
+    max_escapes: int,
+) -> FitResult:
+    """:func:`fit` with ``method="newton"``: the start (trials of the scale rules), then :func:`_newton_stages`."""
+    root = _GramRoot(g)
+    counts = _Counts()
+    if isinstance(init_scale, str) and init_scale == "best":
+        rules: list[tuple[str, float]] = [(r, _scale_factor(Y, r, ell)) for r in NEWTON_TRIAL_SCALES]
+    elif isinstance(init_scale, str):
+        rules = [(init_scale, _scale_factor(Y, init_scale, ell))]
+    else:
+        factor = float(init_scale)
+        if not np.isfinite(factor) or factor <= 0:
+            raise ValueError(f"init_scale factor must be > 0, got {init_scale!r}")
+        rules = [("factor", factor)]
+    trials: dict[str, float] = {}
+    best: tuple[float, str, float, NDArray[np.float64], list[float], float] | None = None
+    for label, factor in rules:
+        X_start = Y * factor
+        L_start = _loglik_only(X_start, root, d, ell, mu)
+        X_t, hist = X_start, []
+        if len(rules) > 1 and trial_iterations > 0:
+            X_t, hist = _lbfgs_run(X_start, root, d, ell, mu, scale=max(abs(L_start), 1.0),
+                                   max_iter=trial_iterations, ftol=1e-15, gtol=1e-13, chol=None, counts=counts)
+        L_t = hist[-1] if hist else L_start
+        if len(rules) > 1:
+            trials[label] = L_t
+        if best is None or L_t > best[0]:
+            best = (L_t, label, factor, X_t, hist, L_start)
+    assert best is not None
+    _, label, factor, X1, hist1, L_init = best
+    trial_its = len(hist1)
+    X_fin, hist2 = _newton_stages(
+        X1, root, d, ell, mu, restart_every=restart_every, max_restarts=max_restarts, shift=shift,
+        newton_iterations=newton_iterations, gtol=gtol, max_escapes=max_escapes, counts=counts,
+    )
+    values = [L_init] + hist1 + [v for _, v in hist2]
+    stages = ["start"] + ["lbfgs"] * len(hist1) + [st for st, _ in hist2]
+    trace = list(enumerate(values))
+    L_fin = log_likelihood(X_fin, g, d, ell, mu)
+    trace[-1] = (trace[-1][0], L_fin)
+    res = FitResult(
+        X_fin, L_fin, trace, ell, mu, d, label, factor, L_init, 0, 0, 0, float("nan"), 0.0, 0.0,
+    )
+    res.scale_trials = trials
+    res.method, res.stages, res.hj_log_likelihood = "newton", stages, float("nan")
+    res.polish_iterations = stages.count("lbfgs")
+    res.trial_iterations = trial_its
+    res.newton_iterations = counts.newton_iterations
+    res.gradient_evaluations = counts.gradients
+    res.hessian_evaluations = counts.hessians
+    return res
+
+
 def fit(
     gram: ArrayLike,
     d: float,
@@ -912,16 +1491,37 @@ def fit(
     trial_sweeps: int = 10,
     tol: float = 1e-15,
     ftol: float = 1e-9,
-    method: str = "hybrid",
+    method: str = "newton",
     polish_iterations: int = 5000,
     polish_ftol: float = 1e-12,
     polish_gtol: float = 1e-8,
+    trial_iterations: int = 100,
+    restart_every: int = 30,
+    max_restarts: int = 200,
+    hessian_shift: float = 1e-3,
+    newton_iterations: int = 50,
+    newton_gtol: float = 1e-10,
+    max_escapes: int = 10,
 ) -> FitResult:
     """Maximise eq. 6 over the latent points (``method``: see the module docstring, "Optimisation").
 
     ``gram``: centred Gram matrix (N × N); ``d``: column count (enters only
-    as a number).  ``polish_*``: L-BFGS-B's iteration cap and relative
-    tolerances (hybrid only).  Initialisation: :func:`pca_init` scaled by ``init_scale``
+    as a number).
+
+    ``method="newton"`` (the default; :func:`_newton_stages`): the start is
+    :func:`pca_init` scaled by ``init_scale`` (``"best"``: every rule of
+    :data:`INIT_SCALES` runs ``trial_iterations`` plain L-BFGS iterations and
+    the one with the highest L continues); then L-BFGS preconditioned by the
+    exact Hessian, shifted by ``hessian_shift`` × its mean |diagonal| where
+    it is not positive definite and recomputed every ``restart_every``
+    iterations (at most ``max_restarts`` times); then at most
+    ``newton_iterations`` Newton (trust-region) steps until the largest
+    gradient entry is ≤ ``newton_gtol``·|L|.  The Hooke–Jeeves parameters
+    (``max_sweeps``, ``seed``, …) are not used: the method has no random
+    element.
+
+    ``method="hybrid"`` / ``"hooke-jeeves"``: ``polish_*`` are L-BFGS-B's
+    iteration cap and relative tolerances (hybrid only).  Initialisation: :func:`pca_init` scaled by ``init_scale``
     (a rule of :data:`INIT_SCALES`, a number = the factor itself, or
     ``"best"``: every rule is run for ``trial_sweeps`` sweeps and the one with
     the highest L continues).  Search: a global step (default ``ℓ/4``) for
@@ -948,8 +1548,31 @@ def fit(
     min_step_f = ell * 1e-3 if min_step is None else float(min_step)
     if not step0 > 0 or not min_step_f > 0:
         raise ValueError("step and min_step must be > 0")
+    for name, value, low in (("trial_iterations", trial_iterations, 0), ("restart_every", restart_every, 1),
+                             ("max_restarts", max_restarts, 0), ("newton_iterations", newton_iterations, 0),
+                             ("max_escapes", max_escapes, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) < low:
+            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    for name, fvalue in (("hessian_shift", hessian_shift), ("newton_gtol", newton_gtol)):
+        if not np.isfinite(float(fvalue)) or not float(fvalue) > 0:
+            raise ValueError(f"{name} must be a finite number > 0, got {fvalue!r}")
     t0 = time.perf_counter()
     Y = pca_init(g, q)
+    if method == "newton":
+        res = _fit_newton(
+            g, d_f, Y, ell=ell, mu=mu, init_scale=init_scale, trial_iterations=int(trial_iterations),
+            restart_every=int(restart_every), max_restarts=int(max_restarts), shift=float(hessian_shift),
+            newton_iterations=int(newton_iterations), gtol=float(newton_gtol), max_escapes=int(max_escapes),
+        )
+        res.seconds = time.perf_counter() - t0
+        logger.info(
+            "GPLVM fit N=%d q=%d (newton): start %s x%.3g, L %.6g -> %.6g after %d L-BFGS iterations "
+            "(%d after the start's trial, preconditioned by %d Hessians) and %d Newton steps, %d gradients, %.2f s",
+            g.shape[0], q, res.init_scale, res.init_factor, res.initial_log_likelihood, res.log_likelihood,
+            res.polish_iterations, res.polish_iterations - res.trial_iterations, res.hessian_evaluations,
+            res.newton_iterations, res.gradient_evaluations, res.seconds,
+        )
+        return res
 
     def run(X0: NDArray[np.float64], sweeps: int, sweep0: int = 0) -> tuple[_State, list[tuple[int, float]], tuple[int, int, float, float, int]]:
         st = _full_state(X0, g, ell, mu)
@@ -1057,6 +1680,11 @@ class GplvmModel:
     #: The Gram matrix was divided by this before fitting (1.0: not normalised); L is of ``G/gram_scale``.
     gram_scale: float = 1.0
     method: str = "hooke-jeeves"
+    #: Digest of the store row each material was fitted on (:func:`brdfpipe.data.store.shard_digest`, in
+    #: ``names`` order); empty: not tied to a store (it cannot be used with one, see :func:`check_store`).
+    data_digests: tuple[int, ...] = field(default=(), repr=False)
+    #: The file it was loaded from (for messages), if any.
+    path: Path | None = field(default=None, repr=False, compare=False)
 
 
 def weights(
@@ -1106,16 +1734,18 @@ def interpolate_table(
     *,
     materials: Sequence[str] | None = None,
     space: str = "raw",
+    model: GplvmModel | None = None,
 ) -> tuple[NDArray[np.float64], int]:
     """``Σ_i w_i z_i`` as a MERL table ``(3, 90, 90, 180)`` float64 and the number of clamped values.
 
     ``weights``: blend weights (:func:`blend_weights`) of ``materials`` (in
-    that order; default all of the store).  See :func:`interpolate_tables`.
+    that order; default all of the store).  See :func:`interpolate_tables`
+    (also for ``model``).
     """
     w = np.asarray(weights, dtype=np.float64)
     if w.ndim != 1:
         raise ValueError(f"weights must be a vector (one per material), got shape {w.shape}")
-    tables, clamped = interpolate_tables(store_path, w[None, :], materials=materials, space=space)
+    tables, clamped = interpolate_tables(store_path, w[None, :], materials=materials, space=space, model=model)
     return tables[0], int(clamped[0])
 
 
@@ -1125,8 +1755,14 @@ def interpolate_tables(
     *,
     materials: Sequence[str] | None = None,
     space: str = "raw",
+    model: GplvmModel | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Several blends ``W Z`` in one pass over the store: tables ``(P, 3, 90, 90, 180)`` and clamp counts ``(P,)``.
+
+    ``model``: the model whose weights these are; the store is then checked
+    to hold the rows it was fitted on (:func:`check_store`), ``materials``
+    defaults to its materials and must be them, and ``space`` must be its
+    space.
 
     ``weights`` is ``(P, N)``: one row of blend weights per output table,
     over ``materials`` (in that order; default all of the store).  In the
@@ -1142,6 +1778,12 @@ def interpolate_tables(
     """
     _check_space(space)
     st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    if model is not None:
+        check_store(model, st)
+        materials = model.names if materials is None else materials
+        if list(materials) != list(model.names) or space != model.space:
+            raise ValueError(f"{model.path or 'the model'}: interpolate over its materials in its space "
+                             f"({model.space!r}), got {len(list(materials))} materials in space {space!r}")
     idx = _select(st, materials)
     W = np.asarray(weights, dtype=np.float64)
     if W.ndim != 2 or W.shape[1] != idx.size:
@@ -1192,11 +1834,16 @@ def save_model(
     space: str = "raw",
     mean_handling: str = MEAN_HANDLING,
     gram_scale: float = 1.0,
+    data_digests: Sequence[int] = (),
 ) -> None:
-    """Write a fit to an npz file atomically.
+    """Write a fit to an npz file atomically, with its digest (:func:`brdfpipe.core.integrity.save_npz`).
 
     Arrays: names, X, ℓ, μ, space, mean handling, chol(K) (the factor that
-    interpolation needs: ``b = K⁻¹k``), L, d, trace, gram scale, method.
+    interpolation needs: ``b = K⁻¹k``), L, d, trace, gram scale, method and
+    ``data_digests``: the digests of the store rows the materials were fitted
+    on (from the Gram file, :attr:`GramInfo.digests`; empty for a fit that
+    did not come from a store), which every use with a store checks
+    (:func:`check_store`).
     """
     _check_space(space)
     names = [str(n) for n in names]
@@ -1218,20 +1865,95 @@ def save_model(
         trace=np.array(result.trace, dtype=np.float64).reshape(-1, 2),
         gram_scale=np.array(float(gram_scale)),
         method=np.array(result.method),
+        data_digests=_digest_array(path, data_digests, len(names), "data_digests"),
+        digest_algorithm=np.array(STORE_DIGEST_ALGORITHM),
     )
 
 
 def load_model(path: str | os.PathLike[str]) -> GplvmModel:
-    """Read what :func:`save_model` wrote; ValueError naming the path if it is not such a file."""
-    with np.load(Path(path), allow_pickle=False) as z:
-        if "format" not in z or str(z["format"]) != MODEL_FORMAT:
-            raise ValueError(f"{path}: not a brdfpipe GPLVM model file")
-        return GplvmModel(
-            tuple(str(n) for n in z["names"]), z["X"], float(z["ell"]), float(z["mu"]), str(z["space"]),
+    """Read what :func:`save_model` wrote, its digest checked.
+
+    :class:`GplvmFileError` (a ValueError) naming the file and what to rerun
+    for a missing, truncated, corrupt, unverifiable or edited file, a retired
+    or other format, or inconsistent arrays.
+    """
+    z = _load(path, MODEL_FORMAT, "GPLVM model")
+    try:
+        names = tuple(str(n) for n in z["names"])
+        X = np.asarray(z["X"], dtype=np.float64)
+        digests = tuple(int(v) for v in z["data_digests"])
+        if str(z["digest_algorithm"]) != STORE_DIGEST_ALGORITHM:
+            raise ValueError(f"data digests of another kind ({str(z['digest_algorithm'])!r})")
+        model = GplvmModel(
+            names, X, float(z["ell"]), float(z["mu"]), str(z["space"]),
             str(z["mean_handling"]), z["chol"], float(z["log_likelihood"]), float(z["d"]), z["trace"],
-            float(z["gram_scale"]) if "gram_scale" in z else 1.0,
-            str(z["method"]) if "method" in z else "hooke-jeeves",
+            float(z["gram_scale"]), str(z["method"]), digests, Path(path),
         )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise GplvmFileError(f"{path}: inconsistent GPLVM model ({type(exc).__name__}: {exc})") from None
+    n = len(names)
+    if X.ndim != 2 or X.shape[0] != n or model.chol.shape != (n, n) or (digests and len(digests) != n):
+        raise GplvmFileError(f"{path}: inconsistent GPLVM model (X {X.shape}, chol {model.chol.shape} for "
+                             f"{n} materials, {len(digests)} data digests)")
+    return model
+
+
+def store_digests(store: BrdfStore | str | os.PathLike[str], names: Sequence[str]) -> tuple[int, ...]:
+    """The digests of the store rows of ``names`` (what :func:`save_model` records for a fit on that store)."""
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    idx = material_indices(st, names, "materials")
+    return tuple(int(st.digests[i]) for i in idx)
+
+
+def _check_rows(label: str, kind: str, names: Sequence[str], digests: Sequence[int], st: BrdfStore,
+                hint: str) -> None:
+    if not digests:
+        raise DataMismatchError(
+            f"{label}: the {kind} records no digests of the store rows it was fitted on, so it cannot be checked "
+            f"against the store {st.path}; {hint}"
+        )
+    index = {m: i for i, m in enumerate(st.materials)}
+    missing = [m for m in names if m not in index]
+    if missing:
+        raise DataMismatchError(
+            f"{label}: material(s) {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} of the {kind} "
+            f"are not in the store {st.path}; use the store it was fitted on, or {hint}"
+        )
+    for name, digest in zip(names, digests):
+        if int(st.digests[index[name]]) != int(digest):
+            raise DataMismatchError(
+                f"{label}: material {name!r} of the store {st.path} is not the data the {kind} was fitted on "
+                f"(the row's digest differs: the store was ingested from other files, or its rows were "
+                f"swapped); use the store it was fitted on, or {hint}"
+            )
+
+
+def check_store(model: GplvmModel, store: BrdfStore | str | os.PathLike[str]) -> BrdfStore:
+    """Check that ``store`` holds the rows ``model`` was fitted on; returns the opened store.
+
+    Every material of the model must be in the store with the row digest the
+    model recorded (:attr:`GplvmModel.data_digests`), so a store of the same
+    names whose rows differ (re-ingested from other files, rows swapped) is
+    refused with a :class:`DataMismatchError` naming the model, the store and
+    the material, as is a model that records no digests.
+    """
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    label = str(model.path) if model.path is not None else "the GPLVM model"
+    hint = (f"refit the model ({integrity.rerun_hint(model.path)})" if model.path is not None
+            else "refit the model on this store")
+    _check_rows(label, "model", model.names, model.data_digests, st, hint)
+    return st
+
+
+def check_gram_store(info: GramInfo, store: BrdfStore | str | os.PathLike[str],
+                     path: str | os.PathLike[str] | None = None) -> BrdfStore:
+    """:func:`check_store` for a Gram file's :class:`GramInfo` (``path`` names it in messages)."""
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    label = str(path) if path is not None else "the Gram matrix"
+    hint = (f"compute it again ({integrity.rerun_hint(path)})" if path is not None
+            else "compute it again from this store")
+    _check_rows(label, "Gram matrix", info.materials, info.digests, st, hint)
+    return st
 
 
 # --------------------------------------------------------------------------
@@ -1261,7 +1983,7 @@ def fit_to_files(
     seed: int = 0,
     max_sweeps: int = 200,
     normalise: bool = True,
-    method: str = "hybrid",
+    method: str = "newton",
     threads: int | None = None,
 ) -> FitResult:
     """Fit a q-dimensional latent space to a saved Gram matrix; write the model and its trace.
@@ -1272,32 +1994,33 @@ def fit_to_files(
     The workflow's ``fit_gplvm`` job.  ``normalise``: fit to ``G/s`` with
     ``s`` = :func:`gram_scale` (stored in the model).  ``trace_out`` is a CSV
     ``step,stage,log_likelihood`` (Soler Fig. 5; stage ``hooke-jeeves`` for
-    the sweeps, ``lbfgs`` for the polish iterations), written atomically like
-    the model.
+    the sweeps, ``lbfgs`` for L-BFGS iterations, ``newton`` for Newton
+    steps), written atomically like the model.
     """
     gram, d, info = load_gram(gram_path)
     scale = gram_scale(gram, d) if normalise else 1.0
     with blas_threads(threads):
         result = fit(gram / scale, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps, method=method)
     logger.info(
-        "q = %d: Gram divided by %.6g; L %.6g -> %.6g in %d sweeps + %d L-BFGS iterations, %.2f s (start scale %s)",
+        "q = %d: Gram divided by %.6g; L %.6g -> %.6g in %d sweeps + %d L-BFGS iterations + %d Newton steps, "
+        "%.2f s (start scale %s)",
         q, scale, result.initial_log_likelihood, result.log_likelihood, result.sweeps,
-        result.polish_iterations, result.seconds, result.init_scale,
+        result.polish_iterations, result.newton_iterations, result.seconds, result.init_scale,
     )
     save_model(model_out, result, info.materials, space=info.space, mean_handling=info.mean_handling,
-               gram_scale=scale)
+               gram_scale=scale, data_digests=info.digests)
     write_trace(trace_out, result)
     return result
 
 
 def write_trace(path: str | os.PathLike[str], result: FitResult) -> None:
-    """The log-likelihood trace of a fit as CSV ``step,stage,log_likelihood`` (atomic)."""
+    """The log-likelihood trace of a fit as CSV ``step,stage,log_likelihood`` (atomic, with its digest line)."""
     path = Path(path)
     lines = ["step,stage,log_likelihood"]
     stages = result.stages or ["hooke-jeeves"] * len(result.trace)
     for (step, value), stage in zip(result.trace, stages):
         lines.append(f"{int(step)},{stage},{float(value)!r}")
-    atomic.write_text(path, "\n".join(lines) + "\n")
+    integrity.write_csv(path, "\n".join(lines) + "\n")
 
 
 def interpolate_to_file(
@@ -1315,11 +2038,16 @@ def interpolate_to_file(
     way from material A to material B of ``between`` (linear in the latent
     space).  The blend is Σ w_i z_i of the store's materials with the weights
     of :func:`blend_weights`, taken in the model's data space
-    (:func:`interpolate_table`).  ValueError for a point of the wrong length,
-    an unknown material, both or neither of ``at`` / ``between``, or a model
-    whose materials are not in the store.
+    (:func:`interpolate_table`).  The file carries a ``derived`` provenance
+    mark (:mod:`brdfpipe.manifold.derivation`: model and store digests, the
+    latent point, ``between`` and ``t``).  ValueError for a point of the wrong
+    length, an unknown material, both or neither of ``at`` / ``between``, a
+    damaged model file (:class:`GplvmFileError`), or a store that does not
+    hold the rows the model was fitted on (:class:`DataMismatchError`, naming
+    the model, the store and the material: :func:`check_store`).
     """
     model = load_model(model_path)
+    st = check_store(model, store_path)
     if (at is None) == (between is None):
         raise ValueError("give exactly one of a latent point (at) or two materials (between)")
     if between is not None:
@@ -1333,7 +2061,10 @@ def interpolate_to_file(
     else:
         x_star = np.asarray(at, dtype=np.float64)
     w = blend_weights(weights(model, x_star))
-    table, clamped = interpolate_table(store_path, w, materials=model.names, space=model.space)
-    merl.write_merl(out, table)
+    table, clamped = interpolate_table(st, w, materials=model.names, space=model.space, model=model)
+    details: dict[str, Any] = {"between": list(between), "t": float(t)} if between is not None else {}
+    mark = derivation.BlendSource.of(model_path, model, st).mark(
+        out=out, operation="interpolate", point=x_star, weights=w, **details)
+    merl.write_merl(out, table, mark=mark)
     logger.info("interpolated BRDF at x* = %s -> %s (%d clamped values)", np.round(x_star, 4).tolist(), out, clamped)
     return clamped

@@ -70,7 +70,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from brdfpipe.core.exr import write_exr
+from brdfpipe.core.exr import read_exr, write_exr
 
 __all__ = [
     "VARIANTS",
@@ -83,6 +83,14 @@ __all__ = [
     "make_envmap",
     "scene_dict",
     "pass_seeds",
+    "MITSUBA_UINT32_MAX",
+    "MAX_SPP",
+    "MAX_SEED",
+    "MAX_DEPTH",
+    "RENDER_BASE_BYTES",
+    "RENDER_BYTES_PER_PIXEL",
+    "render_memory",
+    "check_render_settings",
     "render_to_exr",
     "render_split_to_exr",
     "render_material",
@@ -100,6 +108,23 @@ DEFAULT_PASS_SPP: Final = 32
 SUN_AZIMUTH_DEG: Final = 135.0
 #: At most this many passes per render, so pass seeds ``seed*1000 + p`` never collide.
 _MAX_PASSES: Final = 1000
+#: Mitsuba's sampler ``seed`` and ``sample_count``, ``mi.render(seed=, spp=)`` and the path depth are
+#: 32-bit unsigned integers (Mitsuba 3.9: "value 4294967296 is out of bounds, must be in the range
+#: [0, 4294967295]"; a larger ``mi.render`` seed is a TypeError).
+MITSUBA_UINT32_MAX: Final = 2**32 - 1
+#: Largest ``spp`` of :func:`render_to_exr` with the default passes: 1000 passes of 32 samples.
+MAX_SPP: Final = _MAX_PASSES * DEFAULT_PASS_SPP
+#: Largest render seed: the pass seeds ``seed·1000 + p`` (p < 1000) must fit Mitsuba's 32-bit seed.
+MAX_SEED: Final = (MITSUBA_UINT32_MAX - (_MAX_PASSES - 1)) // _MAX_PASSES
+#: Largest ``max_depth`` (Mitsuba's path depth is 32-bit unsigned; the largest means unbounded).
+MAX_DEPTH: Final = MITSUBA_UINT32_MAX
+#: Peak memory of one render (``brdfpipe render``, a pre-render): a base plus a cost per pixel,
+#: independent of spp (passes of at most 32 samples, Mitsuba's loops are evaluated in one kernel).
+#: Measured with ``/usr/bin/time`` (max RSS) on Mitsuba 3.9.1 ``llvm_ad_rgb``, 2-core AMD EPYC:
+#: 1024 × 768 at 1 spp 400 MB, 2048 × 1536 at 1 and 4 spp 1,006 and 984 MB, 32 × 24 to 512 × 384 at
+#: 32 spp 242-249 MB: 257 bytes per pixel above 198 MB, rounded up.
+RENDER_BASE_BYTES: Final = 250_000_000
+RENDER_BYTES_PER_PIXEL: Final = 300
 
 
 class SceneError(RuntimeError):
@@ -304,6 +329,9 @@ def scene_dict(
     envmap = Path(envmap)
     if not envmap.is_file():
         raise FileNotFoundError(f"{envmap}: environment map not found")
+    # Mitsuba reads the file itself: a map made by make_envmap is checked against its digest first
+    # (a damaged one is an ExrError naming it); a user's own HDRI carries none and is taken as it is
+    read_exr(envmap, require=False)
     mi = _mitsuba()
     T = mi.ScalarTransform4f
 
@@ -382,7 +410,8 @@ def pass_seeds(spp: int, seed: int, pass_spp: int = DEFAULT_PASS_SPP) -> list[tu
 
     Passes have ``pass_spp`` samples except possibly the last (the
     remainder).  At most 1000 passes (ValueError otherwise), so two renders
-    with different seeds never share a pass seed.
+    with different seeds never share a pass seed; every pass seed fits
+    Mitsuba's 32-bit seed (``seed`` ≤ :data:`MAX_SEED`, ValueError otherwise).
     """
     if spp < 1 or pass_spp < 1:
         raise ValueError(f"spp and pass_spp must be >= 1, got {spp}, {pass_spp}")
@@ -390,8 +419,51 @@ def pass_seeds(spp: int, seed: int, pass_spp: int = DEFAULT_PASS_SPP) -> list[tu
         raise ValueError(f"seed must be >= 0, got {seed}")
     n = -(-spp // pass_spp)
     if n > _MAX_PASSES:
-        raise ValueError(f"{spp} spp in passes of {pass_spp} is {n} passes; at most {_MAX_PASSES}")
+        raise ValueError(f"{spp} spp in passes of {pass_spp} is {n} passes; at most {_MAX_PASSES} "
+                         f"(spp ≤ {_MAX_PASSES * pass_spp})")
+    if seed * _MAX_PASSES + n - 1 > MITSUBA_UINT32_MAX:
+        raise ValueError(f"seed {seed}: the pass seeds seed·{_MAX_PASSES} + p would exceed Mitsuba's 32-bit "
+                         f"sampler seed; at most {MAX_SEED}")
     return [(seed * _MAX_PASSES + p, min(pass_spp, spp - p * pass_spp)) for p in range(n)]
+
+
+def render_memory(width: int, height: int) -> int:
+    """Peak bytes of one render of ``width`` × ``height`` pixels (:data:`RENDER_BYTES_PER_PIXEL`)."""
+    return RENDER_BASE_BYTES + RENDER_BYTES_PER_PIXEL * int(width) * int(height)
+
+
+def check_render_settings(
+    resolution: tuple[int, int], spp: int, seed: int, max_depth: int, *, memory: int | None = None,
+    names: Mapping[str, str] | None = None,
+) -> None:
+    """ValueError naming the setting unless Mitsuba and this machine can render it.
+
+    ``spp`` ≤ :data:`MAX_SPP`, ``0 ≤ seed`` ≤ :data:`MAX_SEED`, ``1 ≤
+    max_depth`` ≤ :data:`MAX_DEPTH`, and the render's memory
+    (:func:`render_memory`) within the machine's physical memory
+    (``memory`` overrides it).  ``names`` maps ``resolution``, ``spp``,
+    ``seed``, ``max_depth`` to the names the message uses (CLI options,
+    config keys).
+    """
+    from brdfpipe.core import resources
+
+    nm = {"resolution": "resolution", "spp": "spp", "seed": "seed", "max_depth": "max_depth", **(names or {})}
+    w, h = (int(v) for v in resolution)
+    if w < 1 or h < 1:
+        raise ValueError(f"{nm['resolution']} {w} {h}: width and height must be ≥ 1")
+    if not 1 <= int(spp) <= MAX_SPP:
+        raise ValueError(f"{nm['spp']} {spp}: at most {MAX_SPP} samples per pixel ({_MAX_PASSES} passes of "
+                         f"{DEFAULT_PASS_SPP}, each with its own seed)")
+    if not 0 <= int(seed) <= MAX_SEED:
+        raise ValueError(f"{nm['seed']} {seed}: must be in [0, {MAX_SEED}] (pass p renders with seed "
+                         f"seed·{_MAX_PASSES} + p, and Mitsuba's seed is a 32-bit unsigned integer)")
+    if not 1 <= int(max_depth) <= MAX_DEPTH:
+        raise ValueError(f"{nm['max_depth']} {max_depth}: must be in [1, {MAX_DEPTH}] (Mitsuba's path depth "
+                         "is a 32-bit unsigned integer)")
+    resources.check_memory(
+        render_memory(w, h), what=f"{nm['resolution']} {w} {h}", memory=memory,
+        how=f"{resources.format_bytes(RENDER_BASE_BYTES)} + {RENDER_BYTES_PER_PIXEL} B per pixel × {w * h} pixels",
+    )
 
 
 def _check_attrs(out: Path, attrs: Mapping[str, str] | None, auto: Mapping[str, str]) -> None:
@@ -641,6 +713,5 @@ def render_object_mask(
     scene["integrator"] = bounce.bounce_integrator(1)
     render_split_to_exr(scene, None, out_mask=out, spp=spp, seed=seed,
                         attrs={"integrator": bounce.PLUGIN_NAME, **(attrs or {})})
-    from brdfpipe.core.exr import read_exr
 
     return read_exr(out)[..., 0]

@@ -18,5 +18,7 @@ wildcards and config), and a number typed into a caption would go stale.
 
 Modules: :mod:`brdfpipe.report.items` (which files the report holds: parse
 time, standard library only), :mod:`brdfpipe.report.claims`,
-:mod:`brdfpipe.report.captions`, :mod:`brdfpipe.report.runinfo` (job time).
+:mod:`brdfpipe.report.captions`, :mod:`brdfpipe.report.runinfo` (job time),
+:mod:`brdfpipe.report.rst` (the one escaping of run-supplied text into
+reStructuredText and Jinja2: every name reaches the page as text).
 """

@@ -7,6 +7,9 @@ caption file when it builds the report (``snakemake --report``), not when
 it parses the workflow, so the captions can hold numbers computed by a job.
 Snakemake renders captions as Jinja2 templates first: the text is wrapped
 in a ``raw`` block so no measured text is ever read as template syntax.
+Every string that comes from the run (claims, the database label, file
+names) is escaped by :mod:`brdfpipe.report.rst`, so no name can inject
+markup, a link or template code.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from brdfpipe.core import atomic
+from brdfpipe.report import rst
 from brdfpipe.report.claims import Claim, rst_cell
 from brdfpipe.report.items import FIGURE_NUMBERS
 
@@ -49,7 +53,7 @@ DESCRIPTIONS: dict[str, str] = {
                            "table-lookup errors (kinds ``rms_log``, ``relrms_linear``), the closed-loop errors from "
                            "the noiseless render (``closedloop_noiseless_*``) and from the sensor "
                            "(``closedloop_*``), the observations used and the share of pixels masked.",
-    "soler-fig05": "GPLVM log-likelihood over the optimiser's steps (start, L-BFGS, Hooke–Jeeves), default "
+    "soler-fig05": "GPLVM log-likelihood over the optimiser's steps (start, L-BFGS, Newton, Hooke–Jeeves), default "
                    "candidate, each latent dimension q.",
     "soler-fig10_q2": "The 2-D latent space of the default candidate: every material at its latent point, "
                       "coloured by its albedo.",
@@ -82,20 +86,14 @@ DESCRIPTIONS: dict[str, str] = {
               "CSVs, and whether it holds (also on the front page).",
 }
 
-#: Extra note for the EXR error maps, which browsers cannot show.
+#: Extra note for the EXR error maps, which browsers cannot show ({error}, {blended}: rst literals).
 _EXR_NOTE = ("The error maps' data are EXR files (float32, not shown: browsers cannot display EXR): "
-             "``{prefix}-error.exr`` (|blend − reference|) and ``{prefix}-blended.exr`` (the blend), next to each "
-             "PNG shown here.")
+             "{error} (\\|blend − reference\\|) and {blended} (the blend), next to each PNG shown here.")
 
 
 def _bars(text: str) -> str:
     """``|x|`` in the descriptions is an absolute value, not an rst substitution."""
     return text.replace("|", "\\|")
-
-
-def _raw(text: str) -> str:
-    """Protect ``text`` from Snakemake's Jinja2 pass over captions."""
-    return "{% raw %}" + text.replace("{% endraw %}", "{ % endraw % }") + "{% endraw %}"
 
 
 def _claim_item(c: Claim) -> str:
@@ -109,18 +107,21 @@ def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequ
     if key not in DESCRIPTIONS:
         raise KeyError(f"no caption description for {key!r}")
     mine = [c for c in claims if key in c.figures]
-    lines = [f"**{FIGURE_NUMBERS[key]}** analogue — database: **{database}**", "", _bars(DESCRIPTIONS[key]), ""]
+    lines = [f"**{FIGURE_NUMBERS[key]}** analogue — database: **{rst.text(database)}**", "",
+             _bars(DESCRIPTIONS[key]), ""]
     if mine:
         lines += ["Claims (paper value vs this run):", ""] + [_claim_item(c) for c in mine] + [""]
     else:
         lines += ["The paper makes no quantitative claim about this figure; it is shown for comparison.", ""]
     if key == "render-errormap":
         prefixes = sorted({f[: -len("-error.png")] for f in files if f.endswith("-error.png")})
-        lines += [_bars(_EXR_NOTE.format(prefix=prefixes[0] if len(prefixes) == 1 else "<path>-t<t>")), ""]
+        prefix = prefixes[0] if len(prefixes) == 1 else "<path>-t<t>"
+        lines += [_EXR_NOTE.format(error=rst.literal(f"{prefix}-error.exr"),
+                                   blended=rst.literal(f"{prefix}-blended.exr")), ""]
     pdfs = [f[:-4] + ".pdf" for f in files if f.endswith(".png") and key != "render-errormap"]
     if pdfs:
-        lines += ["Vector version: " + ", ".join(f"``{p}``" for p in pdfs) + ".", ""]
-    return _raw("\n".join(lines))
+        lines += ["Vector version: " + ", ".join(rst.literal(p) for p in pdfs) + ".", ""]
+    return rst.jinja_raw("\n".join(lines))
 
 
 def write_captions(items: Sequence[Mapping[str, str]], claims: Sequence[Claim], *, database: str) -> list[Path]:

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from brdfpipe.core import atomic, version
+from brdfpipe.report import rst
 from brdfpipe.report.claims import Claim, claims_table_rst, rst_cell
 
 __all__ = [
@@ -170,18 +171,31 @@ def _literal(text: str) -> list[str]:
     return ["::", ""] + ["   " + line for line in text.rstrip("\n").splitlines()] + [""]
 
 
+def _database_note(database: str) -> str:
+    """The front page's sentence on what a database label means (nothing for measured MERL data)."""
+    if database == "merl":
+        return ""
+    if database == "synthetic":
+        return " This is the generated synthetic MERL-format database, not real MERL data."
+    if database == "derived":
+        return (" These are materials derived by brdfpipe (interpolated, sampled, extrapolated or reconstructed; "
+                "see each file's provenance mark), not measurements.")
+    return " These are not measured MERL data."
+
+
 def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Mapping[str, Any],
               configfiles: Sequence[str], targets: Mapping[str, int], versions: Mapping[str, str]) -> str:
     """The front page body (reStructuredText): what ran, the claims, versions, the configuration."""
     database = str(splits["database"])
     counts = {h: sum(c.holds == h for c in claims) for h in ("yes", "no", "not measured")}
     lines = ["What ran", "--------", "",
-             f"Database: **{database}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
+             f"Database: **{rst.text(database)}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
              f"{len(splits['test'])} held out: {rst_cell(', '.join(splits['test']))}), as recorded in "
              "``results/splits.json`` from the store." +
-             (" This is the generated synthetic MERL-format database, not real MERL data." if database == "synthetic" else ""),
+             _database_note(database),
              "",
-             "Configuration file(s): " + ", ".join(f"``{c}``" for c in configfiles) + " (validated contents below).",
+             "Configuration file(s): " + (", ".join(rst.literal(c) for c in configfiles) or "none")
+             + " (validated contents below).",
              "", "Targets of rule ``all`` (files):", ""]
     lines += [f"- {rst_cell(k)}: {v}" for k, v in targets.items()]
     lines += ["", "Claims", "------", "",
@@ -194,7 +208,9 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
     for k, v in versions.items():
         lines += [f"   * - {rst_cell(k)}", f"     - {rst_cell(v)}"]
     lines += ["", "Configuration", "-------------", ""]
-    lines += _literal(json.dumps(config, indent=2, sort_keys=True, default=str))
+    # a literal block: ASCII JSON has no line break, control or separator character inside a string, so no
+    # config value can end the block (every line stays indented) and nothing in it is markup
+    lines += _literal(json.dumps(config, indent=2, sort_keys=True, default=str, ensure_ascii=True))
     return "\n".join(lines) + "\n"
 
 

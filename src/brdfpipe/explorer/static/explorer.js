@@ -4,6 +4,22 @@
 'use strict';
 (function () {
   const $ = (id) => document.getElementById(id);
+  // The page's only way to put data on screen: elements built with DOM calls, strings added as text nodes
+  // (never innerHTML), so a material, path or database name shows literally whatever it holds.
+  function el(tag, props = {}, ...children) {
+    const e = document.createElement(tag);
+    for (const [k, v] of Object.entries(props)) {
+      if (k === 'class') e.className = v;
+      else if (k === 'style') e.style.cssText = v;
+      else if (k.startsWith('data-')) e.dataset[k.slice(5)] = String(v);
+      else e[k] = v;
+    }
+    for (const c of children) e.append(c instanceof Node ? c : document.createTextNode(String(c)));
+    return e;
+  }
+  function options(select, items) {  // items: [value, label]
+    select.replaceChildren(...items.map(([value, label]) => el('option', { value: String(value) }, label)));
+  }
   const api = { ready: false, error: null };
   window.explorer = api;
 
@@ -15,12 +31,57 @@
   }
 
   // ---------------------------------------------------------------- data
-  const DATA = window.BRDF_EXPLORER_DATA;
-  if (!DATA || !DATA.model || !DATA.layers || !DATA.basis || !DATA.refs) {
-    fail('The explorer data (data/*.js) did not load. Write the folder with brdfpipe ' +
-         '(the workflow rule write_explorer) and open its index.html.');
+  // Every data/*.js file assigns {crc32, json}: its payload as JSON text and the CRC-32 of that text
+  // (brdfpipe.core.integrity.text_crc32). A file that did not load (missing, or truncated: it does not
+  // parse) or whose text does not match its CRC-32 is refused, naming it, before anything is drawn.
+  const RERUN = 'write the explorer folder again (rerun its rule: snakemake --forcerun write_explorer)';
+  // CRC-32 (zlib's), a byte at a time (slicing by 8 over TextEncoder.encodeInto's bytes was not measurably
+  // faster in headless Chromium on the shared 2-core machine, benches/bench_integrity.py).
+  const CRC_TABLE = (() => {
+    const t = new Uint32Array(256);
+    for (let n = 0; n < 256; n++) {
+      let c = n;
+      for (let k = 0; k < 8; k++) c = c & 1 ? 0xEDB88320 ^ (c >>> 1) : c >>> 1;
+      t[n] = c >>> 0;
+    }
+    return t;
+  })();
+  function crc32(text) {  // of an ASCII string: its bytes are its char codes
+    const T = CRC_TABLE;
+    let c = 0xFFFFFFFF;
+    for (let i = 0; i < text.length; i++) c = T[(c ^ text.charCodeAt(i)) & 0xFF] ^ (c >>> 8);
+    return 'crc32:' + ((c ^ 0xFFFFFFFF) >>> 0).toString(16).padStart(8, '0');
+  }
+  let crcMs = 0;
+  function loadData() {
+    const raw = window.BRDF_EXPLORER_DATA || {}, out = {};
+    for (const key of ['model', 'layers', 'basis', 'refs']) {
+      const file = `data/${key}.js`, rec = raw[key];
+      if (!rec || typeof rec.json !== 'string' || typeof rec.crc32 !== 'string') {
+        return `${file} did not load (missing, truncated or not an explorer data file); ${RERUN}.`;
+      }
+      const t0 = performance.now(), crc = crc32(rec.json);
+      crcMs += performance.now() - t0;
+      if (crc !== rec.crc32) {
+        return `${file}: its payload does not match its recorded digest (damaged or edited); ${RERUN}.`;
+      }
+      try {
+        out[key] = JSON.parse(rec.json);
+      } catch (e) {
+        return `${file}: its payload is not JSON (${e.message}); ${RERUN}.`;
+      }
+      raw[key] = null;  // the text is no longer needed
+    }
+    return out;
+  }
+  const DATA = loadData();
+  if (typeof DATA === 'string') {
+    fail(DATA);
+    for (const id of ['controls', 'slices', 'path-controls']) $(id).hidden = true;
+    document.querySelector('main').hidden = true;  // no black canvas: only the message
     return;
   }
+  api.verifyMs = crcMs;  // the CRC-32 checks of the four data files
   function bytes(b64) {
     const bin = atob(b64);
     const out = new Uint8Array(bin.length);
@@ -526,9 +587,10 @@
     $('sums').textContent = `Σ|wᵢ| = ${sabs.toFixed(3)}`;
     const order = Array.from(w.keys()).sort((a, b) => Math.abs(w[b]) - Math.abs(w[a])).slice(0, 8);
     const big = Math.max(...order.map((i) => Math.abs(w[i])), 1e-12);
-    $('weights').tBodies[0].innerHTML = order.map((i) =>
-      `<tr><td>${NAMES[i]}</td><td class="v">${fmt(w[i])}</td><td><span class="bar${w[i] < 0 ? ' neg' : ''}" ` +
-      `style="width:${Math.round(90 * Math.abs(w[i]) / big)}px"></span></td></tr>`).join('');
+    $('weights').tBodies[0].replaceChildren(...order.map((i) => el('tr', {},
+      el('td', {}, NAMES[i]), el('td', { class: 'v' }, fmt(w[i])),
+      el('td', {}, el('span', { class: 'bar' + (w[i] < 0 ? ' neg' : ''),
+                                style: `width:${Math.round(90 * Math.abs(w[i]) / big)}px` })))));
     api.last = { albedo: alb, inside, sumAbs: sabs, warning: warnings.join(' ') };
   }
 
@@ -594,8 +656,9 @@
     const entries = pathEntries(a, b);
     if (entries.length && MODELS.some((m) => m.q === entries[0].p.q) && state.q !== entries[0].p.q) selectModel(entries[0].p.q, false);
     $('path-a').value = a; $('path-b').value = b; $('path-t').value = t; $('path-t-out').textContent = t.toFixed(2);
-    $('path-refs').innerHTML = entries.length ? 'references: ' + entries.map(({ p }) => `<button data-t="${p.t}">t = ${p.t}</button>`).join('') :
-      'no rendered reference on this path';
+    $('path-refs').replaceChildren(...(entries.length ?
+      ['references: ', ...entries.map(({ p }) => el('button', { 'data-t': Number(p.t) }, `t = ${Number(p.t)}`))] :
+      ['no rendered reference on this path']));
     const m = model(), x = new Array(m.q);
     for (let d = 0; d < m.q; d++) x[d] = (1 - t) * m.X[a * m.q + d] + t * m.X[b * m.q + d];
     setPoint(x);
@@ -605,14 +668,14 @@
   // ---------------------------------------------------------------- controls
   function buildSlices() {
     const m = model(), box = $('slices');
-    box.innerHTML = '';
+    box.replaceChildren();
     $('dims-box').hidden = m.q < 3;
     for (let a = 0; a < m.q; a++) {
       if (state.dims.includes(a)) continue;
       const [lo, hi] = extent(m, a);
-      const lab = document.createElement('label');
-      lab.innerHTML = `x${a + 1} <input type="range" min="${lo}" max="${hi}" step="${(hi - lo) / 400}" value="${state.point[a]}"> <output>${state.point[a].toFixed(2)}</output>`;
-      const input = lab.querySelector('input');
+      const input = el('input', { type: 'range', min: String(lo), max: String(hi), step: String((hi - lo) / 400) });
+      input.value = String(state.point[a]);
+      const lab = el('label', {}, `x${a + 1} `, input, ' ', el('output', {}, state.point[a].toFixed(2)));
       input.addEventListener('input', () => {
         const x = state.point.slice(); x[a] = Number(input.value);
         lab.querySelector('output').textContent = x[a].toFixed(2);
@@ -626,8 +689,8 @@
     const m = model();
     state.dims = m.q === 1 ? [0, null] : [0, 1];
     $('model').value = String(q);
-    const opts = Array.from({ length: m.q }, (_, a) => `<option value="${a}">x${a + 1}</option>`).join('');
-    $('dim-x').innerHTML = opts; $('dim-y').innerHTML = opts;
+    const axes = Array.from({ length: m.q }, (_, a) => [a, `x${a + 1}`]);
+    options($('dim-x'), axes); options($('dim-y'), axes);
     $('dim-x').value = '0'; $('dim-y').value = '1';
     hullCache.key = null;
     state.point = centre(m);
@@ -666,16 +729,16 @@
   function init() {
     $('subtitle').textContent = `${N} materials (${M.database} database), GPLVM ${M.space} μ = ${M.mu}, ` +
       `pre-renders ${W} × ${H}`;
-    $('model').innerHTML = MODELS.map((m) => `<option value="${m.q}">q = ${m.q}</option>`).join('');
+    options($('model'), MODELS.map((m) => [m.q, `q = ${m.q}`]));
     const b = M.basis;
-    $('basis').innerHTML = `<option value="exact">exact: ${N} pre-renders</option>` +
-      `<option value="reduced">reduced: mean + ${b.k} components` +
-      (b.below_floor === false ? ' (approximate: worst blend above the noise floor)' : '') + '</option>';
+    options($('basis'), [['exact', `exact: ${N} pre-renders`],
+      ['reduced', `reduced: mean + ${b.k} components` +
+        (b.below_floor === false ? ' (approximate: worst blend above the noise floor)' : '')]]);
     $('basis').title = `reduced basis: largest relative RMSE ${b.error_prerenders_max.toPrecision(3)} over the pre-renders, ` +
       `${b.error_blends_max.toPrecision(3)} over ${b.blend_samples} blends in the hulls; target ${b.target.toPrecision(3)}` +
       (b.floor === null ? ' (no noise floor known)' : ' (the Monte Carlo noise of one pre-render)');
-    const opts = NAMES.map((n, i) => `<option value="${i}">${n}</option>`).join('');
-    $('path-a').innerHTML = opts; $('path-b').innerHTML = opts;
+    const names = NAMES.map((n, i) => [i, n]);
+    options($('path-a'), names); options($('path-b'), names);
     $('footer').textContent = `brdfpipe ${M.brdfpipe_version}. Weights b = K⁻¹k from the exported model; ` +
       `blend Σ wᵢ Iᵢ of half-float pre-renders in a WebGL2 shader, tone mapped there (×2^exposure, sRGB). ` +
       `Reduced mode: ${b.k} SVD components + mean, largest error ${(100 * Math.max(b.error_prerenders_max, b.error_blends_max)).toFixed(2)} % ` +
