@@ -21,6 +21,7 @@ rule write_claims:
         errormap_summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
         floor_check=fn.floor_check_csv(FLOOR_SCENE) if FLOOR_CANDIDATES else [],
         closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
+        stamp=stamp_of("write_claims"),
     output:
         claims=reported(fn.claims_csv()),
         json=fn.claims_json(),
@@ -55,6 +56,7 @@ rule summarize_stage_times:
             f for v in TARGETS.values() for f in (v if isinstance(v, list) else [v])
         ],
         claims=fn.claims_csv(),
+        stamp=stamp_of("summarize_stage_times"),
     output:
         csv=fn.stage_times_csv(),
         rst=fn.stage_times_rst(),

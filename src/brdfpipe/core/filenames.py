@@ -76,11 +76,15 @@ __all__ = [
     "stage_times_rst",
     "caption",
     "explorer_dir",
+    "STAMPS",
+    "stamp",
     "rule_of",
 ]
 
 #: Root folder of every output.
 RESULTS = "results"
+#: Folder of the job stamps (:mod:`brdfpipe.core.stamps`): one subfolder per rule.
+STAMPS = f"{RESULTS}/.stamps"
 #: Folder of the figures (PNG + PDF, and Fig. 8's table).
 FIGURES = f"{RESULTS}/figures"
 
@@ -407,6 +411,14 @@ def caption(name: str) -> str:
 def explorer_dir() -> str:
     """Folder of the in-browser material explorer (:mod:`brdfpipe.explorer`): open its ``index.html``."""
     return f"{RESULTS}/explorer"
+
+
+# -- job stamps (brdfpipe.core.stamps) -------------------------------------
+
+
+def stamp(rule: str, job: str) -> str:
+    """The stamp of the job ``job`` (:func:`brdfpipe.core.stamps.job_key` of its wildcards) of ``rule``."""
+    return f"{STAMPS}/{rule}/{job}"
 
 
 # -- which rule writes a file (the integrity messages' "what to rerun") -------
