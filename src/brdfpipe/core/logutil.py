@@ -32,8 +32,14 @@ def setup_console_logging(level: int = logging.INFO) -> None:
 
 
 @contextmanager
-def log_to(path: str | Path, level: int = logging.INFO) -> Iterator[logging.Logger]:
-    """Log to ``path`` (and stderr) for the duration of a workflow job.
+def log_to(path: str | Path, level: int = logging.INFO,
+           console_level: int = logging.WARNING) -> Iterator[logging.Logger]:
+    """Log to ``path`` (records from ``level`` on) and to stderr (from ``console_level`` on) during a job.
+
+    The job log keeps the detail (progress, optimiser steps, per-pass
+    messages); the console, which Snakemake shares between all jobs of a run,
+    gets only warnings and errors, so that a run prints Snakemake's progress
+    and what needs attention.
 
     An exception escaping the block is written with its traceback to the log
     before it propagates, so a failed job's log says why it failed.  The job
@@ -47,7 +53,9 @@ def log_to(path: str | Path, level: int = logging.INFO) -> Iterator[logging.Logg
     root = logging.getLogger()
     file_handler = logging.FileHandler(path, mode="w", encoding="utf-8")
     opened = os.fstat(file_handler.stream.fileno())
-    handlers: list[logging.Handler] = [file_handler, logging.StreamHandler(sys.stderr)]
+    console = logging.StreamHandler(sys.stderr)
+    console.setLevel(console_level)
+    handlers: list[logging.Handler] = [file_handler, console]
     for h in handlers:
         h.setFormatter(logging.Formatter(_FORMAT))
         root.addHandler(h)
