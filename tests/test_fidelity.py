@@ -11,7 +11,7 @@ import scipy.spatial
 from brdfpipe.core import integrity
 from brdfpipe.data import merl, store, synth
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.manifold import analysis, fidelity, gplvm, latent
+from brdfpipe.manifold import albedo, analysis, fidelity, gplvm, latent
 
 N = 8
 
@@ -68,15 +68,15 @@ def test_smooth_weights_match_gplvm_weights_off_the_training_points(setup: dict)
 def test_albedo_outside_equals_the_albedo_of_the_interpolated_tables(setup: dict) -> None:
     """w·A (linear) against albedos recomputed from the raw rows; the albedo is linear in the table."""
     m = _model(setup, 2)
-    A = analysis.material_albedos(setup["store"], m.names)
+    A = albedo.material_albedos(setup["store"], m.names)
     rows = setup["brdf"]
     valid = setup["valid"]
-    own = np.stack([analysis.material_albedo(np.where(valid, r, -1.0).reshape(merl.SHAPE)) for r in rows])
+    own = np.stack([albedo.material_albedo(np.where(valid, r, -1.0).reshape(merl.SHAPE)) for r in rows])
     assert np.allclose(own, A, rtol=1e-6)
     # a convex blend (no negative value): its table's albedo is the blend of the albedos
     w = np.zeros(N)
     w[[0, 3]] = 0.3, 0.7
-    blend = analysis.material_albedo(np.where(valid, w @ rows, -1.0).reshape(merl.SHAPE))
+    blend = albedo.material_albedo(np.where(valid, w @ rows, -1.0).reshape(merl.SHAPE))
     assert np.allclose(blend, w @ A, rtol=1e-6)
     H = latent.sample_in_hull(m.X, 6, np.random.default_rng(1))
     far = m.X.mean(axis=0) + 40.0 * (m.X.max(axis=0) - m.X.min(axis=0))  # far outside: the mean material
@@ -146,7 +146,7 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
     assert np.isnan(rows[0]["perceptual_max_deviation"]) and rows[1]["perceptual_max_deviation"] >= 0.0
     # the map statistic by another route: the grid of analysis.albedo_map, w·A outside [0, 1]
     m2 = _model(setup, 2)
-    A = analysis.material_albedos(setup["store"], m2.names)
+    A = albedo.material_albedos(setup["store"], m2.names)
     amap = analysis.albedo_map(m2, A, n=12)
     assert rows[0]["albedo_bad_map"] == pytest.approx(((amap["albedo"] < 0) | (amap["albedo"] > 1)).any(axis=2).mean())
     table = integrity.read_csv_rows(out_s)[1]
@@ -178,7 +178,7 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
 
 def test_albedo_map_hull_statistics(setup: dict) -> None:
     m = _model(setup, 2)
-    A = analysis.material_albedos(setup["store"], m.names)
+    A = albedo.material_albedos(setup["store"], m.names)
     amap = analysis.albedo_map(m, A, n=16)
     XX, YY = np.meshgrid(amap["x"], amap["y"])
     inside = latent.hull_contains(m.X, np.c_[XX.ravel(), YY.ravel()], method="lp").reshape(16, 16)

@@ -15,7 +15,7 @@ import scipy.stats
 
 from brdfpipe import cli
 from brdfpipe.data import merl, provenance, store, synth
-from brdfpipe.manifold import analysis, gplvm, latent
+from brdfpipe.manifold import albedo, analysis, gplvm, latent
 
 # --------------------------------------------------------------------------
 # hull_contains
@@ -280,7 +280,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
     names = list(store.open_store(zarr_path).materials)
     X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.4, 0.6]])
     return {"tmp": tmp, "store": zarr_path, "names": names, "X": X,
-            "albedos": analysis.material_albedos(zarr_path, names)}
+            "albedos": albedo.material_albedos(zarr_path, names)}
 
 
 def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -> None:
@@ -291,7 +291,7 @@ def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -
         for p, a in zip(pts, got):
             w = gplvm.blend_weights(gplvm.weights(m, p))
             table, clamped = gplvm.interpolate_table(tiny["store"], w, materials=m.names, space=space)
-            assert np.allclose(a, analysis.material_albedo(table), rtol=1e-9, atol=0), space
+            assert np.allclose(a, albedo.material_albedo(table), rtol=1e-9, atol=0), space
         assert np.allclose(got[2], tiny["albedos"][0], rtol=1e-6)  # a training point reproduces its material
         linear = latent.blend_weights_at(m, pts) @ tiny["albedos"]
         default = latent.latent_albedos(m, tiny["store"], pts)

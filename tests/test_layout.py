@@ -141,6 +141,31 @@ def subpackage_graph(sources: dict[str, str]) -> dict[str, set[str]]:
     return graph
 
 
+def _type_checking_lines(source: str) -> set[int]:
+    """Lines of the imports under ``if TYPE_CHECKING:`` (annotations only: never run)."""
+    lines: set[int] = set()
+    for node in ast.walk(_parse(source)):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            for inner in node.body:
+                for sub in ast.walk(inner):
+                    if isinstance(sub, (ast.Import, ast.ImportFrom)):
+                        lines.add(sub.lineno)
+    return lines
+
+
+def module_graph(sources: dict[str, str]) -> dict[str, set[str]]:
+    """Module → the brdfpipe modules it imports when run (function bodies too; not annotation-only imports)."""
+    graph: dict[str, set[str]] = {}
+    for name, source in sources.items():
+        typing_only = _type_checking_lines(source)
+        for target, _, line in imports_of(name, source, sources):
+            if line in typing_only:
+                continue
+            if target != name and target in sources and not _is_package(target, sources):
+                graph.setdefault(name, set()).add(target)
+    return graph
+
+
 def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     state: dict[str, int] = {}
     stack: list[str] = []
@@ -180,6 +205,19 @@ def test_no_cycle_between_subpackages() -> None:
     graph = subpackage_graph(module_sources())
     assert find_cycle(graph) is None, find_cycle(graph)
     assert graph.get("core", set()) == set()  # core imports nothing of brdfpipe above it
+
+
+def test_no_cycle_between_modules() -> None:
+    """Not even inside a subpackage (a deferred import in a function counts too)."""
+    graph = module_graph(module_sources())
+    assert find_cycle(graph) is None, " -> ".join(find_cycle(graph) or [])
+
+
+def test_the_module_cycle_check_catches_a_cycle_inside_a_subpackage() -> None:
+    sources = module_sources()
+    sources["brdfpipe.data.merl"] += "\ndef f():\n    from brdfpipe.data import store\n"
+    cycle = find_cycle(module_graph(sources))
+    assert cycle is not None and "brdfpipe.data.merl" in cycle and "brdfpipe.data.store" in cycle, cycle
 
 
 @pytest.mark.parametrize(

@@ -160,9 +160,7 @@ def write_merl(path: str | os.PathLike[str], table: ArrayLike, *, mark: Mark | N
     arr = _check_table(table)
     raw = np.ascontiguousarray(arr / SCALES[:, None, None, None], dtype="<f8")
     if mark is not None:
-        from brdfpipe.data import provenance
-
-        provenance.stamp(raw.reshape(3, N_CELLS), mark)
+        mark.stamp(raw.reshape(3, N_CELLS))
     header = np.asarray(DIMS, dtype="<i4").tobytes()
     atomic.write_bytes(path, (header, memoryview(raw).cast("B")))
 

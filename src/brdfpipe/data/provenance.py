@@ -330,6 +330,14 @@ class Mark:
         """The canonical JSON of ``{"kind": …, **fields}`` (UTF-8, sorted keys)."""
         return _canonical({"kind": self.kind, **self.fields})
 
+    def stamp(self, raw: NDArray[np.float64]) -> None:
+        """Write this mark into raw (file) values of shape ``(3, N_CELLS)`` in place (:func:`stamp`).
+
+        What :func:`brdfpipe.data.merl.write_merl` calls with ``mark=``, so that
+        the file format needs no import of this module.
+        """
+        stamp(raw, self)
+
     def to_json(self) -> dict[str, Any]:
         """The mark as a JSON object (``{"kind": "synthetic", "legacy": true}`` for a legacy mark)."""
         if self.legacy:

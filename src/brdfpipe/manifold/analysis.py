@@ -11,8 +11,8 @@ uniform incident distribution to that distribution's irradiance:
 ``A = (1/π) ∫∫ f(ωi, ωo) cos θi cos θo dωi dωo`` (the white-sky albedo).
 With the directional albedo ``a(θi) = ∫ f cos θo dωo``
 (:func:`brdfpipe.data.merl.directional_albedo`) and ``u = sin²θi``,
-``A = ∫₀¹ a(θi(u)) du``; :func:`material_albedo` takes the midpoint rule with
-:data:`ALBEDO_NODES` nodes in ``u``.  A is linear in f, so the albedo of the
+``A = ∫₀¹ a(θi(u)) du``; :func:`brdfpipe.manifold.albedo.material_albedo` takes the midpoint rule with
+:data:`~brdfpipe.manifold.albedo.ALBEDO_NODES` nodes in ``u``.  A is linear in f, so the albedo of the
 interpolated BRDF at a latent point is ``Σ wᵢ Aᵢ`` with the blend weights of
 :func:`brdfpipe.manifold.gplvm.blend_weights` (each material's albedo is computed once,
 over its own measured cells; the clamping of negative interpolated values,
@@ -60,17 +60,15 @@ from brdfpipe.core import integrity
 from brdfpipe.core.filenames import path_name
 from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
 from brdfpipe.data import merl
-from brdfpipe.data.store import BrdfStore, iter_column_blocks, open_store
+from brdfpipe.data.store import BrdfStore, open_store
 from brdfpipe.manifold import derivation, gplvm, latent, perceptual
+from brdfpipe.manifold.albedo import material_albedos
 
 __all__ = [
-    "ALBEDO_NODES",
     "SOLER_PATHS",
     "PATH_COLUMNS",
     "REPRODUCTION_COLUMNS",
     "ALBEDO_COLUMNS",
-    "material_albedo",
-    "material_albedos",
     "default_paths",
     "check_paths",
     "path_name",
@@ -86,8 +84,6 @@ __all__ = [
 
 logger = logging.getLogger("brdfpipe.manifold.analysis")
 
-#: Midpoint nodes in u = sin²θi for the albedo integral.
-ALBEDO_NODES: Final = 16
 #: Soler Fig. 9's three pairs (used by default when the database has them: the real MERL).
 PATH_COLUMNS: Final = (
     "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
@@ -97,48 +93,6 @@ REPRODUCTION_COLUMNS: Final = ("database", "space", "material", "method", "k", "
 ALBEDO_COLUMNS: Final = ("database", "material", "r", "g", "b", "luminance")
 _LUMA: Final = np.array([0.2126, 0.7152, 0.0722])
 _MAX_TABLES_IN_MEMORY: Final = 24
-
-
-# --------------------------------------------------------------------------
-# Albedo
-# --------------------------------------------------------------------------
-
-
-def material_albedo(table: ArrayLike, nodes: int = ALBEDO_NODES) -> NDArray[np.float64]:
-    """White-sky albedo ``(1/π)∬ f cosθi cosθo`` of a MERL table (physical units), per channel ``(3,)``."""
-    if nodes < 1:
-        raise ValueError(f"nodes must be >= 1, got {nodes}")
-    u = (np.arange(nodes) + 0.5) / nodes
-    theta_i = np.arcsin(np.sqrt(u))
-    return merl.directional_albedo(table, theta_i).mean(axis=0)
-
-
-def _read_tables(st: BrdfStore, rows: NDArray[np.intp]) -> NDArray[np.float64]:
-    """Tables of store rows (ascending), ``(n, 3, 90, 90, 180)`` float64; unmeasured cells negative as stored."""
-    out = np.empty((rows.size, 3 * merl.N_CELLS))
-    for start, stop, block in iter_column_blocks(st, rows=rows):
-        out[:, start:stop] = block
-    return out.reshape((rows.size, *merl.SHAPE))
-
-
-def material_albedos(store: BrdfStore | str | os.PathLike[str], materials: Sequence[str]) -> NDArray[np.float64]:
-    """Albedo ``(N, 3)`` of each named material of the store (read a few materials at a time)."""
-    st = store if isinstance(store, BrdfStore) else open_store(store)
-    index = {m: i for i, m in enumerate(st.materials)}
-    unknown = [m for m in materials if m not in index]
-    if unknown:
-        raise ValueError(f"{st.path}: unknown material(s) {', '.join(unknown)}")
-    rows = np.array([index[m] for m in materials], dtype=np.intp)
-    out = np.empty((rows.size, 3))
-    order = np.argsort(rows, kind="stable")
-    batch = 8
-    for b0 in range(0, rows.size, batch):
-        pick = order[b0 : b0 + batch]
-        tables = _read_tables(st, rows[pick])
-        for k, i in enumerate(pick):
-            out[i] = material_albedo(tables[k])
-        logger.info("albedo: %d / %d materials", min(b0 + batch, rows.size), rows.size)
-    return out
 
 
 # --------------------------------------------------------------------------

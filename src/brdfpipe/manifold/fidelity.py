@@ -62,6 +62,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, gplvm, latent, perceptual
+from brdfpipe.manifold.albedo import material_albedo, material_albedos
 
 __all__ = [
     "EPSILONS",
@@ -163,7 +164,7 @@ def albedo_outside(
     for c0 in range(0, W.shape[0], 8):
         tables, _ = gplvm.interpolate_tables(store, W[c0 : c0 + 8], materials=model.names, space=model.space,
                                              model=model)
-        out[c0 : c0 + 8] = _outside(np.stack([analysis.material_albedo(t) for t in tables]))
+        out[c0 : c0 + 8] = _outside(np.stack([material_albedo(t) for t in tables]))
         del tables
     return out
 
@@ -371,7 +372,7 @@ def measure_candidate(
     names = list(loaded["raw"][2].materials)
     raw_gram = loaded["raw"][2].raw_gram
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
-    A = analysis.material_albedos(st, names)
+    A = material_albedos(st, names)
     rows: list[dict[str, Any]] = []
     stab: list[dict[str, Any]] = []
     for q, path in sorted(models.items()):

@@ -52,7 +52,7 @@ Albedo at a latent point
 In the linear data spaces (anything but ``log``) the interpolated table is
 ``Σ wᵢ zᵢ`` and the albedo is linear in the table, so the albedo at ``x``
 is ``w(x)·A`` with ``A`` the materials' albedos
-(:func:`brdfpipe.manifold.analysis.material_albedos`); the clamping of negative
+(:func:`brdfpipe.manifold.albedo.material_albedos`); the clamping of negative
 interpolated values to 0 by :func:`brdfpipe.manifold.gplvm.interpolate_table` is
 ignored (as in :func:`brdfpipe.manifold.analysis.albedo_map`).  That is exact only
 where no interpolated value is negative: far from the data or between
@@ -63,7 +63,7 @@ clamped table, red channel, 1.0 M clamped values, in
 In the ``log`` space
 the blend is of log-mapped values, so the table itself is formed
 (:func:`brdfpipe.manifold.gplvm.interpolate_tables`) and its albedo computed
-(:func:`brdfpipe.manifold.analysis.material_albedo`) — exact, one pass over the store per 4 points.
+(:func:`brdfpipe.manifold.albedo.material_albedo`) — exact, one pass over the store per 4 points.
 """
 
 from __future__ import annotations
@@ -83,7 +83,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.data.store import BrdfStore
 from brdfpipe.data import merl
-from brdfpipe.manifold import analysis, derivation, gplvm
+from brdfpipe.manifold import derivation, gplvm
+from brdfpipe.manifold.albedo import material_albedo, material_albedos
 
 __all__ = [
     "MIN_ACCEPTANCE",
@@ -408,7 +409,7 @@ class _Albedo:
         if isinstance(source, (BrdfStore, str, os.PathLike)):
             st = gplvm.check_store(model, source)  # the store holds the rows the model was fitted on
             if _is_linear(model.space) and not exact:
-                return cls(model, analysis.material_albedos(st, list(model.names)), None)
+                return cls(model, material_albedos(st, list(model.names)), None)
             unknown = [m for m in model.names if m not in st.materials]
             if unknown:
                 raise ValueError(f"{st.path}: unknown material(s) {', '.join(unknown)} of the model")
@@ -435,7 +436,7 @@ class _Albedo:
             tables, _ = gplvm.interpolate_tables(self.store, W[a : a + _LOG_BATCH], materials=self.model.names,
                                                  space=self.model.space, model=self.model)
             for j, t in enumerate(tables):
-                out[a + j] = analysis.material_albedo(t)
+                out[a + j] = material_albedo(t)
         return out
 
 
@@ -445,7 +446,7 @@ def latent_albedos(
     """White-sky albedo ``(P, 3)`` of the interpolated material at each latent point.
 
     ``source``: the materials' albedos ``(N, 3)`` in model order
-    (:func:`brdfpipe.manifold.analysis.material_albedos`; linear data spaces only) or
+    (:func:`brdfpipe.manifold.albedo.material_albedos`; linear data spaces only) or
     the store (any space; in the log space the tables are formed, one store pass per 4
     points).  ``exact``: form the table in every space (needs the store), so
     the clamping of negative interpolated values counts.  See the module

@@ -22,5 +22,6 @@ time, standard library only), :mod:`brdfpipe.report.claims`,
 :mod:`brdfpipe.report.rst` (the one escaping of run-supplied text into
 reStructuredText and Jinja2: every name reaches the page as text),
 :mod:`brdfpipe.report.critical_path` (where a finished run's wall time went:
-its critical path, CPU per rule, idle cores; ``benches/bench_critical_path.py``).
+its critical path, CPU per rule, idle cores; ``benches/bench_critical_path.py``),
+:mod:`brdfpipe.report.sidebyside` (the claims of several runs side by side, for ``docs/``).
 """
