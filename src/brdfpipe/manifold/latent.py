@@ -215,7 +215,7 @@ def hull_contains(X: ArrayLike, points: ArrayLike, *, method: str = "auto") -> N
     docstring, "Hull geometry".  Points on the boundary count as inside
     (tolerance ``1e-9`` × the size of the set).  ``method``: "auto" (Qhull
     half-spaces, the LP test if Qhull fails), "qhull" or "lp" (one linear
-    program per point: exact but ~2 ms each).  ValueError for bad shapes or
+    program per point: exact but far slower).  ValueError for bad shapes or
     non-finite values.
     """
     if method not in HULL_METHODS:
