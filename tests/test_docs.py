@@ -103,3 +103,13 @@ def test_docs_index_lists_every_page() -> None:
         if page.name != "README.md":
             assert page.resolve() in listed, f"docs/README.md does not link {page.relative_to(ROOT)}"
     assert "synthetic" in index
+
+
+def test_layout_lists_every_rule_file_and_subpackage() -> None:
+    """The README's Layout names every rule file and every library subpackage (issue 24: it listed 5 of 8)."""
+    text = README.read_text(encoding="utf-8")
+    layout = text[text.index("## Layout"):]
+    for smk in sorted((ROOT / "workflow" / "rules").glob("*.smk")):
+        assert f"workflow/rules/{smk.name}" in layout, f"README's Layout does not list workflow/rules/{smk.name}"
+    for pkg in sorted(p for p in (ROOT / "src" / "brdfpipe").iterdir() if (p / "__init__.py").is_file()):
+        assert f"  {pkg.name}/" in layout, f"README's Layout does not list the subpackage brdfpipe.{pkg.name}"
