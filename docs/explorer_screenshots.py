@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Screenshots of the explorer for the README: docs/explorer-{map,path,q5}.png.
+"""Screenshots of the explorer for docs/design/explorer.md: docs/explorer-{map,path,q5}.png.
 
 Usage: python docs/explorer_screenshots.py [results/explorer]  (headless chromium, SwiftShader)
 """

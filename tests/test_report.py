@@ -50,7 +50,7 @@ def errors_csv(path: Path, values: Mapping[tuple[str, float, str, int], float], 
     return write_csv(path, ERR_COLS, rows)
 
 
-# README's numbers (default synthetic run): the claims the issue names, with their sign.
+# The numbers of docs/results/acquisition.md (default synthetic run; once in the README): the claims the issue names, with their sign.
 README = {
     ("point", 0.0, "error", 5): 0.278, ("point", 0.0, "condition", 5): 0.337,
     ("point", 0.0, "error", 10): 0.206, ("point", 0.0, "condition", 10): 0.26,

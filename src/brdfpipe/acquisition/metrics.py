@@ -42,17 +42,15 @@ shapes or parameters raise :class:`ValueError`.
 Performance note: the numpy and scipy wheels each bundle their *own*
 OpenBLAS, each with its own thread pool.  Alternating calls into the two
 (e.g. a numpy ``Bᵀ @ B`` then a scipy Cholesky, as an optimiser loop would)
-makes the idle pool's spinning threads compete with the active one: on the
-shared 2-core development machine, "add an 800-row block, then evaluate E"
-at k = m = 270 took 8.0 ms that way against 3.2 ms with scipy only.  The
+makes the idle pool's spinning threads compete with the active one (each
+evaluation is slower; measured: ``docs/results/acquisition.md``).  The
 per-candidate functions here (:func:`selection_stats`, :func:`add_rows`,
 :func:`remove_rows`, :func:`expected_error`, :func:`condition_number`)
 therefore use scipy's BLAS/LAPACK only (``dsyrk``, ``dgemm``,
 ``cho_factor``/``cho_solve``, ``eigvalsh``, ``svdvals``).  Multithreaded
-OpenBLAS is also erratic on a loaded machine (single evaluations from 1 ms
-to > 100 ms were seen while another job ran); an optimiser there is better
+OpenBLAS is also erratic on a loaded machine; an optimiser there is better
 run with ``OPENBLAS_NUM_THREADS=1``, parallel over candidates if at all
-(single-threaded: ~1.3–1.8 ms per evaluation at k = m = 270, stable).
+(single-threaded evaluations take a stable time).
 :class:`FactoredSelection` — many candidates evaluated against one
 factorisation by low-rank updates, for the optimiser — likewise keeps
 its k-sized products in scipy (``cho_solve``, ``dgemm``, ``dgemv``); numpy

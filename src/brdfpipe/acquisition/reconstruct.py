@@ -74,13 +74,7 @@ Precision: on the default synthetic store (k = 269) the Gram identity agrees
 with explicitly formed float64 residuals to 6e-13 (``rms_log``) and 3e-11
 (``deviation``) relative.
 
-Cost on the default synthetic store (p = 1,096,216, k = 269, 30 held-out
-rows, 100 direction sets; shared, loaded 2-core AMD EPYC,
-``OPENBLAS_NUM_THREADS=1``): :func:`check_consistency` ≈ 11 s (270 training
-rows), :func:`evaluate` ≈ 40 s (pass 1 ≈ 4 s; pass 2 ≈ 35 s, about half of
-it the p × k × 3,000 sgemm, half the exp / max / square-sum over 3.3·10⁹
-values), :func:`training_size_curve` ≈ 6 s; the whole evaluation stage ≈ 1 min
-in all, peak RSS 0.87 GB.
+Cost: ``docs/results/acquisition.md`` (measured on the default synthetic store).
 
 Consistency check (:func:`check_consistency`): for every directions set the
 expected error E(S) recorded in the JSON is recomputed directly from the

@@ -74,7 +74,7 @@ A Zarr v3 group holding
 
 * ``Q`` – float32 ``(p, k)``, dimensions ``("column", "component")``, chunks
   ``(36_450, k)`` (the log-map's column chunks), uncompressed (lz4 + shuffle
-  saves only 7 % on Q, for ~1 s of CPU per fit at m = 270);
+  saves only 7 % on Q, for CPU time on every fit and read);
 * ``mean`` – float64 ``(p,)``: μ;
 * ``sigma`` – float64 ``(k,)``: singular values, descending, all > tol·σ₁;
 * ``U`` – float64 ``(m, k)``: left singular vectors (sign: the entry of

@@ -74,10 +74,8 @@ is a :class:`~brdfpipe.data.store.StoreError` naming the material, never NaN in 
 Memory: the store is read in blocks of 145,800 cells (all three channels of
 the needed materials, float32: 175 MB for 100 materials) and mapped in float64
 sub-blocks of 8,192 columns; the m × p matrix is never held, and at most one
-X chunk of output is buffered.  The ``train`` log-map of the default
-synthetic database (90 materials, m = 270, p = 1,096,216) takes ≈ 12 s and
-0.7 GB peak RSS on a shared 2-core AMD EPYC; X is 0.85 GB on disk (lz4 +
-shuffle: 1.39× smaller than raw float32).
+X chunk of output is buffered.  Time, peak memory and size on disk:
+``docs/results/acquisition.md``.
 """
 
 from __future__ import annotations

@@ -447,7 +447,7 @@ def evaluate_to_files(
     is of ``database`` and names the material).  ``threads`` materials are
     processed at once (NumPy releases the GIL in the network's products and
     in the writes).  One process instead of one job per material: the
-    evaluation takes ~0.3 s a material, a job's start-up more.  Returns the
+    evaluation of one material costs less than a job's start-up.  Returns the
     clamped count per material; raises :class:`NbrdfError` for a fit of
     another database than ``database``.
     """

@@ -17,7 +17,8 @@ A Zarr v3 group holding
 
 Group attributes: ``format`` (``"brdfpipe.data.merl-store/3"``), ``materials``
 (row order), ``database`` (the label of every row's source file:
-``"merl"`` for unmarked measurements, ``"synthetic"``, ``"derived"``, see
+``"merl"`` for unmarked measurements, ``"synthetic"``, ``"derived"``, or the
+name of a database of fits such as ``"merl-nbrdf"``, see
 :mod:`brdfpipe.data.provenance`), ``sources``
 (sha256 of each source file, by material name), ``source_files`` (file
 names, by material name), ``channel_scales``, ``layout`` (human-readable
@@ -52,12 +53,8 @@ reconstruction, ``brdfpipe info --verify``) fails with a :class:`StoreError`
 naming the store and the material before it uses a damaged, missing or
 mislabelled row.  Verifying on open (rather than per chunk) was chosen
 because it is simple, covers consumers that read ``brdf`` directly, and is
-cheap next to any stage that reads the data: ``benches/bench_verify.py`` (20
-synthetic materials, 201 MB of shards, 2-core AMD EPYC, warm page cache,
-best of 3) measured ``open_store`` at 6 ms without and 100 ms with
-verification (94 ms, 2.1 GB/s), against 7.2 s for ``gplvm.write_gram`` and
-6.3 s for ``logmap.write_logmap`` on the same store: verification adds
-1.3 % and 1.5 % (target < 10 %).  Both scale with the number of materials.
+cheap next to any stage that reads the data (``benches/bench_verify.py``;
+measured: ``docs/results/data.md``).
 Only callers that name ``verify=False`` skip the read (today ``brdfpipe
 info`` without ``--verify``; the assembly's final check, which has just
 computed the digests from the bytes it placed, uses the internal loader); the
@@ -73,51 +70,16 @@ channel, so no chunk straddles two channels; 30 chunks per row), compressed
 with Blosc lz4, clevel 5, byte shuffle (typesize 4), single-threaded.  The 30
 chunks of a row are stored in one shard file (Zarr v3 ``sharding_indexed``,
 shard = one whole row), so a material is one file (~8–10 MB) instead of 30:
-creating a file costs ~0.25 ms here, which would otherwise be paid 3,000
+each file created has a fixed cost, which would otherwise be paid 3,000
 times in the per-material jobs and again 3,000 times in the assembly copy,
 and a cluster file system prefers few files.  Reads still fetch single
 145,800-column chunks (byte ranges of the shard).
 
-Codec table (``benches/bench_codecs.py --data results/synthetic``: 4 materials
-of the default synthetic database, 1 % noise, 70 MB float32; AMD EPYC,
-1 thread, otherwise idle; MB/s of uncompressed data, best of 3):
-
-=========================  =====  =============  ===============
-codec                      ratio  compress MB/s  decompress MB/s
-=========================  =====  =============  ===============
-blosc zstd-1 shuffle        1.76       647            1032
-blosc zstd-3 shuffle        1.82       306            1419
-blosc zstd-5 shuffle        1.88       215            1375
-blosc zstd-1 bitshuffle     1.85       447             847
-blosc zstd-5 bitshuffle     1.92       152            1154
-blosc lz4-1 shuffle         1.70      2107            2022
-**blosc lz4-5 shuffle**     1.71      1834            2102
-blosc lz4-9 shuffle         1.71      1625            1981
-blosc lz4-5 bitshuffle      1.72      1139            1475
-blosc lz4hc-1 shuffle       1.75       358            1838
-blosc lz4hc-5 shuffle       1.83       104            1705
-zstd-1 (plain)              1.53       837            1094
-zstd-3 (plain)              1.53       588            1070
-lz4 (plain)                 1.32      2428            3709
-none                        1.00     22115           22115
-=========================  =====  =============  ===============
-
-Against the float64 source files the chosen layout is 3.44× smaller (float32
-halves it; the low mantissa bits of noisy data do not compress).
-(On smooth analytic tables, half of them noise-free, the ratios are higher:
-2.09 for lz4-5 shuffle, 2.19 zstd-1 shuffle, 2.38 zstd-5 shuffle; the ranking
-is the same.)  Chunk width hardly changes the ratio (lz4-5 shuffle: 1.70–1.71
-from 16,200 to 1,458,000 columns) and the speed only past 145,800 columns
-(2.9 / 3.4 GB/s compress / decompress up to there, 1.7 / 2.2 GB/s at
-1,458,000, where a chunk no longer fits the cache), so it is chosen for
-access: 145,800-column blocks of 100 materials (58 MB) are a convenient unit
-for Gram matrices, and no chunk straddles two channels.  The ingest speed
-target (≤ 1.5× a plain ``np.fromfile``, ~4 ms per 35 MB file here) leaves
-almost nothing beyond the mandatory sha256 (~19 ms per file by itself), so
-the codec must compress at ≥ 1.5 GB/s: lz4 + byte shuffle does, for 3 %
-larger files than zstd-1 + shuffle (2.8× slower to compress) and 12 % larger
-than zstd-5 + bitshuffle (12× slower).  Byte shuffle is faster than
-bitshuffle at about the same ratio; unshuffled codecs compress worse.
+The codec compresses fast enough that the ingest's cost stays the sha256 of
+the sources it must compute anyway; the chunk width is chosen for access:
+145,800-column blocks of 100 materials (58 MB) are a convenient unit for
+Gram matrices, and no chunk straddles two channels.  The codec table and
+the measurements behind both choices: ``docs/results/data.md``.
 
 Ingest
 ------
@@ -131,24 +93,12 @@ store into place.  :func:`ingest` does both with a process pool.  The
 per-material reader streams the source one chunk at a time (hash, validate,
 scale, cast, compress), so a worker needs ~15 MB and the sha256 is of exactly
 the bytes that were ingested.  Row stores are written with plain file writes
-of metadata documents generated by Zarr itself (the Zarr API costs ~15 ms per
-store in event-loop round trips); the tests check Zarr reads them back
+of metadata documents generated by Zarr itself (the Zarr API's event-loop round
+trips cost more per store); the tests check Zarr reads them back
 exactly and that the shard bytes equal those Zarr writes.
 
-Speed and memory (``benches/bench_ingest.py --data results/synthetic --cold``:
-the 100 materials of the default synthetic database = 3.5 GB, 2-core AMD
-EPYC, otherwise idle, best of 3): with a warm page cache a sequential
-``np.fromfile`` of all files takes 0.42 s (a memcpy from the page cache);
-``ingest`` takes 2.23 s with 2 jobs (5.3×) and 4.19 s with 1.  That is
-~42 ms of CPU per material: sha256 19 ms (SHA-NI, 1.8 GB/s; hashing the
-sources alone takes 4.5× the ``np.fromfile`` time on one core, 2.3× on two),
-lz4 ~8 ms, read ~4 ms, scale / cast / checks ~4 ms, writing the 10 MB shard
-3–7 ms; the assembly of 100 rows ≈ 0.5 s.  With the sources evicted from the
-page cache first, ``np.fromfile`` takes 1.45 s and ``ingest`` (2 jobs)
-3.03 s: 2.1×.  The issue's target (≤ 1.5×) is out of reach on 2 cores:
-the mandatory sha256 alone costs more than 1.5× a warm read.  Peak RSS:
-176 MiB for the driver, ≤ 118 MiB per worker.  Store: 1.02 GB for 100
-materials (1.72× vs float32, 3.44× vs the float64 sources).
+Speed and memory of the ingest: ``benches/bench_ingest.py`` (measured:
+``docs/results/data.md``).
 
 Checks at ingest: a file without any measured cell is a
 :class:`~brdfpipe.data.merl.MerlFormatError` naming it (it would empty ``valid``

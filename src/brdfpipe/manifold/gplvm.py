@@ -92,28 +92,13 @@ It has no random element (``seed`` is not used).  Why: plain L-BFGS needs
 up to thousands of iterations on these data (the curvature spans many
 decades: nearly coincident materials make K nearly singular along a few
 directions), and the ``hybrid`` optimiser (below) adds Hooke–Jeeves trials
-and sweeps around it.  Measured on the default synthetic store's 18 fits
-(the nine ``(space, μ)`` candidates × q ∈ {2, 5}, normalised, N = 100, one
-thread, CPU seconds on the shared 2-core machine): 8.8–10.3 s for all 18
-(two runs) against 95.4 s for ``hybrid``; 111–778 L-BFGS iterations
-(median 300) plus 3–26 Hessians, where plain L-BFGS from the same start
-needs 217–5,166 iterations (median 2,250).  Final L against ``hybrid``:
-higher by more than 1e-4 in 11 fits (by up to 40 %: its Hooke–Jeeves
-trials picked the ``nn`` start, from which no gradient method recovers),
-within 1e-4 in 4, lower in 3 (−0.08 %, −0.3 %, −0.7 %); against plain
-L-BFGS from the same start run to convergence: higher or equal in 13,
-lower in 5 (−0.3 % to −6.5 %).  The objective is multimodal (several
-maxima within a few per cent of each other), and a different path from the
-same start can end in a different one, either way; no optimiser here is
-global.  Hooke–Jeeves sweeps run after this method's end points accepted no
-move in 17 of the 18 fits (one: +9e-11), so the direct search's gains that
-motivated ``hybrid`` (leaving the stationary points where L-BFGS stops) are
-what step 3 now does.  At N = 400 (``benches/bench_scaling.py``'s
-synthetic case, standardised, q = 5, μ = 1e-4; CPU seconds, same script):
-21.6 s, L = 2.4051e8, against 254 s and L = 1.9817e8 for ``hybrid`` (both
-of its L-BFGS stages stopped at their 5,000-iteration caps) and 221 s and
-L = 2.4233e8 (−0.75 % for ours) for plain L-BFGS-B from the same start
-(5,314 iterations).  Against GPy: ``benches/bench_gplvm.py``.
+and sweeps around it.  The objective is multimodal (several maxima
+within a few per cent of each other), and a different path from the same
+start can end in a different one, either way; no optimiser here is
+global.  Step 3 does what motivated ``hybrid``'s direct search (leaving
+the stationary points where L-BFGS stops).  Iterations, likelihoods and
+times against ``hybrid``, plain L-BFGS and GPy: ``docs/results/manifold.md``
+and ``benches/bench_gplvm.py``.
 
 ``method="hooke-jeeves"`` is the paper's direct search alone (below).
 ``method="hybrid"`` (the default before issue 23): the initial scale is chosen by short

@@ -30,12 +30,9 @@ inside iff ``a·y + b ≤ tol`` for every facet) for ``r ≥ 2``.  Should Qhull
 fail on a nearly degenerate set, the exact LP feasibility test is used
 instead: ``y`` is inside iff ``λ ≥ 0, Σλ = 1, Yᵀλ = y`` is feasible
 (``scipy.optimize.linprog``, HiGHS).  Both are available through
-``method`` ("qhull", "lp"; "auto" = qhull with the LP fallback).  Measured
-for P = 20,000 points, q = 5, N = 100 standard-normal points (2 shared
-cores): the half-space test 0.19 s including the hull, the LP 1.9 ms per
-point (≈ 39 s), ``scipy.spatial.Delaunay`` + ``find_simplex`` 14.5 s (the
-5-D triangulation) — so the half-space test is the default.  Qhull's hull of
-N = 1,000 points at q = 6 takes 0.07 s (14,815 facets).
+``method`` ("qhull", "lp"; "auto" = qhull with the LP fallback).  The half-space
+test is the default: it is the fastest of the three by far (measured:
+``docs/results/manifold.md``).
 
 Uniform sampling (:func:`sample_in_hull`) is rejection sampling in the
 bounding box of the (reduced) points, in batches, when the hull fills at
@@ -219,7 +216,7 @@ def hull_contains(X: ArrayLike, points: ArrayLike, *, method: str = "auto") -> N
     docstring, "Hull geometry".  Points on the boundary count as inside
     (tolerance ``1e-9`` × the size of the set).  ``method``: "auto" (Qhull
     half-spaces, the LP test if Qhull fails), "qhull" or "lp" (one linear
-    program per point: exact but ~2 ms each).  ValueError for bad shapes or
+    program per point: exact but far slower).  ValueError for bad shapes or
     non-finite values.
     """
     if method not in HULL_METHODS:

@@ -121,7 +121,7 @@ Choices (where [PR12]'s text was not available)
 
 API
 ---
-:func:`pr12_features` (one table → 1-D features, ~0.2 s, 53 MB),
+:func:`pr12_features` (one table → 1-D features of 53 MB),
 :func:`pr12_distance` (two tables or features → float) and
 :func:`pr12_distances` (all distances between two batches, each table's
 features computed once).  Path distances as in Soler et al. Fig. 9:

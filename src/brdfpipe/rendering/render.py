@@ -29,8 +29,7 @@ or cos θo ≤ 0) is black; wrap the BSDF in ``twosided`` for open surfaces.
 
 Importance sampling
 -------------------
-Each material gets, once at load time (numpy/scipy, deterministic,
-0.1–0.5 s), a mixture of cosine-hemisphere sampling and one or two GGX
+Each material gets, once at load time (numpy/scipy, deterministic), a mixture of cosine-hemisphere sampling and one or two GGX
 lobes sampled through their visible normals
 (:class:`mitsuba.MicrofacetDistribution`)::
 
