@@ -50,6 +50,8 @@ def main() -> None:
     run("benches/bench_verify.py")
     run("benches/bench_dryrun.py")
     run("benches/bench_memory.py")
+    # Speed: where the last run's wall time went (critical path, CPU per rule, idle cores).
+    run("benches/bench_critical_path.py")
 
 
 if __name__ == "__main__":
