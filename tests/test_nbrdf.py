@@ -153,3 +153,89 @@ def test_missing_archive_and_unknown_fit(tmp_path: Path) -> None:
         nbrdf.open_archive(tmp_path / "junk.zip")
     with pytest.raises(nbrdf.NbrdfError, match="no fit named 'nope'"):
         nbrdf.open_archive(MERL_FITS).fit("nope")
+
+
+# -- writing fit-made MERL files: labels that never say "merl" ------------------------------------------
+
+
+def test_fit_made_files_carry_their_database_and_ingest_under_it(tmp_path: Path) -> None:
+    from brdfpipe import cli
+    from brdfpipe.data import database, provenance, store
+
+    out = tmp_path / "fits"
+    assert cli.main(["-q", "nbrdf", "nielsen-nbrdf", "--out", str(out), "bluebook", "cardboard"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["bluebook.binary", "cardboard.binary"]
+    mark = provenance.read_mark(out / "bluebook.binary")
+    assert mark is not None and mark.kind == "nielsen-nbrdf"
+    assert mark.fields["fit"] == "bluebook" and mark.fields["archive"] == "nielsen_nbrdf.zip"
+    # the table outside the mark is the fit's table
+    table = merl.read_merl(out / "cardboard.binary")
+    want = nbrdf.fit_table(nbrdf.open_archive(ARCHIVES / "nielsen_nbrdf.zip").fit("cardboard")).table
+    keep = np.ones(merl.N_CELLS, dtype=bool)
+    keep[provenance.MARK_CELLS] = False
+    np.testing.assert_allclose(table.reshape(3, -1)[:, keep], want.reshape(3, -1)[:, keep], rtol=1e-15, atol=0)
+    db = database.database_from_folder(out)
+    assert db.kind == "nielsen-nbrdf"
+    assert cli.main(["-q", "ingest", str(out), "--out", str(tmp_path / "s.zarr"), "--jobs", "1"]) == 0
+    assert store.open_store(tmp_path / "s.zarr").database == "nielsen-nbrdf"
+
+
+def test_fits_of_a_user_archive_are_labelled_nbrdf_and_names_use_dashes(tmp_path: Path) -> None:
+    from brdfpipe import cli
+    from brdfpipe.data import provenance
+
+    with zipfile.ZipFile(RGL_FITS) as z:
+        data = z.read("rgl-isotropic_nbrdf/spectralon_rgb.h5")
+    with h5py.File(io.BytesIO(data), "r") as f:
+        buf = io.BytesIO()
+        with h5py.File(buf, "w") as g:
+            for k, v in f.attrs.items():
+                g.attrs[k] = v
+            for name in f:
+                f.copy(f[name], g, name)
+            g["dense_3/dense_3/bias:0"][0] += 0.01  # another fit: not the shipped one
+    archive = _zip_with(tmp_path, {"mine/my_fit.h5": buf.getvalue()})
+    assert cli.main(["-q", "nbrdf", str(archive), "--out", str(tmp_path / "out")]) == 0
+    mark = provenance.read_mark(tmp_path / "out" / "my-fit.binary")
+    assert mark is not None and mark.kind == "nbrdf" and mark.name == "my-fit"
+
+
+def test_nbrdf_refuses_a_foreign_folder_and_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from brdfpipe import cli
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    merl.write_merl(out / "measured.binary", np.full(merl.SHAPE, 0.1))  # an unmarked (measured) table
+    assert cli.main(["-q", "nbrdf", "nielsen-nbrdf", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "did not write" in err and "measured.binary" in err and "notes.txt" in err and "\n" not in err
+    assert sorted(p.name for p in out.iterdir()) == ["measured.binary", "notes.txt"]
+    # its own earlier output is replaced
+    mine = tmp_path / "mine"
+    assert cli.main(["-q", "nbrdf", "nielsen-nbrdf", "--out", str(mine), "cardboard"]) == 0
+    assert cli.main(["-q", "nbrdf", "nielsen-nbrdf", "--out", str(mine), "cardboard", "bluebook"]) == 0
+    assert cli.main(["-q", "nbrdf", "nielsen-nbrdf", "--out", str(mine), "nope"]) == 1
+    assert "no fit named 'nope'" in capsys.readouterr().err
+
+
+def test_a_fit_made_file_copied_over_another_is_refused_at_ingest(tmp_path: Path) -> None:
+    from brdfpipe.data import database, provenance
+
+    out = tmp_path / "fits"
+    nbrdf.write_fits(ARCHIVES / "nielsen_nbrdf.zip", out, ["bluebook", "cardboard"])
+    (out / "cardboard.binary").write_bytes((out / "bluebook.binary").read_bytes())
+    with pytest.raises(database.DatabaseError, match="material 'bluebook' .*, not 'cardboard'"):
+        database.database_from_folder(out)
+    with pytest.raises(provenance.ProvenanceError, match="copied or renamed"):
+        provenance.check_source(out / "cardboard.binary", name="cardboard")
+
+
+def test_a_folder_mixing_fits_and_measurements_is_an_error(tmp_path: Path) -> None:
+    from brdfpipe.data import database
+
+    out = tmp_path / "fits"
+    nbrdf.write_fits(ARCHIVES / "nielsen_nbrdf.zip", out, ["bluebook"])
+    merl.write_merl(out / "measured.binary", np.full(merl.SHAPE, 0.1))
+    with pytest.raises(database.DatabaseError, match="mixes"):
+        database.database_from_folder(out)

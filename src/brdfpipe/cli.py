@@ -3,6 +3,7 @@
 Subcommands::
 
     brdfpipe synth  --count N --seed S --out DIR [--noise X] [--jobs J]
+    brdfpipe nbrdf  ARCHIVE --out DIR [NAME ...]
     brdfpipe ingest DIR --out results/merl.zarr [--jobs J]
     brdfpipe info   results/merl.zarr
     brdfpipe interpolate --model results/gplvm/q5.npz (--at x1,…,xq | --between A B [--t 0.5]) --out F.binary
@@ -192,6 +193,23 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         args.out, count=args.count, seed=args.seed, noise=args.noise, jobs=args.jobs
     )
     print(manifest)
+    return 0
+
+
+def _cmd_nbrdf(args: argparse.Namespace) -> int:
+    from brdfpipe.data import databases, nbrdf
+
+    archive = args.archive
+    if archive in databases.DATABASES and databases.DATABASES[archive].archive is not None:
+        archive = str(databases.shipped_archive(archive))  # a shipped archive, by its database's name
+    check_not_input(args.out, [archive], what="--out")
+    check_writable(args.out, inside=True)
+    with nbrdf.open_archive(archive) as fits:
+        count = len(nbrdf.fit_names(fits, args.names))
+    _check_disk_for_materials(Path(args.out), count, "fits:")
+    for path, table in nbrdf.write_fits(archive, args.out, args.names):
+        log.info("%s (%d values clamped at 0)", path, table.clamped)
+    print(args.out)
     return 0
 
 
@@ -560,6 +578,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="worker processes (default: all cores)")
     p.set_defaults(func=_cmd_synth)
 
+    p = sub.add_parser("nbrdf", help="MERL files of measured materials from their published neural fits (NBRDF)")
+    p.add_argument("archive", help="an archive of NBRDF fits (.zip or folder of NAME.h5 [+ NAME.json]), or the name "
+                   "of a shipped one: merl-nbrdf, rgl-nbrdf, nielsen-nbrdf")
+    p.add_argument("--out", required=True, help="folder for <material>.binary (a fit's name with '_' written '-'): "
+                   "new, empty, or an earlier output of this command")
+    p.add_argument("names", nargs="*", metavar="NAME", help="fits to evaluate (default: all of the archive)")
+    p.set_defaults(func=_cmd_nbrdf)
+
     p = sub.add_parser("ingest", help="ingest MERL files into the chunked Zarr store")
     p.add_argument("folder", help="folder of .binary files of one kind: real MERL, written by `brdfpipe synth`, "
                    "or derived by brdfpipe (labelled from the files' provenance marks)")
@@ -776,7 +802,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     came from is named); 130 after an interrupt.  Argument errors exit 2
     with one line.  ``BRDFPIPE_TRACEBACK=1`` re-raises unexpected errors.
     """
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra and getattr(args, "command", None) == "nbrdf" and not any(e.startswith("-") for e in extra):
+        args.names = [*args.names, *extra]  # `nbrdf ARCHIVE --out DIR NAME ...`: names after the options
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     setup_console_logging(logging.WARNING if args.quiet else logging.INFO)
     prefix = f"brdfpipe {args.command}: error:"
     out = getattr(args, "out", None) or getattr(args, "out_dir", None)

@@ -47,7 +47,8 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.data import merl
+from brdfpipe.core import atomic
+from brdfpipe.data import databases, merl, provenance
 
 __all__ = [
     "NbrdfError",
@@ -60,6 +61,10 @@ __all__ = [
     "material_name",
     "evaluate",
     "fit_table",
+    "fit_names",
+    "fit_database",
+    "write_fit",
+    "write_fits",
 ]
 
 #: Layer widths of the published fits: input, hidden, hidden, output.
@@ -69,6 +74,7 @@ _ACTIVATIONS: Final = ("relu", "relu", "linear")
 #: Cells evaluated per block (~ 60 MB of float64 temporaries).
 BLOCK_CELLS: Final = 131_072
 _H5_SUFFIX: Final = ".h5"
+_BINARY: Final = ".binary"
 _MAX_FIT_BYTES: Final = 16 * 1024 * 1024  # a published fit is ~8 kB; refuse absurd members
 
 
@@ -326,3 +332,90 @@ def fit_names(archive: Archive, requested: Sequence[str] | None = None) -> list[
     if unknown:
         raise NbrdfError(f"{archive.path}: no fit named {', '.join(repr(n) for n in unknown)}")
     return list(requested)
+
+
+@lru_cache(maxsize=1)
+def _shipped_fits() -> dict[str, str]:
+    """sha256 of every fit of the shipped archives → the database it belongs to."""
+    out: dict[str, str] = {}
+    for name in databases.FIT_DATABASES:
+        spec = databases.DATABASES[name]
+        if spec.archive is None:
+            continue
+        with zipfile.ZipFile(databases.shipped_archive(name)) as z:
+            for info in z.infolist():
+                if info.filename.endswith(_H5_SUFFIX):
+                    out[hashlib.sha256(z.read(info)).hexdigest()] = name
+    return out
+
+
+def fit_database(fit: Fit) -> str:
+    """The database label of tables made from ``fit``: the shipped database whose weights these are, else ``nbrdf``."""
+    return _shipped_fits().get(fit.sha256, "nbrdf")
+
+
+def write_fit(fit: Fit, out: str | os.PathLike[str], *, name: str | None = None) -> FitTable:
+    """Evaluate ``fit`` on the MERL grid and write it as a MERL file with its provenance mark (atomic).
+
+    ``name``: the material name the file is written under (default
+    :func:`material_name` of the fit); the mark binds it, records the fit,
+    its archive, the digest of its weights and the clamped count, and is of
+    the fit's database (:func:`fit_database`), so the file is never taken for
+    a measurement.
+    """
+    out = Path(out)
+    name = material_name(fit.name) if name is None else name
+    result = fit_table(fit)
+    archive = fit.source.rsplit(":", 1)[0]
+    mark = provenance.fit_mark(database=fit_database(fit), name=name, fit=fit.name, archive=Path(archive).name,
+                               fit_sha256=fit.sha256, clamped=result.clamped)
+    merl.write_merl(out, result.table, mark=mark)
+    return result
+
+
+def _own_file(path: Path) -> bool:
+    """``path`` is a table an earlier ``write_fits`` wrote (a fit-made MERL file)."""
+    try:
+        mark = provenance.read_mark(path)
+    except (OSError, ValueError):
+        return False
+    return mark is not None and mark.kind in databases.FIT_DATABASES
+
+
+def write_fits(
+    archive_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], names: Sequence[str] | None = None
+) -> list[tuple[Path, FitTable]]:
+    """``brdfpipe nbrdf``: every fit of ``names`` (default all) as ``OUT_DIR/<material>.binary``.
+
+    The folder must be new, empty, or hold only tables written by this
+    function (a fit-made mark): anything else is refused before any work
+    (:class:`NbrdfError` naming the file), so no foreign file is replaced.
+    Each file is written atomically.  Returns the paths and their tables'
+    clamped counts, in the order of ``names``.
+    """
+    out_dir = Path(out_dir)
+    with open_archive(archive_path) as archive:
+        chosen = fit_names(archive, names)
+        targets = {n: out_dir / f"{material_name(n)}{_BINARY}" for n in chosen}
+        clash = sorted({material_name(n) for n in chosen if sum(material_name(m) == material_name(n) for m in chosen) > 1})
+        if clash:
+            raise NbrdfError(f"{archive.path}: fits whose names differ only by '_' and '-' would share a file: "
+                             f"{', '.join(clash)}")
+        if out_dir.exists():
+            if not out_dir.is_dir():
+                raise NbrdfError(f"--out {out_dir}: exists and is not a folder")
+            foreign = [
+                e.name for e in sorted(out_dir.iterdir())
+                if atomic.output_of(e) == e  # temporaries of a killed writer are cleaned by the next write
+                and not (e.is_file() and not e.is_symlink() and e.name.endswith(_BINARY) and _own_file(e))
+            ]
+            if foreign:
+                shown = ", ".join(foreign[:8]) + (f" and {len(foreign) - 8} more" if len(foreign) > 8 else "")
+                raise NbrdfError(f"--out {out_dir}: holds files `brdfpipe nbrdf` did not write ({shown}); refusing "
+                                 "to write there: choose a new or empty folder")
+        out_dir.mkdir(parents=True, exist_ok=True)
+        done = []
+        for n in chosen:
+            done.append((targets[n], write_fit(archive.fit(n), targets[n])))
+    return done
+

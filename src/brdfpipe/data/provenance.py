@@ -94,7 +94,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from brdfpipe.data import merl
+from brdfpipe.data import databases, merl
 from brdfpipe.data.merl import MerlFormatError
 
 __all__ = [
@@ -115,6 +115,7 @@ __all__ = [
     "WATERMARK_RAW",
     "synthetic_mark",
     "derived_mark",
+    "fit_mark",
     "mark_raw_values",
     "stamp",
     "read_mark",
@@ -166,6 +167,16 @@ KINDS: Final[Mapping[str, MarkKind]] = {
             "derived files written by brdfpipe",
             {"name": _STR, "operation": _STR, "source_database": _STR, "inputs": (dict,)},
             binds_name=False,
+        ),
+        # tables evaluated from neural fits (brdfpipe.data.nbrdf), one kind per database of fits
+        *(
+            MarkKind(
+                name,
+                f"tables evaluated from NBRDF fits ({name}) by `brdfpipe nbrdf`",
+                {"name": _STR, "fit": _STR, "archive": _STR, "fit_sha256": _STR, "clamped": _INT},
+                binds_name=True,
+            )
+            for name in databases.FIT_DATABASES
         ),
     )
 }
@@ -335,6 +346,8 @@ class Mark:
                     f"noise {f['noise']})")
         if self.kind == "derived":
             return f"derived material {f['name']!r} ({f['operation']} of {f['source_database']} data)"
+        if self.kind in databases.FIT_DATABASES:
+            return f"{self.kind} material {f['name']!r} (fit {f['fit']!r} of {f['archive']})"
         return f"{self.kind} material {self.name!r}"
 
 
@@ -353,6 +366,20 @@ def derived_mark(*, name: str, operation: str, source_database: str, inputs: Map
         raise ValueError(f"unknown derivation {operation!r}; one of {', '.join(OPERATIONS)}")
     return Mark("derived", {"name": name, "operation": operation, "source_database": source_database,
                             "inputs": dict(inputs)})
+
+
+def fit_mark(*, database: str, name: str, fit: str, archive: str, fit_sha256: str, clamped: int) -> Mark:
+    """The mark of a table evaluated from an NBRDF fit (``database``: one of :data:`brdfpipe.data.databases.FIT_DATABASES`).
+
+    ``name``: the material name it is written under (bound); ``fit``: the
+    fit's name in the archive; ``archive``: the archive's file name;
+    ``fit_sha256``: the digest of the fit's weights file; ``clamped``: how
+    many negative outputs were clamped to 0.
+    """
+    if database not in databases.FIT_DATABASES:
+        raise ValueError(f"{database!r} is not a database of fits ({', '.join(databases.FIT_DATABASES)})")
+    return Mark(database, {"name": name, "fit": fit, "archive": archive, "fit_sha256": fit_sha256,
+                           "clamped": int(clamped)})
 
 
 def mark_raw_values(mark: Mark) -> NDArray[np.float64]:

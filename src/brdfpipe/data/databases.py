@@ -1,0 +1,147 @@
+"""The databases a run can use, and the label every output carries: one registry.
+
+A *database* is where a run's materials come from; its *label* is what every
+store, table, figure title, caption and claim says about them.  Labels are
+never guessed from configuration: the labeller
+(:func:`brdfpipe.data.database.database_from_folder`) reads them from the
+files (their provenance marks, :mod:`brdfpipe.data.provenance`), and a
+database of fit-made tables is never labelled ``merl``.
+
+==================  ===========  ==============================================================
+``database:``       label        what it is
+==================  ===========  ==============================================================
+``merl-nbrdf``      merl-nbrdf   the 100 MERL materials through their published neural fits
+                                 (default; shipped: ``merl_nbrdf.zip``)
+``rgl-nbrdf``       rgl-nbrdf    51 isotropic RGL materials through their fits (shipped)
+``nielsen-nbrdf``   nielsen-…    8 materials of Nielsen et al. 2015 through their fits (shipped)
+``nbrdf``           nbrdf        a user's own archive of NBRDF fits (``nbrdf_archive``)
+``merl``            from files   a folder of MERL-format files (``merl_dir``): real MERL
+                                 (``merl``), or files brdfpipe wrote (their marks say)
+``synthetic``       synthetic    the generated synthetic database (``synthetic.*``)
+==================  ===========  ==============================================================
+
+Labels that are not a configurable database: ``derived`` (tables brdfpipe
+derived from others: blends, samples, reconstructions).  Standard library
+only (the Snakefile reads it at parse time).  To add a database of fits,
+add a :class:`DatabaseSpec` to :data:`DATABASES`: the provenance marks, the
+labeller, the config schema's choices (checked by a test) and the titles
+follow.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final, Literal
+
+__all__ = [
+    "ARCHIVES_DIR",
+    "DatabaseSpec",
+    "DATABASES",
+    "DEFAULT_DATABASE",
+    "FIT_DATABASES",
+    "TITLES",
+    "XU2016_TEST_MATERIALS",
+    "EXTRA_TEST_MATERIAL",
+    "MERL_TEST_MATERIALS",
+    "title",
+    "is_measurement",
+    "shipped_archive",
+]
+
+#: The folder of the shipped archives of fits (package data).
+ARCHIVES_DIR: Final = Path(__file__).resolve().parent / "archives"
+
+#: The nine held-out MERL materials named in Xu et al. 2016, §6 (Fig. 2 and its text).
+XU2016_TEST_MATERIALS: Final[tuple[str, ...]] = (
+    "black-soft-plastic",
+    "blue-acrylic",
+    "green-fabric",
+    "light-red-paint",
+    "pink-jasper",
+    "silver-metallic-paint",
+    "specular-violet-phenolic",
+    "two-layer-silver",
+    "white-fabric",
+)
+#: Our tenth held-out material: Xu's nine contain no bare metal, so we add MERL's
+#: ``alum-bronze`` (a rough conductor) so that every broad family is tested.
+EXTRA_TEST_MATERIAL: Final = "alum-bronze"
+#: The held-out MERL materials (sorted): Xu's nine and alum-bronze.
+MERL_TEST_MATERIALS: Final = tuple(sorted((*XU2016_TEST_MATERIALS, EXTRA_TEST_MATERIAL)))
+
+_SZTRAJMAN: Final = "NBRDF fits (Sztrajman et al. 2021)"
+
+
+@dataclass(frozen=True)
+class DatabaseSpec:
+    """One configurable database.
+
+    ``name``: the config value (and, for fits and the synthetic database, the
+    label of its files); ``title``: how figures, captions and claims name its
+    materials; ``source``: ``archive`` (a shipped archive of fits, file
+    ``archive`` in :data:`ARCHIVES_DIR`), ``user-archive`` (the config's
+    ``nbrdf_archive``), ``folder`` (the config's ``merl_dir``) or
+    ``generated`` (the synthetic generator); ``measured_by``: the
+    measurement's citation; ``default_test``: its held-out materials
+    (``None``: chosen by the database's rule, see
+    :func:`brdfpipe.data.database.resolve_test_materials`).
+    """
+
+    name: str
+    title: str
+    source: Literal["archive", "user-archive", "folder", "generated"]
+    measured_by: str
+    archive: str | None = None
+    default_test: tuple[str, ...] | None = None
+
+    @property
+    def is_fit(self) -> bool:
+        """Tables evaluated from neural fits (never a measurement)."""
+        return self.source in ("archive", "user-archive")
+
+
+#: Every configurable database, the default first.
+DATABASES: Final[dict[str, DatabaseSpec]] = {
+    d.name: d
+    for d in (
+        DatabaseSpec("merl-nbrdf", f"MERL materials, {_SZTRAJMAN}", "archive", "Matusik et al. 2003",
+                     archive="merl_nbrdf.zip", default_test=MERL_TEST_MATERIALS),
+        DatabaseSpec("rgl-nbrdf", f"RGL isotropic materials (Dupuy & Jakob 2018), {_SZTRAJMAN}", "archive",
+                     "Dupuy & Jakob 2018", archive="rgl-isotropic_nbrdf.zip"),
+        DatabaseSpec("nielsen-nbrdf", f"Nielsen et al. 2015 materials, {_SZTRAJMAN}", "archive",
+                     "Nielsen et al. 2015", archive="nielsen_nbrdf.zip"),
+        DatabaseSpec("nbrdf", "materials of a user's archive, NBRDF fits", "user-archive", "the archive's authors"),
+        DatabaseSpec("merl", "MERL (Matusik et al. 2003)", "folder", "Matusik et al. 2003",
+                     default_test=MERL_TEST_MATERIALS),
+        DatabaseSpec("synthetic", "synthetic MERL-format database (brdfpipe)", "generated", "nobody (generated)"),
+    )
+}
+#: The database a run uses when the config names none.
+DEFAULT_DATABASE: Final = "merl-nbrdf"
+#: The databases of fit-made tables (their names are provenance-mark kinds and labels).
+FIT_DATABASES: Final = tuple(n for n, d in DATABASES.items() if d.is_fit)
+
+#: Every label an output can carry → how titles and captions name it.
+TITLES: Final[dict[str, str]] = {
+    **{n: d.title for n, d in DATABASES.items()},
+    "derived": "derived materials (brdfpipe blends, samples or reconstructions)",
+}
+
+
+def title(label: str) -> str:
+    """The human name of a database label (the label itself when unknown)."""
+    return TITLES.get(label, label)
+
+
+def is_measurement(label: str) -> bool:
+    """True only for real measured tables (``merl``): never for fits, synthetic or derived data."""
+    return label == "merl"
+
+
+def shipped_archive(name: str) -> Path:
+    """The path of a shipped archive of fits (``DATABASES[name].archive``)."""
+    spec = DATABASES[name]
+    if spec.archive is None:
+        raise KeyError(f"database {name!r} ships no archive")
+    return ARCHIVES_DIR / spec.archive
