@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from brdfpipe.core import atomic
+from brdfpipe.data.databases import EXTRA_TEST_MATERIAL, MERL_TEST_MATERIALS, XU2016_TEST_MATERIALS
 from brdfpipe.core.version import full_version
 from brdfpipe.data import provenance, synth
 from brdfpipe.data.synth import default_test_count
@@ -45,22 +46,6 @@ __all__ = [
     "resolve_test_materials",
     "write_splits",
 ]
-
-#: The nine held-out MERL materials named in Xu et al. 2016, §6 (Fig. 2 and its text).
-XU2016_TEST_MATERIALS: tuple[str, ...] = (
-    "black-soft-plastic",
-    "blue-acrylic",
-    "green-fabric",
-    "light-red-paint",
-    "pink-jasper",
-    "silver-metallic-paint",
-    "specular-violet-phenolic",
-    "two-layer-silver",
-    "white-fabric",
-)
-#: Our tenth held-out material: Xu's nine contain no bare metal, so we add MERL's
-#: ``alum-bronze`` (a rough conductor) so that every broad family is tested.
-EXTRA_TEST_MATERIAL = "alum-bronze"
 
 MERL_SUFFIX = ".binary"
 #: Longest material name: ``.NAME.zarr.tmp-PID-RANDOM`` siblings must fit in 255 bytes.
@@ -242,7 +227,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
                 "or regenerate the database with `brdfpipe synth`"
             )
         if label == provenance.UNMARKED:
-            default = tuple(sorted((*XU2016_TEST_MATERIALS, EXTRA_TEST_MATERIAL)))
+            default = MERL_TEST_MATERIALS
             return Database(label, sources, default)
         return Database(label, sources, ())
     if not says_synthetic:
