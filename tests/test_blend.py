@@ -535,7 +535,7 @@ def test_floor_check_figure(tmp_path: Path) -> None:
     table = tmp_path / "floor-check.csv"
     blend.floor_check_table(**inp, default="standardised-mu1e-06", out=table, database="synthetic")
     res = figures.plot_floor_check(table=table, files=[tmp_path / "f.png", tmp_path / "f.pdf"], database="synthetic")
-    assert (tmp_path / "f.png").stat().st_size > 0 and "synthetic database" in res.title
+    assert (tmp_path / "f.png").stat().st_size > 0 and "synthetic MERL-format database" in res.title
     assert any("I¹⁻" in t for t in res.panel_titles)
     with pytest.raises(FigureInputError, match="this run's is 'merl'"):
         figures.plot_floor_check(table=table, files=[tmp_path / "g.png", tmp_path / "g.pdf"], database="merl")

@@ -20,7 +20,8 @@ import pytest
 
 from brdfpipe.acquisition import figures
 from brdfpipe.core import filenames
-from brdfpipe.core.plot import database_label, figure_stem, FigureInputError
+from brdfpipe.core.plot import figure_stem, FigureInputError
+from brdfpipe.data.databases import title as database_label
 from brdfpipe.acquisition.figures import (
     FIG08_COLUMNS,
     fig05_error_vs_images,
@@ -181,12 +182,12 @@ def test_png_shape_and_titles(inputs: dict[str, Path], tmp_path: Path) -> None:
     res = fig05_error_vs_images(inputs["errors"], tmp_path / "f5", fovs=FOVS)
     img = matplotlib.image.imread(res.files[0])
     assert img.shape[:2] == res.size_px
-    assert "synthetic database" in res.title
+    assert "synthetic MERL-format database" in res.title
     assert res.panel_titles == ("near-field, FOV 15°", "near-field, FOV 25°")
     assert res.warnings == ()
     # The title is the PNG's and the PDF's Title metadata.
-    assert b"synthetic database" in res.files[0].read_bytes()
-    assert b"synthetic database" in res.files[1].read_bytes()
+    assert b"synthetic MERL-format database" in res.files[0].read_bytes()
+    assert b"synthetic MERL-format database" in res.files[1].read_bytes()
 
 
 def test_database_named_in_every_title(outputs: tuple[Path, list[Path]]) -> None:
@@ -194,16 +195,18 @@ def test_database_named_in_every_title(outputs: tuple[Path, list[Path]]) -> None
     for stem in FIGURE_STEMS.values():
         for ext in ("png", "pdf"):
             data = (out / f"{stem}.{ext}").read_bytes()
-            assert b"synthetic database" in data, f"{stem}.{ext}"
-    assert "synthetic database" in (out / "fig08-optimal-configurations.md").read_text(encoding="utf-8")
+            assert b"synthetic MERL-format database" in data, f"{stem}.{ext}"
+    assert "synthetic MERL-format database" in (out / "fig08-optimal-configurations.md").read_text(encoding="utf-8")
 
 
 def test_database_taken_from_input(tmp_path: Path) -> None:
     errs = write_errors(tmp_path / "errors.csv", database="merl")
     res = fig18_per_material(errs, tmp_path / "f18", n=2)
-    assert "MERL database" in res.title and res.database == "merl"
-    assert database_label("synthetic") == "synthetic database"
-    assert database_label("merl") == "MERL database"
+    assert "MERL (Matusik et al. 2003)" in res.title and res.database == "merl"
+    assert database_label("synthetic") == "synthetic MERL-format database (brdfpipe)"
+    assert database_label("merl") == "MERL (Matusik et al. 2003)"
+    assert database_label("merl-nbrdf") == "MERL materials, NBRDF fits (Sztrajman et al. 2021)"
+    assert "MERL" not in database_label("derived") and "NBRDF" in database_label("rgl-nbrdf")
     assert database_label("my-db") == "my-db database"
 
 

@@ -199,7 +199,7 @@ def test_database_named_in_every_figure(outputs: tuple[Path, list[Path]]) -> Non
     out, _ = outputs
     for stem in MANIFOLD_FIGURE_STEMS.values():
         for ext in ("png", "pdf"):  # the title (naming the database) is the PNG's and the PDF's Title
-            assert b"synthetic database" in (out / f"{stem}.{ext}").read_bytes(), f"{stem}.{ext}"
+            assert b"synthetic MERL-format database" in (out / f"{stem}.{ext}").read_bytes(), f"{stem}.{ext}"
 
 
 def test_deterministic(inputs: dict[str, object], outputs: tuple[Path, list[Path]], tmp_path: Path) -> None:
@@ -363,7 +363,7 @@ def test_inconsistent_inputs(inputs: dict[str, object], tmp_path: Path) -> None:
 
 
 def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    """Database from the inputs (merl → "MERL database"); no traces, no maps, only the q = 2 model: still
+    """Database from the inputs (merl → "MERL (Matusik et al. 2003)"); no traces, no maps, only the q = 2 model: still
     16 files (the empty panels say so; warnings logged)."""
     kw = write_inputs(tmp_path / "in", database="merl")
     with Path(kw["paths_csv"]).open(encoding="utf-8", newline="") as fh:  # type: ignore[arg-type]
@@ -375,7 +375,7 @@ def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     assert len(files) == 16 and all(p.is_file() for p in files)
     assert files_under(tmp_path / "out") == sorted(files)
     for p in files:
-        assert b"MERL database" in p.read_bytes(), p.name
+        assert b"Matusik et al. 2003" in p.read_bytes(), p.name  # the title ("MERL (Matusik et al. 2003)"), also in the PDF
     assert "no trace files" in caplog.text and "no albedo maps" in caplog.text and "no q = 5 model" in caplog.text
     assert "no gplvm rows for q = 5" not in caplog.text
 
@@ -389,7 +389,7 @@ def test_latent_maps_zoom_on_crowded_points(inputs: dict[str, object], tmp_path:
     assert img.shape[:2] == res.size_px
     res5 = manifold_fig10_latent_q5(inp, tmp_path / "q5")  # spread points: one panel per pair, no zoom
     assert res5.panel_titles == ("dims 0, 1", "dims 1, 2", "dims 2, 3", "dims 3, 4")
-    assert "synthetic database" in res.title and "synthetic database" in res5.title
+    assert "synthetic MERL-format database" in res.title and "synthetic MERL-format database" in res5.title
 
 
 def test_zoom_chain() -> None:

@@ -322,8 +322,8 @@ def test_the_shipped_configs_satisfy_the_schema() -> None:
 @pytest.mark.parametrize(
     ("config", "line"),
     [
-        ({"colour": "red"}, "config colour: unknown key; top-level keys are: merl_dir, synthetic, materials, "
-                            "test_materials, acquisition, manifold, render, closed_loop"),
+        ({"colour": "red"}, "config colour: unknown key; top-level keys are: database, merl_dir, nbrdf_archive, "
+                            "synthetic, materials, test_materials, acquisition, manifold, render, closed_loop"),
         ({"render": {"resolutoin": [3, 4]}}, "config render.resolutoin: unknown key; did you mean 'resolution'? "
                                               "render has: variant, scene, resolution, spp"),
         ({"closed_loop": {"sensor": {"gain": 2, "iso": 100}}}, "config closed_loop.sensor.gain: unknown key "
@@ -471,3 +471,12 @@ def test_a_size_beyond_the_memory_limit_names_its_key_and_largest_value(sections
 def test_many_path_points_are_refused_by_the_outputs_a_job_holds() -> None:
     problem = _memory_problem(DEFAULT, points=400)
     assert problem is not None and problem.startswith("config render.path_points × manifold.paths: 400 path points")
+
+
+def test_the_schema_offers_exactly_the_registered_databases() -> None:
+    """The config's `database` choices are the registry's (brdfpipe.data.databases), the default its default."""
+    from brdfpipe.data import databases
+
+    entry = SCHEMA["properties"]["database"]
+    assert entry["enum"] == list(databases.DATABASES)
+    assert entry["default"] == databases.DEFAULT_DATABASE

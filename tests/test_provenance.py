@@ -139,7 +139,7 @@ def test_mixed_folder_is_an_error_naming_the_files(synth_dir: Path, tmp_path: Pa
 def test_empty_path_names_the_key(path: str) -> None:
     with pytest.raises(db.DatabaseError) as e:
         db.database_from_folder(path)
-    assert str(e.value) == "merl_dir: empty path; use null for the synthetic database"
+    assert str(e.value) == "merl_dir: empty path; give the folder of MERL files"
     with pytest.raises(db.DatabaseError, match="^source: empty path"):
         db.database_from_folder(path, key="source")
 

@@ -105,7 +105,7 @@ def test_ingest_refuses_its_source_as_out(
 def test_ingest_reports_bad_folders_cleanly(tmp_path: Path, material: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert cli.main(["-q", "ingest", " ", "--out", str(tmp_path / "s.zarr")]) == 1
     assert _one_error_line(capsys, "ingest").endswith(
-        "folder: empty path; use null for the synthetic database"
+        "folder: empty path; give the folder of MERL files"
     )
     (tmp_path / "Other.BINARY").write_bytes(material.read_bytes())
     assert cli.main(["-q", "ingest", str(tmp_path), "--out", str(tmp_path / "s.zarr")]) == 1

@@ -220,7 +220,12 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"render": {"spp": "1e5"}}, "render.spp = '1e5': must be an integer"),
         ({"acquisition": {"fovs": [25, 25]}}, "acquisition.fovs: 25 is listed more than once"),
         ({"materials": []}, "config materials: must not be empty"),
-        ({"merl_dir": "/nonexistent/merl"}, "does not exist"),
+        ({"database": "merl", "merl_dir": "/nonexistent/merl"}, "does not exist"),
+        ({"merl_dir": "/some/folder"}, "merl_dir is set but database is 'synthetic'; set database: merl"),
+        ({"database": "merl"}, "database: merl reads a folder of MERL files: set merl_dir"),
+        ({"database": "nbrdf"}, "database: nbrdf reads your archive of NBRDF fits: set nbrdf_archive"),
+        ({"database": "nbrdf", "nbrdf_archive": "/no/such.zip"}, "nbrdf_archive: /no/such.zip: no such archive"),
+        ({"database": "mit"}, "config database = 'mit': must be one of"),
         ({"acquisition": {"setups": ["gonioreflectometer"]}}, "acquisition.setups[0] = 'gonioreflectometer': must be one of"),
         ({"acquisition": {"fovs": [0]}}, "acquisition.fovs[0] = 0: must be > 0"),
         ({"acquisition": {"fovs": [90]}}, "acquisition.fovs[0] = 90: must be < 90"),
@@ -240,7 +245,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"acquisition": {"training_sizes": [3, 50]}}, "acquisition.training_sizes"),
         ({"render": {"path_points": [0.1234561, 0.1234562]}}, "render.path_points"),
         ({"closed_loop": {"n_images": [3]}}, "closed_loop.n_images"),
-        ({"merl_dir": ""}, "merl_dir"),
+        ({"database": "merl", "merl_dir": ""}, "merl_dir: empty path"),
         ({"materials": ["no-such-*"]}, "materials: 'no-such-*' match"),
         ({"render": {"envmap": {"width": 100000, "height": 50000}}}, "render.envmap.width × height = 5,000,000,000"),
         ({"closed_loop": {"sensor": {"enabled": True, "brackets": [2, 8]}}}, "closed_loop.sensor.brackets"),
@@ -266,7 +271,7 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
         merl.write_merl(folder / f"{name}.binary", table)
     good = (folder / "beta.binary").read_bytes()
     (folder / "beta.binary").write_bytes(good[: len(good) // 2])  # truncated
-    cfg = write_config(tmp_path / "merl.yaml", merl_dir=str(folder), test_materials=["alpha"],
+    cfg = write_config(tmp_path / "merl.yaml", database="merl", merl_dir=str(folder), test_materials=["alpha"],
                        manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
     r = snakemake(tmp_path, "--keep-going", configfile=cfg)
     assert r.returncode != 0
@@ -373,7 +378,7 @@ def test_unsafe_material_names_fail_at_parse_naming_the_file(tmp_path: Path, nam
     table[:, ~merl.measured_mask()] = -1.0
     for stem in ("alpha", "beta", name):
         merl.write_merl(folder / f"{stem}.binary", table)
-    cfg = write_config(tmp_path / "merl.yaml", merl_dir=str(folder), test_materials=["alpha"],
+    cfg = write_config(tmp_path / "merl.yaml", database="merl", merl_dir=str(folder), test_materials=["alpha"],
                        manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
     r = snakemake(tmp_path, "-n", configfile=cfg)
     assert r.returncode != 0
@@ -393,7 +398,7 @@ def test_synth_folder_as_merl_dir_is_labelled_synthetic(tmp_path: Path) -> None:
     assert cli.main(["-q", "synth", "--count", "3", "--seed", "3", "--out", str(folder), "--jobs", "2"]) == 0
     (folder / "manifest.json").unlink()  # the label comes from the files, not from the manifest
     names = sorted(p.stem for p in folder.glob("*.binary"))
-    cfg = write_config(tmp_path / "synth.yaml", merl_dir=str(folder), test_materials=names[:1],
+    cfg = write_config(tmp_path / "synth.yaml", database="merl", merl_dir=str(folder), test_materials=names[:1],
                        manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
     r = snakemake(tmp_path, "results/splits.json", configfile=cfg)
     assert r.returncode == 0, r.stderr[-3000:]

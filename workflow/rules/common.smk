@@ -9,6 +9,7 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 
 from brdfpipe.data import database as brdf_db
+from brdfpipe.data import databases as brdf_dbs
 from brdfpipe.core import filenames as fn
 from brdfpipe.core import plan
 from brdfpipe.core.version import script_digest
@@ -27,13 +28,7 @@ def code(script):
 
 def _load_database():
     try:
-        if config["merl_dir"] is not None:
-            db = brdf_db.database_from_folder(config["merl_dir"], key="merl_dir")
-        else:
-            syn = config["synthetic"]
-            db = brdf_db.synthetic_database(
-                f"{fn.RESULTS}/synthetic", syn["count"], syn["seed"]
-            )
+        db = brdf_db.configured_database(config, fn.RESULTS)
         db = brdf_db.select_materials(db, config["materials"])
         test = brdf_db.resolve_test_materials(config["test_materials"], db)
     except brdf_db.DatabaseError as err:
@@ -45,9 +40,12 @@ DATABASE, TEST_MATERIALS = _load_database()
 MATERIALS = DATABASE.materials
 TRAIN_MATERIALS = [m for m in MATERIALS if m not in TEST_MATERIALS]
 # The workflow generates the synthetic database (rules synthesize_material and
-# write_manifest) only without merl_dir: a folder written by `brdfpipe synth`
-# given as merl_dir is labelled synthetic but is read as it is.
-GENERATED = config["merl_dir"] is None
+# write_manifest) for database: synthetic only: a folder written by `brdfpipe
+# synth` given as merl_dir is labelled synthetic but is read as it is. A
+# database of fits is evaluated by the workflow (rule evaluate_fits).
+GENERATED = config["database"] == "synthetic"
+FITS = bool(DATABASE.fits)
+DATABASE_TITLE = brdf_dbs.title(DATABASE.kind)
 ACQ = config["acquisition"]
 MAN = config["manifold"]
 RENDER = config["render"]
@@ -125,10 +123,13 @@ JOB_SIZES = {
 if config["materials"] is not None:
     MATERIALS_KEY = "materials"
 else:
-    MATERIALS_KEY = "synthetic.count" if GENERATED else "merl_dir"
+    MATERIALS_KEY = {"synthetic": "synthetic.count", "merl": "merl_dir", "nbrdf": "nbrdf_archive"}.get(
+        config["database"], "database"
+    )
 PLANNED_RULES = plan.planned_rules(
     config,
     generated=GENERATED,
+    fits=FITS,
     path_points=bool(PATH_POINTS),
     floor_check=bool(FLOOR_CANDIDATES),
 )

@@ -30,7 +30,8 @@ with log_to(snakemake.log[0]):
     )
     with open(inp.splits, encoding="utf-8") as fh:
         splits = json.load(fh)
-    captions.write_captions(snakemake.params.entries, found, database=splits["database"])
+    captions.write_captions(snakemake.params.entries, found,
+                            database=splits.get("database_title") or splits["database"])
     runinfo.write_front(
         snakemake.output.front,
         claims=found,

@@ -66,13 +66,13 @@ from matplotlib.ticker import LogFormatter, MaxNLocator
 
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.filenames import FIGURE_STEMS
+from brdfpipe.data.databases import title as database_label
 from brdfpipe.core.plot import (
     COLOURS,
     FigureInputError,
     FigureOutput,
     Warnings,
     check_keys,
-    database_label,
     figure_stem,
     finish,
     new_figure,

@@ -24,6 +24,7 @@ __all__ = [
     "format_t",
     "path_name",
     "synthetic_binary",
+    "fit_binary",
     "synthetic_record",
     "manifest",
     "ingest_row",
@@ -151,6 +152,11 @@ def synthetic_record(material: str) -> str:
 
 def manifest() -> str:
     return f"{RESULTS}/synthetic/manifest.json"
+
+
+def fit_binary(database: str, material: str) -> str:
+    """A table evaluated from an NBRDF fit of a database of fits (rule evaluate_fits)."""
+    return f"{RESULTS}/nbrdf/{database}/{material}.binary"
 
 
 def ingest_row(material: str) -> str:

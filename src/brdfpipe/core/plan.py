@@ -505,6 +505,7 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "synthesize_material": (306.0, 0.0),
     "write_manifest": (135.0, 0.0),  # not measured at N = 100: as write_splits (the same imports)
     "ingest_material": (64.0, 0.0),
+    "evaluate_fits": (480.0, 0.0),  # 287 MB measured at 2 threads (100 merl-nbrdf fits); ~90 MB more per material in flight, up to 4 threads
     "assemble_store": (78.0, 0.28),
     "write_splits": (135.0, 0.0),
     # acquisition track
@@ -693,11 +694,18 @@ def mem_mb(
     return max(100, int(math.ceil(need / 50.0)) * 50)
 
 
-def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bool, floor_check: bool) -> list[str]:
-    """The rules of :data:`MEMORY_MB` whose jobs ``config`` plans (for :func:`check_memory`)."""
+def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bool, floor_check: bool,
+                  fits: bool = False) -> list[str]:
+    """The rules of :data:`MEMORY_MB` whose jobs ``config`` plans (for :func:`check_memory`).
+
+    ``generated``: the run generates the synthetic database; ``fits``: it
+    evaluates a database of fits (rule ``evaluate_fits`` instead of
+    ``ingest_material``).
+    """
     skip: set[str] = set()
     if not generated:
         skip |= {"synthesize_material", "write_manifest"}
+    skip.add("ingest_material" if fits else "evaluate_fits")
     if not closedloop_directions(config):
         skip |= {"capture_closedloop", "evaluate_closedloop", "plot_closedloop"}
     if not path_points:

@@ -3,8 +3,7 @@
 The style (:data:`RC_PARAMS`, :data:`DPI`, :data:`COLOURS`), the result of a
 figure function (:class:`FigureOutput`) and its input error
 (:class:`FigureInputError`), CSV input checking (:func:`read_csv`,
-:func:`parse_float`, :func:`parse_int`, :func:`single_database`), the
-database named in titles (:func:`database_label`), the collected warnings of
+:func:`parse_float`, :func:`parse_int`, :func:`single_database`), the collected warnings of
 one figure (:class:`Warnings`), and creating, titling and atomically saving a
 figure (:func:`new_figure`, :func:`style`, :func:`no_data`, :func:`finish`)
 with its declared output files (:func:`figure_stem`).
@@ -49,7 +48,6 @@ __all__ = [
     "parse_float",
     "parse_int",
     "single_database",
-    "database_label",
     "Warnings",
     "new_figure",
     "style",
@@ -187,15 +185,6 @@ def single_database(path: Path, values: Iterable[str]) -> str:
     if len(names) != 1:
         raise FigureInputError(f"{path}: rows from more than one database ({', '.join(names)}); expected one")
     return names[0]
-
-
-def database_label(name: str) -> str:
-    """How a title names a database: ``merl`` → "MERL database", ``synthetic`` → "synthetic database"."""
-    name = str(name).strip()
-    if not name:
-        return "unknown database"
-    shown = "MERL" if name.lower() == "merl" else name
-    return shown if shown.lower().endswith("database") else f"{shown} database"
 
 
 # ---------------------------------------------------------------------------

@@ -19,11 +19,13 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from brdfpipe.core import atomic
+from brdfpipe.data import databases
 from brdfpipe.data.databases import EXTRA_TEST_MATERIAL, MERL_TEST_MATERIALS, XU2016_TEST_MATERIALS
 from brdfpipe.core.version import full_version
 from brdfpipe.data import provenance, synth
@@ -40,6 +42,9 @@ __all__ = [
     "database_from_folder",
     "merl_database",
     "synthetic_database",
+    "fits_database",
+    "configured_database",
+    "spread_test_materials",
     "folder_database",
     "default_test_count",
     "select_materials",
@@ -78,6 +83,10 @@ class Database:
     kind: str
     sources: dict[str, Path]
     default_test: tuple[str, ...] = field(default=())
+    #: material → its fit's name in ``archive`` (databases of fits; empty otherwise)
+    fits: dict[str, str] = field(default_factory=dict)
+    #: the archive of fits the workflow evaluates (``None`` unless ``fits``)
+    archive: Path | None = None
 
     @property
     def materials(self) -> list[str]:
@@ -177,7 +186,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     if isinstance(text, bytes):
         text = os.fsdecode(text)
     if not text.strip():
-        raise DatabaseError(f"{key}: empty path; use null for the synthetic database")
+        raise DatabaseError(f"{key}: empty path; give the folder of MERL files")
     path = Path(text).expanduser()
     if not path.exists():
         raise DatabaseError(f"{key} {path}: folder does not exist")
@@ -275,6 +284,93 @@ def synthetic_database(out_dir: str | os.PathLike[str], count: int, seed: int) -
     return Database("synthetic", sources, default)
 
 
+def spread_test_materials(names: Sequence[str]) -> tuple[str, ...]:
+    """Default held-out materials of a database without a published list: evenly spread over the sorted names.
+
+    :func:`brdfpipe.data.synth.default_test_count` of them (ten from 40
+    materials on, a quarter of a smaller database), at sorted positions
+    ``round((i + ½)·n/k)``: deterministic, and spread over the alphabet.
+    """
+    ordered = sorted(names)
+    k = default_test_count(len(ordered)) if len(ordered) > 1 else 0
+    return tuple(ordered[min(len(ordered) - 1, int((i + 0.5) * len(ordered) / k))] for i in range(k))
+
+
+def fits_database(name: str, archive: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
+                  key: str = "database") -> Database:
+    """The database of an archive of NBRDF fits (label ``name``: one of :data:`brdfpipe.data.databases.FIT_DATABASES`).
+
+    Every fit of the archive is a material named
+    :func:`brdfpipe.data.nbrdf.material_name` (``_`` written ``-``), whose
+    table the workflow evaluates to ``out_dir/<material>.binary``.  Default
+    held-out materials: the database's published list if it has one
+    (:data:`brdfpipe.data.databases.DATABASES`), else
+    :func:`spread_test_materials`.  Reads only the archive's listing.
+    Raises :class:`DatabaseError` naming ``key`` for a missing or unreadable
+    archive, two fits that would share a material name, or an unsafe name.
+    """
+    from brdfpipe.data import nbrdf
+
+    try:
+        with nbrdf.open_archive(archive) as a:
+            fit_names = a.names
+    except nbrdf.NbrdfError as err:
+        raise DatabaseError(f"{key}: {err}") from None
+    fits: dict[str, str] = {}
+    for fit in fit_names:
+        material = nbrdf.material_name(fit)
+        check_material_name(material, f"{key} {archive}:{fit}")
+        if material in fits:
+            raise DatabaseError(f"{key} {archive}: fits {fits[material]!r} and {fit!r} would both be material "
+                                f"{material!r}; rename one")
+        fits[material] = fit
+    sources = {m: Path(out_dir) / f"{m}{MERL_SUFFIX}" for m in fits}
+    spec = databases.DATABASES.get(name)
+    listed = spec.default_test if spec is not None and spec.default_test is not None else None
+    default = tuple(m for m in listed if m in fits) if listed is not None else spread_test_materials(list(fits))
+    return Database(name, sources, default, fits, Path(archive))
+
+
+def configured_database(config: Mapping[str, Any], results: str = "results") -> Database:
+    """The database a (schema-valid) config names: ``database`` with ``merl_dir`` / ``nbrdf_archive`` / ``synthetic``.
+
+    ``merl``: the folder ``merl_dir``, labelled from its files
+    (:func:`database_from_folder`); ``synthetic``: the generated database
+    (:func:`synthetic_database`, files under ``results/synthetic``); a
+    shipped database of fits, or ``nbrdf`` with ``nbrdf_archive``: the
+    archive's fits (:func:`fits_database`, tables under
+    ``results/nbrdf/<database>``).  A ``merl_dir`` or ``nbrdf_archive`` that
+    the chosen database does not read is an error naming both keys (a
+    setting that would be silently ignored).
+    """
+    name = config.get("database") or databases.DEFAULT_DATABASE
+    if name not in databases.DATABASES:
+        raise DatabaseError(f"database: unknown {name!r}; one of {', '.join(databases.DATABASES)}")
+    merl_dir, archive = config.get("merl_dir"), config.get("nbrdf_archive")
+    if merl_dir is not None and name != "merl":
+        raise DatabaseError(f"merl_dir is set but database is {name!r}; set database: merl to read the folder "
+                            "(or merl_dir: null)")
+    if archive is not None and name != "nbrdf":
+        raise DatabaseError(f"nbrdf_archive is set but database is {name!r}; set database: nbrdf to read the "
+                            "archive (or nbrdf_archive: null)")
+    spec = databases.DATABASES[name]
+    if spec.source == "generated":
+        syn = config["synthetic"]
+        return synthetic_database(f"{results}/synthetic", syn["count"], syn["seed"])
+    if spec.source == "folder":
+        if merl_dir is None:
+            raise DatabaseError("database: merl reads a folder of MERL files: set merl_dir to it")
+        return database_from_folder(merl_dir, key="merl_dir")
+    if spec.source == "archive":
+        return fits_database(name, databases.shipped_archive(name), f"{results}/nbrdf/{name}")
+    if archive is None:
+        raise DatabaseError("database: nbrdf reads your archive of NBRDF fits: set nbrdf_archive to it (a .zip or "
+                            "a folder of NAME.h5 files)")
+    if not str(archive).strip():
+        raise DatabaseError("nbrdf_archive: empty path")
+    return fits_database("nbrdf", Path(str(archive)).expanduser(), f"{results}/nbrdf/nbrdf", key="nbrdf_archive")
+
+
 def select_materials(db: Database, patterns: Sequence[str] | None, *, key: str = "materials") -> Database:
     """The part of ``db`` whose names match ``patterns`` (names or shell-style globs); all if ``None``.
 
@@ -299,6 +395,8 @@ def select_materials(db: Database, patterns: Sequence[str] | None, *, key: str =
         db.kind,
         {n: src for n, src in db.sources.items() if n in keep},
         tuple(n for n in db.default_test if n in keep),
+        {n: f for n, f in db.fits.items() if n in keep},
+        db.archive,
     )
 
 
@@ -355,6 +453,8 @@ def write_splits(
     test_set = set(test)
     doc = {
         "database": st.database,
+        "database_title": databases.title(st.database),
+        "measurement": databases.is_measurement(st.database),
         "materials": materials,
         "test": [m for m in materials if m in test_set],
         "train": [m for m in materials if m not in test_set],

@@ -130,8 +130,16 @@ TITLES: Final[dict[str, str]] = {
 
 
 def title(label: str) -> str:
-    """The human name of a database label (the label itself when unknown)."""
-    return TITLES.get(label, label)
+    """How titles, captions and claims name the materials of a database label.
+
+    ``merl-nbrdf`` → "MERL materials, NBRDF fits (Sztrajman et al. 2021)",
+    ``merl`` → "MERL (Matusik et al. 2003)"; an unknown label ``x`` → "x
+    database" (never mistaken for a known one); empty → "unknown database".
+    """
+    label = str(label).strip()
+    if not label:
+        return "unknown database"
+    return TITLES.get(label, label if label.lower().endswith("database") else f"{label} database")
 
 
 def is_measurement(label: str) -> bool:

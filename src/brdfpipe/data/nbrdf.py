@@ -36,9 +36,11 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import logging
 import os
+import time
 import zipfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -48,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
+from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import databases, merl, provenance
 
 __all__ = [
@@ -65,14 +68,18 @@ __all__ = [
     "fit_database",
     "write_fit",
     "write_fits",
+    "evaluate_to_files",
 ]
 
 #: Layer widths of the published fits: input, hidden, hidden, output.
 ARCHITECTURE: Final = (6, 21, 21, 3)
 #: Activations of the published fits' dense layers (then exp(y) − 1).
 _ACTIVATIONS: Final = ("relu", "relu", "linear")
-#: Cells evaluated per block (~ 60 MB of float64 temporaries).
-BLOCK_CELLS: Final = 131_072
+#: Cells evaluated per block: the (block, 21) temporaries stay in the cache (2,048–4,096 cells are
+#: 2.3× faster than 131,072 on this project's 2-core AMD EPYC).
+BLOCK_CELLS: Final = 4_096
+logger = logging.getLogger("brdfpipe.data.nbrdf")
+
 _H5_SUFFIX: Final = ".h5"
 _BINARY: Final = ".binary"
 _MAX_FIT_BYTES: Final = 16 * 1024 * 1024  # a published fit is ~8 kB; refuse absurd members
@@ -419,3 +426,58 @@ def write_fits(
             done.append((targets[n], write_fit(archive.fit(n), targets[n])))
     return done
 
+
+
+def evaluate_to_files(
+    *,
+    archive: str | os.PathLike[str],
+    fits: Mapping[str, str],
+    binaries: Sequence[str | os.PathLike[str]],
+    rows: Sequence[str | os.PathLike[str]] | None = None,
+    database: str,
+    threads: int = 1,
+) -> dict[str, int]:
+    """The workflow's data stage for a database of fits (rule ``evaluate_fits``): one job for every material.
+
+    ``fits`` maps each material (in the order of ``binaries`` and ``rows``)
+    to its fit's name in ``archive``.  Each fit is evaluated on the MERL grid
+    and written as a marked MERL file (:func:`write_fit`); with ``rows``,
+    that file is also ingested into its one-row store
+    (:func:`brdfpipe.data.store.ingest_material`, which checks that its mark
+    is of ``database`` and names the material).  ``threads`` materials are
+    processed at once (NumPy releases the GIL in the network's products and
+    in the writes).  One process instead of one job per material: the
+    evaluation takes ~0.3 s a material, a job's start-up more.  Returns the
+    clamped count per material; raises :class:`NbrdfError` for a fit of
+    another database than ``database``.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from brdfpipe.data import store
+
+    materials = list(fits)
+    if len(binaries) != len(materials) or (rows is not None and len(rows) != len(materials)):
+        raise ValueError(f"{len(materials)} materials, {len(binaries)} binaries, "
+                         f"{'no' if rows is None else len(rows)} rows")
+    t0 = time.perf_counter()
+    with open_archive(archive) as a:
+        loaded = {m: a.fit(fits[m]) for m in materials}
+    wrong = sorted(m for m, f in loaded.items() if fit_database(f) != database)
+    if wrong:
+        raise NbrdfError(f"{archive}: the fits of {', '.join(wrong[:5])} are not those of the {database} database "
+                         f"(their weights are {fit_database(loaded[wrong[0]])}'s): the archive changed")
+
+    def one(k: int) -> tuple[str, int]:
+        m = materials[k]
+        result = write_fit(loaded[m], binaries[k], name=m)
+        if rows is not None:
+            store.ingest_material(binaries[k], rows[k], name=m, expect={"database": database})
+        return m, result.clamped
+
+    _grid()  # once, before the threads share it
+    # one BLAS thread per material in flight: the products are small, threads of their own only spin
+    with blas_threads(1), ThreadPoolExecutor(max_workers=max(1, int(threads))) as pool:
+        clamped = dict(pool.map(one, range(len(materials))))
+    logger.info("%d %s fits evaluated on the MERL grid in %.1f s (%d threads); %d values clamped at 0",
+                len(materials), database, time.perf_counter() - t0, threads, sum(clamped.values()))
+    return clamped

@@ -30,6 +30,7 @@ from matplotlib.patches import Rectangle
 from matplotlib.ticker import MaxNLocator
 
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
+from brdfpipe.data.databases import title as database_label
 from brdfpipe.core.plot import (
     COLOURS,
     RC_PARAMS,
@@ -37,7 +38,6 @@ from brdfpipe.core.plot import (
     FigureOutput,
     Warnings,
     check_keys,
-    database_label,
     figure_stem,
     finish,
     new_figure,

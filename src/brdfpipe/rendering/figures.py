@@ -25,12 +25,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.core.filenames import RENDER_FIGURE_STEMS, format_t
+from brdfpipe.data.databases import title as database_label
 from brdfpipe.core.plot import (
     FigureInputError,
     FigureOutput,
     Warnings,
     check_keys,
-    database_label,
     figure_stem,
     finish,
     new_figure,

@@ -20,5 +20,7 @@ Modules: :mod:`brdfpipe.report.items` (which files the report holds: parse
 time, standard library only), :mod:`brdfpipe.report.claims`,
 :mod:`brdfpipe.report.captions`, :mod:`brdfpipe.report.runinfo` (job time),
 :mod:`brdfpipe.report.rst` (the one escaping of run-supplied text into
-reStructuredText and Jinja2: every name reaches the page as text).
+reStructuredText and Jinja2: every name reaches the page as text),
+:mod:`brdfpipe.report.critical_path` (where a finished run's wall time went:
+its critical path, CPU per rule, idle cores; ``benches/bench_critical_path.py``).
 """

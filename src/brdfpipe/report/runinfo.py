@@ -175,6 +175,10 @@ def _database_note(database: str) -> str:
     """The front page's sentence on what a database label means (nothing for measured MERL data)."""
     if database == "merl":
         return ""
+    if database.endswith("nbrdf"):
+        return (" These are tables evaluated from published neural fits of measured materials (NBRDF, "
+                "Sztrajman et al. 2021): smooth approximations of the measurements, as accurate as the fits, "
+                "not the measurements themselves.")
     if database == "synthetic":
         return " This is the generated synthetic MERL-format database, not real MERL data."
     if database == "derived":
@@ -187,9 +191,11 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
               configfiles: Sequence[str], targets: Mapping[str, int], versions: Mapping[str, str]) -> str:
     """The front page body (reStructuredText): what ran, the claims, versions, the configuration."""
     database = str(splits["database"])
+    title = str(splits.get("database_title") or database)
     counts = {h: sum(c.holds == h for c in claims) for h in ("yes", "no", "not measured")}
     lines = ["What ran", "--------", "",
-             f"Database: **{rst.text(database)}** ({len(splits['materials'])} materials: {len(splits['train'])} training, "
+             f"Database: **{rst.text(title)}** (label ``{rst.text(database)}``; "
+             f"{len(splits['materials'])} materials: {len(splits['train'])} training, "
              f"{len(splits['test'])} held out: {rst_cell(', '.join(splits['test']))}), as recorded in "
              "``results/splits.json`` from the store." +
              _database_note(database),
