@@ -1,0 +1,313 @@
+"""Materials outside the training database (config ``unseen``, issue 22 item 3).
+
+Library-level checks of: which unseen materials a config names
+(:func:`brdfpipe.data.database.unseen_databases`), their stores and albedos
+(:func:`brdfpipe.data.nbrdf.evaluate_to_store`), their latent positions on a
+fitted GPLVM (:mod:`brdfpipe.manifold.unseen`, :func:`brdfpipe.manifold.gplvm.cross_gram`),
+the figures, the claims and the plan.  The acquisition's evaluation is
+checked in ``test_reconstruct.py`` (on its small pipeline) and the
+many-material capture in ``test_closedloop.py``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from brdfpipe.core import filenames, plan
+from brdfpipe.data import database, databases, merl, nbrdf, store
+from brdfpipe.manifold import gplvm, unseen
+
+RESULTS = "results"
+
+
+def _run_db(**over: object) -> database.Database:
+    return database.configured_database({"database": "merl-nbrdf", **over})
+
+
+# -- which materials ----------------------------------------------------------
+
+
+def test_unseen_materials_of_a_config() -> None:
+    run = _run_db()
+    got = database.unseen_databases({"unseen": {"databases": ["rgl-nbrdf", "nielsen-nbrdf"], "materials": None}},
+                                    run, RESULTS)
+    assert list(got) == ["rgl-nbrdf", "nielsen-nbrdf"]
+    assert len(got["rgl-nbrdf"].materials) == 51 and len(got["nielsen-nbrdf"].materials) == 8
+    assert got["rgl-nbrdf"].kind == "rgl-nbrdf" and got["rgl-nbrdf"].fits["spectralon-rgb"] == "spectralon_rgb"
+    assert got["rgl-nbrdf"].sources["spectralon-rgb"] == Path(filenames.unseen_binary("rgl-nbrdf", "spectralon-rgb"))
+    # patterns pick among every unseen database; a database left with none is dropped
+    got = database.unseen_databases({"unseen": {"databases": ["rgl-nbrdf", "nielsen-nbrdf"],
+                                                "materials": ["spectralon-*", "paper-*"]}}, run, RESULTS)
+    assert list(got) == ["rgl-nbrdf"]
+    assert got["rgl-nbrdf"].materials == ["paper-blue-rgb", "paper-green-rgb", "paper-red-rgb", "paper-white-rgb",
+                                          "paper-yellow-rgb", "spectralon-rgb"]
+    assert database.unseen_databases({"unseen": {"databases": [], "materials": None}}, run) == {}
+    assert database.unseen_databases({}, run) == {}
+
+
+@pytest.mark.parametrize("spec,message", [
+    ({"databases": ["merl-nbrdf"]}, "unseen.databases: merl-nbrdf is the run's own database"),
+    ({"databases": ["synthetic"]}, "unseen.databases: 'synthetic' is not a shipped database of fits"),
+    ({"databases": ["nbrdf"]}, "unseen.databases: 'nbrdf' is not a shipped database of fits"),
+    ({"databases": ["rgl-nbrdf", "rgl-nbrdf"]}, "unseen.databases: listed more than once: rgl-nbrdf"),
+    ({"databases": [], "materials": ["x"]}, "unseen.materials is set but unseen.databases is empty"),
+    ({"databases": ["rgl-nbrdf"], "materials": ["spectralon-rgb", "no-such-*"]},
+     "unseen.materials: 'no-such-*' match(es) no material of rgl-nbrdf"),
+])
+def test_bad_unseen_config_is_one_line_naming_the_key(spec: dict, message: str) -> None:
+    with pytest.raises(database.DatabaseError) as err:
+        database.unseen_databases({"unseen": spec}, _run_db(), RESULTS)
+    assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_material_the_model_has_seen_is_not_unseen() -> None:
+    # a run on a folder whose materials include an RGL fit's name: that material is not unseen
+    run = database.Database("merl", {"spectralon-rgb": Path("x.binary"), "alum-bronze": Path("y.binary")})
+    with pytest.raises(database.DatabaseError, match="spectralon-rgb .rgl-nbrdf. is also a material of the run's"):
+        database.unseen_databases({"unseen": {"databases": ["rgl-nbrdf"], "materials": None}}, run, RESULTS)
+
+
+def test_schema_offers_the_shipped_databases_of_fits() -> None:
+    import yaml
+
+    schema = yaml.safe_load((Path(__file__).resolve().parents[1] / "workflow" / "schemas"
+                             / "config.schema.yaml").read_text())
+    entry = schema["properties"]["unseen"]["properties"]["databases"]
+    assert entry["items"]["enum"] == list(database.UNSEEN_DATABASES)
+    assert set(database.UNSEEN_DATABASES) == {n for n, d in databases.DATABASES.items() if d.source == "archive"}
+
+
+# -- stores, albedos ----------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def stores(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A training store of six MERL fits and an unseen store of two RGL fits (each with its tables)."""
+    d = tmp_path_factory.mktemp("unseen")
+    out = {}
+    for label, names in (("merl-nbrdf", ["alum-bronze", "blue-acrylic", "gold-paint", "red-plastic", "teflon",
+                                         "white-paint"]),
+                         ("rgl-nbrdf", ["paper-red-rgb", "spectralon-rgb"])):
+        fits = {m: m.replace("-", "_") if label == "rgl-nbrdf" else m for m in names}
+        nbrdf.evaluate_to_store(archive=databases.shipped_archive(label), fits=fits,
+                                binaries=[d / label / f"{m}.binary" for m in names],
+                                store_out=d / f"{label}.zarr", albedo_out=d / f"{label}-albedo.csv",
+                                database=label, threads=2)
+        out[label] = d / f"{label}.zarr"
+        out[f"{label}-albedo"] = d / f"{label}-albedo.csv"
+        out[f"{label}-tables"] = d / label
+    return out
+
+
+def test_unseen_store_albedos_and_labels(stores: dict[str, Path]) -> None:
+    st = store.open_store(stores["rgl-nbrdf"])
+    assert st.database == "rgl-nbrdf" and list(st.materials) == ["paper-red-rgb", "spectralon-rgb"]
+    table = merl.read_merl(stores["rgl-nbrdf-tables"] / "spectralon-rgb.binary")
+    np.testing.assert_array_equal(st.brdf[1], table.reshape(-1).astype(np.float32))
+    with open(stores["rgl-nbrdf-albedo"], newline="") as fh:
+        rows = {r["material"]: r for r in csv.DictReader(fh)}
+    assert list(next(iter(rows.values()))) == list(nbrdf.ALBEDO_COLUMNS)
+    spec = rows["spectralon-rgb"]
+    assert spec["database"] == "rgl-nbrdf" and float(spec["theta_i_deg"]) == 0.0
+    # an independent evaluation of the same integral: the directional albedo of the table at θi = 0
+    want = merl.directional_albedo(table, [0.0])[0]
+    np.testing.assert_allclose([float(spec[c]) for c in "rgb"], want, rtol=1e-12)
+    assert 0.9 < float(spec["luminance"]) < 1.0  # a near-white diffuse reflector
+    assert float(rows["paper-red-rgb"]["r"]) > 2 * float(rows["paper-red-rgb"]["b"])
+
+
+def test_fits_of_another_database_are_refused(tmp_path: Path) -> None:
+    with pytest.raises(nbrdf.NbrdfError, match="are not those of the rgl-nbrdf database"):
+        nbrdf.evaluate_to_store(archive=databases.shipped_archive("merl-nbrdf"), fits={"teflon": "teflon"},
+                                binaries=[tmp_path / "teflon.binary"], store_out=tmp_path / "x.zarr",
+                                albedo_out=tmp_path / "a.csv", database="rgl-nbrdf")
+    assert not (tmp_path / "x.zarr").exists() and not (tmp_path / "a.csv").exists()
+
+
+# -- the manifold ---------------------------------------------------------------
+
+
+class Toy:
+    """A GPLVM of 12 random 'materials' (d = 60): Gram, model and the data, dense."""
+
+    def __init__(self, q: int = 2, mu: float = 1e-4) -> None:
+        rng = np.random.default_rng(5)
+        base = rng.normal(size=(3, 60))
+        t = rng.uniform(-1, 1, size=(12, 3))
+        self.Z = np.tanh(t @ base) + 0.05 * rng.normal(size=(12, 60))
+        self.mean = self.Z.mean(axis=0)
+        self.Y = self.Z - self.mean
+        self.G = self.Y @ self.Y.T
+        scale = gplvm.gram_scale(self.G, 60)
+        res = gplvm.fit(self.G / scale, 60, q=q, mu=mu, method="newton")
+        names = [f"m{i:02d}" for i in range(12)]
+        self.model = gplvm.GplvmModel(tuple(names), res.X, res.ell, res.mu, "raw", gplvm.MEAN_HANDLING,
+                                      np.linalg.cholesky(gplvm.kernel_matrix(res.X, res.ell, res.mu)),
+                                      res.log_likelihood, 60.0, np.zeros((0, 2)), scale, res.method)
+
+    def objective(self, z: np.ndarray) -> unseen.Objective:
+        y = z - self.mean
+        return unseen.Objective(self.model, self.G, self.Y @ y, float(y @ y), 60.0)
+
+
+@pytest.fixture(scope="module")
+def toy() -> Toy:
+    return Toy()
+
+
+def test_a_training_material_is_placed_at_its_own_latent_point(toy: Toy) -> None:
+    for j in (0, 5, 11):
+        obj = toy.objective(toy.Z[j])
+        ls = unseen.locate(obj, "least-squares", norm=float(np.linalg.norm(toy.Z[j])))
+        assert np.array_equal(ls.x, toy.model.X[j]) and ls.nearest == f"m{j:02d}"
+        assert ls.relative_error < 1e-6
+        gp = unseen.locate(obj, "likelihood", norm=1.0)
+        spacing = np.sort(np.linalg.norm(toy.model.X - toy.model.X[j], axis=1))[1]
+        assert np.linalg.norm(gp.x - toy.model.X[j]) < 1e-3 * spacing, (gp.x, toy.model.X[j])
+        assert gp.nearest == f"m{j:02d}"
+
+
+def test_least_squares_recovers_a_blend_of_training_materials(toy: Toy) -> None:
+    X = toy.model.X
+    x0 = 0.6 * X[2] + 0.4 * X[7]
+    w = gplvm.blend_weights(gplvm.weights(toy.model, x0))
+    z = w @ toy.Z
+    obj = toy.objective(z)
+    ls = unseen.locate(obj, "least-squares", norm=float(np.linalg.norm(z)))
+    assert ls.relative_error < 1e-5
+    assert np.linalg.norm(ls.x - x0) < 1e-3 * np.linalg.norm(X[2] - X[7])
+    # R by the objective agrees with the dense residual of the interpolant
+    zhat = gplvm.blend_weights(gplvm.weights(toy.model, ls.x)) @ toy.Z
+    assert math.isclose(obj.residual_at(ls.x), float(np.sum((z - zhat) ** 2)), rel_tol=1e-6, abs_tol=1e-12)
+
+
+def test_the_likelihood_is_the_fit_objective_gained_by_adding_the_material(toy: Toy) -> None:
+    """log p(y | x) = L(X ∪ x, Y ∪ y) − L(X, Y) (Soler eq. 6 on G/s), up to the constant term."""
+    rng = np.random.default_rng(1)
+    z = toy.Z[3] + 0.3 * rng.normal(size=60)
+    obj = toy.objective(z)
+    s = toy.model.gram_scale
+    Yplus = np.vstack([toy.Y, z - toy.mean])
+    base = gplvm.log_likelihood(toy.model.X, toy.G / s, 60, toy.model.ell, toy.model.mu)
+    values = []
+    for x in (toy.model.X[3] + 0.05, toy.model.X[8] - 0.2, np.array([3.0, -2.0])):
+        joint = gplvm.log_likelihood(np.vstack([toy.model.X, x]), Yplus @ Yplus.T / s, 60, toy.model.ell,
+                                     toy.model.mu)
+        values.append((joint - base, obj.log_likelihood(x)))
+    diffs = [a - b for a, b in values]
+    assert max(diffs) - min(diffs) < 1e-6 * max(abs(a) for a, _ in values)
+
+
+def test_objective_gradients_match_finite_differences(toy: Toy) -> None:
+    obj = toy.objective(toy.Z[4] + 0.1)
+    x = toy.model.X[4] + np.array([0.07, -0.05])
+    for fun in (obj._ls, obj._nll):  # noqa: SLF001 - the optimiser's own functions
+        f, g = fun(x)
+        h = 1e-6
+        fd = [(fun(x + h * e)[0] - fun(x - h * e)[0]) / (2 * h) for e in np.eye(2)]
+        np.testing.assert_allclose(g, fd, rtol=1e-4, atol=1e-8 * max(1.0, abs(f)))
+
+
+def test_pca_residuals_equal_an_explicit_projection(toy: Toy) -> None:
+    rng = np.random.default_rng(2)
+    Z = rng.normal(size=(3, 60))
+    ys = Z - toy.mean
+    got = unseen.pca_residuals(toy.G, toy.Y @ ys.T, np.einsum("ij,ij->i", ys, ys), [1, 3, 20])
+    _, _, Vt = np.linalg.svd(toy.Y, full_matrices=False)
+    for k, kk in ((1, 1), (3, 3), (20, 11)):  # capped at N − 1 = 11
+        P = Vt[:kk]
+        want = np.sum((ys - (ys @ P.T) @ P) ** 2, axis=1)
+        np.testing.assert_allclose(got[k], want, rtol=1e-8)
+
+
+def test_cross_gram_equals_a_dense_computation(stores: dict[str, Path]) -> None:
+    train, other = store.open_store(stores["merl-nbrdf"]), store.open_store(stores["rgl-nbrdf"])
+    cells = np.flatnonzero(np.asarray(train.valid[:], dtype=bool))
+    wi, wo = merl.cell_directions(cells)
+    root_cos = np.sqrt(np.maximum(wi[:, 2] * wo[:, 2], 0.0))
+
+    def rows(st: store.BrdfStore) -> np.ndarray:
+        return np.stack([np.asarray(st.brdf[i], dtype=np.float64).reshape(3, -1)[:, cells]
+                         for i in range(st.n_materials)])
+
+    Zt, Zo = rows(train), rows(other)
+    scale = root_cos / np.maximum(Zt.std(axis=0), gplvm.STANDARDISED_FLOOR)
+    T, O = (Zt * scale).reshape(len(Zt), -1), (Zo * scale).reshape(len(Zo), -1)
+    mean = T.mean(axis=0)
+    got = gplvm.cross_gram(train, [other], space="standardised")
+    assert got.others == (("rgl-nbrdf", "paper-red-rgb"), ("rgl-nbrdf", "spectralon-rgb"))
+    np.testing.assert_allclose(got.gram, (T - mean) @ (T - mean).T, rtol=1e-9, atol=1e-9 * np.abs(got.gram).max())
+    np.testing.assert_allclose(got.cross, (T - mean) @ (O - mean).T, rtol=1e-9, atol=1e-9 * np.abs(got.cross).max())
+    np.testing.assert_allclose(got.norms2, np.sum((O - mean) ** 2, axis=1), rtol=1e-9)
+    np.testing.assert_allclose(got.raw_norms2, np.sum(O ** 2, axis=1), rtol=1e-9)
+    gram, d, _ = gplvm.gram_matrix(train, space="standardised")
+    assert d == got.d and np.abs(gram - got.gram).max() <= 1e-12 * np.abs(gram).max()
+
+
+def test_unseen_csv_of_the_manifold(stores: dict[str, Path], tmp_path: Path) -> None:
+    gplvm.write_gram(stores["merl-nbrdf"], tmp_path / "gram.npz", space="standardised")
+    models = {}
+    for q in (1, 2):
+        models[q] = tmp_path / f"q{q}.npz"
+        gplvm.fit_to_files(tmp_path / "gram.npz", models[q], tmp_path / f"q{q}.csv", q=q, mu=1e-4)
+    out = unseen.write_unseen(tmp_path / "unseen.csv", store=stores["merl-nbrdf"], gram=tmp_path / "gram.npz",
+                              models=models, unseen_stores=[stores["rgl-nbrdf"]], pca_ks=[3, 20])
+    with open(out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == list(unseen.UNSEEN_COLUMNS)
+    assert {r["database"] for r in rows} == {"rgl-nbrdf"} and {r["model_database"] for r in rows} == {"merl-nbrdf"}
+    assert {r["space"] for r in rows} == {"standardised"}
+    by = {(r["material"], r["method"], int(r["k"])): r for r in rows}
+    # per material: 2 methods × 2 q, PCA at k = 1, 2, 3 and 20 capped at N − 1 = 5
+    assert sorted(k for (m, meth, k) in by if m == "spectralon-rgb" and meth == "pca") == [1, 2, 3, 5]
+    for m in ("spectralon-rgb", "paper-red-rgb"):
+        for q in (1, 2):
+            for meth in ("gplvm-likelihood", "gplvm-least-squares"):
+                r = by[(m, meth, q)]
+                assert len(r["latent"].split()) == q and r["nearest"] in store.open_store(stores["merl-nbrdf"]).materials
+                assert 0 < float(r["relative_error"]) and math.isfinite(float(r["log_likelihood"]))
+            # least squares minimises the reproduction error the likelihood trades against σ²
+            assert float(by[(m, "gplvm-least-squares", q)]["relative_error"]) <= \
+                float(by[(m, "gplvm-likelihood", q)]["relative_error"]) * (1 + 1e-9)
+        # PCA with more components reproduces better
+        assert float(by[(m, "pca", 5)]["relative_error"]) <= float(by[(m, "pca", 1)]["relative_error"])
+    # a Gram matrix of another space: the materials would be mapped to the wrong space
+    gplvm.write_gram(stores["merl-nbrdf"], tmp_path / "gram-raw.npz", space="raw")
+    G_raw, _, _ = gplvm.load_gram(tmp_path / "gram-raw.npz")
+    cross = gplvm.cross_gram(stores["merl-nbrdf"], [stores["rgl-nbrdf"]], space="standardised")
+    with pytest.raises(ValueError, match="differs from the models'"):
+        unseen.unseen_rows(cross, {2: gplvm.load_model(models[2])}, gram=G_raw, model_database="merl-nbrdf")
+
+
+def test_a_store_not_measured_where_the_model_is_is_refused(stores: dict[str, Path], tmp_path: Path) -> None:
+    # a table measuring fewer cells (one more θh row unmeasured) cannot be mapped to the training space
+    table = merl.read_merl(stores["rgl-nbrdf-tables"] / "spectralon-rgb.binary")
+    table[:, 3] = -1.0 * merl.SCALES[:, None, None]
+    from brdfpipe.data import provenance
+
+    merl.write_merl(tmp_path / "holey.binary", table, mark=provenance.fit_mark(
+        database="rgl-nbrdf", name="holey", fit="spectralon_rgb", archive="x.zip", fit_sha256="0" * 64, clamped=0))
+    store.ingest({"holey": tmp_path / "holey.binary"}, tmp_path / "holey.zarr", database="rgl-nbrdf")
+    with pytest.raises(ValueError, match="holey.zarr: .* cell.s. valid in every material"):
+        gplvm.cross_gram(stores["merl-nbrdf"], [tmp_path / "holey.zarr"], space="raw")
+
+
+# -- the plan -------------------------------------------------------------------
+
+
+def test_plan_of_the_unseen_materials() -> None:
+    acq = {"metrics": ["error", "condition"], "setups": ["point", "nearfield", "fixed_camera"], "fovs": [15, 25]}
+    assert plan.unseen_directions(acq) == [filenames.directions("train", "point", 0, "error"),
+                                           filenames.directions("train", "nearfield", 15, "error"),
+                                           filenames.directions("train", "nearfield", 25, "error")]
+    assert plan.unseen_directions({**acq, "metrics": ["condition"]}) == []
+    assert plan.unseen_figures(unseen=False, evaluated=True) == {}
+    assert set(plan.unseen_figures(unseen=True, evaluated=True)) == {"acquisition", "manifold"}
+    assert set(plan.unseen_figures(unseen=True, evaluated=False)) == {"manifold"}
+    assert plan.unseen_map_q({"latent_dims": [5, 2]}) == 2 and plan.unseen_map_q({"latent_dims": [3, 5]}) == 3
+    assert set(plan.UNSEEN_RULES) <= set(plan.MEMORY_MB)
