@@ -7,7 +7,7 @@ directory, nothing built yet):
 * ``snakemake -n`` on ``tests/config/tiny.yaml``: the whole dry run;
 * importing the modules the workflow's Snakefile imports at parse time
   (``brdfpipe.data.database`` and ``brdfpipe.core``'s ``plan``, ``filenames``,
-  ``version``), measured
+  ``stamps``, ``version``), measured
   inside one fresh interpreter;
 
 with the cluster issue's targets (dry run ≤ 1.5 s, own imports ≤ 0.2 s) and
@@ -39,7 +39,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
-IMPORTS = "brdfpipe.data.database, brdfpipe.core.plan, brdfpipe.core.filenames, brdfpipe.core.version"
+IMPORTS = "brdfpipe.data.database, brdfpipe.core.plan, brdfpipe.core.filenames, brdfpipe.core.stamps, brdfpipe.core.version"
 
 
 def wall(cmd: list[str], cwd: Path) -> float:

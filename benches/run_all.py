@@ -48,6 +48,8 @@ def main() -> None:
     run("benches/bench_explorer.py")
     # Trust and cluster: verifying the store on open, parse time, declared memory vs the run's peaks.
     run("benches/bench_verify.py")
+    # Every other intermediate's digest (model, log-map, GPLVM files, EXRs, tables, explorer) vs its consumer.
+    run("benches/bench_integrity.py")
     run("benches/bench_dryrun.py")
     run("benches/bench_memory.py")
     # Speed: where the last run's wall time went (critical path, CPU per rule, idle cores).

@@ -5,14 +5,12 @@ Used by tests/test_explorer.py and benches/bench_explorer.py (when no workflow r
 
 from __future__ import annotations
 
-import csv
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from brdfpipe.core import exr
+from brdfpipe.core import exr, integrity
 from brdfpipe.manifold import gplvm
 
 
@@ -54,11 +52,9 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
         models.append(str(path))
     albedo = root / "albedo.csv"
     alb = rng.uniform(0.02, 0.9, size=(n, 3))
-    with albedo.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["database", "material", "r", "g", "b", "luminance"])
-        for name, a in zip(names, alb):
-            w.writerow(["synthetic", name, *a, a.mean()])
+    # tables and weights as the workflow writes them: with their digests (brdfpipe.core.integrity)
+    integrity.write_csv(albedo, [["database", "material", "r", "g", "b", "luminance"],
+                                 *(["synthetic", name, *a, a.mean()] for name, a in zip(names, alb))])
     # two path points on the largest-q model, like manifold.path_points_to_files
     m = gplvm.load_model(models[-1])
     points, rows = [], []
@@ -70,7 +66,7 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
                "x": [float(v) for v in x], "clamped": 0, "measured_values": 100,
                "weights": {nm: float(v) for nm, v in zip(names, wts)}}
         wpath = root / f"point-{t:g}-weights.json"
-        wpath.write_text(json.dumps(doc))
+        integrity.write_json(wpath, doc)
         ref = np.abs(np.einsum("i,ihwc->hwc", wts, images) * (1 + 0.02 * rng.standard_normal(images.shape[1:])))
         ipath = root / f"point-{t:g}.exr"
         exr.write_exr(ipath, ref.astype(np.float32))
@@ -78,9 +74,6 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
         rows.append({"path": f"{a}--{b}", "t": f"{t:g}", "rmse_noise": "0.05", "rmse_blend_seed2": "0.052",
                      "ratio_seed2": "1.04"})
     summary = root / "summary.csv"
-    with summary.open("w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        wr.writeheader()
-        wr.writerows(rows)
+    integrity.write_csv(summary, [list(rows[0]), *([r[k] for k in rows[0]] for r in rows)])
     return {"models": models, "prerenders": prerenders, "albedo": str(albedo), "path_points": points,
             "summary": str(summary), "database": database}

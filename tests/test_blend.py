@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import csv
+import io
+import re
 from pathlib import Path
 from typing import Any
 
@@ -10,7 +12,7 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from brdfpipe.core import filenames
+from brdfpipe.core import filenames, integrity
 from brdfpipe.rendering import blend
 from brdfpipe.rendering.blend import (
     SUMMARY_COLUMNS,
@@ -240,7 +242,7 @@ def test_error_maps_end_to_end(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
         assert attrs["database"] == "synthetic" and attrs["t"] == format_t(pt["t"])
     # exactly the files passed in, nothing else (no temporary, no name of the library's own)
     assert sorted(out.iterdir()) == sorted([summary, *_output_files(points)])
-    with open(summary, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(summary), newline="") as fh:
         table = list(csv.reader(fh))
     assert tuple(table[0]) == SUMMARY_COLUMNS
     assert [r[:3] for r in table[1:]] == [["synthetic", "chrome-to-silver", "0.25"], ["synthetic", "chrome-to-silver", "0.5"]]
@@ -316,7 +318,6 @@ def test_error_maps_refuses_clashing_outputs_before_writing(tmp_path: Path) -> N
 
 def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None:
     """The workflow's entry points: weights JSON files → summary, then the three render figures."""
-    import json
 
     from brdfpipe.core.plot import FigureInputError
     from brdfpipe.rendering import figures
@@ -326,7 +327,7 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
     wfiles = []
     for k, pt in enumerate(points):
         wf = tmp_path / f"w{k}.json"
-        wf.write_text(json.dumps({"path": pt["path"], "t": pt["t"], "weights": pt["weights"],
+        integrity.write_json(wf, ({"path": pt["path"], "t": pt["t"], "weights": pt["weights"],
                                   "material_a": MATERIALS[0], "material_b": MATERIALS[1]}))
         wfiles.append(wf)
     out = tmp_path / "maps"
@@ -404,12 +405,12 @@ def test_error_maps_of_the_one_bounce_part(tmp_path: Path) -> None:
         assert row["ratio_one"] == pytest.approx(rb / rn, rel=1e-12)
         assert row["ratio_one_seed2"] == pytest.approx(rb2 / rn, rel=1e-12)
         assert row["mean_reference_one"] == pytest.approx(ref.mean(), rel=1e-12)
-    with open(out / "s.csv", newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(out / "s.csv"), newline="") as fh:
         table = list(csv.DictReader(fh))
     assert float(table[1]["ratio_one_seed2"]) == pytest.approx(rows[1]["ratio_one_seed2"], rel=1e-8)
     # without I¹⁻ images the columns are empty; a point lacking its I¹⁻ reference is named
     error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=out / "s.csv", database="synthetic")
-    with open(out / "s.csv", newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(out / "s.csv"), newline="") as fh:
         assert all(r["ratio_one"] == "" for r in csv.DictReader(fh))
     lacking = [{k: v for k, v in pt.items() if k != "reference_one"} for pt in points]
     with pytest.raises(BlendError, match="reference_one"):
@@ -442,7 +443,7 @@ def test_bounce_shares(tmp_path: Path) -> None:
         assert row["share_object"] == pytest.approx(0.1 * k, abs=1e-6)
         assert row["share_image"] == pytest.approx(1.0 - one.astype(np.float64).mean() / whole.mean(), abs=1e-9)
         assert row["object_pixels"] == (H // 2) * W
-    with open(tmp_path / "s.csv", newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(tmp_path / "s.csv"), newline="") as fh:
         table = list(csv.reader(fh))
     assert tuple(table[0]) == SHARE_COLUMNS and [r[1] for r in table[1:]] == list(MATERIALS)
     write_exr(tmp_path / "empty.exr", np.zeros((H, W, 3), np.float32))
@@ -456,7 +457,6 @@ def test_bounce_shares(tmp_path: Path) -> None:
 
 def _floor_inputs(tmp_path: Path, spp: tuple[int, int] = (4096, 4096)) -> dict[str, Any]:
     """Two candidates with two path points each: summaries from error_maps, weights JSONs, references."""
-    import json
 
     rng = np.random.default_rng(3)
     pre = {m: p for m, p in zip(MATERIALS, _images(tmp_path, 3, seed=4))}
@@ -469,7 +469,7 @@ def _floor_inputs(tmp_path: Path, spp: tuple[int, int] = (4096, 4096)) -> dict[s
             w = rng.normal(size=3)
             w += (1.0 - w.sum()) / 3
             wf = d / f"p-t{t}-weights.json"
-            wf.write_text(json.dumps({"path": "a--b", "t": t, "clamped": 10 * k, "measured_values": 1000,
+            integrity.write_json(wf, ({"path": "a--b", "t": t, "clamped": 10 * k, "measured_values": 1000,
                                       "weights": dict(zip(MATERIALS, w.tolist()))}))
             ref, ref2 = d / f"p-t{t}.exr", d / f"p-t{t}-noise.exr"
             for f, s in ((ref, 10 + k), (ref2, 20 + k)):
@@ -487,26 +487,25 @@ def _floor_inputs(tmp_path: Path, spp: tuple[int, int] = (4096, 4096)) -> dict[s
 
 
 def test_floor_check_table_joins_every_candidate(tmp_path: Path) -> None:
-    import json
 
     inp = _floor_inputs(tmp_path)
     out = tmp_path / "floor-check.csv"
     rows = blend.floor_check_table(**inp, default="standardised-mu1e-06", out=out, database="synthetic")
-    with open(out, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
         table = list(csv.DictReader(fh))
     assert list(table[0]) == list(blend.FLOOR_CHECK_COLUMNS) and len(table) == len(rows) == 4
     assert [(r["candidate"], r["default"], r["t"]) for r in table] == [
         ("standardised-mu1e-06", "1", "0.25"), ("standardised-mu1e-06", "1", "0.5"),
         ("raw-mu0.0001", "0", "0.25"), ("raw-mu0.0001", "0", "0.5")]
     for r in table:
-        doc = json.loads(Path(inp["weights"][r["candidate"]][0 if r["t"] == "0.25" else 1]).read_text())
+        doc = integrity.read_json(inp["weights"][r["candidate"]][0 if r["t"] == "0.25" else 1])
         w = np.array(list(doc["weights"].values()))
         assert float(r["sum_abs_w"]) == pytest.approx(np.abs(w).sum())
         assert float(r["norm2_w"]) == pytest.approx(np.sqrt((w * w).sum()))
         assert float(r["clamped_fraction"]) == pytest.approx(doc["clamped"] / 1000)
         assert (r["width"], r["height"], r["spp"]) == (str(W), str(H), "4096")
     # the ratios are the summary's, against the independent seed
-    with open(inp["summaries"]["raw-mu0.0001"], newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(inp["summaries"]["raw-mu0.0001"]), newline="") as fh:
         summary = list(csv.DictReader(fh))
     assert [r["ratio_seed2"] for r in table[2:]] == [s["ratio_seed2"] for s in summary]
 
@@ -539,3 +538,62 @@ def test_floor_check_figure(tmp_path: Path) -> None:
     assert any("I¹⁻" in t for t in res.panel_titles)
     with pytest.raises(FigureInputError, match="this run's is 'merl'"):
         figures.plot_floor_check(table=table, files=[tmp_path / "g.png", tmp_path / "g.pdf"], database="merl")
+
+
+# --------------------------------------------------------------------------
+# Integrity (issue 21): a changed pixel of an input is refused, not blended
+# --------------------------------------------------------------------------
+
+
+def _rewrite_pixel(path: Path, value: float, channel: str = "G") -> None:
+    """Rewrite an EXR with one pixel changed, its header (attributes included) kept: an edit by another tool."""
+    import OpenEXR
+
+    f = OpenEXR.File(str(path), separate_channels=True)
+    header, planes = dict(f.header()), {c: np.array(p.pixels) for c, p in f.channels().items()}
+    planes[channel][3, 4] = value
+    with OpenEXR.File(header, planes) as g:
+        g.write(str(path))
+
+
+@pytest.mark.parametrize("which", ["prerender", "reference"])
+def test_one_changed_pixel_of_an_input_stops_the_error_maps(tmp_path: Path, which: str) -> None:
+    """The tester's case: one 1e6 pixel in a pre-render made an error map's RMSE 3,600x worse with exit 0.
+    Now the job stops, naming the file and the rule to rerun, and writes no summary."""
+    prerenders, points, _ = _setup(tmp_path / "results" / "renders")
+    if which == "prerender":
+        bad = prerenders["chrome"]
+        rule = "prerender_material"
+        moved = tmp_path / "results" / "renders" / "preview" / "materials" / "chrome.exr"
+    else:
+        bad = Path(points[1]["reference"])
+        rule = "render_path_point"
+        moved = tmp_path / "results" / "renders" / "preview" / "paths" / "chrome--silver-t0.5.exr"
+    moved.parent.mkdir(parents=True, exist_ok=True)
+    bad.rename(moved)
+    if which == "prerender":
+        prerenders["chrome"] = moved
+    else:
+        points[1]["reference"] = str(moved)
+    _rewrite_pixel(moved, 1e6)
+    out = tmp_path / "out"
+    summary = out / "summary.csv"
+    with pytest.raises(ExrError, match=re.escape(f"{moved}: its pixels or attributes do not match their recorded "
+                                                 f"digest (damaged or edited); rerun its rule: snakemake "
+                                                 f"--forcerun {rule}")):
+        error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=summary, database="synthetic")
+    assert not summary.exists()
+
+
+def test_a_relabelled_image_is_refused(tmp_path: Path) -> None:
+    """The digest covers the header's attributes too: a pre-render relabelled as another material fails."""
+    import OpenEXR
+
+    prerenders, _, _ = _setup(tmp_path)
+    f = OpenEXR.File(str(prerenders["chrome"]), separate_channels=True)
+    header, planes = dict(f.header()), {c: p.pixels for c, p in f.channels().items()}
+    header["material"] = "silver"
+    with OpenEXR.File(header, planes) as g:
+        g.write(str(prerenders["chrome"]))
+    with pytest.raises(ExrError, match="chrome.exr: its pixels or attributes do not match"):
+        read_exr(prerenders["chrome"])

@@ -22,8 +22,10 @@ Skipped with the reason when Mitsuba's LLVM backend is not available.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +33,7 @@ import pytest
 
 from brdfpipe.acquisition import closedloop, geometry, optimize, reconstruct, svd
 from brdfpipe.acquisition.geometry import Setup
-from brdfpipe.core import exr, filenames
+from brdfpipe.core import exr, filenames, integrity
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.rendering import capture, render
@@ -204,7 +206,7 @@ class Loop:
         out = closedloop.write_closedloop(self.store, self.model, [self.directions], [obs[k][0] for k in keys],
                                           [obs[k][1] for k in keys], self.dir / f"{tag}.csv",
                                           materials=self.test, n_images=[1, 2])
-        with open(out, newline="") as fh:
+        with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
             rows = list(csv.DictReader(fh))
         assert list(rows[0]) == ["database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind",
                                  "value"]
@@ -324,3 +326,31 @@ def test_closed_loop_figure(loop: Loop, tmp_path: Path) -> None:
     assert "synthetic" in out.title and not out.warnings
     with pytest.raises(ValueError):
         figures.plot_closedloop(csv_path, [tmp_path / "x.png"])
+
+
+@needs_llvm
+@pytest.mark.parametrize("damage", ["rescaled", "truncated", "not a table"])
+def test_a_damaged_observation_table_is_refused(loop: Loop, tmp_path: Path, damage: str) -> None:
+    """The tester's case: a closed-loop table with its rgb rescaled (a valid npz) passed and changed
+    closedloop.csv.  Now its reader refuses it, naming the file and the rule to rerun; a truncated table or
+    another file is one clean error too."""
+    if not (loop.dir / "clean.csv").exists():
+        loop.run("clean", NO_NOISE, spp=16)
+    name = loop.test[0]
+    src = loop.dir / "clean" / name / "n2.npz"
+    bad = tmp_path / filenames.closedloop_observations(name, "nearfield", 25, "error", 2, "sensor")
+    bad.parent.mkdir(parents=True)
+    if damage == "rescaled":
+        with np.load(src) as z:
+            arrays = dict(z)
+        arrays["rgb"] = arrays["rgb"] * 2.0
+        np.savez(bad, **arrays)
+        expect = re.escape(f"{bad}: its arrays do not match their recorded digest (damaged or edited)")
+    elif damage == "truncated":
+        bad.write_bytes(src.read_bytes()[:-200])
+        expect = re.escape(f"{bad}: truncated or corrupt observation table")
+    else:
+        bad.write_bytes(b"\x93NUMPY not a zip")
+        expect = re.escape(f"{bad}: truncated or corrupt observation table (not an npz file: no zip header)")
+    with pytest.raises(ValueError, match=expect + ".*; rerun its rule: snakemake --forcerun capture_closedloop"):
+        closedloop.read_observations(bad)

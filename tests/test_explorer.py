@@ -12,6 +12,7 @@ import base64
 import functools
 import http.server
 import json
+import re
 import shutil
 import sys
 import threading
@@ -24,7 +25,7 @@ import scipy.linalg
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from explorer_fixture import make_inputs  # noqa: E402
 
-from brdfpipe.core import exr  # noqa: E402
+from brdfpipe.core import exr, integrity  # noqa: E402
 from brdfpipe.manifold import gplvm, latent  # noqa: E402
 from brdfpipe.rendering import blend  # noqa: E402
 from brdfpipe.explorer import chromium, export  # noqa: E402
@@ -90,7 +91,7 @@ def test_pack_halves_round_trips_and_puts_eight_images_in_a_texel() -> None:
 
 def test_exported_model_gives_gplvm_weights_and_the_images(inputs: dict, site: Path) -> None:
     doc = export.read_data_file(site / "data" / "model.js")
-    manifest = json.loads((site / "manifest.json").read_text())
+    manifest = integrity.read_json(site / "manifest.json")
     assert doc["manifest"]["materials"] == manifest["materials"] and manifest["format"] == export.FORMAT
     assert manifest["default_q"] == 2 and [m["q"] for m in manifest["models"]] == [2, 5]
     rng = np.random.default_rng(1)
@@ -118,7 +119,7 @@ def test_exported_model_gives_gplvm_weights_and_the_images(inputs: dict, site: P
 
 
 def test_reduced_basis_meets_its_target_with_the_fewest_components(inputs: dict, site: Path) -> None:
-    manifest = json.loads((site / "manifest.json").read_text())
+    manifest = integrity.read_json(site / "manifest.json")
     basis = manifest["basis"]
     assert basis["floor"] == pytest.approx(0.05 / np.sqrt(2)) and basis["target"] == basis["floor"]
     imgs = images_of(inputs)
@@ -169,7 +170,10 @@ def test_bad_inputs_fail_naming_the_file_and_keep_the_earlier_output(inputs: dic
         export.write_explorer(out=out, **{**inputs, "prerenders": missing})
     bad = tmp_path / "albedo.csv"
     bad.write_text("material,r\nx,1\n")
-    with pytest.raises(export.ExplorerError, match=str(bad)):
+    with pytest.raises(export.ExplorerError, match=str(bad) + ": albedo table carries no brdfpipe digest"):
+        export.write_explorer(out=out, **{**inputs, "albedo": str(bad)})
+    integrity.write_csv(bad, "material,r\nx,1\n")
+    with pytest.raises(export.ExplorerError, match=str(bad) + ": not an albedo table"):
         export.write_explorer(out=out, **{**inputs, "albedo": str(bad)})
     assert (out / "manifest.json").read_bytes() == before
     foreign = tmp_path / "foreign"
@@ -309,7 +313,7 @@ def test_blended_pixels_equal_numpy(page: chromium.Browser, inputs: dict) -> Non
 
 @needs_chromium
 def test_path_mode_shows_the_reference_and_uses_the_paths_weights(page: chromium.Browser, inputs: dict) -> None:
-    doc = json.loads(Path(inputs["path_points"][1]["weights"]).read_text())
+    doc = integrity.read_json(inputs["path_points"][1]["weights"])
     st = page.evaluate(f"explorer.setPath({json.dumps(doc['material_a'])}, {json.dumps(doc['material_b'])}, {doc['t']})")
     assert st["mode"] == "path" and st["q"] == doc["q"] == 5
     names = page.evaluate("explorer.manifest.materials")
@@ -369,9 +373,10 @@ def test_reduced_option_says_approximate_only_above_the_noise_floor(site: Path, 
     above = tmp_path / "site"
     shutil.copytree(site, above)
     model_js = above / "data" / "model.js"
-    text = model_js.read_text()
-    assert text.count('"below_floor":true') == 1
-    model_js.write_text(text.replace('"below_floor":true', '"below_floor":false'))
+    doc = export.read_data_file(model_js)
+    assert doc["manifest"]["basis"]["below_floor"] is True
+    doc["manifest"]["basis"]["below_floor"] = False
+    export.write_data_file(model_js, "model", doc)  # rewritten with its CRC-32, as the export would
     labels = {}
     for name, folder in (("below", site), ("above", above)):
         with chromium.Browser() as b:
@@ -380,6 +385,68 @@ def test_reduced_option_says_approximate_only_above_the_noise_floor(site: Path, 
             labels[name] = b.evaluate("document.querySelector('#basis option[value=reduced]').textContent")
     assert labels["below"].startswith("reduced: mean + ") and "approximate" not in labels["below"]
     assert "approximate" in labels["above"] and labels["above"].startswith(labels["below"])
+
+
+# --------------------------------------------------------------------------
+# A damaged payload: one message naming the file and what to rerun, no image
+# --------------------------------------------------------------------------
+
+
+def _damaged_sites(site: Path, root: Path) -> dict[str, Path]:
+    """Copies of the site with data/layers.js truncated, its pre-renders' payload shortened to half (still valid
+    JavaScript and JSON: the tester's black image), one base64 digit of it changed, and data/refs.js missing."""
+    out = {}
+    for name in ("shortened", "edited", "truncated", "missing"):  # the tester's case (a black image) first
+        out[name] = root / name
+        shutil.copytree(site, out[name])
+    layers = (site / "data" / "layers.js").read_text(encoding="ascii")
+    run = max(re.finditer(r"[A-Za-z0-9+/]{64,}={0,2}", layers), key=lambda m: m.end() - m.start())  # the images
+    a, b = run.span()
+    (out["truncated"] / "data" / "layers.js").write_text(layers[: len(layers) * 2 // 3], encoding="ascii")
+    (out["shortened"] / "data" / "layers.js").write_text(layers[: a + (b - a) // 8 * 4] + layers[b:], encoding="ascii")
+    digit = "B" if layers[a + 100] != "B" else "C"
+    (out["edited"] / "data" / "layers.js").write_text(layers[: a + 100] + digit + layers[a + 101 :], encoding="ascii")
+    (out["missing"] / "data" / "refs.js").unlink()
+    return out
+
+
+def test_read_data_file_refuses_a_damaged_payload(site: Path, tmp_path: Path) -> None:
+    sites = _damaged_sites(site, tmp_path)
+    with pytest.raises(export.ExplorerError, match=r"truncated/data/layers\.js: not an explorer data file, or "
+                                                   r"truncated"):
+        export.read_data_file(sites["truncated"] / "data" / "layers.js")
+    for name in ("shortened", "edited"):
+        with pytest.raises(export.ExplorerError, match=name + r"/data/layers\.js: its payload does not match its "
+                                                       r"recorded digest \(damaged or edited\)"):
+            export.read_data_file(sites[name] / "data" / "layers.js")
+
+
+@needs_chromium
+def test_page_names_a_damaged_data_file_instead_of_drawing(site: Path, tmp_path: Path) -> None:
+    """A truncated, edited or missing data file: the page shows one message naming it and what to rerun,
+    hides the (otherwise black) canvases and never reports ready."""
+    sites = _damaged_sites(site, tmp_path)
+    expect = {
+        "truncated": "data/layers.js did not load (missing, truncated or not an explorer data file)",
+        "shortened": "data/layers.js: its payload does not match its recorded digest (damaged or edited)",
+        "edited": "data/layers.js: its payload does not match its recorded digest (damaged or edited)",
+        "missing": "data/refs.js did not load (missing, truncated or not an explorer data file)",
+    }
+    for name, folder in sites.items():
+        with chromium.Browser() as b:
+            b.open(folder / "index.html", ready=READY)
+            error = b.evaluate("explorer.error")
+            assert error is not None and error.startswith(expect[name]), (name, error)
+            assert "snakemake --forcerun write_explorer" in error
+            assert b.evaluate("explorer.ready") is False, name
+            shown = b.evaluate("[!document.getElementById('error').hidden, document.getElementById('error')"
+                               ".textContent, document.querySelector('main').hidden]")
+            assert shown == [True, error, True], (name, shown)
+
+
+@needs_chromium
+def test_page_verifies_its_payload_when_intact(page: chromium.Browser) -> None:
+    assert page.evaluate("explorer.error") is None and page.evaluate("explorer.verifyMs") >= 0
 
 
 #: Material names and a database label that would run script or inject markup if the page

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.spatial
 
+from brdfpipe.core import integrity
 from brdfpipe.data import merl, store, synth
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.manifold import analysis, fidelity, gplvm, latent
@@ -33,7 +33,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
         G, d, info = gplvm.load_gram(grams["standardised"])
         res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=q, mu=1e-6, seed=1, max_sweeps=30)
         models[q] = tmp / f"q{q}.npz"
-        gplvm.save_model(models[q], res, info.materials, space="standardised")
+        gplvm.save_model(models[q], res, info.materials, space="standardised", data_digests=info.digests)
     brdf = np.asarray(st.brdf[:], dtype=np.float64).reshape(st.n_materials, 3 * N_CELLS)
     return {"tmp": tmp, "store": st_path, "grams": grams, "models": models, "brdf": brdf,
             "valid": np.tile(np.asarray(st.valid[:], dtype=bool), 3), "names": list(st.materials)}
@@ -149,8 +149,7 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
     A = analysis.material_albedos(setup["store"], m2.names)
     amap = analysis.albedo_map(m2, A, n=12)
     assert rows[0]["albedo_bad_map"] == pytest.approx(((amap["albedo"] < 0) | (amap["albedo"] > 1)).any(axis=2).mean())
-    with open(out_s, encoding="utf-8") as fh:
-        table = list(csv.DictReader(fh))
+    table = integrity.read_csv_rows(out_s)[1]
     assert [t["default"] for t in table] == ["true", "true"] and table[0]["database"] == "synthetic"
     # a wrong label is refused, naming the file
     with pytest.raises(ValueError, match="q2.npz: a standardised-mu1e-06 fit, expected raw-mu0.0001"):
@@ -166,7 +165,11 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
         fidelity.combine_candidates(spaces=[out_s, out_s], stability=[out_t], spaces_out=tmp / "all2.csv",
                                     stability_out=tmp / "all2-stab.csv")
     nodefault = tmp / "nodefault.csv"
-    nodefault.write_text(out_s.read_text().replace(",true,", ",false,"))
+    nodefault.write_text(out_s.read_text().replace(",true,", ",false,"))  # edited by hand: refused
+    with pytest.raises(ValueError, match="nodefault.csv: its content does not match its recorded digest"):
+        fidelity.combine_candidates(spaces=[nodefault], stability=[out_t], spaces_out=tmp / "all2.csv",
+                                    stability_out=tmp / "all2-stab.csv")
+    integrity.write_csv(nodefault, integrity.read_csv_text(out_s).replace(",true,", ",false,"))
     with pytest.raises(ValueError, match="exactly one default"):
         fidelity.combine_candidates(spaces=[nodefault], stability=[out_t], spaces_out=tmp / "all2.csv",
                                     stability_out=tmp / "all2-stab.csv")

@@ -10,8 +10,10 @@ files written by :func:`brdfpipe.acquisition.optimize.write_directions`.
 from __future__ import annotations
 
 import csv
+import io
 import logging
 import math
+import re
 from pathlib import Path
 
 import matplotlib.image
@@ -19,7 +21,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.acquisition import figures
-from brdfpipe.core import filenames
+from brdfpipe.core import filenames, integrity
 from brdfpipe.core.plot import figure_stem, FigureInputError
 from brdfpipe.data.databases import title as database_label
 from brdfpipe.acquisition.figures import (
@@ -75,27 +77,29 @@ def write_errors(path: Path, database: str = DB, drop: str | None = None) -> Pat
         for ch in ("0", "1", "2", "all"):
             rows.append((database, "train", "all", 0, "none", 0, mat, ch, "deviation", d))
     rows.append((database, "train", "all", 0, "none", 0, "mean", "all", "deviation", float(np.mean(devs))))
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(cols)
-        for r in rows:
-            rec = dict(zip(figures.ERRORS_COLUMNS, r))
-            w.writerow([f"{rec[c]:g}" if isinstance(rec[c], float) and c == "fov" else rec[c] for c in cols])
+    fh = io.StringIO()
+    w = csv.writer(fh)
+    w.writerow(cols)
+    for r in rows:
+        rec = dict(zip(figures.ERRORS_COLUMNS, r))
+        w.writerow([f"{rec[c]:g}" if isinstance(rec[c], float) and c == "fov" else rec[c] for c in cols])
+    integrity.write_csv(path, fh.getvalue())  # as the workflow writes it: with its digest line
     return path
 
 
 def write_training(path: Path, database: str = DB) -> Path:
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(figures.TRAINING_COLUMNS)
-        for seed in (0, 1):
-            for n_train in range(5, 30, 5):
-                vals = []
-                for mi, mat in enumerate(MATERIALS):
-                    v = 0.3 + 2.0 / n_train + 0.02 * mi + 0.01 * seed * (n_train % 10 == 0)
-                    vals.append(v)
-                    w.writerow([database, n_train, seed, mat, "all", "rms_log", v])
-                w.writerow([database, n_train, seed, "mean", "all", "rms_log", float(np.mean(vals))])
+    fh = io.StringIO()
+    w = csv.writer(fh)
+    w.writerow(figures.TRAINING_COLUMNS)
+    for seed in (0, 1):
+        for n_train in range(5, 30, 5):
+            vals = []
+            for mi, mat in enumerate(MATERIALS):
+                v = 0.3 + 2.0 / n_train + 0.02 * mi + 0.01 * seed * (n_train % 10 == 0)
+                vals.append(v)
+                w.writerow([database, n_train, seed, mat, "all", "rms_log", v])
+            w.writerow([database, n_train, seed, "mean", "all", "rms_log", float(np.mean(vals))])
+    integrity.write_csv(path, fh.getvalue())
     return path
 
 
@@ -212,8 +216,7 @@ def test_database_taken_from_input(tmp_path: Path) -> None:
 
 def test_fig08_table_matches_directions(inputs: dict[str, Path], outputs: tuple[Path, list[Path]]) -> None:
     out, _ = outputs
-    with (out / "fig08-optimal-configurations.csv").open(encoding="utf-8", newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(out / "fig08-optimal-configurations.csv")[1]
     assert tuple(rows[0].keys()) == FIG08_COLUMNS
     assert len(rows) == 2 * (1 + 2)  # 2 FOVs × (1 + 2 images)
     for fov, path in ((15.0, inputs["dir15"]), (25.0, inputs["dir25"])):
@@ -268,7 +271,7 @@ def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: P
     assert "n = 7" in text  # fig18
     assert "FOV 30°" in text  # fig13
     with (tmp_path / "fig08-optimal-configurations.csv").open(encoding="utf-8") as fh:
-        assert sum(1 for _ in fh) == 1 + 6  # FOV 35 has no rows
+        assert sum(1 for _ in fh) == 1 + 1 + 6  # the digest line, the header; FOV 35 has no rows
 
 
 def test_no_directions_at_all(inputs: dict[str, Path], tmp_path: Path) -> None:
@@ -280,7 +283,7 @@ def test_no_directions_at_all(inputs: dict[str, Path], tmp_path: Path) -> None:
     res = fig08_optimal_configurations([inputs["dir15"]], tmp_path / "g8", fovs=(25,))
     assert res.warnings and "FOV 25°" in res.warnings[0]
     with (tmp_path / "g8.csv").open(encoding="utf-8") as fh:
-        assert sum(1 for _ in fh) == 1  # header only
+        assert sum(1 for _ in fh) == 2  # the digest line and the header only
 
 
 def test_missing_directions_file_is_an_error(inputs: dict[str, Path], tmp_path: Path) -> None:
@@ -299,7 +302,7 @@ def test_missing_column_names_file(tmp_path: Path) -> None:
                                  figures=figure_map(tmp_path / "out"), fovs=FOVS, n_point=3)
     assert files_under(tmp_path / "out") == []
     tr = tmp_path / "bad-training.csv"
-    tr.write_text("database,n_train,material,channel,kind,value\nsynthetic,5,mean,all,rms_log,0.3\n")
+    integrity.write_csv(tr, "database,n_train,material,channel,kind,value\nsynthetic,5,mean,all,rms_log,0.3\n")
     with pytest.raises(FigureInputError, match=r"bad-training\.csv.*order_seed"):
         figures.fig07_training_size(tr, tmp_path / "f7")
     # The wrapper checks every input first: nothing is written when one is bad.
@@ -321,21 +324,21 @@ def test_bad_input_creates_no_output_folder(tmp_path: Path) -> None:
 
 def test_empty_missing_and_malformed_inputs(inputs: dict[str, Path], tmp_path: Path) -> None:
     empty = tmp_path / "empty.csv"
-    empty.write_text("")
+    integrity.write_csv(empty, "")
     with pytest.raises(FigureInputError, match=r"empty\.csv.*empty"):
         read_errors(empty)
     header_only = tmp_path / "header.csv"
-    header_only.write_text(",".join(figures.ERRORS_COLUMNS) + "\n")
+    integrity.write_csv(header_only, ",".join(figures.ERRORS_COLUMNS) + "\n")
     with pytest.raises(FigureInputError, match=r"header\.csv.*no data rows"):
         read_errors(header_only)
     with pytest.raises(FileNotFoundError, match=r"absent\.csv"):
         read_errors(tmp_path / "absent.csv")
     badnum = tmp_path / "badnum.csv"
-    badnum.write_text(",".join(figures.ERRORS_COLUMNS) + "\nsynthetic,train,point,0,error,x,mean,all,rms_log,1\n")
-    with pytest.raises(FigureInputError, match=r"badnum\.csv: line 2.*'n'"):
+    integrity.write_csv(badnum, ",".join(figures.ERRORS_COLUMNS) + "\nsynthetic,train,point,0,error,x,mean,all,rms_log,1\n")
+    with pytest.raises(FigureInputError, match=r"badnum\.csv: line 3.*'n'"):
         read_errors(badnum)
     two_db = tmp_path / "twodb.csv"
-    two_db.write_text(",".join(figures.ERRORS_COLUMNS) + "\nA,train,point,0,error,1,mean,all,rms_log,1\n"
+    integrity.write_csv(two_db, ",".join(figures.ERRORS_COLUMNS) + "\nA,train,point,0,error,1,mean,all,rms_log,1\n"
                       "B,train,point,0,error,2,mean,all,rms_log,1\n")
     with pytest.raises(FigureInputError, match=r"twodb\.csv.*more than one database"):
         read_errors(two_db)
@@ -436,3 +439,22 @@ def test_the_condition_baseline_is_labelled_as_xu_eq6(inputs: dict[str, Path], t
     kappa = [t for t in legends if "κ" in t]
     assert {"point samples, min κ (Xu eq. 6)", "directions: min κ (Xu eq. 6)"} <= set(kappa), legends
     assert not [t for t in legends if "Nielsen" in t], legends
+
+
+def test_an_edited_errors_table_is_refused(inputs: dict[str, Path], tmp_path: Path) -> None:
+    """errors.csv edited by hand (one value) no longer drives the figures: its digest line fails, naming it."""
+    edited = tmp_path / "results" / "evaluation" / "errors.csv"
+    edited.parent.mkdir(parents=True)
+    lines = inputs["errors"].read_text(encoding="utf-8").splitlines(keepends=True)
+    row = lines[3].rstrip("\n").split(",")
+    row[-1] = str(float(row[-1]) * 2)
+    lines[3] = ",".join(row) + "\n"
+    edited.write_text("".join(lines), encoding="utf-8")
+    with pytest.raises(FigureInputError, match=re.escape(f"{edited}: its content does not match its recorded "
+                                                         "digest (damaged or edited); rerun its rule: snakemake "
+                                                         "--forcerun evaluate_directions")):
+        read_errors(edited)
+    with pytest.raises(FigureInputError, match=re.escape(str(edited))):
+        make_acquisition_figures(errors_csv=edited, training_csv=None, directions=[],
+                                 figures=figure_map(tmp_path / "out", POINT_ONLY), fovs=FOVS, n_point=3)
+    assert not (tmp_path / "out").exists()

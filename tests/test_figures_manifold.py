@@ -12,6 +12,7 @@ L-BFGS polish), ``albedo.csv``, albedo maps for q = 2 and a q = 5 slice,
 from __future__ import annotations
 
 import csv
+import io
 import logging
 import math
 from pathlib import Path
@@ -20,6 +21,7 @@ import matplotlib.image
 import numpy as np
 import pytest
 
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.plot import FigureInputError
 from brdfpipe.manifold import figures, gplvm
@@ -55,10 +57,8 @@ PCA_K = (2, 5, 20, 40)
 
 
 def _write_csv(path: Path, header: tuple[str, ...] | list[str], rows: list[list[object]]) -> Path:
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(header)
-        w.writerows(rows)
+    """A table as the workflow writes it: with its digest line (brdfpipe.core.integrity)."""
+    integrity.write_csv(path, [header, *rows])
     return path
 
 
@@ -110,10 +110,11 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
         alb = np.einsum("hwn,nc->hwc", w, rgb) + 1e-3 * rgb.mean(axis=0)
         maps[q] = root / "manifold" / f"albedo-map-q{q}.npz"
         inside = (gx - X[:, 0].mean()) ** 2 + (gy - X[:, 1].mean()) ** 2 < (0.3 * (hi[0] - lo[0])) ** 2
-        np.savez(maps[q], x=x, y=y, dims=dims, albedo=alb, luminance=alb @ np.array([0.2126, 0.7152, 0.0722]),
-                 fixed=fixed, q=np.array(q), database=np.array(database), inside_hull=inside,
-                 bad_inside=np.array(0.0), bad_outside=np.array(0.25), training_gap_median=np.array(1e-4),
-                 training_gap_max=np.array(3e-3))
+        integrity.save_npz(maps[q], dict(
+            x=x, y=y, dims=dims, albedo=alb, luminance=alb @ np.array([0.2126, 0.7152, 0.0722]),
+            fixed=fixed, q=np.array(q), database=np.array(database), inside_hull=inside,
+            bad_inside=np.array(0.0), bad_outside=np.array(0.25), training_gap_median=np.array(1e-4),
+            training_gap_max=np.array(3e-3)))
 
     rows = []
     for pid, q, a, b in PATHS:
@@ -287,52 +288,51 @@ def test_missing_files(inputs: dict[str, object], tmp_path: Path) -> None:
 
 
 def test_bad_headers(inputs: dict[str, object], tmp_path: Path) -> None:
-    src = Path(inputs["paths_csv"]).read_text(encoding="utf-8")  # type: ignore[arg-type]
+    src = integrity.read_csv_text(inputs["paths_csv"])  # type: ignore[arg-type]
     bad = tmp_path / "bad-paths.csv"
-    bad.write_text(src.replace("perceptual_ab", "perceptual_AB", 1), encoding="utf-8")
+    integrity.write_csv(bad, src.replace("perceptual_ab", "perceptual_AB", 1))
     _expect_error(inputs, tmp_path, r"bad-paths\.csv.*perceptual_ab", paths_csv=bad)
     trace = tmp_path / "bad-trace.csv"
-    trace.write_text("step,log_likelihood\n0,-3.0\n", encoding="utf-8")
+    integrity.write_csv(trace, "step,log_likelihood\n0,-3.0\n")
     _expect_error(inputs, tmp_path, r"bad-trace\.csv.*stage", traces={2: trace})
     repro = tmp_path / "bad-repro.csv"
-    repro.write_text("database,space,material,method,relative_error\nsynthetic,raw,a,pca,0.1\n", encoding="utf-8")
+    integrity.write_csv(repro, "database,space,material,method,relative_error\nsynthetic,raw,a,pca,0.1\n")
     _expect_error(inputs, tmp_path, r"bad-repro\.csv.*'?k'?", reproduction_csv=repro)
     empty = tmp_path / "empty-albedo.csv"
-    empty.write_text("", encoding="utf-8")
+    integrity.write_csv(empty, "")
     _expect_error(inputs, tmp_path, r"empty-albedo\.csv.*empty", albedo_csv=empty)
     assert TRACE_COLUMNS == ("step", "stage", "log_likelihood")
 
 
 def test_nan_and_bad_values(inputs: dict[str, object], tmp_path: Path) -> None:
-    rows = Path(inputs["reproduction_csv"]).read_text(encoding="utf-8").splitlines()  # type: ignore[arg-type]
+    rows = integrity.read_csv_text(inputs["reproduction_csv"]).splitlines()  # type: ignore[arg-type]
     rows[3] = ",".join(rows[3].split(",")[:-1] + ["nan"])
     nan_repro = tmp_path / "nan-repro.csv"
-    nan_repro.write_text("\n".join(rows) + "\n", encoding="utf-8")
-    _expect_error(inputs, tmp_path, r"nan-repro\.csv: line 4.*relative_error", reproduction_csv=nan_repro)
+    integrity.write_csv(nan_repro, "\n".join(rows) + "\n")
+    _expect_error(inputs, tmp_path, r"nan-repro\.csv: line 5.*relative_error", reproduction_csv=nan_repro)
 
-    with Path(inputs["paths_csv"]).open(encoding="utf-8", newline="") as fh:  # type: ignore[arg-type]
+    with io.StringIO(integrity.read_csv_text(inputs["paths_csv"]), newline="") as fh:  # type: ignore[arg-type]
         recs = list(csv.DictReader(fh))
     recs[5]["perceptual_a"] = "NaN"
     nan_paths = _write_csv(tmp_path / "nan-paths.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
-    _expect_error(inputs, tmp_path, r"nan-paths\.csv: line 7.*perceptual_a", paths_csv=nan_paths)
+    _expect_error(inputs, tmp_path, r"nan-paths\.csv: line 8.*perceptual_a", paths_csv=nan_paths)
 
-    with np.load(inputs["albedo_maps"][2]) as z:  # type: ignore[index]
-        arrays = {k: z[k] for k in z.files}
+    arrays = integrity.load_npz(inputs["albedo_maps"][2])  # type: ignore[index]
     arrays["luminance"] = arrays["luminance"].copy()
     arrays["luminance"][3, 4] = np.nan
     nan_map = tmp_path / "nan-map.npz"
-    np.savez(nan_map, **arrays)
+    integrity.save_npz(nan_map, arrays)
     _expect_error(inputs, tmp_path, r"nan-map\.npz.*luminance.*NaN", albedo_maps={2: nan_map})
 
-    lines = Path(inputs["traces"][5]).read_text(encoding="utf-8").splitlines()  # type: ignore[index]
+    lines = integrity.read_csv_text(inputs["traces"][5]).splitlines()  # type: ignore[index]
     lines[2] = lines[2].rsplit(",", 1)[0] + ",nan"
     nan_trace = tmp_path / "nan-trace.csv"
-    nan_trace.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    _expect_error(inputs, tmp_path, r"nan-trace\.csv: line 3.*log_likelihood", traces={5: nan_trace})
+    integrity.write_csv(nan_trace, "\n".join(lines) + "\n")
+    _expect_error(inputs, tmp_path, r"nan-trace\.csv: line 4.*log_likelihood", traces={5: nan_trace})
 
-    text = Path(inputs["albedo_csv"]).read_text(encoding="utf-8")  # type: ignore[arg-type]
+    text = integrity.read_csv_text(inputs["albedo_csv"])  # type: ignore[arg-type]
     bad_alb = tmp_path / "short-albedo.csv"
-    bad_alb.write_text("\n".join(text.splitlines()[:-2]) + "\n", encoding="utf-8")  # two materials missing
+    integrity.write_csv(bad_alb, "\n".join(text.splitlines()[:-2]) + "\n")  # two materials missing
     _expect_error(inputs, tmp_path, r"short-albedo\.csv.*no albedo row", albedo_csv=bad_alb)
 
 
@@ -349,24 +349,24 @@ def test_inconsistent_inputs(inputs: dict[str, object], tmp_path: Path) -> None:
     junk.write_bytes(b"not a zip file")
     _expect_error(inputs, tmp_path, r"junk\.npz", models={**inputs["models"], 2: junk})  # type: ignore[dict-item]
     # files from different databases
-    rows = Path(inputs["reproduction_csv"]).read_text(encoding="utf-8").replace("synthetic,", "merl,")  # type: ignore[arg-type]
+    rows = integrity.read_csv_text(inputs["reproduction_csv"]).replace("synthetic,", "merl,")  # type: ignore[arg-type]
     other = tmp_path / "other-db.csv"
-    other.write_text(rows, encoding="utf-8")
+    integrity.write_csv(other, rows)
     _expect_error(inputs, tmp_path, r"different databases.*other-db\.csv", reproduction_csv=other)
     # a trace with a second start row, and one with an unknown stage
     back = tmp_path / "back-trace.csv"
-    back.write_text("step,stage,log_likelihood\n0,start,-5\n1,lbfgs,-4\n2,start,-3\n", encoding="utf-8")
-    _expect_error(inputs, tmp_path, r"back-trace\.csv: line 4", traces={2: back})
+    integrity.write_csv(back, "step,stage,log_likelihood\n0,start,-5\n1,lbfgs,-4\n2,start,-3\n")
+    _expect_error(inputs, tmp_path, r"back-trace\.csv: line 5", traces={2: back})
     odd = tmp_path / "odd-trace.csv"
-    odd.write_text("step,stage,log_likelihood\n0,start,-5\n1,simplex,-4\n", encoding="utf-8")
-    _expect_error(inputs, tmp_path, r"odd-trace\.csv: line 3.*unknown stage", traces={2: odd})
+    integrity.write_csv(odd, "step,stage,log_likelihood\n0,start,-5\n1,simplex,-4\n")
+    _expect_error(inputs, tmp_path, r"odd-trace\.csv: line 4.*unknown stage", traces={2: odd})
 
 
 def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """Database from the inputs (merl → "MERL (Matusik et al. 2003)"); no traces, no maps, only the q = 2 model: still
     16 files (the empty panels say so; warnings logged)."""
     kw = write_inputs(tmp_path / "in", database="merl")
-    with Path(kw["paths_csv"]).open(encoding="utf-8", newline="") as fh:  # type: ignore[arg-type]
+    with io.StringIO(integrity.read_csv_text(kw["paths_csv"]), newline="") as fh:  # type: ignore[arg-type]
         recs = [r for r in csv.DictReader(fh) if r["q"] == "2"]
     paths = _write_csv(tmp_path / "paths-q2.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
     with caplog.at_level(logging.WARNING, logger="brdfpipe"):

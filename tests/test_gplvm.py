@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.manifold import gplvm
@@ -354,7 +355,7 @@ def test_fit_to_files_normalises_and_records_stages(tmp_path: Path) -> None:
     assert m.gram_scale == pytest.approx(gplvm.gram_scale(G, d)) and m.method == "newton"
     # the saved L is that of G / gram_scale, recomputed independently from the saved X
     assert gplvm.log_likelihood(m.X, G / m.gram_scale, d, m.ell, m.mu) == pytest.approx(m.log_likelihood, rel=1e-8)
-    lines = (tmp_path / "t.csv").read_text().splitlines()
+    lines = integrity.read_csv_text(tmp_path / "t.csv").splitlines()  # after its digest line
     assert lines[0] == "step,stage,log_likelihood"
     stages = [ln.split(",")[1] for ln in lines[1:]]
     assert stages == r.stages and stages[0] == "start" and set(stages) <= {"start", "lbfgs", "newton"}
@@ -556,6 +557,9 @@ def test_model_load_gives_same_weights(fitted: gplvm.FitResult, tmp_path: Path) 
     assert m.space == "log" and m.trace.shape == (len(fitted.trace), 2)
     bad = tmp_path / "bad.npz"
     np.savez(bad, x=np.zeros(2))
+    with pytest.raises(ValueError, match="bad.npz: GPLVM model carries no brdfpipe digest"):
+        gplvm.load_model(bad)
+    integrity.save_npz(bad, {"x": np.zeros(2)})
     with pytest.raises(ValueError, match="not a brdfpipe GPLVM model"):
         gplvm.load_model(bad)
     with pytest.raises(ValueError, match="names for"):
@@ -572,3 +576,17 @@ def test_pca_init_is_kernel_pca() -> None:
     with pytest.raises(ValueError, match="exceeds the number of materials"):
         gplvm.pca_init(Zc @ Zc.T, 11)
 
+
+
+def test_a_model_or_gram_file_of_the_retired_format_is_refused(tmp_path: Path) -> None:
+    """Format /1 files record no digests of the store rows they came from: refused, saying what to do."""
+    G = _random_gram(6, 3, 100.0)
+    info = gplvm.GramInfo(tuple(f"m{i}" for i in range(6)), "raw", np.zeros(6), G)
+    gplvm.save_gram(tmp_path / "g.npz", G, 100, info)
+    z = integrity.load_npz(tmp_path / "g.npz")
+    z["format"] = np.array("brdfpipe.manifold.gplvm.gram/1")
+    integrity.save_npz(tmp_path / "old.npz", z)
+    with pytest.raises(gplvm.GplvmFileError, match=r"old\.npz: GPLVM Gram file format 'brdfpipe\.manifold\.gplvm\."
+                                                   r"gram/1' is no longer supported: it records no digests of the "
+                                                   r"store rows it was computed from; compute it again \(write it"):
+        gplvm.load_gram(tmp_path / "old.npz")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import types
 from collections.abc import Sequence
 from pathlib import Path
@@ -152,11 +153,14 @@ def test_sample_in_hull_is_deterministic_given_the_seed() -> None:
 # --------------------------------------------------------------------------
 
 
-def _model(X: np.ndarray, names: Sequence[str], ell: float = 1.0, mu: float = 1e-4, space: str = "raw"
-           ) -> gplvm.GplvmModel:
+def _model(X: np.ndarray, names: Sequence[str], ell: float = 1.0, mu: float = 1e-4, space: str = "raw",
+           store: Path | None = None) -> gplvm.GplvmModel:
+    """A hand-placed model; with ``store``, tied to its rows (as a fit on that store would be)."""
     X = np.asarray(X, dtype=np.float64)
     chol = np.linalg.cholesky(gplvm.kernel_matrix(X, ell, mu))
-    return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gplvm.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)))
+    digests = gplvm.store_digests(store, names) if store is not None else ()
+    return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gplvm.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)),
+                            data_digests=digests)
 
 
 def _albedo_by_weights(model: gplvm.GplvmModel, A: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -282,7 +286,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
 def test_latent_albedos_equal_the_albedo_of_the_interpolated_table(tiny: dict) -> None:
     pts = np.array([[0.3, 0.2], [0.9, 0.7], [0.0, 0.0]])
     for space in ("raw", "log"):
-        m = _model(tiny["X"], tiny["names"], ell=0.8, space=space)
+        m = _model(tiny["X"], tiny["names"], ell=0.8, space=space, store=tiny["store"])
         got = latent.latent_albedos(m, tiny["store"], pts, exact=True)
         for p, a in zip(pts, got):
             w = gplvm.blend_weights(gplvm.weights(m, p))
@@ -310,7 +314,8 @@ def model_file(tiny: dict) -> Path:
     fit = types.SimpleNamespace(X=tiny["X"], ell=2.0, mu=1e-4, log_likelihood=0.0, d=1.0,
                                 trace=[(0, 0.0)], method="hybrid")
     path = tiny["tmp"] / "q2.npz"
-    gplvm.save_model(path, fit, tiny["names"], space="raw")  # type: ignore[arg-type]
+    gplvm.save_model(path, fit, tiny["names"], space="raw",  # type: ignore[arg-type]
+                     data_digests=gplvm.store_digests(tiny["store"], tiny["names"]))
     return path
 
 
@@ -427,3 +432,102 @@ def test_samples_uniform_in_an_irregular_polygon(method: str) -> None:
     share = scipy.spatial.ConvexHull(np.array(pts)).volume / scipy.spatial.ConvexHull(P).volume
     assert 0.1 < share < 0.2  # 0.128; cones chosen uniformly instead of by area would give 0.175
     assert _binomial_ok(int((s[:, 0] > 3).sum()), 20000, share)
+
+
+# --------------------------------------------------------------------------
+# Integrity (issue 21): a model is tied to the store rows it was fitted on
+# --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def fitted(tiny: dict) -> dict:
+    """A store of measurement-like files (the tiny tables, unmeasured cells all -1: no synthetic watermark
+    or mark binding them to a name), a q = 2 fit of it through the workflow's functions, and a store of the
+    same names whose first two rows are swapped (each ingested from the other's file, as a folder of real
+    MERL files could be)."""
+    tmp = tiny["tmp"] / "fitted"
+    plain = tmp / "plain"
+    plain.mkdir(parents=True)
+    names = tiny["names"]
+    sources = {}
+    for n in names:
+        table = merl.read_merl(tiny["tmp"] / "db" / f"{n}.binary")
+        table[table < 0] = -1.0
+        sources[n] = plain / f"{n}.binary"
+        merl.write_merl(sources[n], table)
+    same = tmp / "merl.zarr"
+    store.ingest(sources, same, database="merl")
+    gplvm.write_gram(same, tmp / "gram-raw.npz")
+    gplvm.fit_to_files(tmp / "gram-raw.npz", tmp / "q2.npz", tmp / "q2-trace.csv", q=2, seed=1, max_sweeps=10)
+    a, b = names[0], names[1]
+    swapped = tmp / "swapped.zarr"
+    store.ingest({**sources, a: sources[b], b: sources[a]}, swapped, database="merl")
+    assert list(store.open_store(swapped).materials) == names  # the same names, in the same order
+    return {"model": tmp / "q2.npz", "gram": tmp / "gram-raw.npz", "store": same, "swapped": swapped, "a": a, "b": b}
+
+
+def test_interpolate_with_a_store_whose_rows_were_swapped_is_refused(
+    tiny: dict, fitted: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The tester's case: `interpolate --store` with a store of the same names but two rows swapped wrote
+    one material's BRDF under the other's name with exit 0.  Now: exit 1, one line naming the model, the
+    store and the material, nothing written."""
+    out = tmp_path / "a.binary"
+    args = ["interpolate", "--model", str(fitted["model"]), "--between", fitted["a"], tiny["names"][2],
+            "--t", "0", "--out", str(out)]
+    assert cli.main([*args, "--store", str(fitted["store"])]) == 0  # the store it was fitted on
+    out.unlink()
+    capsys.readouterr()
+    assert cli.main([*args, "--store", str(fitted["swapped"])]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert (f"{fitted['model']}: material {fitted['a']!r} of the store {fitted['swapped']} is not the data the model "
+            "was fitted on") in err[0], err[0]
+    assert not out.exists()
+
+
+def test_latent_tools_refuse_a_store_with_other_rows(tiny: dict, fitted: dict, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    model = gplvm.load_model(fitted["model"])
+    pts = model.X[:2].mean(axis=0, keepdims=True)
+    with pytest.raises(ValueError, match=f"material '{fitted['a']}' of the store .* is not the data"):
+        latent.latent_albedos(model, fitted["swapped"], pts)
+    with pytest.raises(ValueError, match=f"material '{fitted['a']}' of the store .* is not the data"):
+        analysis.path_points_to_files(model=fitted["model"], store=fitted["swapped"],
+                                      points=[(fitted["a"], fitted["b"], 0.5)],
+                                      merl_outs=[tmp_path / "p.binary"], weights_outs=[tmp_path / "p.json"])
+    assert not (tmp_path / "p.binary").exists()
+    assert cli.main(["sample", "--model", str(fitted["model"]), "--store", str(fitted["swapped"]), "--seed", "0",
+                     "--count", "1", "--out-dir", str(tmp_path / "samples")]) == 1
+    assert "is not the data the model was fitted on" in capsys.readouterr().err
+
+
+def test_a_gram_file_is_tied_to_its_store(fitted: dict) -> None:
+    _, _, info = gplvm.load_gram(fitted["gram"])
+    with pytest.raises(ValueError, match=re.escape(f"{fitted['gram']}: material {fitted['a']!r} of the store "
+                                                   f"{fitted['swapped']} is not the data the Gram matrix")):
+        gplvm.check_gram_store(info, fitted["swapped"], fitted["gram"])
+
+
+@pytest.mark.parametrize("damage", ["truncated", "not a zip", "edited"])
+def test_a_damaged_model_is_one_clean_line(fitted: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                           damage: str) -> None:
+    """A truncated model gave a BadZipFile traceback, a file that is not a zip numpy's 'pickled data'
+    message; an edited one (valid npz) passed."""
+    bad = tmp_path / "q2.npz"
+    data = fitted["model"].read_bytes()
+    if damage == "truncated":
+        bad.write_bytes(data[: len(data) // 2])
+        why = "truncated or corrupt GPLVM model"
+    elif damage == "not a zip":
+        bad.write_bytes(b"\x80\x04 not a model at all")
+        why = "truncated or corrupt GPLVM model (not an npz file: no zip header)"
+    else:
+        with np.load(fitted["model"]) as z:
+            arrays = dict(z)
+        arrays["X"] = arrays["X"] * 1.01
+        np.savez(bad, **arrays)
+        why = "its arrays do not match their recorded digest (damaged or edited)"
+    assert cli.main(["nearest", "--model", str(bad), "--at", "0,0"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"brdfpipe nearest: error: {bad}: {why}" in err[0], err

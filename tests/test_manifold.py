@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import csv
 
 import numpy as np
 import pytest
 
+from brdfpipe.core import integrity
 from brdfpipe.core.plan import ConfigError
 from brdfpipe.data import merl, provenance, store, synth
 from brdfpipe.manifold import analysis, gplvm
@@ -171,17 +171,14 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
     written = sorted(p for p in out.rglob("*") if p.is_file())
     assert written == sorted([outputs["albedo_out"], *outputs["albedo_maps_out"].values(), outputs["paths_out"],
                               outputs["reproduction_out"]])
-    with open(outputs["paths_out"]) as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(outputs["paths_out"])[1]
     assert len(rows) == 3 and tuple(rows[0]) == analysis.PATH_COLUMNS and rows[0]["database"] == "synthetic"
-    with open(outputs["reproduction_out"]) as fh:
-        rep = list(csv.DictReader(fh))
+    rep = integrity.read_csv_rows(outputs["reproduction_out"])[1]
     assert {(r["method"], r["k"]) for r in rep} == {("pca", "2"), ("pca", "3"), ("gplvm", "2"), ("gplvm", "3")}
     for q, target in outputs["albedo_maps_out"].items():
-        with np.load(target) as z:
-            assert z["albedo"].shape == (6, 6, 3) and str(z["database"]) == "synthetic" and int(z["q"]) == q
-    with open(outputs["albedo_out"]) as fh:
-        assert len(list(csv.DictReader(fh))) == 6
+        z = integrity.load_npz(target)
+        assert z["albedo"].shape == (6, 6, 3) and str(z["database"]) == "synthetic" and int(z["q"]) == q
+    assert len(integrity.read_csv_rows(outputs["albedo_out"])[1]) == 6
     # Only the albedo maps asked for are written.
     only = small["tmp"] / "only-q3"
     analysis.analyze_manifold(store=small["store"], gram=small["gram"], models=small["models"],
@@ -204,7 +201,6 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
 
 def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
     """One pass over the store writes, per point, the table Σ wᵢ Zᵢ of that point's own weights."""
-    import json
 
     names = small["names"]
     points = [(names[0], names[3], 0.0), (names[0], names[3], 0.5), (names[1], names[4], 0.25)]
@@ -219,7 +215,7 @@ def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
         x = (1 - t) * m.X[m.names.index(a)] + t * m.X[m.names.index(b)]
         w = gplvm.blend_weights(gplvm.weights(m, x))
         np.testing.assert_allclose(W[k], w, rtol=1e-12, atol=1e-15)
-        doc = json.loads(jsons[k].read_text())
+        doc = integrity.read_json(jsons[k])
         assert (doc["material_a"], doc["material_b"], doc["t"]) == (a, b, t)
         assert np.allclose([doc["weights"][n] for n in m.names], w, rtol=1e-12, atol=1e-15)
         table = merl.read_merl(merls[k]).reshape(-1)

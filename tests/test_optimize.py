@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from brdfpipe.core import integrity
 from brdfpipe.acquisition.geometry import config_to_dict, observation_cells, Setup
 from brdfpipe.acquisition.metrics import ErrorModel, condition_number, direct_training_error, expected_error, selection_stats
 from brdfpipe.acquisition.optimize import DIRECTIONS_FORMAT, DirectionSet, optimize, read_directions, write_directions
@@ -369,18 +370,25 @@ def test_infinite_condition_number_is_null(tmp_path) -> None:  # type: ignore[no
 def test_bad_directions_files(tmp_path) -> None:  # type: ignore[no-untyped-def]
     p = tmp_path / "x.json"
     p.write_text("{not json")
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"x\.json: truncated or corrupt directions file \(not JSON"):
         read_directions(p)
     p.write_text(json.dumps({"format": "something else"}))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"x\.json: directions file carries no brdfpipe digest"):
+        read_directions(p)
+    integrity.write_json(p, {"format": "something else"})
+    with pytest.raises(ValueError, match=r"x\.json: not a directions file"):
         read_directions(p)
     sets = run("nearfield")
     write_directions(p, sets, setup=setup_of("nearfield"), metric="error", split="train", model_path="m",
                      seed=0, eta=40, beta=0, database="merl")
     doc = json.loads(p.read_text())
     doc["sets"][0]["n"] = 7
-    p.write_text(json.dumps(doc))
-    with pytest.raises(ValueError):
+    p.write_text(json.dumps(doc))  # an edit by hand
+    with pytest.raises(ValueError, match=r"x\.json: its content does not match its recorded digest"):
+        read_directions(p)
+    doc.pop(integrity.DIGEST_KEY)
+    integrity.write_json(p, doc)  # sealed again: the content check still refuses it
+    with pytest.raises(ValueError, match=r"x\.json: invalid directions file: set n = 7 holds 1"):
         read_directions(p)
     with pytest.raises(ValueError):
         write_directions(p, sets, setup=setup_of("nearfield"), metric="kappa", split="train", model_path="m",

@@ -173,7 +173,7 @@ def test_file_names_keep_wildcards_and_format_numbers() -> None:
 def test_parsing_imports_no_heavy_library() -> None:
     """The modules the Snakefile imports at parse time stay light."""
     code = (
-        "import sys; import brdfpipe.core.filenames, brdfpipe.core.plan, brdfpipe.core.version; "
+        "import sys; import brdfpipe.core.filenames, brdfpipe.core.plan, brdfpipe.core.stamps, brdfpipe.core.version; "
         "heavy = [m for m in ('numpy', 'scipy', 'zarr', 'matplotlib', 'mitsuba') if m in sys.modules]; "
         "print(','.join(heavy))"
     )

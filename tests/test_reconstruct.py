@@ -10,6 +10,7 @@ references hold Q (p × k float64, 150 MB) and the log-mapped rows in memory.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import logging
 from pathlib import Path
@@ -21,7 +22,7 @@ from numpy.typing import NDArray
 
 from brdfpipe.acquisition import geometry, metrics, optimize, reconstruct, svd
 from brdfpipe.cli import main as cli_main
-from brdfpipe.core import filenames
+from brdfpipe.core import filenames, integrity
 from brdfpipe.data import logmap, merl, provenance, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.acquisition.reconstruct import (
@@ -371,7 +372,7 @@ def test_all_cells_tiny_eta_equals_deviation(data: Data, evaluation: list[dict[s
 
 def test_evaluation_rows_are_tidy(data: Data, evaluation: list[dict[str, Any]], tmp_path: Path) -> None:
     path = reconstruct.write_errors(tmp_path / "evaluation" / "errors.csv", evaluation)
-    with open(path, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
         rows = list(csv.reader(fh))
     assert tuple(rows[0]) == ERROR_COLUMNS
     body = [dict(zip(ERROR_COLUMNS, r)) for r in rows[1:]]
@@ -404,10 +405,10 @@ def test_evaluation_refuses_bad_inputs(data: Data, tmp_path: Path) -> None:
         reconstruct.evaluate(data.store, data.model_path, dirs, test_materials=[data.train[0]])
     with pytest.raises(ValueError, match="unknown material"):
         reconstruct.evaluate(data.store, data.model_path, dirs, test_materials=["no-such-material"])
-    doc = json.loads(data.dirs["point"].read_text())
+    doc = integrity.read_json(data.dirs["point"])
     doc["split"] = "all"
     other = tmp_path / "point-all.json"
-    other.write_text(json.dumps(doc))
+    integrity.write_json(other, doc)
     with pytest.raises(ValueError, match="split"):
         reconstruct.evaluate(data.store, data.model_path, [other], test_materials=data.test)
     with pytest.raises(ValueError, match="also comes from"):
@@ -424,7 +425,7 @@ def test_consistency_check_passes(data: Data, tmp_path: Path) -> None:
     rows = reconstruct.check_consistency(data.logmap, data.model_path, list(data.dirs.values()), out=out)
     assert len(rows) == 3 + 2
     assert max(r["rel_diff"] for r in rows) <= 1e-6
-    with open(out, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
         back = list(csv.reader(fh))
     assert tuple(back[0]) == CONSISTENCY_COLUMNS and len(back) == 1 + len(rows)
     # The Gram-style direct value equals metrics.direct_training_error in p-space.
@@ -450,10 +451,15 @@ def test_consistency_check_passes(data: Data, tmp_path: Path) -> None:
 
 
 def test_consistency_check_detects_tampering(data: Data, tmp_path: Path) -> None:
-    doc = json.loads(data.dirs["nearfield"].read_text())
-    doc["sets"][1]["expected_error"] *= 1 + 1e-5
+    raw = json.loads(data.dirs["nearfield"].read_text())
+    raw["sets"][1]["expected_error"] *= 1 + 1e-5
     bad = tmp_path / "nearfield-fov25-error.json"
-    bad.write_text(json.dumps(doc))
+    bad.write_text(json.dumps(raw))  # edited by hand (its recorded digest kept): no longer matches
+    with pytest.raises(ValueError, match=r"nearfield-fov25-error\.json: its content does not match its recorded "
+                                         r"digest \(damaged or edited\)"):
+        reconstruct.check_consistency(data.logmap, data.model_path, [data.dirs["point"], bad])
+    raw.pop(integrity.DIGEST_KEY)
+    integrity.write_json(bad, raw)  # a sealed tamper: the E(S) check catches it
     out = tmp_path / "consistency.csv"
     with pytest.raises(ConsistencyError, match=r"n = 2 .*relative difference") as exc:
         reconstruct.check_consistency(data.logmap, data.model_path, [data.dirs["point"], bad], out=out)
@@ -498,7 +504,7 @@ def test_training_size_curve(data: Data, evaluation: list[dict[str, Any]], tmp_p
     assert _value(rows, n_train=3, material="mean") == pytest.approx(rms.mean(), rel=1e-7)
     # Tidy CSV.
     path = reconstruct.write_errors(tmp_path / "training_size.csv", rows, TRAINING_SIZE_COLUMNS)
-    with open(path, newline="") as fh:
+    with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
         back = list(csv.reader(fh))
     assert tuple(back[0]) == TRAINING_SIZE_COLUMNS and len(back) == 1 + 2 * (3 * len(data.test) + 1)
     assert {r[2] for r in back[1:]} == {"5"} and {r[5] for r in back[1:]} == {"rms_log"}
@@ -523,7 +529,7 @@ def test_evaluation_functions_write_one_file_each(data: Data, evaluation: list[d
     tables = {}
     for path, cols in ((errors_out, ERROR_COLUMNS), (consistency_out, CONSISTENCY_COLUMNS),
                        (curve_out, TRAINING_SIZE_COLUMNS)):
-        with open(path, newline="") as fh:
+        with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
             tables[path] = list(csv.reader(fh))
         assert tuple(tables[path][0]) == cols
     # The errors CSV is the evaluation, written by write_errors.

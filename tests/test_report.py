@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import html
+import io
 import json
 import math
 import re
@@ -20,16 +21,18 @@ from pathlib import Path
 
 import pytest
 
-from brdfpipe.core import filenames, plan
+from brdfpipe.core import filenames, integrity, plan
 from brdfpipe.report import captions, claims, items, runinfo
 
 
 def write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, object]]) -> Path:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(columns), lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow(r)
+    """A table as the workflow writes it: with its digest line (brdfpipe.core.integrity)."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow(r)
+    integrity.write_csv(path, buf.getvalue())
     return path
 
 
@@ -221,8 +224,13 @@ def test_bad_input_names_the_file_and_two_databases_are_refused(tmp_path: Path) 
     with pytest.raises(claims.ClaimsInputError, match="nothing.csv: no such file"):
         claims.read_errors(tmp_path / "nothing.csv")
     text = errors_csv(tmp_path / "t.csv", {("point", 0.0, "error", 1): 0.5})
-    text.write_text(text.read_text().replace("0.5", "zero", 1))
-    with pytest.raises(claims.ClaimsInputError, match=r"t\.csv: line 2: column 'value' is not a number"):
+    edited = text.read_text().replace("0.5", "zero", 1)
+    text.write_text(edited)  # an edit by hand: refused, naming the file and what to rerun
+    with pytest.raises(claims.ClaimsInputError, match=r"t\.csv: its content does not match its recorded digest "
+                                                      r"\(damaged or edited\)"):
+        claims.read_errors(text)
+    integrity.write_csv(text, edited.split("\n", 1)[1])  # the same table, sealed: its value is checked
+    with pytest.raises(claims.ClaimsInputError, match=r"t\.csv: line 3: column 'value' is not a number"):
         claims.read_errors(text)
     e = errors_csv(tmp_path / "e.csv", README, database="synthetic")
     b = write_csv(tmp_path / "b.csv", ("database", "material", "share_object"),
@@ -377,6 +385,7 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
     assert f"over {n_bench} jobs." in front
     # two claims recomputed from the run's CSVs, independently of brdfpipe.report
     with open(results / "evaluation" / "errors.csv", newline="") as fh:
+        assert next(fh).startswith(integrity.CSV_PREFIX)  # what a csv user skips: the digest line
         mean = {(r["setup"], r["metric"], r["n"]): float(r["value"]) for r in csv.DictReader(fh)
                 if r["split"] == "train" and r["material"] == "mean" and r["kind"] == "rms_log" and r["fov"] in ("25", "25.0")}
     row = next(r for r in rows if r["key"] == "xu-eq15-vs-kappa-nearfield")
@@ -384,6 +393,7 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
     assert float(row["value"]) == pytest.approx(want, rel=1e-8)
     assert row["holds"] == ("yes" if want >= 1 else "no")
     with open(results / "errormaps" / "preview" / "summary.csv", newline="") as fh:
+        next(fh)  # the digest line
         worst = max(float(r["ratio_seed2"]) for r in csv.DictReader(fh))
     row = next(r for r in rows if r["key"] == "soler-blend-vs-noise-floor")
     assert float(row["value"]) == pytest.approx(worst, rel=1e-8) and row["holds"] == ("yes" if worst <= 1 else "no")

@@ -7,6 +7,7 @@ Renders are tiny (32 × 24 pixels, 4–8 spp, max_depth 3) with Mitsuba's own
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -161,6 +162,29 @@ def test_scene_dict_checks_its_inputs(mi: Any, envmap: Path, tmp_path: Path) -> 
         scene.scene_dict({"reflectance": 0.5}, envmap=envmap)
     with pytest.raises(ValueError, match="resolution"):
         scene.scene_dict(PLASTIC, envmap=envmap, resolution=(0, 10))
+
+
+def test_a_damaged_environment_map_is_refused_a_foreign_one_taken(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    """Mitsuba reads the map itself: the workflow's map (with its digest) is checked first; a user's HDRI
+    (another program's file, no digest) is used as it is."""
+    import OpenEXR
+
+    f = OpenEXR.File(str(envmap), separate_channels=True)
+    header, planes = dict(f.header()), {c: np.array(p.pixels) for c, p in f.channels().items()}
+    planes["R"][5, 5] *= 100.0
+    damaged = tmp_path / "results" / "renders" / "preview" / "envmap.exr"
+    damaged.parent.mkdir(parents=True)
+    with OpenEXR.File(header, planes) as g:
+        g.write(str(damaged))
+    with pytest.raises(ValueError, match=re.escape(f"{damaged}: its pixels or attributes do not match their "
+                                                   "recorded digest (damaged or edited); rerun its rule: "
+                                                   "snakemake --forcerun make_envmap")):
+        scene.scene_dict(PLASTIC, envmap=damaged)
+    header.pop("brdfpipe_digest")
+    foreign = tmp_path / "hdri.exr"
+    with OpenEXR.File(header, planes) as g:
+        g.write(str(foreign))
+    assert scene.scene_dict(PLASTIC, envmap=foreign)["sky"]["filename"] == str(foreign)
 
 
 def test_pass_seeds() -> None:

@@ -21,7 +21,9 @@ import pytest
 import zarr
 from numpy.typing import NDArray
 
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
+from brdfpipe.core.zgroup import COMPLETE_ATTR
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl, store
 from brdfpipe.data.merl import MerlFormatError, N_CELLS
@@ -507,7 +509,7 @@ def test_same_sources_give_the_same_bytes(sources: dict[str, Path], tmp_path: Pa
         return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
     ta, tb = tree(a), tree(b)
-    assert json.loads(ta["zarr.json"])["attributes"]["format"] == "brdfpipe.data.merl-store/2"
+    assert json.loads(ta["zarr.json"])["attributes"]["format"] == "brdfpipe.data.merl-store/3"
     assert ta.keys() == tb.keys() and len(ta) > 4
     assert all(ta[k] == tb[k] for k in ta)
 
@@ -552,6 +554,11 @@ def test_swapped_names_fail_verification(built: Path, tmp_path: Path) -> None:
         doc["attributes"]["sources"] = dict(doc["attributes"]["sources"])  # same keys: still consistent
 
     _edit_json(bad / "zarr.json", swap)
+    # every open (verify=False too) checks the attributes against their digest
+    with pytest.raises(StoreError, match=re.escape(str(bad)) + ": its attributes .*do not match their recorded "
+                                         r"digest \(damaged or edited\); re-ingest the store"):
+        store.open_store(bad, verify=False)
+    _edit_json(bad / "zarr.json", _reseal)  # a deliberate re-seal: the shards' name-bound digests still fail
     store.open_store(bad, verify=False)  # the metadata alone is consistent
     with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*'mat-1'.*corrupt"):
         store.open_store(bad)
@@ -580,12 +587,50 @@ def test_damaged_valid_chunk_is_a_store_error(damage: str, built: Path, tmp_path
             store.open_store(bad, verify=verify)
 
 
-def test_old_format_is_refused_with_a_reingest_hint(built: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("version", [1, 2])
+def test_old_format_is_refused_with_a_reingest_hint(built: Path, tmp_path: Path, version: int) -> None:
     old = Path(shutil.copytree(built, tmp_path / "old.zarr"))
-    _edit_json(old / "zarr.json", lambda d: d["attributes"].update(format="brdfpipe.data.merl-store/1"))
-    with pytest.raises(StoreError, match=re.escape(str(old)) + ".*no longer supported.*re-ingest"):
+
+    def older(doc: dict) -> None:
+        doc["attributes"].update(format=f"brdfpipe.data.merl-store/{version}")
+        doc["attributes"]["digests"].pop("attributes")  # format 2 had no digest of its attributes
+
+    _edit_json(old / "zarr.json", older)
+    why = "material names" if version == 1 else "'database', 'materials' and 'sources'"
+    with pytest.raises(StoreError, match=re.escape(str(old)) + f".*no longer supported.*{why}.*re-ingest the store"):
         store.open_store(old)
     assert store.is_store(old)  # an ingest may replace it
+
+
+@pytest.mark.parametrize("edit", ["database", "sources", "materials", "source_files", "layout"])
+def test_an_edited_attribute_is_refused_on_every_open(built: Path, tmp_path: Path, edit: str) -> None:
+    """The 'database' label (and the other attributes) is covered by a digest checked on every open."""
+    bad = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
+
+    def change(doc: dict) -> None:
+        a = doc["attributes"]
+        if edit == "database":
+            a["database"] = "merl" if a["database"] == "synthetic" else "synthetic"
+        elif edit == "sources":
+            a["sources"][a["materials"][0]] = "0" * 64
+        elif edit == "materials":
+            a["materials"][0], a["materials"][1] = a["materials"][1], a["materials"][0]
+        elif edit == "source_files":
+            a["source_files"][a["materials"][0]] = "other.binary"
+        else:
+            a["layout"] += " (edited)"
+
+    _edit_json(bad / "zarr.json", change)
+    for verify in (False, True):
+        with pytest.raises(StoreError, match=re.escape(str(bad)) + r": its attributes \(database, materials, "
+                                             r"sources, \.\.\.\) do not match their recorded digest"):
+            store.open_store(bad, verify=verify)
+
+
+def _reseal(doc: dict) -> None:
+    """Recompute the store's attributes digest after an edit (what only a deliberate forger does)."""
+    attrs = doc["attributes"]
+    attrs["digests"]["attributes"] = integrity.attributes_digest(attrs, ("digests", COMPLETE_ATTR))
 
 
 # --------------------------------------------------------------------------

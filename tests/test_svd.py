@@ -20,6 +20,7 @@ import zarr
 
 from brdfpipe.acquisition import svd
 from brdfpipe.acquisition.svd import ModelError
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
 from brdfpipe.data import logmap, merl, provenance, store, synth
@@ -188,10 +189,9 @@ def test_saved_partials_give_the_fitted_model(data: dict[str, Path], model: svd.
     odd = tmp_path / "parts" / "odd.npz"
     svd.save_partial(odd, svd.gram_partial(data["logmap"], 0, 3), logmap_path=data["logmap"], block=0, n_blocks=3)
     foreign = tmp_path / "parts" / "foreign.npz"
-    with np.load(paths[0]) as z:
-        doc = dict(z)
+    doc = integrity.load_npz(paths[0])
     doc["logmap_id"] = np.array("0123456789abcdef")
-    np.savez(foreign, **doc)
+    integrity.save_npz(foreign, doc)  # a well-formed partial of another log-map
     bad_sets = {
         "missing": (paths[:3], "missing \\[3\\]"),
         "repeated": ([*paths, paths[1]], "repeated \\[1\\]"),
@@ -348,17 +348,79 @@ def test_open_model_refuses_bad_outputs(model: svd.Model, data: dict[str, Path],
     with pytest.raises(ModelError, match="not a brdfpipe model"):
         svd.open_model(data["logmap"])
 
-    def edit(name: str, fn) -> Path:  # type: ignore[no-untyped-def]
+    def edit(name: str, fn, reseal: bool = True) -> Path:  # type: ignore[no-untyped-def]
+        """A copy with edited attributes, re-sealed (so the checks behind the digest are reached)."""
         bad = tmp_path / f"{name}.zarr"
         shutil.copytree(model.path, bad)
         doc = json.loads((bad / "zarr.json").read_text())
-        fn(doc["attributes"])
+        attrs = doc["attributes"]
+        fn(attrs)
+        if reseal and integrity.ZARR_ATTR in attrs:
+            attrs[integrity.ZARR_ATTR]["attributes"] = integrity.attributes_digest(attrs, (integrity.ZARR_ATTR,))
         (bad / "zarr.json").write_text(json.dumps(doc))
         return bad
 
+    # an edit of an attribute without re-sealing: the digest names the model and what to rerun
+    with pytest.raises(ModelError, match=r"k_edit\.zarr: its attributes do not match their recorded digest "
+                                         r"\(damaged or edited\); write it again"):
+        svd.open_model(edit("k_edit", lambda a: a.update(database="merl"), reseal=False))
     with pytest.raises(ModelError, match="incomplete model"):
         svd.open_model(edit("incomplete", lambda a: a.pop(logmap.COMPLETE_ATTR)))
     with pytest.raises(ModelError, match="completion marker"):
         svd.open_model(edit("k", lambda a: a.update(k=3)))
     with pytest.raises(ModelError, match="'rows'"):
         svd.open_model(edit("rows", lambda a: a.update(rows=a["rows"][:-3])))
+
+
+# --------------------------------------------------------------------------
+# Integrity (issue 21): the model and the log-map are verified when read
+# --------------------------------------------------------------------------
+
+
+def test_two_flipped_bits_in_the_model_stop_every_consumer(model: svd.Model, data: dict[str, Path],
+                                                           tmp_path: Path) -> None:
+    """Two flipped bits in a chunk of Q (the tester's case: 355 of 371 rows of errors.csv changed with exit 0)
+    are refused when the model is opened, naming the model, the file and the rule to rerun."""
+    bad = tmp_path / "results" / "svd" / "train.zarr"
+    shutil.copytree(model.path, bad)
+    chunk = sorted(p for p in (bad / "Q" / "c").rglob("*") if p.is_file())[-1]
+    raw = bytearray(chunk.read_bytes())
+    raw[len(raw) // 3] ^= 0x04
+    raw[2 * len(raw) // 3] ^= 0x40
+    chunk.write_bytes(bytes(raw))
+    rel = chunk.relative_to(bad).as_posix()
+    with pytest.raises(ModelError, match=re.escape(f"{bad}: file {rel} does not match its recorded digest "
+                                                   "(damaged or edited); rerun its rule: snakemake --forcerun "
+                                                   "decompose_svd")):
+        svd.open_model(bad)
+
+
+def test_a_damaged_logmap_chunk_stops_the_gram_partial(data: dict[str, Path], tmp_path: Path) -> None:
+    """A flipped bit in a chunk of the log-map's X stops the scatter job that reads it, naming the chunk."""
+    bad = tmp_path / "results" / "logmap" / "all.zarr"
+    shutil.copytree(data["logmap"], bad)
+    chunk = sorted(p for p in (bad / "X" / "c").rglob("*") if p.is_file())[0]
+    raw = bytearray(chunk.read_bytes())
+    raw[len(raw) // 2] ^= 0x01
+    chunk.write_bytes(bytes(raw))
+    lm = logmap.open_logmap(bad)  # the small arrays and the metadata are fine: opening works
+    with pytest.raises(logmap.LogmapError, match=re.escape(f"{bad}: file {chunk.relative_to(bad).as_posix()} does "
+                                                           "not match") + ".*snakemake --forcerun map_logrelative"):
+        svd.gram_partial(lm, 0, 1)
+
+
+def test_an_edited_gram_partial_is_refused(data: dict[str, Path], tmp_path: Path) -> None:
+    """A partial re-saved with a changed Gram matrix (valid npz, valid zip CRCs) is refused; so is a truncated one."""
+    part = tmp_path / "results" / "svd" / "all" / "gram-1-of-1.npz"
+    svd.write_partial(part, logmap_path=data["logmap"], block=0, n_blocks=1)
+    with np.load(part) as z:
+        arrays = dict(z)
+    arrays["gram"] = arrays["gram"] * 1.001
+    np.savez(part, **arrays)
+    with pytest.raises(ModelError, match=re.escape(f"{part}: its arrays do not match their recorded digest") +
+                       ".*snakemake --forcerun accumulate_gram"):
+        svd.load_partial(part)
+    svd.write_partial(part, logmap_path=data["logmap"], block=0, n_blocks=1)
+    part.write_bytes(part.read_bytes()[:-100])
+    with pytest.raises(ModelError, match=re.escape(f"{part}: truncated or corrupt Gram partial")):
+        svd.load_partial(part)

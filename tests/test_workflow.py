@@ -6,7 +6,6 @@ directory (``--directory``), so the repository's own ``results/`` is untouched.
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import shutil
@@ -18,9 +17,9 @@ import numpy as np
 import pytest
 import yaml
 
-from brdfpipe.core import filenames
+from brdfpipe.core import filenames, integrity
 from brdfpipe.data import merl, store
-from shared_runs import shared_run
+from shared_runs import copy_run, shared_run
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEFILE = ROOT / "workflow" / "Snakefile"
@@ -77,9 +76,10 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 
 
-def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
-    r = snakemake(tmp_path)
-    assert r.returncode == 0, r.stderr[-4000:]
+def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+    # the session's one run of tiny (tests/shared_runs.py; test_resume.py copies it too), copied: the
+    # report below is built in the run folder
+    copy_run(shared_run(tmp_path_factory, TINY), tmp_path)
     g = store.open_store(tmp_path / "results" / "merl.zarr")
     assert g.database == "synthetic"
     names = list(g.materials)
@@ -111,21 +111,18 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     assert (tmp_path / "results" / "directions" / "all" / "nearfield-fov25-error.json").is_file()
     # evaluation: every predicted E(S) matched its direct recomputation (else the rule fails)
 
-    with open(tmp_path / "results" / "evaluation" / "consistency-train.csv") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "consistency-train.csv")[1]
     # one row per (file, n): point 3 + three image setups x 2, for both metrics
     assert len(rows) == 2 * (3 + 3 * 2)
     assert all(float(r["rel_diff"]) <= 1e-6 for r in rows)
-    with open(tmp_path / "results" / "evaluation" / "errors.csv") as fh:
-        errors = list(csv.DictReader(fh))
+    errors = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "errors.csv")[1]
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
     assert len(figures) == 16 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
     assert "closedloop-vs-table.png" in figures
     # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
-    with open(tmp_path / "results" / "evaluation" / "closedloop.csv") as fh:
-        closed = list(csv.DictReader(fh))
+    closed = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "closedloop.csv")[1]
     assert list(closed[0]) == list(errors[0]) and {r["database"] for r in closed} == {"synthetic"}
     assert {r["material"] for r in closed} == set(splits["test"]) | {"mean"}
     assert {r["kind"] for r in closed} >= {"rms_log", "closedloop_rms_log", "closedloop_noiseless_rms_log"}
@@ -142,17 +139,15 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
         for q in (2, 5):
             fit = gplvm.load_model(tmp_path / "results" / "gplvm" / cand / f"q{q}.npz")
             assert fit.X.shape == (12, q) and list(fit.names) == names and fit.space == space
-            trace = (tmp_path / "results" / "gplvm" / cand / f"q{q}-trace.csv").read_text().splitlines()
+            trace = integrity.read_csv_text(tmp_path / "results" / "gplvm" / cand / f"q{q}-trace.csv").splitlines()
             assert trace[0] == "step,stage,log_likelihood" and len(trace) > 2
-    with open(tmp_path / "results" / "manifold" / "spaces.csv") as fh:
-        spaces = list(csv.DictReader(fh))
+    spaces = integrity.read_csv_rows(tmp_path / "results" / "manifold" / "spaces.csv")[1]
     assert sorted((r["candidate"], r["q"], r["default"]) for r in spaces) == [
         ("raw-mu0.0001", "2", "false"), ("raw-mu0.0001", "5", "false"),
         ("standardised-mu1e-06", "2", "true"), ("standardised-mu1e-06", "5", "true")]
     assert all(0.0 <= float(r["albedo_bad_hull"]) <= 1.0 for r in spaces)
     # manifold analyses: three seeded paths of path_steps + 1 points, exact ends
-    with open(tmp_path / "results" / "manifold" / "paths.csv") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(tmp_path / "results" / "manifold" / "paths.csv")[1]
     assert len(rows) == 3 * 5 and {r["database"] for r in rows} == {"synthetic"}
     ends = [r for r in rows if r["step"] in ("0", "4")]
     assert all(float(r["deviation"]) <= 1e-6 * max(float(x["deviation"]) for x in rows) for r in ends)
@@ -160,15 +155,13 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path) -> None:
     renders = tmp_path / "results" / "renders" / "preview"
     assert sorted(p.stem for p in (renders / "materials").glob("*.exr")) == sorted(names)
     assert len(list((renders / "paths").glob("*-t0.5-noise.exr"))) == 3
-    with open(tmp_path / "results" / "errormaps" / "preview" / "summary.csv") as fh:
-        summary = list(csv.DictReader(fh))
+    summary = integrity.read_csv_rows(tmp_path / "results" / "errormaps" / "preview" / "summary.csv")[1]
     assert len(summary) == 3 and all(float(r["rmse_noise"]) > 0 for r in summary)
     assert all(float(r["rmse_noise_one"]) > 0 and float(r["ratio_one_seed2"]) > 0 for r in summary)
     # the I¹⁻ part of every render, and the I²⁺ share of every material
     assert sorted(p.stem for p in (renders / "materials-one").glob("*.exr")) == sorted(names)
     assert len(list((renders / "paths").glob("*-t0.5-one-noise.exr"))) == 3
-    with open(renders / "bounce-shares.csv") as fh:
-        shares = list(csv.DictReader(fh))
+    shares = integrity.read_csv_rows(renders / "bounce-shares.csv")[1]
     assert sorted(r["material"] for r in shares) == sorted(names)
     assert all(-1e-3 <= float(r["share_image"]) < 0.5 and int(r["object_pixels"]) > 0 for r in shares)
     check_floor(tmp_path, names)
@@ -187,8 +180,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
 
     floor = workdir / "results" / "renders" / "preview-16x12-64spp"
     assert sorted(p.stem for p in (floor / "materials-one").glob("*.exr")) == sorted(names)
-    with open(workdir / "results" / "errormaps" / "preview-16x12-64spp" / "floor-check.csv") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = integrity.read_csv_rows(workdir / "results" / "errormaps" / "preview-16x12-64spp" / "floor-check.csv")[1]
     assert sorted({(r["candidate"], r["default"]) for r in rows}) == [
         ("raw-mu0.0001", "0"), ("standardised-mu1e-06", "1")]
     assert len(rows) == 2 * 3 and {r["database"] for r in rows} == {"synthetic"}
@@ -339,8 +331,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
     if floor_checked:
         render |= set(filenames.figure_files(filenames.FLOOR_CHECK_STEM))
         (table,) = (work / "results" / "errormaps").glob("*/floor-check.csv")
-        with open(table) as fh:
-            rows = list(csv.DictReader(fh))
+        rows = integrity.read_csv_rows(table)[1]
         assert len(rows) == len(cfg["manifold"]["paths"]) * len(cfg["render"]["path_points"])  # the default candidate
     assert figures == declared_outputs(config) | render
     assert store.open_store(work / "results" / "merl.zarr").database == "synthetic"
@@ -350,8 +341,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
         assert not (work / "results" / "errormaps").exists()
         assert not list((work / "results" / "manifold").glob("albedo-map-*.npz"))
     else:
-        with open(work / "results" / "errormaps" / "preview" / "summary.csv") as fh:
-            assert len(list(csv.DictReader(fh))) == 1
+        assert len(integrity.read_csv_rows(work / "results" / "errormaps" / "preview" / "summary.csv")[1]) == 1
     again = subprocess.run([*cmd, "-n"], capture_output=True, text=True, cwd=work, env=env, timeout=300)
     assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr
     if shape != "tiny-point":

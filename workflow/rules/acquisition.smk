@@ -11,6 +11,7 @@ rule map_logrelative:
     input:
         store=fn.store(),
         splits=fn.splits(),
+        stamp=stamp_of("map_logrelative"),
     output:
         logmap=directory(fn.logmap("{split}")),
     log:
@@ -34,6 +35,7 @@ rule map_logrelative:
 rule accumulate_gram:
     input:
         logmap=fn.logmap("{split}"),
+        stamp=stamp_of("accumulate_gram"),
     output:
         partial=temp(fn.gram_partial("{split}", "{scatteritem}")),
     log:
@@ -56,6 +58,7 @@ rule decompose_svd:
     input:
         logmap=fn.logmap("{split}"),
         partials=gather.gram(fn.gram_partial("{{split}}", "{scatteritem}")),
+        stamp=stamp_of("decompose_svd"),
     output:
         model=directory(fn.svd_model("{split}")),
     log:
@@ -77,6 +80,7 @@ rule decompose_svd:
 rule optimize_directions:
     input:
         model=fn.svd_model("{split}"),
+        stamp=stamp_of("optimize_directions"),
     output:
         directions=fn.directions("{split}", "{setup}", "{fov}", "{metric}"),
     log:
@@ -109,6 +113,7 @@ rule evaluate_directions:
         store=fn.store(),
         model=fn.svd_model("train"),
         directions=DIRECTIONS["train"],
+        stamp=stamp_of("evaluate_directions"),
     output:
         errors=fn.errors(),
     log:
@@ -134,6 +139,7 @@ rule check_directions:
         logmap=fn.logmap("{split}"),
         model=fn.svd_model("{split}"),
         directions=lambda wildcards: DIRECTIONS[wildcards.split],
+        stamp=stamp_of("check_directions"),
     output:
         consistency=fn.consistency("{split}"),
     log:
@@ -159,6 +165,7 @@ if CURVE_DIRECTIONS:
             store=fn.store(),
             logmap=fn.logmap("train"),
             directions=CURVE_DIRECTIONS,
+            stamp=stamp_of("evaluate_training_size"),
         output:
             training_size=fn.training_size(),
         log:
@@ -186,6 +193,7 @@ rule plot_acquisition_figures:
         errors=fn.errors(),
         training_size=fn.training_size() if "fig07" in ACQUISITION_FIGURES else [],
         directions=DIRECTIONS["all"] + DIRECTIONS["train"],
+        stamp=stamp_of("plot_acquisition_figures"),
     output:
         **reported_figures(ACQUISITION_FIGURES),
     log:
@@ -217,6 +225,7 @@ if CLOSEDLOOP_SETS:
         input:
             binary=source_file,
             directions=CLOSEDLOOP_DIRECTIONS,
+            stamp=stamp_of("capture_closedloop"),
         output:
             renders=closedloop_images("{material}", "render"),
             photographs=closedloop_images("{material}", "sensor"),
@@ -256,6 +265,7 @@ if CLOSEDLOOP_SETS:
             observations=[
                 f for m in TEST_MATERIALS for f in closedloop_tables(m, "sensor")
             ],
+            stamp=stamp_of("evaluate_closedloop"),
         output:
             errors=reported(fn.closedloop_errors()),
         log:
@@ -279,6 +289,7 @@ if CLOSEDLOOP_SETS:
     rule plot_closedloop:
         input:
             closedloop=fn.closedloop_errors(),
+            stamp=stamp_of("plot_closedloop"),
         output:
             **reported_figures({"closedloop": fn.figure_files(fn.CLOSEDLOOP_STEM)}),
         log:

@@ -3,15 +3,18 @@
 # fail on bad configuration fails here, at parse time, before any job runs.
 # Parsing imports only light modules (no matplotlib, SciPy or Zarr).
 
+import inspect
 import re
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
+from snakemake.io import apply_wildcards, is_flagged
 
 from brdfpipe.data import database as brdf_db
 from brdfpipe.data import databases as brdf_dbs
 from brdfpipe.core import filenames as fn
 from brdfpipe.core import plan
+from brdfpipe.core import stamps as job_stamps
 from brdfpipe.core.version import script_digest
 
 SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
@@ -24,6 +27,86 @@ def code(script):
     exactly the jobs whose library code changed (and their dependents).
     """
     return script_digest(SCRIPTS / script)
+
+
+# Job stamps (brdfpipe.core.stamps): every rule takes its own stamp as an input,
+# `stamp=stamp_of("<rule>")`: a file holding the record of the job's rule,
+# wildcards, params (by name: code digest included) and input list, rewritten
+# while a run builds its DAG when the record changed or an output is missing,
+# so Snakemake reruns the job from modification times, whatever its metadata
+# says. The Snakefile refuses a rule without its stamp.
+# Params function -> its argument names.
+_PARAM_ARGS = {}
+_STAMP_MODE = []
+
+
+def _stamp_mode():
+    """run: a run writes stamps; plan: a dry run, a report, a locked directory; read: a job's own process."""
+    if not _STAMP_MODE:
+        if not workflow.is_main_process:
+            mode = "read"
+        elif workflow.executor_plugin is None or workflow.dryrun:
+            mode = "plan"
+        else:
+            locks = Path(workflow.persistence.path) / "locks"
+            mode = "plan" if locks.is_dir() and any(locks.iterdir()) else "run"
+        _STAMP_MODE.append(mode)
+    return _STAMP_MODE[0]
+
+
+def _param_value(rule_name, name, value, wildcards):
+    if not callable(value):
+        return value
+    args = _PARAM_ARGS.get(value)
+    if args is None:
+        args = _PARAM_ARGS[value] = tuple(inspect.signature(value).parameters)
+    if len(args) != 1:
+        raise WorkflowError(
+            f"{rule_name}: params.{name} is a function of {', '.join(args) or 'nothing'}; "
+            "a stamped param may depend on the wildcards only (job stamps)"
+        )
+    return value(wildcards)
+
+
+def _input_values(item, wildcards):
+    if getattr(item, "brdfpipe_stamp", None) is not None:
+        return []
+    if callable(item):
+        got = item(wildcards)
+        return [str(f) for f in got] if isinstance(got, (list, tuple)) else [str(got)]
+    return [str(item)]
+
+
+def stamp_of(rule_name):
+    """Input function: the stamp of a job of ``rule_name`` (``results/.stamps/<rule>/<job>``)."""
+
+    def stamp_input(wildcards):
+        spec = workflow.get_rule(rule_name)
+        named = dict(spec.params.items())
+        if len(named) != len(spec.params):
+            raise WorkflowError(f"{rule_name}: every param needs a name (job stamps)")
+        params = {
+            name: _param_value(rule_name, name, value, wildcards)
+            for name, value in named.items()
+        }
+        inputs = [f for item in spec.input for f in _input_values(item, wildcards)]
+        wc = dict(wildcards.items())
+        try:
+            record = job_stamps.job_record(rule_name, wc, params, inputs)
+        except job_stamps.StampError as err:
+            raise WorkflowError(str(err)) from None
+        path = fn.stamp(rule_name, job_stamps.job_key(wc))
+        missing = any(
+            not Path(apply_wildcards(str(f), wc)).exists()
+            for f in spec.output
+            if not is_flagged(f, "temp")
+        )
+        return job_stamps.stamp_input(
+            path, record, _stamp_mode(), outputs_missing=missing
+        )
+
+    stamp_input.brdfpipe_stamp = rule_name
+    return stamp_input
 
 
 def _load_database():

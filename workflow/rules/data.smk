@@ -5,6 +5,8 @@
 if GENERATED:
 
     rule synthesize_material:
+        input:
+            stamp=stamp_of("synthesize_material"),
         output:
             binary=fn.synthetic_binary("{material}"),
             record=fn.synthetic_record("{material}"),
@@ -29,6 +31,7 @@ if GENERATED:
     rule write_manifest:
         input:
             records=expand(fn.synthetic_record("{material}"), material=MATERIALS),
+            stamp=stamp_of("write_manifest"),
         output:
             manifest=fn.manifest(),
         log:
@@ -72,6 +75,7 @@ if FITS:
     rule evaluate_fits:
         input:
             archive=str(DATABASE.archive),
+            stamp=stamp_of("evaluate_fits"),
         output:
             binaries=[str(DATABASE.sources[m]) for m in MATERIALS],
             rows=[temp(directory(fn.ingest_row(m))) for m in MATERIALS],
@@ -97,6 +101,7 @@ else:
     rule ingest_material:
         input:
             binary=source_file,
+            stamp=stamp_of("ingest_material"),
         output:
             row=temp(directory(fn.ingest_row("{material}"))),
         log:
@@ -119,6 +124,7 @@ else:
 rule assemble_store:
     input:
         rows=expand(fn.ingest_row("{material}"), material=MATERIALS),
+        stamp=stamp_of("assemble_store"),
     output:
         store=directory(fn.store()),
     log:
@@ -142,6 +148,7 @@ rule write_splits:
     input:
         store=fn.store(),
         manifest=fn.manifest() if GENERATED else [],
+        stamp=stamp_of("write_splits"),
     output:
         splits=fn.splits(),
     log:

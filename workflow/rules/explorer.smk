@@ -14,6 +14,7 @@ rule write_explorer:
         weights=path_point_files("weights"),
         references=path_point_files("image"),
         summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
+        stamp=stamp_of("write_explorer"),
     output:
         explorer=directory(fn.explorer_dir()),
     log:

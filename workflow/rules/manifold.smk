@@ -7,6 +7,7 @@
 rule compute_gram:
     input:
         store=fn.store(),
+        stamp=stamp_of("compute_gram"),
     output:
         gram=fn.gram("{space}"),
     log:
@@ -28,6 +29,7 @@ rule compute_gram:
 rule fit_gplvm:
     input:
         gram=lambda w: fn.gram(CANDIDATES[w.candidate][0]),
+        stamp=stamp_of("fit_gplvm"),
     output:
         model=fn.gplvm_model("{candidate}", "{q}"),
         trace=fn.gplvm_trace("{candidate}", "{q}"),
@@ -59,6 +61,7 @@ rule analyze_manifold:
         store=fn.store(),
         gram=fn.gram(MAN["space"]),
         models=expand(fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
+        stamp=stamp_of("analyze_manifold"),
     output:
         albedo=fn.albedo(),
         paths=fn.paths_csv(),
@@ -93,6 +96,7 @@ rule measure_gplvm_candidate:
         store=fn.store(),
         grams=lambda w: [fn.gram(s) for s in candidate_gram_spaces(w.candidate)],
         models=expand(fn.gplvm_model("{{candidate}}", "{q}"), q=MAN["latent_dims"]),
+        stamp=stamp_of("measure_gplvm_candidate"),
     output:
         spaces=fn.candidate_spaces_csv("{candidate}"),
         stability=fn.candidate_stability_csv("{candidate}"),
@@ -124,6 +128,7 @@ rule compare_spaces:
     input:
         spaces=expand(fn.candidate_spaces_csv("{c}"), c=CANDIDATES),
         stability=expand(fn.candidate_stability_csv("{c}"), c=CANDIDATES),
+        stamp=stamp_of("compare_spaces"),
     output:
         spaces=reported(fn.spaces_csv()),
         stability=fn.spaces_stability_csv(),
@@ -151,6 +156,7 @@ rule plot_manifold_figures:
         albedo_maps=[fn.albedo_map(q) for q in ALBEDO_MAP_DIMS],
         paths=fn.paths_csv(),
         reproduction=fn.reproduction(),
+        stamp=stamp_of("plot_manifold_figures"),
     output:
         **reported_figures(MANIFOLD_FIGURES),
     log:

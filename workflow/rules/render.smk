@@ -5,6 +5,8 @@
 
 
 rule make_envmap:
+    input:
+        stamp=stamp_of("make_envmap"),
     output:
         envmap=fn.envmap(SCENE),
     log:
@@ -33,6 +35,7 @@ rule prerender_material:
     input:
         merl=source_file,
         envmap=fn.envmap(SCENE),
+        stamp=stamp_of("prerender_material"),
     output:
         image=fn.prerender("{scene}", "{material}"),
         one=fn.prerender_one("{scene}", "{material}"),
@@ -67,6 +70,7 @@ if PATH_POINTS:
         input:
             model=fn.gplvm_model(DEFAULT_CANDIDATE, PATH_Q),
             store=fn.store(),
+            stamp=stamp_of("interpolate_path_points"),
         output:
             merl=path_point_files("binary"),
             weights=path_point_files("weights"),
@@ -91,6 +95,7 @@ rule render_path_point:
     input:
         merl=fn.path_point(SCENE, "{path}", "{t}", "binary"),
         envmap=fn.envmap(SCENE),
+        stamp=stamp_of("render_path_point"),
     output:
         image=fn.path_point(SCENE, "{path}", "{t}", "image"),
         noise=fn.path_point(SCENE, "{path}", "{t}", "noise"),
@@ -123,6 +128,7 @@ rule render_path_point:
 rule render_object_mask:
     input:
         envmap=fn.envmap(SCENE),
+        stamp=stamp_of("render_object_mask"),
     output:
         mask=fn.object_mask(SCENE),
     log:
@@ -154,6 +160,7 @@ rule bounce_shares:
         images=expand(fn.prerender(SCENE, "{material}"), material=MATERIALS),
         ones=expand(fn.prerender_one(SCENE, "{material}"), material=MATERIALS),
         mask=fn.object_mask(SCENE),
+        stamp=stamp_of("bounce_shares"),
     output:
         shares=fn.bounce_shares(SCENE),
     log:
@@ -187,6 +194,7 @@ if PATH_POINTS:
             ),
             references_one=path_point_files("one"),
             references_one_noise=path_point_files("one_noise"),
+            stamp=stamp_of("error_maps"),
         output:
             summary=reported(fn.errormap_summary(SCENE)),
             blended=errormap_files("blended.exr"),
@@ -218,6 +226,7 @@ rule plot_render_figures:
         blended=errormap_files("blended.exr"),
         errors=errormap_files("error.exr"),
         summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
+        stamp=stamp_of("plot_render_figures"),
     output:
         **reported_figures(RENDER_FIGURES),
     log:
@@ -254,6 +263,7 @@ if FLOOR_CANDIDATES:
         input:
             model=fn.gplvm_model("{candidate}", PATH_Q),
             store=fn.store(),
+            stamp=stamp_of("interpolate_candidate_path_points"),
         output:
             merl=candidate_point_files("{candidate}", "binary"),
             weights=candidate_point_files("{candidate}", "weights"),
@@ -279,6 +289,7 @@ if FLOOR_CANDIDATES:
                 FLOOR_SCENE, "{candidate}", "{path}", "{t}", "binary"
             ),
             envmap=fn.envmap(SCENE),
+            stamp=stamp_of("render_candidate_path_point"),
         output:
             image=fn.candidate_path_point(
                 FLOOR_SCENE, "{candidate}", "{path}", "{t}", "image"
@@ -327,6 +338,7 @@ if FLOOR_CANDIDATES:
             ),
             references_one=candidate_point_files("{candidate}", "one"),
             references_one_noise=candidate_point_files("{candidate}", "one_noise"),
+            stamp=stamp_of("measure_candidate_blends"),
         output:
             summary=fn.candidate_errormap_summary(FLOOR_SCENE, "{candidate}"),
             blended=candidate_errormap_files("{candidate}", "blended.exr"),
@@ -362,6 +374,7 @@ if FLOOR_CANDIDATES:
             references=[
                 f for c in FLOOR_CANDIDATES for f in candidate_point_files(c, "image")
             ],
+            stamp=stamp_of("summarize_floor_check"),
         output:
             table=reported(fn.floor_check_csv(FLOOR_SCENE)),
         log:
@@ -384,6 +397,7 @@ if FLOOR_CANDIDATES:
     rule plot_floor_check:
         input:
             table=fn.floor_check_csv(FLOOR_SCENE),
+            stamp=stamp_of("plot_floor_check"),
         output:
             figure=[reported(f) for f in FLOOR_FIGURE],
         log:

@@ -23,6 +23,7 @@ rule write_claims:
         closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
         unseen=fn.unseen_errors() if UNSEEN_EVALUATED else [],
         unseen_albedo=[fn.unseen_albedo(d) for d in UNSEEN],
+        stamp=stamp_of("write_claims"),
     output:
         claims=reported(fn.claims_csv()),
         json=fn.claims_json(),
@@ -57,6 +58,7 @@ rule summarize_stage_times:
             f for v in TARGETS.values() for f in (v if isinstance(v, list) else [v])
         ],
         claims=fn.claims_csv(),
+        stamp=stamp_of("summarize_stage_times"),
     output:
         csv=fn.stage_times_csv(),
         rst=fn.stage_times_rst(),

@@ -1,7 +1,6 @@
 """The papers' claims from the run's CSVs, the report's captions and front page (rule write_claims)."""
 
-import json
-
+from brdfpipe.core import integrity
 from brdfpipe.core.logutil import log_to
 from brdfpipe.report import captions, claims, runinfo
 
@@ -30,8 +29,7 @@ with log_to(snakemake.log[0]):
         json_path=snakemake.output.json,
         rst_path=snakemake.output.rst,
     )
-    with open(inp.splits, encoding="utf-8") as fh:
-        splits = json.load(fh)
+    splits = integrity.read_json(inp.splits, kind="splits file")  # its digest checked
     captions.write_captions(snakemake.params.entries, found,
                             database=splits.get("database_title") or splits["database"])
     runinfo.write_front(

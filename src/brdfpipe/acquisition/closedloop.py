@@ -53,6 +53,7 @@ from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import read_directions
 from brdfpipe.acquisition.reconstruct import CHANNELS, ERROR_COLUMNS, write_errors
 from brdfpipe.acquisition.svd import Model, open_model
+from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import material_indices, open_store
@@ -83,17 +84,19 @@ _Q_ROWS: Final = 8192  # rows of Q per block of the error pass
 def read_observations(path: str | os.PathLike[str]) -> tuple[NDArray[np.intp], F64, dict[str, int]]:
     """(cells, rgb, counts) of a capture's observation table (NPZ of :mod:`brdfpipe.rendering.capture`).
 
-    ValueError naming the file when it is missing or malformed.
+    ValueError naming the file (and what to rerun) when it is missing,
+    truncated, corrupt, edited (its digest is checked:
+    :func:`brdfpipe.core.integrity.load_npz`) or malformed.
     """
     path = Path(path)
+    z = integrity.load_npz(path, kind="observation table")
     try:
-        with np.load(path, allow_pickle=False) as z:
-            wi = np.asarray(z["wi"], dtype=np.float64)
-            wo = np.asarray(z["wo"], dtype=np.float64)
-            rgb = np.asarray(z["rgb"], dtype=np.float64)
-            counts = {str(k): int(v) for k, v in zip(z["counts_keys"], z["counts"])}
-    except (OSError, KeyError, ValueError) as exc:
-        raise ValueError(f"{path}: not a capture observation table ({exc})") from exc
+        wi = np.asarray(z["wi"], dtype=np.float64)
+        wo = np.asarray(z["wo"], dtype=np.float64)
+        rgb = np.asarray(z["rgb"], dtype=np.float64)
+        counts = {str(k): int(v) for k, v in zip(z["counts_keys"], z["counts"])}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: not a capture observation table ({type(exc).__name__}: {exc})") from exc
     n = rgb.shape[0]
     if wi.shape != (n, 3) or wo.shape != (n, 3) or rgb.shape != (n, 3) or not np.isfinite(rgb).all() or (rgb < 0).any():
         raise ValueError(f"{path}: observation arrays have wrong shapes or values")

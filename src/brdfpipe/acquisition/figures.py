@@ -52,7 +52,6 @@ track's :mod:`brdfpipe.rendering.figures`.
 
 from __future__ import annotations
 
-import csv
 import logging
 import math
 import os
@@ -64,6 +63,7 @@ from typing import Any
 import numpy as np
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.filenames import FIGURE_STEMS
 from brdfpipe.data.databases import title as database_label
@@ -788,13 +788,7 @@ def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], s
     csv_path = stem.with_name(stem.name + ".csv")
     md_path = stem.with_name(stem.name + ".md")
 
-    def write_csv(fh: Any) -> None:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(FIG08_COLUMNS)
-        for r in rows:
-            w.writerow(r.csv_values())
-
-    atomic_write(csv_path, write_csv, binary=False)
+    integrity.write_csv(csv_path, [FIG08_COLUMNS, *(r.csv_values() for r in rows)])  # with its digest line
     md = _markdown(rows, database, setup, metric)
     atomic_write(md_path, lambda fh: fh.write(md), binary=False)
 

@@ -12,7 +12,6 @@ comment below the imports describes the search, its moves, metrics and cost.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
@@ -25,7 +24,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl
@@ -834,7 +833,7 @@ def write_directions(
         "sets": out_sets,
     }
     path = Path(path)
-    atomic.write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    integrity.write_json(path, doc, indent=1, allow_nan=False)  # with its digest
     return path
 
 
@@ -842,16 +841,15 @@ def read_directions(path: str | os.PathLike[str]) -> Directions:
     """Read a directions file written by :func:`write_directions`.
 
     Configurations are rebuilt from their records (:func:`config_from_dict`);
-    a null κ reads as inf.  :class:`ValueError` naming the file for a wrong
-    format or inconsistent content.
+    a null κ reads as inf.  :class:`ValueError` naming the file for a
+    missing, truncated or edited file (its digest is checked,
+    :func:`brdfpipe.core.integrity.read_json`), a wrong format or inconsistent
+    content.
     """
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not JSON ({exc})") from exc
-    if not isinstance(doc, dict) or doc.get("format") != DIRECTIONS_FORMAT:
-        raise ValueError(f"{path}: not a directions file (format {doc.get('format') if isinstance(doc, dict) else None!r})")
+    doc = integrity.read_json(path, kind="directions file")  # its digest checked
+    if doc.get("format") != DIRECTIONS_FORMAT:
+        raise ValueError(f"{path}: not a directions file (format {doc.get('format')!r})")
     try:
         setup = Setup(doc["setup"], doc["fov"], doc["grid"])
         metric = doc["metric"]

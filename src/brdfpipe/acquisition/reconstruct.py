@@ -143,7 +143,7 @@ from brdfpipe.acquisition import geometry, metrics, svd
 from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import Directions, read_directions
 from brdfpipe.acquisition.svd import Model, open_model
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl, provenance
 from brdfpipe.data.logmap import Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
@@ -264,6 +264,8 @@ def _pick_format(path: Path, names: Iterable[str]) -> str:
 
 def _read_csv(path: Path) -> tuple[str, dict[str, F64]]:
     index, skip = _csv_columns(path)
+    # a brdfpipe table carries a digest line (checked); a user's file need not
+    integrity.read_csv_text(path, kind="observations file", error=ObservationError, require=False)
     fmt = _pick_format(path, index)
     names = (_DIR_COLS if fmt == "directions" else _ANG_COLS) + _RGB_COLS
     try:
@@ -279,13 +281,8 @@ def _read_csv(path: Path) -> tuple[str, dict[str, F64]]:
 
 
 def _read_npz(path: Path) -> tuple[str, dict[str, F64]]:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {name: np.asarray(z[name]) for name in z.files}
-    except FileNotFoundError:
-        raise ObservationError(f"{path}: no such observations file") from None
-    except Exception as exc:
-        raise ObservationError(f"{path}: not a readable NPZ file ({exc})") from exc
+    # truncated / corrupt files are one clean error; a brdfpipe table's digest is checked, a user's file needs none
+    arrays = integrity.load_npz(path, kind="observations file", error=ObservationError, require=False)
     have = set(arrays)
     if "rgb" not in have:
         raise ObservationError(f"{path}: missing array 'rgb' (arrays: {', '.join(sorted(have)) or 'none'})")
@@ -1087,7 +1084,7 @@ def check_consistency(
 
     def residuals() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float64]]]:
         for a, b in _q_chunks(mdl):
-            x = np.asarray(lm.X[:, a:b], dtype=np.float64)
+            x = lm.read_columns(a, b).astype(np.float64)
             yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), x - mdl.mean[a:b]
 
     qtq, qty, yy, q_obs, y_obs = _gram_pass(mdl, keep, residuals(), m, "consistency pass")
@@ -1205,7 +1202,7 @@ def training_size_curve(
         width = lm.chunk_cols
         for a in range(0, p, width):
             b = min(a + width, p)
-            yield a, b, np.asarray(lm.X[:, a:b], dtype=np.float32), reader.get(a, b)
+            yield a, b, lm.read_columns(a, b), reader.get(a, b)
 
     prog = _Progress("training-size pass (cross-Gram)", p)
     for a, b, x32, rho in read_ahead(blocks()):
@@ -1272,7 +1269,9 @@ def write_errors(
     """Write ``rows`` (dicts with at least ``columns``) as a CSV with a header line, atomically.
 
     Parent folders are created; the file is written under a temporary name
-    and renamed into place.  ValueError if a row lacks a column.  Returns the path.
+    and renamed into place, with its digest line first
+    (:func:`brdfpipe.core.integrity.write_csv`).  ValueError if a row lacks a
+    column.  Returns the path.
     """
     path = Path(path)
     buf = io.StringIO()
@@ -1283,7 +1282,7 @@ def write_errors(
         if missing:
             raise ValueError(f"row {i} lacks column(s) {', '.join(missing)}")
         w.writerow([_fmt(r[c]) for c in columns])
-    atomic.write_text(path, buf.getvalue())
+    integrity.write_csv(path, buf.getvalue())
     return path
 
 

@@ -62,7 +62,9 @@ Partial file (``.npz``, written atomically)
 Arrays ``gram`` float64 (m, m), ``colsum`` float64 (m,) (the sum of each row
 over the block's columns), ``ncols``, ``block``, ``n_blocks``, ``start``,
 ``stop`` (the column range), ``m``, ``p`` and ``logmap_id`` (the log-map's
-completion-marker id), ``format`` = ``"brdfpipe.gram-partial/1"``.
+completion-marker id), ``format`` = ``"brdfpipe.gram-partial/1"``, and the
+file's digest (:func:`brdfpipe.core.integrity.save_npz`; checked on load, so
+an edited, truncated or foreign partial is a :class:`ModelError` naming it).
 :func:`write_model` refuses partials of another log-map, of mixed
 ``n_blocks``, missing or repeated blocks.
 
@@ -86,7 +88,13 @@ Attributes: ``format`` (``"brdfpipe.pca-model/1"``), ``rows``, ``materials``,
 (from the log-map), ``k``, ``tolerance``, ``brdfpipe_version`` and, last,
 the completion marker ``brdfpipe_complete`` = ``{"rows": m, "columns": p,
 "k": k, "logmap_id": …, "id": <hex digest>}`` (the id: sha256 of the
-log-map's id, the tolerance and Σ, so the same inputs give the same bytes).  Atomic like the log-map: built
+log-map's id, the tolerance and Σ, so the same inputs give the same bytes),
+written together with the integrity record ``brdfpipe_digests`` (CRC-32C of
+every file of the group, digest of the attributes;
+:func:`brdfpipe.core.zgroup.finish_group`).  :func:`open_model` checks the
+record and reads every chunk of ``Q`` against it before any consumer uses
+the model (the direction optimiser, the evaluations, the closed loop,
+``brdfpipe reconstruct`` and ``capture --model``).  Atomic like the log-map: built
 in a temporary sibling and swapped into place (:func:`brdfpipe.core.atomic.atomic_dir`);
 after any error an earlier model at ``out`` is left as it was, and an ``out``
 holding anything but a model is refused before any work.
@@ -109,9 +117,10 @@ import numpy as np
 import zarr
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core.atomic import atomic_dir, check_replaceable, save_npz
+from brdfpipe.core.atomic import atomic_dir, check_replaceable
+from brdfpipe.core.integrity import GroupDigests, load_npz, save_npz
 from brdfpipe.core.version import full_version
-from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
+from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, finish_group, format_predicate, open_sealed_group
 from brdfpipe.data.logmap import iter_columns, Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import read_ahead
@@ -309,27 +318,25 @@ def write_partial(
 
 def _read_partial(path: str | os.PathLike[str]) -> tuple[GramPartial, PartialInfo]:
     path = Path(path)
+    z = load_npz(path, kind="Gram partial", error=ModelError)  # checks the digest
     try:
-        with np.load(path, allow_pickle=False) as z:
-            if str(z["format"]) != PARTIAL_FORMAT:
-                raise ModelError(f"{path}: not a Gram partial (format {str(z['format'])!r})")
-            info = PartialInfo(
-                logmap_id=str(z["logmap_id"]),
-                block=int(z["block"]),
-                n_blocks=int(z["n_blocks"]),
-                start=int(z["start"]),
-                stop=int(z["stop"]),
-                m=int(z["m"]),
-                p=int(z["p"]),
-            )
-            part = GramPartial(np.asarray(z["gram"], dtype=np.float64),
-                               np.asarray(z["colsum"], dtype=np.float64), int(z["ncols"]))
+        if str(z["format"]) != PARTIAL_FORMAT:
+            raise ModelError(f"{path}: not a Gram partial (format {str(z['format'])!r})")
+        info = PartialInfo(
+            logmap_id=str(z["logmap_id"]),
+            block=int(z["block"]),
+            n_blocks=int(z["n_blocks"]),
+            start=int(z["start"]),
+            stop=int(z["stop"]),
+            m=int(z["m"]),
+            p=int(z["p"]),
+        )
+        part = GramPartial(np.asarray(z["gram"], dtype=np.float64),
+                           np.asarray(z["colsum"], dtype=np.float64), int(z["ncols"]))
     except ModelError:
         raise
-    except FileNotFoundError:
-        raise ModelError(f"{path}: no such Gram partial") from None
-    except Exception as exc:
-        raise ModelError(f"{path}: unreadable Gram partial ({exc})") from exc
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{path}: unreadable Gram partial ({type(exc).__name__}: {exc})") from exc
     if part.gram.shape != (info.m, info.m) or part.colsum.shape != (info.m,) or part.ncols != info.stop - info.start:
         raise ModelError(f"{path}: Gram partial is inconsistent (shapes {part.gram.shape}, {part.colsum.shape})")
     return part, info
@@ -490,9 +497,9 @@ def _write_model(
         )
         digest = hashlib.sha256(f"{lm.id}:{float(tol)!r}:{k}".encode())
         digest.update(np.ascontiguousarray(sigma, dtype=np.float64).tobytes())
-        group.attrs[COMPLETE_ATTR] = {"rows": lm.m, "columns": p, "k": k, "logmap_id": lm.id,
-                                      "id": digest.hexdigest()[:16]}
-        open_model(tmp)
+        finish_group(group, tmp, {"rows": lm.m, "columns": p, "k": k, "logmap_id": lm.id,
+                                  "id": digest.hexdigest()[:16]})
+        open_model(tmp, verify=False)  # checks what was written (the digests were just computed from it)
     logger.info("wrote model %s (sigma[0] = %.4g, sigma[-1] = %.4g)", out, sigma[0], sigma[-1])
 
 
@@ -576,6 +583,7 @@ class Model:
     tolerance: float
     id: str
     logmap_id: str
+    digests: GroupDigests | None = field(default=None, repr=False, compare=False)
 
     @property
     def k(self) -> int:
@@ -593,14 +601,23 @@ class Model:
         return int(self.Q.shape[0])
 
 
-def open_model(path: str | os.PathLike[str]) -> Model:
+def open_model(path: str | os.PathLike[str], *, verify: bool = True) -> Model:
     """Open a finished model after checking it; :class:`ModelError` naming ``path`` if not.
 
     Refuses a missing group, one without the completion marker, of another
-    format, or with arrays / attributes that disagree in shape or dtype.
+    format, or with arrays / attributes that disagree in shape or dtype, and
+    one whose integrity record (:mod:`brdfpipe.core.integrity`) does not match:
+    attributes, files missing, extra or resized, and — with ``verify``
+    (the default) — any file of any array (every chunk of ``Q`` is read and
+    checked against its CRC-32C here, before a consumer uses it).  The
+    message names the model and the file and says what to rerun.
+    ``verify=False`` (the writer's own check) skips reading the chunks.
     """
     path = Path(path)
-    group, attrs = open_finished_group(path, fmt=MODEL_FORMAT, what="model", kind="brdfpipe model", error=ModelError)
+    group, attrs, digests = open_sealed_group(path, fmt=MODEL_FORMAT, what="model", kind="brdfpipe model",
+                                              error=ModelError)
+    if verify:
+        digests.verify()
     marker = attrs[COMPLETE_ATTR]
     m, p, k = marker.get("rows"), marker.get("columns"), marker.get("k")
     if not all(isinstance(v, int) for v in (m, p, k)) or attrs.get("k") != k:
@@ -653,4 +670,5 @@ def open_model(path: str | os.PathLike[str]) -> Model:
         tolerance=float(attrs.get("tolerance", TOL)),
         id=str(marker.get("id")),
         logmap_id=str(marker.get("logmap_id")),
+        digests=digests,
     )

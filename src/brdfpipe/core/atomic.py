@@ -21,6 +21,18 @@ the complete new one.  Every writer of the library goes through this module:
   output whose folder cannot be written (permissions, a read-only file
   system); :func:`output_of` maps a temporary name back to its output for
   error messages.
+* A workflow job holds a *lease* on its log file (:func:`job_lease`, taken by
+  :func:`brdfpipe.core.logutil.log_to`): before each rename into place the
+  writer checks that the log path still names the file it opened.  Snakemake
+  deletes a job's log before it starts the job again, so a process of an
+  earlier attempt that outlived its run (the main process killed alone, a
+  Slurm step that survived ``scancel``, a node that came back) cannot put
+  its outputs over the new attempt's: it stops with :class:`SupersededError`
+  at its next rename.  The outputs of a superseded job are missing, never
+  stale (its Snakemake wrapper may remove files when it fails; the next run
+  rebuilds what is missing).  The check and the rename are two system calls:
+  the window between them is a few microseconds, against minutes or hours
+  of a late process.
 
 Files are fsync'ed before the rename and the folder after it, so a power cut
 leaves the old or the new version, not an empty file.
@@ -42,6 +54,9 @@ from typing import Any
 
 __all__ = [
     "OutputError",
+    "SupersededError",
+    "job_lease",
+    "check_lease",
     "tmp_sibling",
     "remove_tree",
     "clean_stale_siblings",
@@ -71,6 +86,49 @@ _SIBLING_ANY = re.compile(r"^\.(?P<name>.+)\.(?P<tag>[a-z]+)-(?P<pid>\d+)-[0-9a-
 
 class OutputError(ValueError):
     """An output path cannot be written safely (it names an input, or a foreign folder)."""
+
+
+class SupersededError(OutputError):
+    """This process's job was started again by a newer run (its log file was replaced): its outputs are discarded."""
+
+
+#: The lease of the running workflow job: (log path, device, inode) of the log file it opened; None outside a job.
+_lease: tuple[Path, int, int] | None = None
+
+
+@contextmanager
+def job_lease(log: str | os.PathLike[str], opened: os.stat_result) -> Iterator[None]:
+    """Hold the lease on ``log`` (the job's log file, ``opened`` = ``os.fstat`` of its open handle) for the block.
+
+    Inside the block every rename into place first calls :func:`check_lease`.
+    """
+    global _lease
+    previous = _lease
+    _lease = (Path(log), opened.st_dev, opened.st_ino)
+    try:
+        yield
+    finally:
+        _lease = previous
+
+
+def check_lease() -> None:
+    """Raise :class:`SupersededError` if the held lease's log path no longer names the file the job opened.
+
+    No lease held (the command line, tests, the Snakemake process): nothing to check.
+    """
+    if _lease is None:
+        return
+    log, dev, ino = _lease
+    try:
+        st = os.stat(log)
+        same = (st.st_dev, st.st_ino) == (dev, ino)
+    except FileNotFoundError:
+        same = False
+    if not same:
+        raise SupersededError(
+            f"{log}: this job was started again by a newer run (its log file was replaced); "
+            "this process stops and leaves the outputs to it"
+        )
 
 
 def tmp_sibling(out: str | os.PathLike[str], tag: str = "tmp") -> Path:
@@ -171,6 +229,7 @@ def atomic_path(path: str | os.PathLike[str], *, suffix: str = "") -> Iterator[P
             os.fsync(fd)
         finally:
             os.close(fd)
+        check_lease()
         os.replace(tmp, path)
         _fsync_dir(path.parent)
     except BaseException:
@@ -231,6 +290,7 @@ def replace_dir(
     the old output or the new one.
     """
     tmp, out = Path(tmp), Path(out)
+    check_lease()
     old: Path | None = None
     if out.is_symlink() or out.exists():
         check_replaceable(out, replaceable=replaceable)

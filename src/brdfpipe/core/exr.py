@@ -21,9 +21,14 @@ Rules
   non-finite pixels.
 * The same image and attributes give the same bytes (the OpenEXR writer is
   deterministic; attributes are written in sorted order).
-
-OpenEXR has no checksum, so bytes corrupted *inside* an uncompressed block
-cannot be detected; truncation and damaged headers or compressed blocks are.
+* Integrity: :func:`write_exr` records a digest of the pixels as stored and
+  of every other string attribute in the header attribute
+  ``brdfpipe_digest`` (:func:`brdfpipe.core.integrity.exr_digest`), and
+  :func:`read_exr` checks it by default: a changed pixel or attribute, or a
+  file without the attribute (written by another program or an older
+  brdfpipe), is an :class:`ExrError` naming the file and what to rerun.
+  (OpenEXR itself has no checksum: a byte changed inside a block was not
+  detected before.)
 
 Importing this module does not import Mitsuba.
 """
@@ -40,6 +45,7 @@ import numpy as np
 import OpenEXR
 from numpy.typing import ArrayLike, NDArray
 
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_path
 
 __all__ = [
@@ -59,6 +65,7 @@ RESERVED_ATTRIBUTES: Final = frozenset(
         "channels", "compression", "dataWindow", "displayWindow", "lineOrder",
         "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type",
         "tiles", "name", "version", "chunkCount", "view", "multiView", "envmap",
+        integrity.DIGEST_KEY,  # brdfpipe's own: written by write_exr
     }
 )
 
@@ -92,11 +99,11 @@ def _open(path: Path, *, header_only: bool) -> Any:
         if not header_only:
             exr.channels()  # forces the pixel data to be decoded (and checked) now
     except Exception as exc:  # the bindings raise ValueError/RuntimeError for bad data
-        raise ExrError(f"{path}: truncated or corrupt OpenEXR file ({exc})") from exc
+        raise ExrError(f"{path}: truncated or corrupt OpenEXR file ({exc}); {integrity.rerun_hint(path)}") from exc
     return exr
 
 
-def read_exr(path: str | os.PathLike[str]) -> NDArray[np.float32]:
+def read_exr(path: str | os.PathLike[str], *, verify: bool = True, require: bool = True) -> NDArray[np.float32]:
     """Read the RGB channels of an OpenEXR file as an ``(H, W, 3)`` float32 array.
 
     Half and float32 channels are accepted (half is widened exactly); an
@@ -104,11 +111,18 @@ def read_exr(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     part of a multi-part file is read.  Raises :class:`ExrError` naming the
     file for a missing file, a file that is not OpenEXR, a truncated or
     corrupt file, missing ``R``/``G``/``B`` channels, channels of different
-    sizes, or NaN/Inf pixels.
+    sizes, or NaN/Inf pixels; and, with ``verify`` (the default), for a file
+    without the ``brdfpipe_digest`` attribute or whose pixels or string
+    attributes do not match it (:mod:`brdfpipe.core.integrity`).
+    ``verify=False`` reads images from elsewhere; ``require=False`` checks
+    the digest of a file that carries one and accepts one without (a user's
+    own environment map).
     """
     path = Path(path)
     exr = _open(path, header_only=False)
     channels = exr.channels()
+    if verify:
+        _verify(path, exr, channels, require=require)
     missing = [c for c in "RGB" if c not in channels]
     if missing:
         have = ", ".join(sorted(channels)) or "none"
@@ -132,15 +146,30 @@ def read_exr(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     return np.ascontiguousarray(image)
 
 
+def _verify(path: Path, exr: Any, channels: Mapping[str, Any], *, require: bool = True) -> None:
+    """Check the pixels and string attributes of an opened file against its ``brdfpipe_digest``."""
+    attrs = {str(k): v for k, v in exr.header().items() if isinstance(v, str)}
+    recorded = attrs.get(integrity.DIGEST_KEY)
+    if recorded is None:
+        if not require:
+            return
+        raise integrity.no_digest(path, "OpenEXR image", error=ExrError)
+    planes = {c: np.asarray(channels[c].pixels) for c in "RGB" if c in channels}
+    if recorded != integrity.exr_digest(planes, attrs):
+        raise integrity.mismatch(path, "its pixels or attributes", error=ExrError, plural=True)
+
+
 def read_exr_attrs(path: str | os.PathLike[str]) -> dict[str, str]:
     """The string-valued header attributes of an OpenEXR file (e.g. ``database``, ``spp``).
 
-    Only the header is decoded.  OpenEXR's own structural attributes (which
-    are not strings) are left out.  Raises :class:`ExrError` as :func:`read_exr`.
+    Only the header is decoded (the digest, which covers the pixels too, is
+    checked by :func:`read_exr`, not here).  OpenEXR's own structural
+    attributes (which are not strings) and ``brdfpipe_digest`` are left out.
+    Raises :class:`ExrError` as :func:`read_exr`.
     """
     path = Path(path)
     header = _open(path, header_only=True).header()
-    return {str(k): v for k, v in sorted(header.items()) if isinstance(v, str)}
+    return {str(k): v for k, v in sorted(header.items()) if isinstance(v, str) and k != integrity.DIGEST_KEY}
 
 
 # --------------------------------------------------------------------------
@@ -156,7 +185,7 @@ def _check_attrs(path: Path, attrs: Mapping[str, str] | None) -> dict[str, str]:
         if not isinstance(key, str) or not key:
             raise ValueError(f"{path}: attribute names must be non-empty strings, got {key!r}")
         if key in RESERVED_ATTRIBUTES:
-            raise ValueError(f"{path}: attribute name {key!r} is reserved by OpenEXR")
+            raise ValueError(f"{path}: attribute name {key!r} is reserved (by OpenEXR or for the digest)")
         if not isinstance(value, str):
             raise ValueError(f"{path}: attribute {key!r} must be a string, got {type(value).__name__}")
         out[key] = value
@@ -205,6 +234,7 @@ def write_exr(
         **header_attrs,
     }
     channels = {c: np.ascontiguousarray(store[..., i]) for i, c in enumerate("RGB")}
+    header[integrity.DIGEST_KEY] = integrity.exr_digest(channels, header_attrs)
 
     with atomic_path(path) as tmp, OpenEXR.File(header, channels) as exr:
         exr.write(str(tmp))  # the OpenEXR writer opens the file by name

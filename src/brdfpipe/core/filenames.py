@@ -12,6 +12,7 @@ function only formats strings.
 from __future__ import annotations
 
 import math
+import re
 
 __all__ = [
     "RESULTS",
@@ -84,10 +85,15 @@ __all__ = [
     "stage_times_rst",
     "caption",
     "explorer_dir",
+    "STAMPS",
+    "stamp",
+    "rule_of",
 ]
 
 #: Root folder of every output.
 RESULTS = "results"
+#: Folder of the job stamps (:mod:`brdfpipe.core.stamps`): one subfolder per rule.
+STAMPS = f"{RESULTS}/.stamps"
 #: Folder of the figures (PNG + PDF, and Fig. 8's table).
 FIGURES = f"{RESULTS}/figures"
 
@@ -457,3 +463,88 @@ def caption(name: str) -> str:
 def explorer_dir() -> str:
     """Folder of the in-browser material explorer (:mod:`brdfpipe.explorer`): open its ``index.html``."""
     return f"{RESULTS}/explorer"
+
+
+# -- job stamps (brdfpipe.core.stamps) -------------------------------------
+
+
+def stamp(rule: str, job: str) -> str:
+    """The stamp of the job ``job`` (:func:`brdfpipe.core.stamps.job_key` of its wildcards) of ``rule``."""
+    return f"{STAMPS}/{rule}/{job}"
+
+
+# -- which rule writes a file (the integrity messages' "what to rerun") -------
+
+
+def _producers() -> list[tuple[str, str]]:
+    """``(path pattern, rule)`` for every file a consumer reads, most specific first (wildcards ``{w}``)."""
+    w = "{w}"
+    floor_point = candidate_path_point(w, w, w, w, "image")
+    return [
+        (ingest_row(w), "ingest_material"),
+        (store(), "assemble_store"),
+        (splits(), "write_splits"),
+        (synthetic_binary(w), "synthesize_material"),
+        (logmap(w), "map_logrelative"),
+        (gram_partial(w, w), "accumulate_gram"),
+        (svd_model(w), "decompose_svd"),
+        (directions(w, w, w, w), "optimize_directions"),
+        (errors(), "evaluate_directions"),
+        (consistency(w), "check_directions"),
+        (training_size(), "evaluate_training_size"),
+        (closedloop_errors(), "evaluate_closedloop"),
+        (f"{RESULTS}/closedloop/{w}/{w}", "capture_closedloop"),
+        (gram(w), "compute_gram"),
+        (gplvm_model(w, w), "fit_gplvm"),
+        (gplvm_trace(w, w), "fit_gplvm"),
+        (candidate_spaces_csv(w), "measure_gplvm_candidate"),
+        (candidate_stability_csv(w), "measure_gplvm_candidate"),
+        (spaces_csv(), "compare_spaces"),
+        (spaces_stability_csv(), "compare_spaces"),
+        (albedo(), "analyze_manifold"),
+        (albedo_map(w), "analyze_manifold"),
+        (paths_csv(), "analyze_manifold"),
+        (reproduction(), "analyze_manifold"),
+        (f"{FIGURES}/{w}", "plot_acquisition_figures"),  # fig08's table: the one figure file read back
+        (envmap(w), "make_envmap"),
+        (prerender(w, w), "prerender_material"),
+        (prerender_one(w, w), "prerender_material"),
+        (object_mask(w), "render_object_mask"),
+        (bounce_shares(w), "bounce_shares"),
+        (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}.binary", "interpolate_candidate_path_points"),
+        (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}-weights.json", "interpolate_candidate_path_points"),
+        (floor_point.rsplit("/", 1)[0] + f"/{w}.exr", "render_candidate_path_point"),
+        (path_point(w, w, w, "binary"), "interpolate_path_points"),
+        (path_point(w, w, w, "weights"), "interpolate_path_points"),
+        (f"{RESULTS}/renders/{w}/paths/{w}.exr", "render_path_point"),
+        (floor_check_csv(w), "summarize_floor_check"),
+        (candidate_errormap_summary(w, w), "measure_candidate_blends"),
+        (f"{RESULTS}/errormaps/{w}/{w}/{w}", "measure_candidate_blends"),
+        (errormap_summary(w), "error_maps"),
+        (f"{RESULTS}/errormaps/{w}/{w}", "error_maps"),
+        (explorer_dir(), "write_explorer"),
+        (f"{REPORT}/{w}", "write_claims"),
+    ]
+
+
+_PRODUCER_RES: list[tuple["re.Pattern[str]", str]] | None = None
+
+
+def rule_of(path: object) -> str | None:
+    """The workflow rule that writes ``path`` (a ``results/…`` file or folder, or a file inside one), or None.
+
+    Matched on the path's tail from its ``results`` folder on, so absolute
+    paths and paths inside a Zarr group (``results/svd/train.zarr/Q/c/0/0``)
+    work too.  Used by :mod:`brdfpipe.core.integrity` to say what to rerun.
+    """
+    global _PRODUCER_RES
+    if _PRODUCER_RES is None:
+        _PRODUCER_RES = [
+            (re.compile("(?:^|/)" + "[^/]+".join(re.escape(p) for p in pattern.split("{w}")) + "(?:/.*)?$"), rule)
+            for pattern, rule in _producers()
+        ]
+    text = str(path).replace("\\", "/")
+    for rx, rule in _PRODUCER_RES:
+        if rx.search(text):
+            return rule
+    return None

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from brdfpipe.core import atomic
 
 __all__ = ["QUIET_LOGGERS", "log_to", "quiet_third_party", "setup_console_logging"]
 
@@ -33,15 +36,18 @@ def log_to(path: str | Path, level: int = logging.INFO) -> Iterator[logging.Logg
     """Log to ``path`` (and stderr) for the duration of a workflow job.
 
     An exception escaping the block is written with its traceback to the log
-    before it propagates, so a failed job's log says why it failed.
+    before it propagates, so a failed job's log says why it failed.  The job
+    holds the lease on its log file for the block
+    (:func:`brdfpipe.core.atomic.job_lease`): if a newer run starts the same
+    job (Snakemake deletes the log first), this process puts no output in
+    place any more.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     root = logging.getLogger()
-    handlers: list[logging.Handler] = [
-        logging.FileHandler(path, mode="w", encoding="utf-8"),
-        logging.StreamHandler(sys.stderr),
-    ]
+    file_handler = logging.FileHandler(path, mode="w", encoding="utf-8")
+    opened = os.fstat(file_handler.stream.fileno())
+    handlers: list[logging.Handler] = [file_handler, logging.StreamHandler(sys.stderr)]
     for h in handlers:
         h.setFormatter(logging.Formatter(_FORMAT))
         root.addHandler(h)
@@ -50,7 +56,8 @@ def log_to(path: str | Path, level: int = logging.INFO) -> Iterator[logging.Logg
     quiet_third_party()
     logger = logging.getLogger("brdfpipe.workflow")
     try:
-        yield logger
+        with atomic.job_lease(path, opened):
+            yield logger
     except BaseException:
         logger.exception("job failed")
         raise

@@ -35,6 +35,7 @@ import matplotlib.style
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write as _atomic_write
 from brdfpipe.core.version import full_version
 
@@ -128,17 +129,16 @@ class FigureOutput:
 def read_csv(path: str | os.PathLike[str], required: Sequence[str]) -> tuple[Path, list[dict[str, str]]]:
     """Read a figure's input CSV: ``(path, rows)``, each row with the stripped ``required`` columns and ``__line__``.
 
-    A missing file raises :class:`FileNotFoundError`; an empty, non-UTF-8 or
-    header-only file, missing columns or a short row raise
-    :class:`FigureInputError` naming the file (and line).
+    A missing file raises :class:`FileNotFoundError`; a file without its
+    digest line or that does not match it (:func:`brdfpipe.core.integrity.read_csv_text`),
+    an empty, non-UTF-8 or header-only file, missing columns or a short row
+    raise :class:`FigureInputError` naming the file (and line, counted in the
+    file as written).
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: input file not found")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise FigureInputError(f"{path}: not a UTF-8 text file ({exc})") from exc
+    text = integrity.read_csv_text(path, error=FigureInputError)
     if not text.strip():
         raise FigureInputError(f"{path}: empty file (expected a CSV header with columns {', '.join(required)})")
     reader = csv.DictReader(text.splitlines())
@@ -153,8 +153,8 @@ def read_csv(path: str | os.PathLike[str], required: Sequence[str]) -> tuple[Pat
     for raw in reader:
         row = {(k or "").strip(): (v or "").strip() if isinstance(v, str) else v for k, v in raw.items()}
         if None in raw or any(row.get(c) is None for c in required):
-            raise FigureInputError(f"{path}: line {reader.line_num}: wrong number of fields")
-        row["__line__"] = str(reader.line_num)
+            raise FigureInputError(f"{path}: line {reader.line_num + 1}: wrong number of fields")
+        row["__line__"] = str(reader.line_num + 1)  # + the digest line
         rows.append(row)
     if not rows:
         raise FigureInputError(f"{path}: no data rows (only a header)")

@@ -15,6 +15,14 @@ completion marker) is written last, after the writer checked its output.
   a writer replaces only an earlier output of its own kind.
 * :func:`create_array` is the common way the writers create their
   (Blosc lz4 + shuffle, or uncompressed) arrays.
+* :func:`finish_group` writes the completion marker together with the
+  group's integrity record (:func:`brdfpipe.core.integrity.seal_group`: CRC-32C
+  of every file, digest of the attributes), and :func:`open_sealed_group`
+  opens such a group and checks the record (attributes, files present with
+  their sizes, array metadata), returning the
+  :class:`~brdfpipe.core.integrity.GroupDigests` with which a reader checks the
+  chunks it reads.  (The MERL store has its own per-row scheme,
+  :mod:`brdfpipe.data.store`.)
 """
 
 from __future__ import annotations
@@ -29,11 +37,15 @@ import numpy as np
 import zarr
 from zarr.codecs import BloscCodec
 
+from brdfpipe.core.integrity import ZARR_ATTR, GroupDigests, open_group_digests, seal_group
+
 __all__ = [
     "COMPLETE_ATTR",
     "group_format",
     "format_predicate",
     "open_finished_group",
+    "finish_group",
+    "open_sealed_group",
     "create_array",
 ]
 
@@ -101,6 +113,38 @@ def open_finished_group(
             f"finished, e.g. its writer crashed; {rerun}"
         )
     return group, attrs
+
+
+def finish_group(group: zarr.Group, folder: str | os.PathLike[str], marker: Mapping[str, Any]) -> None:
+    """Write the completion marker ``marker`` and the integrity record, last, in one attribute update.
+
+    ``folder`` is where ``group`` lives (the writer's temporary folder); every
+    array must be complete.  The record covers every file of the group and
+    every attribute (the marker included), see :mod:`brdfpipe.core.integrity`.
+    """
+    attrs = json.loads(json.dumps({**dict(group.attrs), COMPLETE_ATTR: dict(marker)}))
+    attrs.pop(ZARR_ATTR, None)
+    record = seal_group(folder, attrs)
+    group.attrs.update({COMPLETE_ATTR: dict(marker), ZARR_ATTR: record})
+
+
+def open_sealed_group(
+    path: str | os.PathLike[str],
+    *,
+    fmt: str,
+    what: str,
+    kind: str,
+    error: type[Exception],
+    rerun: str = "re-run it",
+) -> tuple[zarr.Group, dict[str, Any], GroupDigests]:
+    """:func:`open_finished_group`, then the group's integrity record checked (:func:`~brdfpipe.core.integrity.open_group_digests`).
+
+    Returns the group, its attributes and its :class:`~brdfpipe.core.integrity.GroupDigests`
+    (chunks are not read here: the caller verifies what it reads).
+    """
+    group, attrs = open_finished_group(path, fmt=fmt, what=what, kind=kind, error=error, rerun=rerun)
+    digests = open_group_digests(path, attrs, error=error, what=what)
+    return group, attrs, digests
 
 
 def create_array(

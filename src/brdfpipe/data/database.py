@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.data import databases
 from brdfpipe.data.databases import EXTRA_TEST_MATERIAL, MERL_TEST_MATERIALS, XU2016_TEST_MATERIALS
 from brdfpipe.core.version import full_version
@@ -510,7 +510,7 @@ def write_splits(
     The material names and the database kind are read from the validated
     store, so the split always describes the data downstream stages see.
     Raises :class:`DatabaseError` if a test material is not in the store.
-    Written atomically (:func:`brdfpipe.core.atomic.write_text`).
+    Written atomically with its digest (:func:`brdfpipe.core.integrity.write_json`).
     """
     from brdfpipe.data.store import open_store
 
@@ -529,4 +529,4 @@ def write_splits(
         "train": [m for m in materials if m not in test_set],
         "brdfpipe_version": full_version(),
     }
-    atomic.write_text(path, json.dumps(doc, indent=2) + "\n")
+    integrity.write_json(path, doc, indent=2)  # with its digest (brdfpipe.core.integrity)

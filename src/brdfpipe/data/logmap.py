@@ -58,7 +58,10 @@ the completion marker ``brdfpipe_complete`` = ``{"rows": m_out, "columns": p,
 "id": <hex digest>}``; the ``id`` is a sha256 digest of the attributes, the
 store's source digests and ρ_ref, so it identifies this log-map's content
 (the SVD refuses Gram partials computed from another one) while the same
-inputs still give the same bytes.
+inputs still give the same bytes.  The marker is written together with the
+integrity record ``brdfpipe_digests`` (CRC-32C of every file, digest of the
+attributes; :mod:`brdfpipe.core.integrity`): :func:`open_logmap` checks it,
+and every chunk of ``X`` is checked before it is read.
 
 The output is built in a temporary sibling directory and swapped into place
 (:func:`brdfpipe.core.atomic.atomic_dir`): after any error or interrupt an earlier
@@ -95,7 +98,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core.atomic import atomic_dir, check_replaceable
 from brdfpipe.core.version import full_version
-from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, format_predicate, open_finished_group
+from brdfpipe.core.integrity import GroupDigests
+from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, finish_group, format_predicate, open_sealed_group
 from brdfpipe.data import merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
@@ -392,7 +396,7 @@ def write_logmap(
         group.attrs.update(attrs)
         digest = hashlib.sha256(json.dumps([attrs, st.sources], sort_keys=True).encode())
         digest.update(ref.tobytes())
-        group.attrs[COMPLETE_ATTR] = {"rows": m_out, "columns": p, "id": digest.hexdigest()[:16]}
+        finish_group(group, tmp, {"rows": m_out, "columns": p, "id": digest.hexdigest()[:16]})
         open_logmap(tmp)  # check what was written
     logger.info("wrote log-map %s", out)
 
@@ -402,7 +406,10 @@ class Logmap:
     """An opened, checked log-map (see :func:`open_logmap`).
 
     ``X`` is the lazily read Zarr array; ``reference``, ``weight`` and
-    ``cells`` are loaded (p values each).
+    ``cells`` are loaded (p values each) and were checked against their
+    digests when opened.  Read ``X`` through :meth:`read_columns` or
+    :func:`iter_columns`, which check each chunk against its digest before
+    the first read (a direct ``X[...]`` read is unchecked).
     """
 
     path: Path
@@ -419,6 +426,7 @@ class Logmap:
     epsilon: float
     database: str
     id: str
+    digests: GroupDigests | None = field(default=None, repr=False, compare=False)
 
     @property
     def m(self) -> int:
@@ -435,6 +443,21 @@ class Logmap:
         """Columns per chunk of ``X``."""
         return int(self.X.chunks[1])
 
+    def verify_columns(self, start: int, stop: int) -> None:
+        """Check the chunks of ``X`` holding columns ``start:stop`` against their digests (once per handle).
+
+        :class:`LogmapError` naming the log-map, the chunk file and what to rerun.
+        """
+        if self.digests is None or stop <= start:
+            return
+        w = self.chunk_cols
+        self.digests.verify_chunks(self.X, "X", [(0, j) for j in range(start // w, (stop - 1) // w + 1)])
+
+    def read_columns(self, start: int, stop: int) -> NDArray[np.float32]:
+        """``X[:, start:stop]`` (float32), its chunks checked against their digests first."""
+        self.verify_columns(start, stop)
+        return np.asarray(self.X[:, start:stop], dtype=np.float32)
+
 
 def open_logmap(path: str | os.PathLike[str]) -> Logmap:
     """Open a finished log-map after checking it; :class:`LogmapError` naming ``path`` if not.
@@ -442,12 +465,20 @@ def open_logmap(path: str | os.PathLike[str]) -> Logmap:
     Refuses a missing or unreadable group, one without the completion marker
     (never finished), of another format, or whose arrays and attributes
     disagree (shapes, dtypes, rows vs materials, split / weighting / ε values,
-    cells not strictly increasing, weights not positive).
+    cells not strictly increasing, weights not positive), and one whose
+    integrity record (:mod:`brdfpipe.core.integrity`) does not match: the
+    attributes, files missing, extra or resized, the array metadata and the
+    chunks of ``reference``, ``weight`` and ``cells`` (read here).  The
+    chunks of ``X`` are checked as they are read (:meth:`Logmap.read_columns`,
+    :func:`iter_columns`): a job reading a quarter of the columns checks a
+    quarter of the chunks.
     """
     path = Path(path)
-    group, attrs = open_finished_group(
+    group, attrs, digests = open_sealed_group(
         path, fmt=LOGMAP_FORMAT, what="log-map", kind="brdfpipe log-map", error=LogmapError
     )
+    for name in ("reference", "weight", "cells"):
+        digests.verify_array(name)
     marker = attrs[COMPLETE_ATTR]
     arrays: dict[str, zarr.Array] = {}
     for name, dtype, ndim in (("X", np.float32, 2), ("reference", np.float64, 1),
@@ -499,6 +530,7 @@ def open_logmap(path: str | os.PathLike[str]) -> Logmap:
         epsilon=float(eps),
         database=str(attrs.get("database")),
         id=str(marker["id"]),
+        digests=digests,
     )
 
 
@@ -508,7 +540,7 @@ def iter_columns(
     """Yield ``(a, b, X[:, a:b])`` (float32) over columns ``start:stop`` of a log-map.
 
     Blocks are cut at chunk boundaries, so each is at most one chunk wide and
-    every chunk is decoded once.
+    every chunk is decoded once, after it is checked against its digest.
     """
     lm = logmap if isinstance(logmap, Logmap) else open_logmap(logmap)
     stop = lm.p if stop is None else int(stop)
@@ -518,5 +550,5 @@ def iter_columns(
     a = start
     while a < stop:
         b = min((a // width + 1) * width, stop)
-        yield a, b, np.asarray(lm.X[:, a:b], dtype=np.float32)
+        yield a, b, lm.read_columns(a, b)
         a = b

@@ -15,7 +15,7 @@ A Zarr v3 group holding
 * ``valid`` – bool ``(1_458_000,)``: the cell is measured (≥ 0 in all three
   channels, judged on the float64 source values) in *every* material.
 
-Group attributes: ``format`` (``"brdfpipe.data.merl-store/2"``), ``materials``
+Group attributes: ``format`` (``"brdfpipe.data.merl-store/3"``), ``materials``
 (row order), ``database`` (the label of every row's source file:
 ``"merl"`` for unmarked measurements, ``"synthetic"``, ``"derived"``, see
 :mod:`brdfpipe.data.provenance`), ``sources``
@@ -23,18 +23,24 @@ Group attributes: ``format`` (``"brdfpipe.data.merl-store/2"``), ``materials``
 names, by material name), ``channel_scales``, ``layout`` (human-readable
 description), ``digests`` (see below), ``brdfpipe_version`` and, written
 last, the completion marker ``brdfpipe_complete``.  Format ``/1`` stores
-(digests not bound to names, no ``valid`` digest) are refused with a message
-to re-ingest; an ingest may replace them.
+(digests not bound to names, no ``valid`` digest) and ``/2`` stores (no
+digest of the attributes) are refused with a message to re-ingest; an ingest
+may replace them.
 
 Integrity (verification on read)
 --------------------------------
 ``digests`` = ``{"algorithm": "crc32c(utf8(name) NUL shard file)", "shards":
-[...], "shard_nbytes": [...], "valid": ...}``: for row *i* the CRC-32C of
-``materials[i]`` (UTF-8), a NUL byte and the bytes of its shard file
-(:func:`shard_digest`), and the shard's size; for ``valid`` the CRC-32C of
-its chunk file.  Binding the digest to the name means that swapped names (or
-swapped shard files) fail verification naming the material, not only
-flipped bits.
+[...], "shard_nbytes": [...], "valid": ..., "attributes": "sha256:…"}``:
+for row *i* the CRC-32C of ``materials[i]`` (UTF-8), a NUL byte and the
+bytes of its shard file (:func:`shard_digest`), and the shard's size; for
+``valid`` the CRC-32C of its chunk file; for the attributes the digest of
+every other group attribute (``database``, ``materials``, ``sources``,
+``source_files``, ``channel_scales``, ``layout``, ``format``,
+``brdfpipe_version``; :func:`brdfpipe.core.integrity.attributes_digest`),
+checked on every open, so a store relabelled ``merl`` by hand, or whose
+sources were edited, is refused.  Binding the digest to the name means that
+swapped names (or swapped shard files) fail verification naming the
+material, not only flipped bits.
 
 Every :func:`open_store` checks the metadata, the presence and size of every
 shard file (a deleted shard can never read back as the NaN fill value) and
@@ -196,6 +202,7 @@ from zarr.core.buffer import default_buffer_prototype
 from zarr.core.group import GroupMetadata
 
 from brdfpipe.core.atomic import atomic_dir, check_replaceable, clean_stale_siblings, remove_tree, tmp_sibling
+from brdfpipe.core.integrity import attributes_digest
 from brdfpipe.core.version import full_version
 from brdfpipe.core.zgroup import COMPLETE_ATTR, format_predicate, open_finished_group
 from brdfpipe.data import merl, provenance
@@ -253,11 +260,14 @@ _MASK_CODEC: Final[Mapping[str, Any]] = {
 _SHUFFLE: Final = {"noshuffle": Blosc.NOSHUFFLE, "shuffle": Blosc.SHUFFLE, "bitshuffle": Blosc.BITSHUFFLE}
 #: Allowed values of the ``database`` attribute (:func:`brdfpipe.data.provenance.database_labels`).
 DATABASES: Final = provenance.database_labels()
-#: ``format`` attribute of a store.  /2: shard digests bound to the material names, ``valid`` digest.
-STORE_FORMAT: Final = "brdfpipe.data.merl-store/2"
+#: ``format`` attribute of a store.  /2: shard digests bound to the material names, ``valid`` digest;
+#: /3: and a digest of the attributes (``database``, ``materials``, ``sources``, …).
+STORE_FORMAT: Final = "brdfpipe.data.merl-store/3"
 #: Earlier store formats: recognised (an ingest may replace them) but refused by :func:`open_store`.
 RETIRED_STORE_FORMATS: Final = {
     "brdfpipe.data.merl-store/1": "its shard digests do not cover the material names; re-ingest the store",
+    "brdfpipe.data.merl-store/2": "no digest covers its 'database', 'materials' and 'sources' attributes; "
+                                  "re-ingest the store",
 }
 ROW_FORMAT: Final = "brdfpipe.data.merl-row/1"
 #: Algorithm of the ``digests`` attribute (recorded in it, checked on open).
@@ -767,24 +777,24 @@ def assemble_store(
         valid = missing_count == 0
         _warn_removals(infos, missing, missing_count)
         valid_arr[:] = valid
-        group.attrs.update(
-            {
-                "format": STORE_FORMAT,
-                "materials": names,
-                "database": database,
-                "sources": {info.name: info.sha256 for info in infos},
-                "source_files": {info.name: info.source_file for info in infos},
-                "channel_scales": [float(s) for s in SCALES],
-                "layout": LAYOUT,
-                "digests": {
-                    "algorithm": DIGEST_ALGORITHM,
-                    "shards": digests,
-                    "shard_nbytes": [info.shard_nbytes for info in infos],
-                    "valid": google_crc32c.value(_read_file(tmp / "valid" / "c" / "0")),
-                },
-                "brdfpipe_version": full_version(),
-            }
-        )
+        attrs: dict[str, Any] = {
+            "format": STORE_FORMAT,
+            "materials": names,
+            "database": database,
+            "sources": {info.name: info.sha256 for info in infos},
+            "source_files": {info.name: info.source_file for info in infos},
+            "channel_scales": [float(s) for s in SCALES],
+            "layout": LAYOUT,
+            "brdfpipe_version": full_version(),
+        }
+        attrs["digests"] = {
+            "algorithm": DIGEST_ALGORITHM,
+            "shards": digests,
+            "shard_nbytes": [info.shard_nbytes for info in infos],
+            "valid": google_crc32c.value(_read_file(tmp / "valid" / "c" / "0")),
+            "attributes": attributes_digest(attrs),
+        }
+        group.attrs.update(attrs)
         _validate_store(tmp, names=names, sources={i.name: i.sha256 for i in infos}, valid=valid)
         group.attrs[COMPLETE_ATTR] = _marker(n)  # last
         _load_store(tmp)
@@ -974,6 +984,11 @@ def _load_store(path: Path, *, need_marker: bool = True) -> BrdfStore:
     dig = attrs.get("digests")
     if not isinstance(dig, dict) or dig.get("algorithm") != DIGEST_ALGORITHM:
         raise StoreError(f"{path}: attribute 'digests' is missing or not {DIGEST_ALGORITHM!r}")
+    if dig.get("attributes") != attributes_digest(attrs, ("digests", COMPLETE_ATTR)):
+        raise StoreError(
+            f"{path}: its attributes (database, materials, sources, ...) do not match their recorded digest "
+            "(damaged or edited); re-ingest the store"
+        )
     n = len(materials)
     digests = _attr_int_list(path, dig.get("shards"), n, "shards")
     nbytes = _attr_int_list(path, dig.get("shard_nbytes"), n, "shard_nbytes")

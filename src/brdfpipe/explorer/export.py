@@ -10,8 +10,17 @@
     data/refs.js                            the reference renders of the path points
 
 From ``file://`` a page may not ``fetch()`` local files nor upload ``<img>``
-pixels to WebGL, so every data file is a script that assigns base64 strings
-to ``window.BRDF_EXPLORER_DATA``.
+pixels to WebGL, so every data file is a script that assigns its payload to
+``window.BRDF_EXPLORER_DATA[key]`` as ``{"crc32": "crc32:<8 hex>", "json":
+"<the payload as JSON text>"}`` (binary arrays as base64 inside it).  The
+page checks, for every file, that it loaded and that the CRC-32 of its JSON
+text equals the recorded one (:func:`brdfpipe.core.integrity.text_crc32`)
+before parsing it, and otherwise shows one message naming the file and what
+to rerun instead of drawing anything (a truncated file does not parse, so
+its key is missing; an edited one does not match).  ``manifest.json`` carries
+its digest like every JSON file (:func:`brdfpipe.core.integrity.write_json`).
+The inputs (models, pre-renders, references, weights, albedo and summary
+tables) are verified when read.
 
 Weights
 -------
@@ -66,7 +75,6 @@ basis the page uses) and the floor.
 from __future__ import annotations
 
 import base64
-import csv
 import json
 import logging
 import math
@@ -80,7 +88,7 @@ import numpy as np
 import scipy.spatial
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic, exr
+from brdfpipe.core import atomic, exr, integrity
 from brdfpipe.manifold import gplvm, latent
 from brdfpipe.explorer import ASSETS, STATIC_DIR
 from brdfpipe.core.version import full_version
@@ -99,6 +107,7 @@ __all__ = [
     "hull_data",
     "read_data_file",
     "script_json",
+    "write_data_file",
     "write_explorer",
 ]
 
@@ -270,11 +279,10 @@ def noise_floor(summary: str | os.PathLike[str] | None) -> tuple[float | None, s
     if summary is None:
         return None, "no path points rendered: no two-seed noise floor"
     path = Path(summary)
+    _, rows = integrity.read_csv_rows(path, kind="errormaps summary", error=ExplorerError)
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.DictReader(fh))
         values = [float(r["rmse_noise"]) for r in rows]
-    except (OSError, KeyError, ValueError) as err:
+    except (KeyError, ValueError) as err:
         raise ExplorerError(f"{path}: not an errormaps summary with rmse_noise ({type(err).__name__}: {err})") from None
     values = [v for v in values if math.isfinite(v) and v > 0]
     if not values:
@@ -311,10 +319,10 @@ def hull_data(X: ArrayLike) -> dict[str, Any] | None:
 
 
 def _read_albedos(path: Path, names: Sequence[str]) -> NDArray[np.float64]:
+    _, table = integrity.read_csv_rows(path, kind="albedo table", error=ExplorerError)
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = {r["material"]: (float(r["r"]), float(r["g"]), float(r["b"])) for r in csv.DictReader(fh)}
-    except (OSError, KeyError, ValueError) as err:
+        rows = {r["material"]: (float(r["r"]), float(r["g"]), float(r["b"])) for r in table}
+    except (KeyError, TypeError, ValueError) as err:
         raise ExplorerError(f"{path}: not an albedo table with material, r, g, b ({type(err).__name__}: {err})") from None
     missing = [n for n in names if n not in rows]
     if missing:
@@ -360,17 +368,38 @@ def script_json(value: Any) -> str:
 
 
 def _script(key: str, value: Any) -> str:
+    """A ``data/*.js`` file: ``value`` as JSON text in a string, with the text's CRC-32 (checked by the page).
+
+    The record is written with :func:`script_json` (safe inside a script); the string the page reads back,
+    and checks the CRC-32 of, is the JSON text itself.
+    """
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    record = {"crc32": integrity.text_crc32(text), "json": text}
     return f"window.{_GLOBAL} = window.{_GLOBAL} || {{}};\nwindow.{_GLOBAL}[{script_json(key)}] = " \
-           f"{script_json(value)};\n"
+           f"{script_json(record)};\n"
+
+
+def write_data_file(path: str | os.PathLike[str], key: str, value: Any) -> None:
+    """Write a ``data/*.js`` file assigning ``value`` to ``key`` (with its CRC-32), atomically (for tests and tools)."""
+    atomic.write_bytes(path, _script(key, value).encode("ascii"))
 
 
 def read_data_file(path: str | os.PathLike[str]) -> Any:
-    """The value a ``data/*.js`` file assigns (for tests and tools)."""
-    text = Path(path).read_text(encoding="ascii")
-    head, sep, body = text.partition("] = ")
-    if not sep or not body.rstrip().endswith(";"):
-        raise ExplorerError(f"{path}: not an explorer data file")
-    return json.loads(body.rstrip()[:-1])
+    """The value a ``data/*.js`` file assigns, its CRC-32 checked (for tests and tools); ExplorerError naming it."""
+    try:
+        text = Path(path).read_text(encoding="ascii")
+        head, sep, body = text.partition("] = ")
+        if not sep or not body.rstrip().endswith(";"):
+            raise ValueError("no assignment")
+        record = json.loads(body.rstrip()[:-1])
+        payload = record["json"]
+        recorded = record["crc32"]
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as err:
+        raise ExplorerError(f"{path}: not an explorer data file, or truncated ({type(err).__name__}: {err}); "
+                            f"{integrity.rerun_hint(path)}") from None
+    if integrity.text_crc32(payload) != recorded:
+        raise integrity.mismatch(path, "its payload", error=ExplorerError)
+    return json.loads(payload)
 
 
 def _is_explorer(folder: Path) -> bool:
@@ -398,17 +427,18 @@ def _path_points(points: Sequence[Mapping[str, Any]], names: Sequence[str], summ
                  shape: tuple[int, ...], upsample: int) -> tuple[list[dict[str, Any]], list[NDArray[np.float32]]]:
     rows: dict[tuple[str, str], dict[str, str]] = {}
     if summary is not None:
-        with summary.open(newline="", encoding="utf-8") as fh:
-            rows = {(r["path"], r["t"]): r for r in csv.DictReader(fh)}
+        _, table = integrity.read_csv_rows(summary, required=("path", "t"), kind="errormaps summary",
+                                           error=ExplorerError)
+        rows = {(r["path"], r["t"]): r for r in table}
     docs, refs = [], []
     for k, pt in enumerate(points):
         wpath = Path(pt["weights"])
+        doc = integrity.read_json(wpath, kind="path-point weights file", error=ExplorerError)
         try:
-            doc = json.loads(wpath.read_text(encoding="utf-8"))
             w = [float(doc["weights"][n]) for n in names]
             entry = {"path": str(doc["path"]), "a": str(doc["material_a"]), "b": str(doc["material_b"]),
                      "t": float(doc["t"]), "q": int(doc["q"]), "x": [float(v) for v in doc["x"]], "weights": w}
-        except (OSError, ValueError, KeyError, TypeError) as err:
+        except (ValueError, KeyError, TypeError) as err:
             raise ExplorerError(f"{wpath}: not a path-point weights file for these materials "
                                 f"({type(err).__name__}: {err})") from None
         ref = _read_images([Path(pt["image"])], [entry["path"]], upsample)[0]
@@ -467,7 +497,8 @@ def write_explorer(
         try:
             loaded.append((Path(p), gplvm.load_model(p)))
         except (OSError, ValueError, KeyError) as err:
-            raise ExplorerError(f"{p}: cannot read the GPLVM model ({err})") from None
+            msg = str(err)
+            raise ExplorerError(msg if msg.startswith(str(p)) else f"{p}: cannot read the GPLVM model ({msg})") from None
     names = list(loaded[0][1].names)
     for p, m in loaded[1:]:
         if list(m.names) != names:
@@ -575,7 +606,7 @@ def write_explorer(
             shutil.copyfile(STATIC_DIR / asset, tmp / asset)
         for name, text in files.items():
             (tmp / name).write_text(text, encoding="ascii")
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        (tmp / "manifest.json").write_text(integrity.dumps_json(manifest, indent=1, sort_keys=True), encoding="utf-8")
     logger.info("explorer: %d materials, %d x %d, models q = %s, basis k = %d (errors %.3g / %.3g, target %.3g) -> %s",
                 n, ww, hh, qs, k, err_pre.max(), err_blend.max(), target, out)
     return manifest

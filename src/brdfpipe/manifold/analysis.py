@@ -56,7 +56,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import path_name
 from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
 from brdfpipe.data import merl
@@ -280,7 +280,7 @@ def path_analysis(
         raise ValueError(f"steps must be >= 1, got {steps}")
     names = list(model.names)
     check_paths([(a, b)], names, what="path")
-    st = store if isinstance(store, BrdfStore) else open_store(store)
+    st = gplvm.check_store(model, store)
     xa, xb = model.X[names.index(a)], model.X[names.index(b)]
     ts = np.arange(steps + 1) / steps
     pts = (1.0 - ts)[:, None] * xa + ts[:, None] * xb
@@ -297,7 +297,8 @@ def path_analysis(
     to_b = np.zeros(n_pts)
     f_a = f_b = None
     for chunk in chunks:
-        tables, _ = gplvm.interpolate_tables(st, W[chunk], materials=names, space=model.space)
+        tables, _ = gplvm.interpolate_tables(st, W[chunk], materials=names, space=model.space,
+                                             model=model)
         feats = {k: perceptual.pr12_features(tab) for k, tab in zip(chunk, tables)}
         del tables
         if f_a is None:
@@ -342,7 +343,7 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, A
     w.writerow(columns)
     for r in rows:
         w.writerow([_fmt(r[c]) for c in columns])
-    atomic.write_text(path, buf.getvalue())
+    integrity.write_csv(path, buf.getvalue())
 
 
 def analyze_manifold(
@@ -371,11 +372,13 @@ def analyze_manifold(
     """
     st = open_store(store)
     G, d, info = gplvm.load_gram(gram)
+    gplvm.check_gram_store(info, st, gram)
     fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
     names = list(info.materials)
     for q, m in fits.items():
         if list(m.names) != names:
             raise ValueError(f"{models[q]}: its materials differ from those of {gram}")
+        gplvm.check_store(m, st)
     if int(path_q) not in fits:
         raise ValueError(f"path_q = {path_q} has no fitted model (fitted: {sorted(fits)})")
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
@@ -394,7 +397,7 @@ def analyze_manifold(
     for q, target in sorted(albedo_maps_out.items()):
         amap = albedo_map(fits[int(q)], A, n=albedo_grid)
         amap["database"] = np.array(database)
-        atomic.save_npz(target, amap)
+        integrity.save_npz(target, amap)
 
     rows = []
     for a, b in pairs:
@@ -432,7 +435,6 @@ def path_points_to_files(
     ``derived`` provenance mark (operation ``path-point``, :mod:`brdfpipe.manifold.derivation`).
     Returns the weights ``(P, N)``.
     """
-    import json
 
     if not (len(points) == len(merl_outs) == len(weights_outs)) or not points:
         raise ValueError(f"need one MERL and one weights output per path point, got {len(points)} points, "
@@ -450,7 +452,7 @@ def path_points_to_files(
         xs.append(x)
         ws.append(gplvm.blend_weights(gplvm.weights(m, x)))
     W = np.stack(ws)
-    tables, clamped = gplvm.interpolate_tables(st, W, materials=names, space=m.space)
+    tables, clamped = gplvm.interpolate_tables(st, W, materials=names, space=m.space, model=m)
     for k, (a, b, t) in enumerate(points):
         mark = source.mark(out=merl_outs[k], operation="path-point", point=xs[k],
                            weights=W[k], path=[a, b], t=float(t))
@@ -459,6 +461,6 @@ def path_points_to_files(
                "x": [float(v) for v in xs[k]], "clamped": int(clamped[k]),
                "measured_values": int(np.count_nonzero(tables[k] >= 0.0)),
                "weights": {n: float(v) for n, v in zip(names, W[k])}}
-        atomic.write_text(weights_outs[k], json.dumps(doc, indent=1) + "\n")
+        integrity.write_json(weights_outs[k], doc)
         logger.info("path %s at t = %g: %d clamped values -> %s", path_name(a, b), t, clamped[k], merl_outs[k])
     return W

@@ -60,7 +60,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, gplvm, latent, perceptual
 
 __all__ = [
@@ -161,7 +161,8 @@ def albedo_outside(
         raise ValueError(f"albedo in the {model.space!r} space needs the store (the blend is not linear)")
     out = np.empty(W.shape[0], dtype=bool)
     for c0 in range(0, W.shape[0], 8):
-        tables, _ = gplvm.interpolate_tables(store, W[c0 : c0 + 8], materials=model.names, space=model.space)
+        tables, _ = gplvm.interpolate_tables(store, W[c0 : c0 + 8], materials=model.names, space=model.space,
+                                             model=model)
         out[c0 : c0 + 8] = _outside(np.stack([analysis.material_albedo(t) for t in tables]))
         del tables
     return out
@@ -329,7 +330,7 @@ def _write_csv(path: str | os.PathLike[str], columns: Sequence[str], rows: Seque
     w.writerow(columns)
     for r in rows:
         w.writerow([_fmt(r[c]) for c in columns])
-    atomic.write_text(Path(path), buf.getvalue())
+    integrity.write_csv(Path(path), buf.getvalue())
 
 
 def measure_candidate(
@@ -365,6 +366,8 @@ def measure_candidate(
         raise ValueError("measure_candidate needs the raw Gram matrix (stability in raw units)")
     st = open_store(store)
     loaded = {s: gplvm.load_gram(p) for s, p in grams.items()}
+    for s, (_, _, info) in loaded.items():
+        gplvm.check_gram_store(info, st, grams[s])
     names = list(loaded["raw"][2].materials)
     raw_gram = loaded["raw"][2].raw_gram
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
@@ -377,6 +380,7 @@ def measure_candidate(
             raise ValueError(f"{path}: its materials differ from those of {grams['raw']}")
         if candidate_label(model.space, model.mu) != candidate:
             raise ValueError(f"{path}: a {candidate_label(model.space, model.mu)} fit, expected {candidate}")
+        gplvm.check_store(model, st)
         sg = loaded[model.space][2].raw_gram if model.space in loaded else None
         rng = np.random.default_rng([seed, int(q), *candidate.encode()])
         row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=sg, paths=pairs,
@@ -401,8 +405,7 @@ def measure_candidate(
 
 
 def _read_rows(path: str | os.PathLike[str], columns: Sequence[str]) -> list[list[str]]:
-    with open(path, encoding="utf-8", newline="") as fh:
-        r = list(csv.reader(fh))
+    r = list(csv.reader(io.StringIO(integrity.read_csv_text(path), newline="")))  # its digest checked
     if not r or tuple(r[0]) != tuple(columns):
         raise ValueError(f"{path}: not a table with columns {', '.join(columns)}")
     return r[1:]
@@ -443,4 +446,4 @@ def combine_candidates(
             raise ValueError(f"expected exactly one default candidate among {len(files)} tables, found {sorted(defaults)}")
         texts.append((out, buf.getvalue()))
     for out, text in texts:  # both checked before either is written
-        atomic.write_text(Path(out), text)
+        integrity.write_csv(Path(out), text)

@@ -29,6 +29,7 @@ from matplotlib.font_manager import FontProperties
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import MaxNLocator
 
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.data.databases import title as database_label
 from brdfpipe.core.plot import (
@@ -258,21 +259,14 @@ class AlbedoMap:
 
 
 def read_albedo_map(path: str | os.PathLike[str]) -> AlbedoMap:
-    """Read and check an ``albedo-map-q{q}.npz``."""
+    """Read and check an ``albedo-map-q{q}.npz`` (its digest first: :func:`brdfpipe.core.integrity.load_npz`)."""
     p = _input_file(path, "albedo map")
-    if not zipfile.is_zipfile(p):
-        raise FigureInputError(f"{p}: not an npz (zip) file")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            missing = [k for k in ALBEDO_MAP_KEYS if k not in z]
-            if missing:
-                raise FigureInputError(f"{p}: missing array(s) {', '.join(missing)} "
-                                       f"(required: {', '.join(ALBEDO_MAP_KEYS)})")
-            arrays = {k: np.asarray(z[k]) for k in ALBEDO_MAP_KEYS}
-    except FigureInputError:
-        raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise FigureInputError(f"{p}: not a readable npz file ({exc})") from exc
+    z = integrity.load_npz(p, kind="albedo map", error=FigureInputError)
+    missing = [k for k in ALBEDO_MAP_KEYS if k not in z]
+    if missing:
+        raise FigureInputError(f"{p}: missing array(s) {', '.join(missing)} "
+                               f"(required: {', '.join(ALBEDO_MAP_KEYS)})")
+    arrays = {k: np.asarray(z[k]) for k in ALBEDO_MAP_KEYS}
     try:
         x = arrays["x"].astype(np.float64)
         y = arrays["y"].astype(np.float64)
@@ -504,8 +498,8 @@ def read_spaces(spaces_csv: str | os.PathLike[str], stability_csv: str | os.Path
         raise FigureInputError(f"{p}: expected exactly one default candidate, found {sorted(defaults)}")
     database = single_database(p, (r["database"] for r in rows))
     sp = _input_file(stability_csv, "stability table")
-    with sp.open(encoding="utf-8") as fh:
-        lines = [line for line in fh.read().splitlines() if line.strip()]
+    text = integrity.read_csv_text(sp, kind="stability table", error=FigureInputError)  # its digest checked
+    lines = [line for line in text.splitlines() if line.strip()]
     header_only = len(lines) == 1
     if header_only and not set(STABILITY_FIGURE_COLUMNS) <= set(lines[0].split(",")):
         raise FigureInputError(f"{sp}: missing column(s) of a stability table (required: {', '.join(STABILITY_FIGURE_COLUMNS)})")

@@ -179,6 +179,24 @@ above the kernel's unit amplitude, as in raw units, the likelihood wants the
 points much closer together than ℓ (strongly correlated K), which ``rms`` /
 ``unit`` give (factors 100× smaller than ``nn``'s on the raw store).
 
+Files and their data
+--------------------
+:func:`save_gram` / :func:`save_model` write npz files that carry their own
+digest (:func:`brdfpipe.core.integrity.save_npz`; :func:`load_gram` /
+:func:`load_model` check it, so a truncated, corrupt or edited file is one
+:class:`GplvmFileError` naming it) and the digests of the store rows they
+were computed from (the store's name-bound CRC-32C per row,
+:func:`brdfpipe.data.store.shard_digest`): the Gram file records them
+(``row_digests``) and the fit carries them into the model
+(``data_digests``).  Every use of a model with a store checks them
+(:func:`check_store`: :func:`interpolate_tables` given the model,
+:func:`interpolate_to_file`, :mod:`brdfpipe.manifold.latent`,
+:mod:`brdfpipe.manifold.analysis`, :mod:`brdfpipe.manifold.fidelity`, the
+workflow's path points, the command line), so a store of the same names
+whose rows differ — ingested from other files, rows swapped — is a
+:class:`DataMismatchError` naming the model, the store and the material,
+never another material's BRDF under a name.
+
 Interpolation
 -------------
 ``b(x*) = K⁻¹ k(x*)`` (eq. 4) and the interpolated BRDF is
@@ -207,11 +225,18 @@ import scipy.linalg.blas
 import scipy.linalg.lapack
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.data.store import BrdfStore, iter_cell_blocks, iter_column_blocks, material_indices, open_store
+from brdfpipe.data.store import (
+    DIGEST_ALGORITHM as STORE_DIGEST_ALGORITHM,
+    BrdfStore,
+    iter_cell_blocks,
+    iter_column_blocks,
+    material_indices,
+    open_store,
+)
 from brdfpipe.manifold import derivation
 
 __all__ = [
@@ -220,6 +245,8 @@ __all__ = [
     "INIT_SCALES",
     "NEWTON_TRIAL_SCALES",
     "MEAN_HANDLING",
+    "GplvmFileError",
+    "DataMismatchError",
     "GramInfo",
     "FitResult",
     "GplvmModel",
@@ -244,6 +271,9 @@ __all__ = [
     "interpolate_tables",
     "save_model",
     "load_model",
+    "store_digests",
+    "check_store",
+    "check_gram_store",
     "write_gram",
     "fit_to_files",
     "write_trace",
@@ -266,9 +296,25 @@ NEWTON_TRIAL_SCALES: Final = ("rms", "unit")
 MEAN_HANDLING: Final = "mean subtracted"
 #: Optimisers of :func:`fit` (see the module docstring, "Optimisation").
 METHODS: Final = ("newton", "hybrid", "hooke-jeeves")
-MODEL_FORMAT: Final = "brdfpipe.gplvm/1"
-GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/1"
+#: /2: the digests of the store rows the model was fitted on (``data_digests``) and the file's digest.
+MODEL_FORMAT: Final = "brdfpipe.gplvm/2"
+#: /2: the digests of the store rows (``row_digests``) and the file's digest.
+GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/2"
+#: Earlier formats: refused with (why, what to do).
+RETIRED_FORMATS: Final = {
+    "brdfpipe.gplvm/1": ("it records no digests of the store rows it was fitted on", "refit it"),
+    "brdfpipe.manifold.gplvm.gram/1": ("it records no digests of the store rows it was computed from",
+                                       "compute it again"),
+}
 _SUB_COLS: Final = 16384
+
+
+class GplvmFileError(ValueError):
+    """A GPLVM model or Gram file is missing, damaged, of another format or inconsistent; names the file."""
+
+
+class DataMismatchError(ValueError):
+    """A model (or Gram file) used with a store whose rows are not the data it was fitted on (computed from)."""
 
 
 # --------------------------------------------------------------------------
@@ -334,6 +380,9 @@ class GramInfo:
     #: The un-centred Gram matrix ``Z Zᵀ``.
     raw_gram: NDArray[np.float64] = field(repr=False)
     mean_handling: str = MEAN_HANDLING
+    #: Digest of each material's store row (:func:`brdfpipe.data.store.shard_digest`, in ``materials`` order);
+    #: empty when not computed from a store.
+    digests: tuple[int, ...] = field(default=(), repr=False)
 
 
 def _select(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
@@ -423,7 +472,7 @@ def gram_matrix(
     s = s[inv]
     d = 3 * int(cells.size)
     Gc = centre_gram(G)
-    return Gc, d, GramInfo(tuple(names), space, s, G)
+    return Gc, d, GramInfo(tuple(names), space, s, G, digests=tuple(int(st.digests[i]) for i in idx))
 
 
 @dataclass(frozen=True)
@@ -559,11 +608,34 @@ def gram_scale(gram: ArrayLike, d: float) -> float:
 
 
 def _atomic_savez(path: Path, **arrays: Any) -> None:
-    atomic.save_npz(path, arrays)
+    integrity.save_npz(path, arrays)
+
+
+def _digest_array(path: str | os.PathLike[str], digests: Sequence[int], n: int, what: str) -> NDArray[np.uint32]:
+    d = np.asarray(list(digests), dtype=np.int64)
+    if d.size and (d.shape != (n,) or d.min() < 0 or d.max() >= 2**32):
+        raise ValueError(f"{path}: {what} must give one 32-bit digest per material ({n}), got shape {d.shape}")
+    return d.astype(np.uint32)
+
+
+def _load(path: str | os.PathLike[str], fmt: str, kind: str) -> dict[str, NDArray[Any]]:
+    """The arrays of a model / Gram npz, its digest and format checked; :class:`GplvmFileError` naming it."""
+    z = integrity.load_npz(path, kind=kind, error=GplvmFileError)
+    found = str(z["format"]) if "format" in z and z["format"].shape == () else None
+    if found in RETIRED_FORMATS:
+        why, todo = RETIRED_FORMATS[found]
+        raise GplvmFileError(f"{path}: {kind} format {found!r} is no longer supported: {why}; {todo} "
+                             f"({integrity.rerun_hint(path)})")
+    if found != fmt:
+        raise GplvmFileError(f"{path}: not a brdfpipe {kind} (format {found!r}, expected {fmt!r})")
+    return z
 
 
 def save_gram(path: str | os.PathLike[str], gram: ArrayLike, d: int, info: GramInfo) -> None:
-    """Write a Gram matrix, ``d`` and its :class:`GramInfo` to an npz file atomically (tmp + rename)."""
+    """Write a Gram matrix, ``d`` and its :class:`GramInfo` (with the store rows' digests) to an npz, atomically.
+
+    The file carries its own digest (:func:`brdfpipe.core.integrity.save_npz`).
+    """
     _atomic_savez(
         Path(path),
         format=np.array(GRAM_FORMAT),
@@ -574,19 +646,32 @@ def save_gram(path: str | os.PathLike[str], gram: ArrayLike, d: int, info: GramI
         mean_handling=np.array(info.mean_handling),
         row_sums=info.row_sums,
         raw_gram=info.raw_gram,
+        row_digests=_digest_array(path, info.digests, len(info.materials), "the row digests"),
+        digest_algorithm=np.array(STORE_DIGEST_ALGORITHM),
     )
 
 
 def load_gram(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], int, GramInfo]:
-    """Read what :func:`save_gram` wrote; ValueError naming the path if it is not such a file."""
-    with np.load(Path(path), allow_pickle=False) as z:
-        if "format" not in z or str(z["format"]) != GRAM_FORMAT:
-            raise ValueError(f"{path}: not a brdfpipe GPLVM Gram file")
-        info = GramInfo(
-            tuple(str(m) for m in z["materials"]), str(z["space"]), z["row_sums"], z["raw_gram"],
-            str(z["mean_handling"]),
-        )
-        return z["gram"], int(z["d"]), info
+    """Read what :func:`save_gram` wrote, its digest checked.
+
+    :class:`GplvmFileError` (a ValueError) naming the file and what to rerun
+    for a missing, truncated, corrupt, unverifiable or edited file, another
+    format or inconsistent arrays.
+    """
+    z = _load(path, GRAM_FORMAT, "GPLVM Gram file")
+    try:
+        materials = tuple(str(m) for m in z["materials"])
+        digests = tuple(int(v) for v in z["row_digests"])
+        if str(z["digest_algorithm"]) != STORE_DIGEST_ALGORITHM or (digests and len(digests) != len(materials)):
+            raise ValueError("row digests of another kind or count")
+        info = GramInfo(materials, str(z["space"]), z["row_sums"], z["raw_gram"], str(z["mean_handling"]),
+                        digests=digests)
+        gram, d = z["gram"], int(z["d"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise GplvmFileError(f"{path}: inconsistent GPLVM Gram file ({type(exc).__name__}: {exc})") from None
+    if gram.shape != (len(materials), len(materials)):
+        raise GplvmFileError(f"{path}: Gram matrix of shape {gram.shape} for {len(materials)} materials")
+    return gram, d, info
 
 
 # --------------------------------------------------------------------------
@@ -1705,6 +1790,11 @@ class GplvmModel:
     #: The Gram matrix was divided by this before fitting (1.0: not normalised); L is of ``G/gram_scale``.
     gram_scale: float = 1.0
     method: str = "hooke-jeeves"
+    #: Digest of the store row each material was fitted on (:func:`brdfpipe.data.store.shard_digest`, in
+    #: ``names`` order); empty: not tied to a store (it cannot be used with one, see :func:`check_store`).
+    data_digests: tuple[int, ...] = field(default=(), repr=False)
+    #: The file it was loaded from (for messages), if any.
+    path: Path | None = field(default=None, repr=False, compare=False)
 
 
 def weights(
@@ -1754,16 +1844,18 @@ def interpolate_table(
     *,
     materials: Sequence[str] | None = None,
     space: str = "raw",
+    model: GplvmModel | None = None,
 ) -> tuple[NDArray[np.float64], int]:
     """``Σ_i w_i z_i`` as a MERL table ``(3, 90, 90, 180)`` float64 and the number of clamped values.
 
     ``weights``: blend weights (:func:`blend_weights`) of ``materials`` (in
-    that order; default all of the store).  See :func:`interpolate_tables`.
+    that order; default all of the store).  See :func:`interpolate_tables`
+    (also for ``model``).
     """
     w = np.asarray(weights, dtype=np.float64)
     if w.ndim != 1:
         raise ValueError(f"weights must be a vector (one per material), got shape {w.shape}")
-    tables, clamped = interpolate_tables(store_path, w[None, :], materials=materials, space=space)
+    tables, clamped = interpolate_tables(store_path, w[None, :], materials=materials, space=space, model=model)
     return tables[0], int(clamped[0])
 
 
@@ -1773,8 +1865,14 @@ def interpolate_tables(
     *,
     materials: Sequence[str] | None = None,
     space: str = "raw",
+    model: GplvmModel | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Several blends ``W Z`` in one pass over the store: tables ``(P, 3, 90, 90, 180)`` and clamp counts ``(P,)``.
+
+    ``model``: the model whose weights these are; the store is then checked
+    to hold the rows it was fitted on (:func:`check_store`), ``materials``
+    defaults to its materials and must be them, and ``space`` must be its
+    space.
 
     ``weights`` is ``(P, N)``: one row of blend weights per output table,
     over ``materials`` (in that order; default all of the store).  In the
@@ -1790,6 +1888,12 @@ def interpolate_tables(
     """
     _check_space(space)
     st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    if model is not None:
+        check_store(model, st)
+        materials = model.names if materials is None else materials
+        if list(materials) != list(model.names) or space != model.space:
+            raise ValueError(f"{model.path or 'the model'}: interpolate over its materials in its space "
+                             f"({model.space!r}), got {len(list(materials))} materials in space {space!r}")
     idx = _select(st, materials)
     W = np.asarray(weights, dtype=np.float64)
     if W.ndim != 2 or W.shape[1] != idx.size:
@@ -1840,11 +1944,16 @@ def save_model(
     space: str = "raw",
     mean_handling: str = MEAN_HANDLING,
     gram_scale: float = 1.0,
+    data_digests: Sequence[int] = (),
 ) -> None:
-    """Write a fit to an npz file atomically.
+    """Write a fit to an npz file atomically, with its digest (:func:`brdfpipe.core.integrity.save_npz`).
 
     Arrays: names, X, ℓ, μ, space, mean handling, chol(K) (the factor that
-    interpolation needs: ``b = K⁻¹k``), L, d, trace, gram scale, method.
+    interpolation needs: ``b = K⁻¹k``), L, d, trace, gram scale, method and
+    ``data_digests``: the digests of the store rows the materials were fitted
+    on (from the Gram file, :attr:`GramInfo.digests`; empty for a fit that
+    did not come from a store), which every use with a store checks
+    (:func:`check_store`).
     """
     _check_space(space)
     names = [str(n) for n in names]
@@ -1866,20 +1975,95 @@ def save_model(
         trace=np.array(result.trace, dtype=np.float64).reshape(-1, 2),
         gram_scale=np.array(float(gram_scale)),
         method=np.array(result.method),
+        data_digests=_digest_array(path, data_digests, len(names), "data_digests"),
+        digest_algorithm=np.array(STORE_DIGEST_ALGORITHM),
     )
 
 
 def load_model(path: str | os.PathLike[str]) -> GplvmModel:
-    """Read what :func:`save_model` wrote; ValueError naming the path if it is not such a file."""
-    with np.load(Path(path), allow_pickle=False) as z:
-        if "format" not in z or str(z["format"]) != MODEL_FORMAT:
-            raise ValueError(f"{path}: not a brdfpipe GPLVM model file")
-        return GplvmModel(
-            tuple(str(n) for n in z["names"]), z["X"], float(z["ell"]), float(z["mu"]), str(z["space"]),
+    """Read what :func:`save_model` wrote, its digest checked.
+
+    :class:`GplvmFileError` (a ValueError) naming the file and what to rerun
+    for a missing, truncated, corrupt, unverifiable or edited file, a retired
+    or other format, or inconsistent arrays.
+    """
+    z = _load(path, MODEL_FORMAT, "GPLVM model")
+    try:
+        names = tuple(str(n) for n in z["names"])
+        X = np.asarray(z["X"], dtype=np.float64)
+        digests = tuple(int(v) for v in z["data_digests"])
+        if str(z["digest_algorithm"]) != STORE_DIGEST_ALGORITHM:
+            raise ValueError(f"data digests of another kind ({str(z['digest_algorithm'])!r})")
+        model = GplvmModel(
+            names, X, float(z["ell"]), float(z["mu"]), str(z["space"]),
             str(z["mean_handling"]), z["chol"], float(z["log_likelihood"]), float(z["d"]), z["trace"],
-            float(z["gram_scale"]) if "gram_scale" in z else 1.0,
-            str(z["method"]) if "method" in z else "hooke-jeeves",
+            float(z["gram_scale"]), str(z["method"]), digests, Path(path),
         )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise GplvmFileError(f"{path}: inconsistent GPLVM model ({type(exc).__name__}: {exc})") from None
+    n = len(names)
+    if X.ndim != 2 or X.shape[0] != n or model.chol.shape != (n, n) or (digests and len(digests) != n):
+        raise GplvmFileError(f"{path}: inconsistent GPLVM model (X {X.shape}, chol {model.chol.shape} for "
+                             f"{n} materials, {len(digests)} data digests)")
+    return model
+
+
+def store_digests(store: BrdfStore | str | os.PathLike[str], names: Sequence[str]) -> tuple[int, ...]:
+    """The digests of the store rows of ``names`` (what :func:`save_model` records for a fit on that store)."""
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    idx = material_indices(st, names, "materials")
+    return tuple(int(st.digests[i]) for i in idx)
+
+
+def _check_rows(label: str, kind: str, names: Sequence[str], digests: Sequence[int], st: BrdfStore,
+                hint: str) -> None:
+    if not digests:
+        raise DataMismatchError(
+            f"{label}: the {kind} records no digests of the store rows it was fitted on, so it cannot be checked "
+            f"against the store {st.path}; {hint}"
+        )
+    index = {m: i for i, m in enumerate(st.materials)}
+    missing = [m for m in names if m not in index]
+    if missing:
+        raise DataMismatchError(
+            f"{label}: material(s) {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} of the {kind} "
+            f"are not in the store {st.path}; use the store it was fitted on, or {hint}"
+        )
+    for name, digest in zip(names, digests):
+        if int(st.digests[index[name]]) != int(digest):
+            raise DataMismatchError(
+                f"{label}: material {name!r} of the store {st.path} is not the data the {kind} was fitted on "
+                f"(the row's digest differs: the store was ingested from other files, or its rows were "
+                f"swapped); use the store it was fitted on, or {hint}"
+            )
+
+
+def check_store(model: GplvmModel, store: BrdfStore | str | os.PathLike[str]) -> BrdfStore:
+    """Check that ``store`` holds the rows ``model`` was fitted on; returns the opened store.
+
+    Every material of the model must be in the store with the row digest the
+    model recorded (:attr:`GplvmModel.data_digests`), so a store of the same
+    names whose rows differ (re-ingested from other files, rows swapped) is
+    refused with a :class:`DataMismatchError` naming the model, the store and
+    the material, as is a model that records no digests.
+    """
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    label = str(model.path) if model.path is not None else "the GPLVM model"
+    hint = (f"refit the model ({integrity.rerun_hint(model.path)})" if model.path is not None
+            else "refit the model on this store")
+    _check_rows(label, "model", model.names, model.data_digests, st, hint)
+    return st
+
+
+def check_gram_store(info: GramInfo, store: BrdfStore | str | os.PathLike[str],
+                     path: str | os.PathLike[str] | None = None) -> BrdfStore:
+    """:func:`check_store` for a Gram file's :class:`GramInfo` (``path`` names it in messages)."""
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    label = str(path) if path is not None else "the Gram matrix"
+    hint = (f"compute it again ({integrity.rerun_hint(path)})" if path is not None
+            else "compute it again from this store")
+    _check_rows(label, "Gram matrix", info.materials, info.digests, st, hint)
+    return st
 
 
 # --------------------------------------------------------------------------
@@ -1934,19 +2118,19 @@ def fit_to_files(
         result.polish_iterations, result.newton_iterations, result.seconds, result.init_scale,
     )
     save_model(model_out, result, info.materials, space=info.space, mean_handling=info.mean_handling,
-               gram_scale=scale)
+               gram_scale=scale, data_digests=info.digests)
     write_trace(trace_out, result)
     return result
 
 
 def write_trace(path: str | os.PathLike[str], result: FitResult) -> None:
-    """The log-likelihood trace of a fit as CSV ``step,stage,log_likelihood`` (atomic)."""
+    """The log-likelihood trace of a fit as CSV ``step,stage,log_likelihood`` (atomic, with its digest line)."""
     path = Path(path)
     lines = ["step,stage,log_likelihood"]
     stages = result.stages or ["hooke-jeeves"] * len(result.trace)
     for (step, value), stage in zip(result.trace, stages):
         lines.append(f"{int(step)},{stage},{float(value)!r}")
-    atomic.write_text(path, "\n".join(lines) + "\n")
+    integrity.write_csv(path, "\n".join(lines) + "\n")
 
 
 def interpolate_to_file(
@@ -1967,10 +2151,13 @@ def interpolate_to_file(
     (:func:`interpolate_table`).  The file carries a ``derived`` provenance
     mark (:mod:`brdfpipe.manifold.derivation`: model and store digests, the
     latent point, ``between`` and ``t``).  ValueError for a point of the wrong
-    length, an unknown material, both or neither of ``at`` / ``between``, or a
-    model whose materials are not in the store.
+    length, an unknown material, both or neither of ``at`` / ``between``, a
+    damaged model file (:class:`GplvmFileError`), or a store that does not
+    hold the rows the model was fitted on (:class:`DataMismatchError`, naming
+    the model, the store and the material: :func:`check_store`).
     """
     model = load_model(model_path)
+    st = check_store(model, store_path)
     if (at is None) == (between is None):
         raise ValueError("give exactly one of a latent point (at) or two materials (between)")
     if between is not None:
@@ -1984,8 +2171,7 @@ def interpolate_to_file(
     else:
         x_star = np.asarray(at, dtype=np.float64)
     w = blend_weights(weights(model, x_star))
-    st = open_store(store_path)
-    table, clamped = interpolate_table(st, w, materials=model.names, space=model.space)
+    table, clamped = interpolate_table(st, w, materials=model.names, space=model.space, model=model)
     details: dict[str, Any] = {"between": list(between), "t": float(t)} if between is not None else {}
     mark = derivation.BlendSource.of(model_path, model, st).mark(
         out=out, operation="interpolate", point=x_star, weights=w, **details)

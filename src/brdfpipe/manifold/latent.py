@@ -81,7 +81,7 @@ import scipy.optimize
 import scipy.spatial
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.data.store import BrdfStore, open_store
+from brdfpipe.data.store import BrdfStore
 from brdfpipe.data import merl
 from brdfpipe.manifold import analysis, derivation, gplvm
 
@@ -406,7 +406,7 @@ class _Albedo:
     @classmethod
     def of(cls, model: gplvm.GplvmModel, source: AlbedoSource, exact: bool = False) -> _Albedo:
         if isinstance(source, (BrdfStore, str, os.PathLike)):
-            st = source if isinstance(source, BrdfStore) else open_store(source)
+            st = gplvm.check_store(model, source)  # the store holds the rows the model was fitted on
             if _is_linear(model.space) and not exact:
                 return cls(model, analysis.material_albedos(st, list(model.names)), None)
             unknown = [m for m in model.names if m not in st.materials]
@@ -433,7 +433,7 @@ class _Albedo:
         out = np.empty((W.shape[0], 3))
         for a in range(0, W.shape[0], _LOG_BATCH):
             tables, _ = gplvm.interpolate_tables(self.store, W[a : a + _LOG_BATCH], materials=self.model.names,
-                                                 space=self.model.space)
+                                                 space=self.model.space, model=self.model)
             for j, t in enumerate(tables):
                 out[a + j] = analysis.material_albedo(t)
         return out
@@ -654,13 +654,14 @@ def write_blends(
     if len(outs) != P.shape[0] or (details is not None and len(details) != P.shape[0]):
         raise ValueError(f"need one output (and one details entry) per point, got {P.shape[0]} points, "
                          f"{len(outs)} outputs")
-    st = store if isinstance(store, BrdfStore) else open_store(store)
+    st = gplvm.check_store(model, store)  # the store holds the rows the model was fitted on
     source = derivation.BlendSource.of(model_path, model, st)
     W = blend_weights_at(model, P)
     clamped = np.zeros(P.shape[0], dtype=np.int64)
     for a in range(0, P.shape[0], max(1, int(batch))):
         b = min(a + max(1, int(batch)), P.shape[0])
-        tables, clamped[a:b] = gplvm.interpolate_tables(st, W[a:b], materials=model.names, space=model.space)
+        tables, clamped[a:b] = gplvm.interpolate_tables(st, W[a:b], materials=model.names, space=model.space,
+                                                        model=model)
         for k in range(a, b):
             mark = source.mark(out=outs[k], operation=operation, point=P[k], weights=W[k],
                                **(details[k] if details is not None else {}))

@@ -40,6 +40,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write as _atomic_write, check_not_input
 from brdfpipe.core.exr import ExrError, read_exr, write_exr
 from brdfpipe.core.filenames import format_t
@@ -494,8 +495,7 @@ def error_maps(
     writer.writerow(SUMMARY_COLUMNS)
     for (_, _, s), row in zip(points, rows):
         writer.writerow([database, row["path"], s] + [_fmt(row[c]) if c in row else "" for c in SUMMARY_COLUMNS[3:]])
-    text = buf.getvalue()
-    _atomic_write(summary, lambda fh: fh.write(text), binary=False)
+    integrity.write_csv(summary, buf.getvalue())
     return rows
 
 
@@ -526,7 +526,6 @@ def error_maps_from_files(
     two references (see :func:`error_maps`).
     BlendError naming the file for an unreadable or malformed JSON.
     """
-    import json
 
     ones = (prerenders_one, references_one, references_one_noise)
     if any(x is None for x in ones) and not all(x is None for x in ones):
@@ -539,8 +538,8 @@ def error_maps_from_files(
                          "output lists must have the same length")
     points = []
     for wf, ref, ref2, bl, ee, ep, *one in zip(*lists):
+        doc = integrity.read_json(wf, kind="path-point weights file", error=BlendError)  # its digest checked
         try:
-            doc = json.loads(Path(wf).read_text(encoding="utf-8"))
             points.append({"path": doc["path"], "t": float(doc["t"]), "weights": dict(doc["weights"]),
                            "reference": ref, "reference_seed2": ref2, "blended": bl, "error_exr": ee,
                            "error_png": ep})
@@ -621,8 +620,7 @@ def bounce_shares(
     for row in rows:
         writer.writerow([database, row["material"]]
                         + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c]) for c in SHARE_COLUMNS[2:]])
-    text = buf.getvalue()
-    _atomic_write(out, lambda fh: fh.write(text), binary=False)
+    integrity.write_csv(out, buf.getvalue())
     return rows
 
 
@@ -641,12 +639,7 @@ FLOOR_CHECK_COLUMNS: Final = (
 def _read_summary_rows(path: Path, database: str) -> list[dict[str, str]]:
     if not path.is_file():
         raise BlendError(f"{path}: no such file")
-    with open(path, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in SUMMARY_COLUMNS if c not in (reader.fieldnames or [])]
-        if missing:
-            raise BlendError(f"{path}: not an error-map summary (missing column(s) {', '.join(missing)})")
-        rows = list(reader)
+    _, rows = integrity.read_csv_rows(path, required=SUMMARY_COLUMNS, kind="error-map summary", error=BlendError)
     for k, row in enumerate(rows):
         if row["database"] != database:
             raise BlendError(f"{path}: row {k + 1} is from database {row['database']!r}, this run's is {database!r}")
@@ -654,10 +647,8 @@ def _read_summary_rows(path: Path, database: str) -> list[dict[str, str]]:
 
 
 def _weights_doc(path: Path) -> dict[str, Any]:
-    import json
-
+    doc = integrity.read_json(path, kind="path-point weights file", error=BlendError)  # its digest checked
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
         w = np.array([float(v) for v in dict(doc["weights"]).values()], dtype=np.float64)
         out = {"path": str(doc["path"]), "t": format_t(float(doc["t"])), "w": w,
                "clamped": int(doc["clamped"]), "measured": int(doc["measured_values"])}
@@ -749,8 +740,7 @@ def floor_check_table(
     for row in rows:
         writer.writerow([database] + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c])
                                       for c in FLOOR_CHECK_COLUMNS[1:]])
-    text = buf.getvalue()
-    _atomic_write(out, lambda fh: fh.write(text), binary=False)
+    integrity.write_csv(out, buf.getvalue())
     for c in labels:
         mine = [r["ratio_one_seed2"] for r in rows if r["candidate"] == c]
         logger.info("%s: I1- blend / noise floor (independent seed) %.3g-%.3g over %d points",

@@ -65,7 +65,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic, nearfield
+from brdfpipe.core import integrity, nearfield
 from brdfpipe.core.exr import write_exr
 
 __all__ = [
@@ -410,8 +410,8 @@ def read_configurations(path: str | os.PathLike[str]) -> dict[str, Any]:
     :mod:`brdfpipe.acquisition.optimize`'s; the tracks meet in this file.)
     """
     path = Path(path)
+    doc = integrity.read_json(path, kind="directions file")  # its digest checked, as by the optimizer's reader
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
         if not str(doc.get("format", "")).startswith(_DIRECTIONS_FORMAT_PREFIX):
             raise ValueError(f"format {doc.get('format')!r}")
         sets = {
@@ -424,9 +424,9 @@ def read_configurations(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 
 def _write_npz(out: Path, arrays: Mapping[str, NDArray[Any]], counts: Mapping[str, int]) -> None:
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic.atomic_path(out) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays, counts_keys=np.array(list(counts)), counts=np.array(list(counts.values()), dtype=np.int64))
+    """An observation table, with its digest (:func:`brdfpipe.core.integrity.save_npz`)."""
+    integrity.save_npz(out, {**arrays, "counts_keys": np.array(list(counts)),
+                             "counts": np.array(list(counts.values()), dtype=np.int64)})
 
 
 def _image_seed(seed: int, material: str, light: F64, camera: F64) -> int:

@@ -11,8 +11,6 @@ and atomic writing are :mod:`brdfpipe.core.plot`'s.
 
 from __future__ import annotations
 
-import csv
-import json
 import logging
 import math
 import os
@@ -24,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from brdfpipe.core import integrity
 from brdfpipe.core.filenames import RENDER_FIGURE_STEMS, format_t
 from brdfpipe.data.databases import title as database_label
 from brdfpipe.core.plot import (
@@ -78,14 +77,10 @@ def _read_summary(path: Path) -> dict[tuple[str, str], dict[str, str]]:
 
 
 def _read_csv_rows(path: Path, need: Sequence[str]) -> list[dict[str, str]]:
+    """The rows of a verified CSV (:func:`brdfpipe.core.integrity.read_csv_rows`); FigureInputError naming it."""
     if not path.is_file():
         raise FigureInputError(f"{path}: no such file")
-    with open(path, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in need if c not in (reader.fieldnames or [])]
-        if missing:
-            raise FigureInputError(f"{path}: missing column(s) {', '.join(missing)}")
-        return list(reader)
+    return integrity.read_csv_rows(path, required=need, error=FigureInputError)[1]
 
 
 def _exposure(images: Sequence[NDArray[np.float64]]) -> float:
@@ -218,16 +213,14 @@ def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
     and PDF paths.  A missing or corrupt input raises
     :class:`FigureInputError` naming it.
     """
-    import json
-
     check_keys(figures, RENDER_FIGURE_STEMS, "make_render_figures")
     stems = {k: figure_stem(v) for k, v in figures.items()}
     if not (len(weights) == len(references) == len(blended) == len(errors)):
         raise ValueError("weights, references, blended and errors must list the same path points")
     points = []
     for wf, ref, bl, er in zip(weights, references, blended, errors):
+        doc = integrity.read_json(wf, kind="path-point weights file", error=FigureInputError)
         try:
-            doc = json.loads(Path(wf).read_text(encoding="utf-8"))
             name, t = str(doc["path"]), float(doc["t"])
             a, b = str(doc["material_a"]), str(doc["material_b"])
         except (OSError, ValueError, KeyError, TypeError) as err:

@@ -70,7 +70,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from brdfpipe.core.exr import write_exr
+from brdfpipe.core.exr import read_exr, write_exr
 
 __all__ = [
     "VARIANTS",
@@ -329,6 +329,9 @@ def scene_dict(
     envmap = Path(envmap)
     if not envmap.is_file():
         raise FileNotFoundError(f"{envmap}: environment map not found")
+    # Mitsuba reads the file itself: a map made by make_envmap is checked against its digest first
+    # (a damaged one is an ExrError naming it); a user's own HDRI carries none and is taken as it is
+    read_exr(envmap, require=False)
     mi = _mitsuba()
     T = mi.ScalarTransform4f
 
@@ -710,6 +713,5 @@ def render_object_mask(
     scene["integrator"] = bounce.bounce_integrator(1)
     render_split_to_exr(scene, None, out_mask=out, spp=spp, seed=seed,
                         attrs={"integrator": bounce.PLUGIN_NAME, **(attrs or {})})
-    from brdfpipe.core.exr import read_exr
 
     return read_exr(out)[..., 0]

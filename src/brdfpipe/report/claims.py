@@ -18,6 +18,7 @@ or column, a number that does not parse, two databases) raises
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -26,7 +27,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from brdfpipe.core import atomic
+from brdfpipe.core import atomic, integrity
 from brdfpipe.report import rst
 
 __all__ = [
@@ -128,17 +129,17 @@ def _rows(path: str | os.PathLike[str], required: Sequence[str]) -> tuple[Path, 
     p = Path(path)
     if not p.is_file():
         raise ClaimsInputError(f"{p}: no such file")
-    with open(p, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        header = [h.strip() for h in (reader.fieldnames or [])]
-        missing = [c for c in required if c not in header]
-        if missing:
-            raise ClaimsInputError(f"{p}: missing column(s) {', '.join(missing)} (header: {', '.join(header) or 'none'})")
-        rows = []
-        for i, r in enumerate(reader, start=2):
-            r = {k.strip(): (v or "").strip() for k, v in r.items() if k is not None}
-            r["__line__"] = str(i)
-            rows.append(r)
+    # every table a claim reads carries its digest (brdfpipe.core.integrity): checked here
+    reader = csv.DictReader(io.StringIO(integrity.read_csv_text(p, error=ClaimsInputError), newline=""))
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise ClaimsInputError(f"{p}: missing column(s) {', '.join(missing)} (header: {', '.join(header) or 'none'})")
+    rows = []
+    for i, r in enumerate(reader, start=3):  # line 1: the digest, 2: the header
+        r = {k.strip(): (v or "").strip() for k, v in r.items() if k is not None}
+        r["__line__"] = str(i)
+        rows.append(r)
     return p, rows
 
 
@@ -799,13 +800,12 @@ def compute_claims(inputs: ClaimInputs) -> list[Claim]:
 def write_claims(claims: Sequence[Claim], *, csv_path: str | os.PathLike[str], json_path: str | os.PathLike[str],
                  rst_path: str | os.PathLike[str]) -> None:
     """``claims.csv`` (:data:`CLAIM_COLUMNS`), ``claims.json`` (with the figures of each claim) and the rst table."""
-    def write_csv(fh) -> None:  # type: ignore[no-untyped-def]
-        w = csv.DictWriter(fh, fieldnames=list(CLAIM_COLUMNS), lineterminator="\n")
-        w.writeheader()
-        for c in claims:
-            w.writerow(c.row())
-
-    atomic.atomic_write(csv_path, write_csv, binary=False)
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(CLAIM_COLUMNS), lineterminator="\n")
+    w.writeheader()
+    for c in claims:
+        w.writerow(c.row())
+    integrity.write_csv(csv_path, buf.getvalue())  # with its digest line, like every table of the run
     records = [{**c.row(), "value": None if not math.isfinite(c.value) else c.value, "figures": list(c.figures)}
                for c in claims]
     atomic.write_text(json_path, json.dumps(records, indent=1, ensure_ascii=False) + "\n")

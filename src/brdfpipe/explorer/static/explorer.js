@@ -31,12 +31,57 @@
   }
 
   // ---------------------------------------------------------------- data
-  const DATA = window.BRDF_EXPLORER_DATA;
-  if (!DATA || !DATA.model || !DATA.layers || !DATA.basis || !DATA.refs) {
-    fail('The explorer data (data/*.js) did not load. Write the folder with brdfpipe ' +
-         '(the workflow rule write_explorer) and open its index.html.');
+  // Every data/*.js file assigns {crc32, json}: its payload as JSON text and the CRC-32 of that text
+  // (brdfpipe.core.integrity.text_crc32). A file that did not load (missing, or truncated: it does not
+  // parse) or whose text does not match its CRC-32 is refused, naming it, before anything is drawn.
+  const RERUN = 'write the explorer folder again (rerun its rule: snakemake --forcerun write_explorer)';
+  // CRC-32 (zlib's), a byte at a time (slicing by 8 over TextEncoder.encodeInto's bytes was not measurably
+  // faster in headless Chromium on the shared 2-core machine, benches/bench_integrity.py).
+  const CRC_TABLE = (() => {
+    const t = new Uint32Array(256);
+    for (let n = 0; n < 256; n++) {
+      let c = n;
+      for (let k = 0; k < 8; k++) c = c & 1 ? 0xEDB88320 ^ (c >>> 1) : c >>> 1;
+      t[n] = c >>> 0;
+    }
+    return t;
+  })();
+  function crc32(text) {  // of an ASCII string: its bytes are its char codes
+    const T = CRC_TABLE;
+    let c = 0xFFFFFFFF;
+    for (let i = 0; i < text.length; i++) c = T[(c ^ text.charCodeAt(i)) & 0xFF] ^ (c >>> 8);
+    return 'crc32:' + ((c ^ 0xFFFFFFFF) >>> 0).toString(16).padStart(8, '0');
+  }
+  let crcMs = 0;
+  function loadData() {
+    const raw = window.BRDF_EXPLORER_DATA || {}, out = {};
+    for (const key of ['model', 'layers', 'basis', 'refs']) {
+      const file = `data/${key}.js`, rec = raw[key];
+      if (!rec || typeof rec.json !== 'string' || typeof rec.crc32 !== 'string') {
+        return `${file} did not load (missing, truncated or not an explorer data file); ${RERUN}.`;
+      }
+      const t0 = performance.now(), crc = crc32(rec.json);
+      crcMs += performance.now() - t0;
+      if (crc !== rec.crc32) {
+        return `${file}: its payload does not match its recorded digest (damaged or edited); ${RERUN}.`;
+      }
+      try {
+        out[key] = JSON.parse(rec.json);
+      } catch (e) {
+        return `${file}: its payload is not JSON (${e.message}); ${RERUN}.`;
+      }
+      raw[key] = null;  // the text is no longer needed
+    }
+    return out;
+  }
+  const DATA = loadData();
+  if (typeof DATA === 'string') {
+    fail(DATA);
+    for (const id of ['controls', 'slices', 'path-controls']) $(id).hidden = true;
+    document.querySelector('main').hidden = true;  // no black canvas: only the message
     return;
   }
+  api.verifyMs = crcMs;  // the CRC-32 checks of the four data files
   function bytes(b64) {
     const bin = atob(b64);
     const out = new Uint8Array(bin.length);
