@@ -11,14 +11,13 @@ many-material capture in ``test_closedloop.py``.
 
 from __future__ import annotations
 
-import csv
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from brdfpipe.core import filenames, plan
+from brdfpipe.core import filenames, integrity, plan
 from brdfpipe.data import database, databases, merl, nbrdf, store
 from brdfpipe.manifold import gplvm, unseen
 
@@ -47,7 +46,14 @@ def test_unseen_materials_of_a_config() -> None:
     assert got["rgl-nbrdf"].materials == ["paper-blue-rgb", "paper-green-rgb", "paper-red-rgb", "paper-white-rgb",
                                           "paper-yellow-rgb", "spectralon-rgb"]
     assert database.unseen_databases({"unseen": {"databases": [], "materials": None}}, run) == {}
-    assert database.unseen_databases({}, run) == {}
+    # unset: the default set on MERL's materials, none on another database (whose own fits may be in the set)
+    got = database.unseen_databases({}, run)
+    assert {n: tuple(db.materials) for n, db in got.items()} == {
+        n: tuple(sorted(ms)) for n, ms in database.DEFAULT_UNSEEN.items()}
+    assert "spectralon-rgb" in got["rgl-nbrdf"].materials
+    assert database.unseen_databases({"unseen": {"databases": None, "materials": None}}, run) == got
+    assert database.unseen_databases({}, _run_db(database="rgl-nbrdf")) == {}
+    assert database.unseen_databases({}, database.Database("synthetic", {"a": Path("a.binary")})) == {}
 
 
 @pytest.mark.parametrize("spec,message", [
@@ -56,6 +62,7 @@ def test_unseen_materials_of_a_config() -> None:
     ({"databases": ["nbrdf"]}, "unseen.databases: 'nbrdf' is not a shipped database of fits"),
     ({"databases": ["rgl-nbrdf", "rgl-nbrdf"]}, "unseen.databases: listed more than once: rgl-nbrdf"),
     ({"databases": [], "materials": ["x"]}, "unseen.materials is set but unseen.databases is empty"),
+    ({"materials": ["spectralon-rgb"]}, "unseen.materials is set but unseen.databases is not"),
     ({"databases": ["rgl-nbrdf"], "materials": ["spectralon-rgb", "no-such-*"]},
      "unseen.materials: 'no-such-*' match(es) no material of rgl-nbrdf"),
 ])
@@ -109,8 +116,8 @@ def test_unseen_store_albedos_and_labels(stores: dict[str, Path]) -> None:
     assert st.database == "rgl-nbrdf" and list(st.materials) == ["paper-red-rgb", "spectralon-rgb"]
     table = merl.read_merl(stores["rgl-nbrdf-tables"] / "spectralon-rgb.binary")
     np.testing.assert_array_equal(st.brdf[1], table.reshape(-1).astype(np.float32))
-    with open(stores["rgl-nbrdf-albedo"], newline="") as fh:
-        rows = {r["material"]: r for r in csv.DictReader(fh)}
+    _, albedo_rows = integrity.read_csv_rows(stores["rgl-nbrdf-albedo"])  # written with its digest
+    rows = {r["material"]: r for r in albedo_rows}
     assert list(next(iter(rows.values()))) == list(nbrdf.ALBEDO_COLUMNS)
     spec = rows["spectralon-rgb"]
     assert spec["database"] == "rgl-nbrdf" and float(spec["theta_i_deg"]) == 0.0
@@ -257,8 +264,7 @@ def test_unseen_csv_of_the_manifold(stores: dict[str, Path], tmp_path: Path) -> 
         gplvm.fit_to_files(tmp_path / "gram.npz", models[q], tmp_path / f"q{q}.csv", q=q, mu=1e-4)
     out = unseen.write_unseen(tmp_path / "unseen.csv", store=stores["merl-nbrdf"], gram=tmp_path / "gram.npz",
                               models=models, unseen_stores=[stores["rgl-nbrdf"]], pca_ks=[3, 20])
-    with open(out, newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    _, rows = integrity.read_csv_rows(out)  # written with its digest
     assert list(rows[0]) == list(unseen.UNSEEN_COLUMNS)
     assert {r["database"] for r in rows} == {"rgl-nbrdf"} and {r["model_database"] for r in rows} == {"merl-nbrdf"}
     assert {r["space"] for r in rows} == {"standardised"}
@@ -311,3 +317,103 @@ def test_plan_of_the_unseen_materials() -> None:
     assert set(plan.unseen_figures(unseen=True, evaluated=False)) == {"manifold"}
     assert plan.unseen_map_q({"latent_dims": [5, 2]}) == 2 and plan.unseen_map_q({"latent_dims": [3, 5]}) == 3
     assert set(plan.UNSEEN_RULES) <= set(plan.MEMORY_MB)
+
+
+# -- the acquisition (table lookup) ----------------------------------------------
+
+
+class Acq:
+    """The merl-nbrdf store's model (teflon held out: 5 training materials) and two optimised directions files.
+
+    ``unseen``: a store labelled rgl-nbrdf of the two RGL fits and copies, marked as RGL tables, of a
+    training material (``copy-gold-paint``) and of the held-out one (``copy-teflon``).
+    """
+
+    def __init__(self, d: Path, stores: dict[str, Path]) -> None:
+        from brdfpipe.acquisition import geometry, optimize, svd
+        from brdfpipe.data import logmap, provenance
+
+        st = store.open_store(stores["merl-nbrdf"])
+        self.store = stores["merl-nbrdf"]
+        self.train = [m for m in st.materials if m != "teflon"]
+        logmap.write_logmap(self.store, d / "logmap.zarr", split="train", materials_train=self.train)
+        self.model = d / "svd.zarr"
+        svd.fit(d / "logmap.zarr", self.model)
+        mdl = svd.open_model(self.model)
+        self.dirs = []
+        for kind, fov, n_max in (("point", 0.0, 3), ("nearfield", 25.0, 2)):
+            setup = geometry.Setup(kind, fov, 16)
+            sets = optimize.optimize(mdl, setup, metric="error", n_max=n_max, candidates=6, steps=(1,), seed=3,
+                                     log=lambda line: None)
+            self.dirs.append(optimize.write_directions(
+                d / filenames.directions("train", kind, fov, "error"), sets, setup=setup, metric="error",
+                split="train", model_path=self.model, seed=3, eta=40.0, beta=0.0, database=mdl.database))
+        sources = {m: stores["rgl-nbrdf-tables"] / f"{m}.binary" for m in ("paper-red-rgb", "spectralon-rgb")}
+        for m in ("gold-paint", "teflon"):
+            table = merl.read_merl(stores["merl-nbrdf-tables"] / f"{m}.binary")
+            sources[f"copy-{m}"] = d / f"copy-{m}.binary"
+            merl.write_merl(sources[f"copy-{m}"], table, mark=provenance.fit_mark(
+                database="rgl-nbrdf", name=f"copy-{m}", fit=m, archive="x.zip", fit_sha256="0" * 64, clamped=0))
+        self.unseen = d / "unseen.zarr"
+        store.ingest(sources, self.unseen, database="rgl-nbrdf")
+
+
+@pytest.fixture(scope="module")
+def acq(stores: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Acq:
+    return Acq(tmp_path_factory.mktemp("unseen-acq"), stores)
+
+
+def _by_key(rows: list[dict], material: str) -> dict[tuple, float]:
+    """(setup, fov, metric, n, channel, kind) → value of one material's rms_log and deviation rows ("all": mean)."""
+    out = {(r["setup"], float(r["fov"]), r["metric"], int(r["n"]), r["channel"], r["kind"]): r["value"]
+           for r in rows if r["material"] == material and r["kind"] in ("rms_log", "deviation")}
+    for key in {k[:4] + k[5:] for k in out}:
+        out[(*key[:4], "all", key[4])] = float(np.mean([out[(*key[:4], ch, key[4])] for ch in ("R", "G", "B")]))
+    return out
+
+
+def test_unseen_csv_columns_labels_and_the_held_out_identity(acq: Acq, tmp_path: Path) -> None:
+    from brdfpipe.acquisition import reconstruct
+    from brdfpipe.acquisition import unseen as acq_unseen
+
+    out = acq_unseen.write_unseen(tmp_path / "unseen.csv", stores={"rgl-nbrdf": acq.unseen}, model=acq.model,
+                                  directions=acq.dirs)
+    header, rows = integrity.read_csv_rows(out, required=acq_unseen.UNSEEN_COLUMNS)
+    assert tuple(header) == acq_unseen.UNSEEN_COLUMNS == ("database", "model_database", *reconstruct.ERROR_COLUMNS[1:])
+    assert {r["database"] for r in rows} == {"rgl-nbrdf"}  # the material's own database, never merl
+    assert {r["model_database"] for r in rows} == {"merl-nbrdf"} and {r["split"] for r in rows} == {"train"}
+    assert {r["material"] for r in rows} == {"paper-red-rgb", "spectralon-rgb", "copy-gold-paint", "copy-teflon",
+                                             "mean"}
+    # every set of both files (n = 1..3 points, 1..2 images) and the floor, per material and channel
+    sets = {(r["setup"], r["n"]) for r in rows if r["kind"] == "rms_log"}
+    assert sets == {("point", "1"), ("point", "2"), ("point", "3"), ("nearfield", "1"), ("nearfield", "2")}
+    # the held-out material, copied into another database's store, gets exactly its leave-out evaluation
+    rows_d = [{**r, "value": float(r["value"])} for r in rows]
+    held = reconstruct.evaluate(acq.store, acq.model, acq.dirs, test_materials=["teflon"])
+    want, got = _by_key(held, "teflon"), _by_key(rows_d, "copy-teflon")
+    assert set(want) == set(got) and len(got) == (5 + 1) * 4  # (5 sets + the floor) × (R, G, B, all)
+    for k, v in want.items():
+        assert math.isclose(got[k], v, rel_tol=1e-9, abs_tol=1e-12), (k, got[k], v)
+
+
+def test_a_training_material_as_unseen_reproduces_with_small_error(acq: Acq) -> None:
+    from brdfpipe.acquisition import unseen as acq_unseen
+
+    rows = acq_unseen.evaluate_unseen(stores={"rgl-nbrdf": acq.unseen}, model=acq.model, directions=acq.dirs)
+    mine, other = _by_key(rows, "copy-gold-paint"), _by_key(rows, "spectralon-rgb")
+    # in the span of the basis (5 training materials): reconstructed from every cell, it is itself
+    assert max(v for k, v in mine.items() if k[-1] == "deviation") < 1e-5
+    # and every set reconstructs it better than a material the model never saw (mean over channels)
+    sets = {k[:4] for k in mine if k[-1] == "rms_log"}
+    assert len(sets) == 5
+    for s in sets:
+        assert mine[(*s, "all", "rms_log")] < 0.6 * other[(*s, "all", "rms_log")], s
+
+
+def test_unseen_evaluation_refuses_the_models_own_database(acq: Acq) -> None:
+    from brdfpipe.acquisition import unseen as acq_unseen
+
+    with pytest.raises(ValueError, match="is the model's own"):
+        acq_unseen.evaluate_unseen(stores={"merl-nbrdf": acq.store}, model=acq.model, directions=acq.dirs)
+    with pytest.raises(ValueError, match="is database 'rgl-nbrdf', expected 'nielsen-nbrdf'"):
+        acq_unseen.evaluate_unseen(stores={"nielsen-nbrdf": acq.unseen}, model=acq.model, directions=acq.dirs)

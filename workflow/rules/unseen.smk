@@ -11,6 +11,7 @@ if UNSEEN:
     rule evaluate_unseen_fits:
         input:
             archive=lambda w: str(UNSEEN[w.database].archive),
+            stamp=stamp_of("evaluate_unseen_fits"),
         output:
             tables=directory(fn.unseen_tables("{database}")),
             store=directory(fn.unseen_store("{database}")),
@@ -40,6 +41,7 @@ if UNSEEN:
             input:
                 tables=fn.unseen_tables("{database}"),
                 directions=CLOSEDLOOP_DIRECTIONS,
+                stamp=stamp_of("capture_unseen_closedloop"),
             output:
                 observations=fn.unseen_observations("{database}"),
             log:
@@ -79,6 +81,7 @@ if UNSEEN:
                 observations=(
                     [fn.unseen_observations(d) for d in UNSEEN] if CLOSEDLOOP_SETS else []
                 ),
+                stamp=stamp_of("evaluate_unseen"),
             output:
                 errors=reported(fn.unseen_errors()),
             log:
@@ -106,6 +109,7 @@ if UNSEEN:
             gram=fn.gram(MAN["space"]),
             models=expand(fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
             unseen=[fn.unseen_store(d) for d in UNSEEN],
+            stamp=stamp_of("locate_unseen"),
         output:
             unseen=reported(fn.unseen_manifold()),
         log:
@@ -133,6 +137,7 @@ if UNSEEN:
                 errors=fn.errors(),
                 closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
                 unseen=fn.unseen_errors(),
+                stamp=stamp_of("plot_unseen_errors"),
             output:
                 **reported_figures({"acquisition": UNSEEN_FIGURES["acquisition"]}),
             log:
@@ -155,6 +160,7 @@ if UNSEEN:
         input:
             model=fn.gplvm_model(DEFAULT_CANDIDATE, UNSEEN_MAP_Q),
             unseen=fn.unseen_manifold(),
+            stamp=stamp_of("plot_unseen_latent"),
         output:
             **reported_figures({"manifold": UNSEEN_FIGURES["manifold"]}),
         log:

@@ -57,6 +57,7 @@ from brdfpipe.acquisition.metrics import DEFAULT_ETA, check_eta, reconstruct_coe
 from brdfpipe.acquisition.optimize import read_directions
 from brdfpipe.acquisition.reconstruct import CHANNELS, ERROR_COLUMNS, row_statistics, write_errors
 from brdfpipe.acquisition.svd import Model, open_model
+from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
@@ -77,7 +78,8 @@ F64 = NDArray[np.float64]
 
 #: Columns of ``unseen.csv``: those of ``errors.csv`` with ``model_database`` after ``database``.
 UNSEEN_COLUMNS: Final = (ERROR_COLUMNS[0], "model_database", *ERROR_COLUMNS[1:])
-#: Format of the capture's many-material observation file (written by brdfpipe.rendering.capture).
+#: Format of the capture's many-material observation file (written by brdfpipe.rendering.capture, which
+#: this layer may not import: the value is the same string there).
 MANY_FORMAT: Final = "brdfpipe.capture.observations-many/1"
 _OBS_KEYS: Final = ("wi", "wo", "rgb")
 _SOURCES: Final = {"noiseless": "closedloop_noiseless_", "sensor": "closedloop_"}
@@ -106,14 +108,14 @@ def read_many_observations(path: str | os.PathLike[str], *, database: str) -> li
     the wrong shape, or values that are negative or not finite.
     """
     path = Path(path)
+    z = integrity.load_npz(path, kind="observations file")
     try:
-        with np.load(path, allow_pickle=False) as z:
-            if "format" not in z or str(z["format"]) != MANY_FORMAT:
-                raise ValueError(f"not a capture file of many materials (format {MANY_FORMAT})")
-            label = str(z["database"])
-            index = json.loads(str(z["index"]))
-            arrays = {k: np.asarray(z[k]) for k in z.files if k.split("_")[0] in _OBS_KEYS}
-    except (OSError, KeyError, ValueError) as exc:
+        if "format" not in z or str(z["format"]) != MANY_FORMAT:
+            raise ValueError(f"not a capture file of many materials (format {MANY_FORMAT})")
+        label = str(z["database"])
+        index = json.loads(str(z["index"]))
+        arrays = {k: v for k, v in z.items() if k.split("_")[0] in _OBS_KEYS}
+    except (KeyError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from exc
     if label != database:
         raise ValueError(f"{path}: observations of database {label!r}, expected {database!r}")

@@ -50,6 +50,8 @@ __all__ = [
     "select_materials",
     "resolve_test_materials",
     "UNSEEN_DATABASES",
+    "UNSEEN_DEFAULT_FOR",
+    "DEFAULT_UNSEEN",
     "unseen_databases",
     "write_splits",
 ]
@@ -404,6 +406,16 @@ def select_materials(db: Database, patterns: Sequence[str] | None, *, key: str =
 
 #: The databases whose materials the config's ``unseen`` may name: the shipped archives of fits.
 UNSEEN_DATABASES: tuple[str, ...] = tuple(n for n, d in databases.DATABASES.items() if d.source == "archive")
+#: The run databases that get :data:`DEFAULT_UNSEEN` when the config leaves ``unseen.databases`` unset (null):
+#: MERL's, whose model has seen none of the RGL and Nielsen materials.
+UNSEEN_DEFAULT_FOR: tuple[str, ...] = ("merl-nbrdf", "merl")
+#: The default materials outside MERL: RGL's spectralon (the radiometric check, albedo ≈ 0.96 at normal
+#: incidence), a white paper, a felt, a metallic and a satin paint, and three of Nielsen et al.'s.
+DEFAULT_UNSEEN: dict[str, tuple[str, ...]] = {
+    "rgl-nbrdf": ("spectralon-rgb", "paper-white-rgb", "acrylic-felt-green-rgb", "ilm-l3-37-metallic-rgb",
+                  "satin-gold-rgb"),
+    "nielsen-nbrdf": ("glossyredpaper", "paintedmetal", "greencloth"),
+}
 
 
 def unseen_databases(config: Mapping[str, Any], run: Database, results: str = "results") -> dict[str, Database]:
@@ -411,7 +423,9 @@ def unseen_databases(config: Mapping[str, Any], run: Database, results: str = "r
 
     ``unseen.databases`` lists shipped databases of fits
     (:data:`UNSEEN_DATABASES`); ``unseen.materials`` (names or shell-style
-    patterns, None = all) picks among their materials.  Each database is a
+    patterns, None = all) picks among their materials.  Both unset (None):
+    :data:`DEFAULT_UNSEEN` for a run on MERL's materials
+    (:data:`UNSEEN_DEFAULT_FOR`), none otherwise.  Each database is a
     :class:`Database` of fits whose tables go to ``results/unseen/<database>``;
     a database none of whose materials is picked is left out.  Returned in
     the order of ``unseen.databases``; empty when the list is empty (off).
@@ -423,8 +437,17 @@ def unseen_databases(config: Mapping[str, Any], run: Database, results: str = "r
     (the model has seen it) or a material name in two unseen databases.
     """
     spec = config.get("unseen") or {}
-    names = list(spec.get("databases") or [])
+    names = spec.get("databases")
     patterns = spec.get("materials")
+    if names is None:
+        if patterns is not None:
+            raise DatabaseError("unseen.materials is set but unseen.databases is not: name the databases the "
+                                f"materials come from ({', '.join(UNSEEN_DATABASES)})")
+        if run.kind not in UNSEEN_DEFAULT_FOR:
+            return {}
+        names = list(DEFAULT_UNSEEN)
+        patterns = [m for ms in DEFAULT_UNSEEN.values() for m in ms]
+    names = list(names)
     if not names:
         if patterns:
             raise DatabaseError("unseen.materials is set but unseen.databases is empty: name the databases the "

@@ -49,7 +49,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import atomic, integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import databases, merl, provenance
 
@@ -560,7 +560,7 @@ def evaluate_to_store(
     finally:
         atomic.remove_tree(work)
     rows_a = albedo_rows(dict(zip(fits, binaries)), database)
-    atomic.write_text(albedo_out, _csv_text(ALBEDO_COLUMNS, rows_a))
+    integrity.write_csv(albedo_out, _csv_text(ALBEDO_COLUMNS, rows_a))
     logger.info("%d %s tables -> %s; directional albedo at normal incidence -> %s", len(binaries), database,
                 store_out, albedo_out)
     return clamped

@@ -64,7 +64,7 @@ import scipy.linalg
 import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data.store import open_store
 from brdfpipe.manifold import gplvm
@@ -323,7 +323,7 @@ def write_unseen(
             raise ValueError(f"{gram}: {d} columns, the store {store} has {cross.d} valid ones")
         rows = unseen_rows(cross, fits, gram=G, model_database=st.database, pca_ks=pca_ks)
     path = Path(out)
-    atomic.write_text(path, _csv(UNSEEN_COLUMNS, rows))
+    integrity.write_csv(path, _csv(UNSEEN_COLUMNS, rows))
     logger.info("%d unseen materials on %d model(s) of %d %s materials (%s space) in %.1f s -> %s",
                 len(cross.others), len(fits), len(cross.materials), st.database, cross.space,
                 time.perf_counter() - t0, path)

@@ -614,8 +614,6 @@ def capture_materials_to_file(
     ``<key>_<i>`` (:data:`OBSERVATION_KEYS`) of table i.  Returns the sensor
     counts per (material, d, n).
     """
-    from brdfpipe.core import atomic
-
     light_distance = math.inf if light_distance is None else float(light_distance)
     sens = sensor if isinstance(sensor, Sensor) else Sensor(**dict(sensor))
     paths = {str(m): Path(p) for m, p in materials.items()}
@@ -641,15 +639,15 @@ def capture_materials_to_file(
                 for k in OBSERVATION_KEYS:
                     arrays[f"{k}_{i}"] = merged[k]
             result[(name, d, n)] = by_source["sensor"][1]
-    atomic.save_npz(out, {"format": np.array(MANY_FORMAT), "database": np.array(str(database)),
+    integrity.save_npz(out, {"format": np.array(MANY_FORMAT), "database": np.array(str(database)),
                           "index": np.array(json.dumps(index, sort_keys=True)), **arrays})
     logger.info("%d materials of %s captured: %d observation tables -> %s", len(paths), database, len(index), out)
     return result
 
 
 def _directions_metric(path: str | os.PathLike[str]) -> str:
-    """The optimisation metric recorded in a directions file."""
-    try:
-        return str(json.loads(Path(path).read_text(encoding="utf-8"))["metric"])
-    except (OSError, KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: not a directions file a capture can use ({exc})") from exc
+    """The optimisation metric recorded in a directions file (its digest checked)."""
+    doc = integrity.read_json(path, kind="directions file")
+    if not isinstance(doc.get("metric"), str):
+        raise ValueError(f"{path}: not a directions file a capture can use (no metric)")
+    return str(doc["metric"])
