@@ -417,3 +417,44 @@ def test_unseen_evaluation_refuses_the_models_own_database(acq: Acq) -> None:
         acq_unseen.evaluate_unseen(stores={"merl-nbrdf": acq.store}, model=acq.model, directions=acq.dirs)
     with pytest.raises(ValueError, match="is database 'rgl-nbrdf', expected 'nielsen-nbrdf'"):
         acq_unseen.evaluate_unseen(stores={"nielsen-nbrdf": acq.unseen}, model=acq.model, directions=acq.dirs)
+
+
+# -- end to end: tests/config/tiny-nbrdf.yaml (12 MERL fits, 2 unseen materials) ------------------
+
+
+@pytest.mark.slow
+def test_tiny_nbrdf_runs_the_unseen_materials_end_to_end(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """One shared run of tiny-nbrdf (~100 jobs): the unseen outputs exist, carry their digests and true labels."""
+    from shared_runs import shared_run
+
+    from brdfpipe.acquisition import unseen as acq_unseen
+    from brdfpipe.report import claims
+
+    config = Path(__file__).resolve().parent / "config" / "tiny-nbrdf.yaml"
+    work = shared_run(tmp_path_factory, config)
+    res = work / "results"
+    # the table lookup and the closed loop of both materials, with the MERL-trained model
+    _, rows = integrity.read_csv_rows(res / "evaluation" / "unseen.csv", required=acq_unseen.UNSEEN_COLUMNS)
+    assert {(r["database"], r["material"]) for r in rows if r["material"] != "mean"} == {
+        ("rgl-nbrdf", "spectralon-rgb"), ("nielsen-nbrdf", "glossyredpaper")}
+    assert {r["model_database"] for r in rows} == {"merl-nbrdf"}
+    kinds = {r["kind"] for r in rows}
+    assert {"rms_log", "deviation", "closedloop_rms_log", "closedloop_noiseless_rms_log"} <= kinds
+    assert {r["setup"] for r in rows if r["kind"] == "rms_log"} == {"point", "nearfield"}
+    assert all(math.isfinite(float(r["value"])) for r in rows)
+    # the manifold: both ways of placing each material, and PCA
+    _, mrows = integrity.read_csv_rows(res / "manifold" / "unseen.csv", required=unseen.UNSEEN_COLUMNS)
+    assert {r["method"] for r in mrows} == {"gplvm-likelihood", "gplvm-least-squares", "pca"}
+    assert {r["database"] for r in mrows} == {"rgl-nbrdf", "nielsen-nbrdf"}
+    # the radiometric check holds on the spectralon fit, and each unseen database has its claim
+    _, crows = integrity.read_csv_rows(work / filenames.claims_csv(), required=claims.CLAIM_COLUMNS)
+    by_key = {c["key"]: c for c in crows}
+    spectralon = by_key["rgl-spectralon-albedo"]
+    assert spectralon["holds"] == "yes" and spectralon["database"] == "rgl-nbrdf"
+    assert abs(float(spectralon["value"]) - 0.96) < 0.03
+    assert {"xu-unseen-rgl-nbrdf", "xu-unseen-nielsen-nbrdf"} <= set(by_key)
+    for stem in (filenames.UNSEEN_STEM, filenames.MANIFOLD_UNSEEN_STEM):
+        assert all((work / f).stat().st_size > 0 for f in filenames.figure_files(stem))
+    # every store carries its own label: the unseen fits are never labelled merl
+    assert store.open_store(res / "unseen" / "rgl-nbrdf.zarr").database == "rgl-nbrdf"
+    assert store.open_store(res / "unseen" / "nielsen-nbrdf.zarr").database == "nielsen-nbrdf"

@@ -1552,6 +1552,7 @@ def manifold_unseen(model_path: str | os.PathLike[str], q: int, unseen_csv: str 
             no_data(right, "no reproduction rows")
         title = (f"Materials outside the training set on the GPLVM manifold "
                  f"(model: {database_label(table.model_database)})")
-        subtitle = (f"Soler 2018 Fig. 10 / Fig. 8 analogue for unseen materials ({', '.join(dbs)}); x* maximises the "
+        subtitle = (f"Soler 2018 Fig. 10 / Fig. 8 analogue for unseen materials ({'; '.join(database_label(d) for d in dbs)}); "
+                    "x* maximises the "
                     f"GP likelihood of the material or minimises ‖z − Σ bᵢ(x) zᵢ‖ in the {table.space} space")
         return finish(fig, stem, title, subtitle, table.model_database, warn)
