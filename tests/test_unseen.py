@@ -4,9 +4,10 @@ Library-level checks of: which unseen materials a config names
 (:func:`brdfpipe.data.database.unseen_databases`), their stores and albedos
 (:func:`brdfpipe.data.nbrdf.evaluate_to_store`), their latent positions on a
 fitted GPLVM (:mod:`brdfpipe.manifold.unseen`, :func:`brdfpipe.manifold.gplvm.cross_gram`),
-the figures, the claims and the plan.  The acquisition's evaluation is
-checked in ``test_reconstruct.py`` (on its small pipeline) and the
-many-material capture in ``test_closedloop.py``.
+their table-lookup reconstruction (:mod:`brdfpipe.acquisition.unseen`, on a
+model of six MERL fits), the spectralon claim and the plan; then one shared
+run of ``tests/config/tiny-nbrdf.yaml`` end to end.  The many-material
+capture is compared with the one-material capture in ``test_closedloop.py``.
 """
 
 from __future__ import annotations
@@ -427,11 +428,14 @@ def test_tiny_nbrdf_runs_the_unseen_materials_end_to_end(tmp_path_factory: pytes
     """One shared run of tiny-nbrdf (~100 jobs): the unseen outputs exist, carry their digests and true labels."""
     from shared_runs import shared_run
 
+    check_tiny_nbrdf_run(shared_run(tmp_path_factory, Path(__file__).resolve().parent / "config" / "tiny-nbrdf.yaml"))
+
+
+def check_tiny_nbrdf_run(work: Path) -> None:
+    """The unseen materials' outputs of a finished run of tiny-nbrdf in ``work``."""
     from brdfpipe.acquisition import unseen as acq_unseen
     from brdfpipe.report import claims
 
-    config = Path(__file__).resolve().parent / "config" / "tiny-nbrdf.yaml"
-    work = shared_run(tmp_path_factory, config)
     res = work / "results"
     # the table lookup and the closed loop of both materials, with the MERL-trained model
     _, rows = integrity.read_csv_rows(res / "evaluation" / "unseen.csv", required=acq_unseen.UNSEEN_COLUMNS)
@@ -458,3 +462,21 @@ def test_tiny_nbrdf_runs_the_unseen_materials_end_to_end(tmp_path_factory: pytes
     # every store carries its own label: the unseen fits are never labelled merl
     assert store.open_store(res / "unseen" / "rgl-nbrdf.zarr").database == "rgl-nbrdf"
     assert store.open_store(res / "unseen" / "nielsen-nbrdf.zarr").database == "nielsen-nbrdf"
+
+
+def test_spectralon_claim(tmp_path: Path) -> None:
+    from brdfpipe.report import claims
+
+    def albedo_csv(name: str, database: str, material: str, lum: float) -> Path:
+        path = tmp_path / name
+        integrity.write_csv(path, [list(nbrdf.ALBEDO_COLUMNS), [database, material, 0.0, lum, lum, lum, lum]])
+        return path
+
+    ok = claims.spectralon_albedo([albedo_csv("a.csv", "rgl-nbrdf", "spectralon-rgb", 0.958)])
+    assert ok.holds == "yes" and ok.database == "rgl-nbrdf" and math.isclose(ok.value, 0.958)
+    dark = claims.spectralon_albedo([albedo_csv("b.csv", "rgl-nbrdf", "spectralon-rgb", 0.80)])
+    assert dark.holds == "no"
+    absent = claims.spectralon_albedo([albedo_csv("c.csv", "nielsen-nbrdf", "bluebook", 0.3)])
+    assert absent.holds == "not measured"
+    with pytest.raises(claims.ClaimsInputError, match="appears twice"):
+        claims.spectralon_albedo([tmp_path / "a.csv", albedo_csv("d.csv", "rgl-nbrdf", "spectralon-rgb", 0.95)])
