@@ -57,6 +57,23 @@ def test_unseen_materials_of_a_config() -> None:
     assert database.unseen_databases({}, database.Database("synthetic", {"a": Path("a.binary")})) == {}
 
 
+@pytest.mark.parametrize("name", ["merl-nbrdf", "rgl-nbrdf", "nielsen-nbrdf"])
+def test_the_shipped_config_on_each_database_of_fits(name: str) -> None:
+    """config/config.yaml with only ``database`` changed: the default set on MERL's fits, none (no error) elsewhere."""
+    import yaml
+    from snakemake.utils import validate
+
+    root = Path(__file__).resolve().parents[1]
+    cfg = yaml.safe_load((root / "config" / "config.yaml").read_text())
+    cfg["database"] = name
+    validate(cfg, str(root / "workflow" / "schemas" / "config.schema.yaml"), set_default=True)
+    got = database.unseen_databases(cfg, database.configured_database(cfg), RESULTS)
+    if name == "merl-nbrdf":
+        assert sum(len(db.materials) for db in got.values()) == 8 and "spectralon-rgb" in got["rgl-nbrdf"].materials
+    else:
+        assert got == {}
+
+
 @pytest.mark.parametrize("spec,message", [
     ({"databases": ["merl-nbrdf"]}, "unseen.databases: merl-nbrdf is the run's own database"),
     ({"databases": ["synthetic"]}, "unseen.databases: 'synthetic' is not a shipped database of fits"),
