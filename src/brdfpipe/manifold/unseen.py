@@ -317,6 +317,8 @@ def write_unseen(
     G, d, info = gplvm.load_gram(gram)
     fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
     st = open_store(store)
+    for fit in fits.values():
+        gplvm.check_store(fit, st)  # fitted on these very rows (their digests), not on a store of the same names
     with blas_threads(threads):
         cross = gplvm.cross_gram(st, list(unseen_stores), space=info.space, materials=list(info.materials))
         if cross.d != d:
