@@ -20,6 +20,7 @@ rule map_logrelative:
         "benchmarks/map_logrelative/{split}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 20
     threads: 1
     resources:
         mem_mb=mem("map_logrelative"),
@@ -44,6 +45,7 @@ rule accumulate_gram:
         "benchmarks/accumulate_gram/{split}-{scatteritem}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 20
     threads: 1
     resources:
         mem_mb=mem("accumulate_gram"),
@@ -67,6 +69,7 @@ rule decompose_svd:
         "benchmarks/decompose_svd/{split}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 20
     threads: 2
     resources:
         mem_mb=mem("decompose_svd"),
@@ -90,6 +93,7 @@ rule optimize_directions:
     conda:
         "../envs/brdfpipe.yaml"
     # BLAS limited to these threads by the script (brdfpipe.core.threads.blas_threads).
+    priority: 10
     threads: 1
     resources:
         mem_mb=mem("optimize_directions"),

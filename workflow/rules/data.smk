@@ -16,6 +16,7 @@ if GENERATED:
             "benchmarks/synthesize_material/{material}.tsv"
         conda:
             "../envs/brdfpipe.yaml"
+        priority: 30
         threads: 1
         resources:
             mem_mb=mem("synthesize_material"),
@@ -40,6 +41,7 @@ if GENERATED:
             "benchmarks/write_manifest.tsv"
         conda:
             "../envs/brdfpipe.yaml"
+        priority: 30
         threads: 1
         resources:
             mem_mb=mem("write_manifest"),
@@ -85,6 +87,7 @@ if FITS:
             "benchmarks/evaluate_fits.tsv"
         conda:
             "../envs/brdfpipe.yaml"
+        priority: 30
         threads: min(4, workflow.cores)
         resources:
             mem_mb=mem("evaluate_fits"),
@@ -110,6 +113,7 @@ else:
             "benchmarks/ingest_material/{material}.tsv"
         conda:
             "../envs/brdfpipe.yaml"
+        priority: 30
         threads: 1
         resources:
             mem_mb=mem("ingest_material"),
@@ -133,6 +137,7 @@ rule assemble_store:
         "benchmarks/assemble_store.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 30
     threads: 1
     resources:
         mem_mb=mem("assemble_store"),
@@ -157,6 +162,7 @@ rule write_splits:
         "benchmarks/write_splits.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 30
     threads: 1
     resources:
         mem_mb=mem("write_splits"),

@@ -16,6 +16,7 @@ rule compute_gram:
         "benchmarks/compute_gram/{space}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 20
     threads: 1
     resources:
         mem_mb=mem("compute_gram"),
@@ -40,6 +41,7 @@ rule fit_gplvm:
     conda:
         "../envs/brdfpipe.yaml"
     # BLAS limited to these threads by the script (brdfpipe.core.threads.blas_threads).
+    priority: 20
     threads: 1
     resources:
         mem_mb=mem("fit_gplvm"),
@@ -73,6 +75,7 @@ rule analyze_manifold:
         "benchmarks/analyze_manifold.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 20
     threads: 1
     resources:
         mem_mb=mem("analyze_manifold"),
@@ -106,6 +109,7 @@ rule measure_gplvm_candidate:
         "benchmarks/measure_gplvm_candidate/{candidate}.tsv"
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 20
     threads: 1
     resources:
         mem_mb=mem("measure_gplvm_candidate"),
@@ -136,6 +140,7 @@ rule compare_spaces:
         "logs/compare_spaces.log",
     conda:
         "../envs/brdfpipe.yaml"
+    priority: 20
     threads: 1
     resources:
         mem_mb=mem("compare_spaces"),
