@@ -470,10 +470,16 @@ def check_tiny_nbrdf_run(work: Path) -> None:
     # the radiometric check holds on the spectralon fit, and each unseen database has its claim
     _, crows = integrity.read_csv_rows(work / filenames.claims_csv(), required=claims.CLAIM_COLUMNS)
     by_key = {c["key"]: c for c in crows}
-    spectralon = by_key["rgl-spectralon-albedo"]
+    spectralon = by_key["unseen-rgl-spectralon-albedo"]
     assert spectralon["holds"] == "yes" and spectralon["database"] == "rgl-nbrdf"
     assert abs(float(spectralon["value"]) - 0.96) < 0.03
-    assert {"xu-unseen-rgl-nbrdf", "xu-unseen-nielsen-nbrdf"} <= set(by_key)
+    assert {"unseen-xu-rgl-nbrdf", "unseen-xu-nielsen-nbrdf"} <= set(by_key)
+    # the side-by-side page heads the run's column by the run's own database, the unseen rows naming theirs
+    from brdfpipe.report import sidebyside
+
+    page = sidebyside.side_by_side_markdown([sidebyside.read_run(work / filenames.claims_csv())])
+    assert next(line for line in page.splitlines() if line.startswith("| paper")).endswith("| merl-nbrdf |")
+    assert "rgl-nbrdf spectralon-rgb: r, g, b" in page
     for stem in (filenames.UNSEEN_STEM, filenames.MANIFOLD_UNSEEN_STEM):
         assert all((work / f).stat().st_size > 0 for f in filenames.figure_files(stem))
     # every store carries its own label: the unseen fits are never labelled merl
@@ -497,3 +503,21 @@ def test_spectralon_claim(tmp_path: Path) -> None:
     assert absent.holds == "not measured"
     with pytest.raises(claims.ClaimsInputError, match="appears twice"):
         claims.spectralon_albedo([tmp_path / "a.csv", albedo_csv("d.csv", "rgl-nbrdf", "spectralon-rgb", 0.95)])
+
+
+def test_unseen_claims_do_not_change_the_runs_database_side_by_side(tmp_path: Path) -> None:
+    from brdfpipe.report import claims, sidebyside
+
+    def claim(key: str, database: str) -> claims.Claim:
+        return claims.Claim(key=key, paper="Xu 2016", where="§7", claim=key, paper_value="-", measured=f"{database} m",
+                            value=1.0, holds="yes", database=database, source="x.csv")
+
+    rows = [claim("one_shot", "merl-nbrdf"), claim(f"{claims.UNSEEN_CLAIM_PREFIX}xu-rgl-nbrdf", "rgl-nbrdf"),
+            claim(f"{claims.UNSEEN_CLAIM_PREFIX}rgl-spectralon-albedo", "rgl-nbrdf")]
+    claims.write_claims(rows, csv_path=tmp_path / "c.csv", json_path=tmp_path / "c.json", rst_path=tmp_path / "c.rst")
+    assert sidebyside.read_run(tmp_path / "c.csv").database == "merl-nbrdf"
+    # another database among the run's own claims is still refused
+    claims.write_claims([*rows, claim("albedo", "synthetic")], csv_path=tmp_path / "d.csv",
+                        json_path=tmp_path / "d.json", rst_path=tmp_path / "d.rst")
+    with pytest.raises(claims.ClaimsInputError, match="claims of several databases"):
+        sidebyside.read_run(tmp_path / "d.csv")

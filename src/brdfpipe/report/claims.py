@@ -52,6 +52,8 @@ __all__ = [
     "blend_vs_noise_floor",
     "closed_loop_vs_table",
     "CLOSED_LOOP_TOLERANCE",
+    "UNSEEN_CLAIM_PREFIX",
+    "is_unseen_claim",
     "UNSEEN_FACTOR",
     "SPECTRALON",
     "unseen_vs_heldout",
@@ -641,6 +643,16 @@ def closed_loop_vs_table(path: str | os.PathLike[str]) -> Claim:
                  _database(p, rows), str(p), figs)
 
 
+#: Key prefix of the claims about materials outside the run's database (config ``unseen``): their ``database``
+#: column names those materials' database, not the run's (:func:`is_unseen_claim`).
+UNSEEN_CLAIM_PREFIX: str = "unseen-"
+
+
+def is_unseen_claim(key: str) -> bool:
+    """True for a claim about materials outside the run's database (its ``database`` is theirs, not the run's)."""
+    return str(key).startswith(UNSEEN_CLAIM_PREFIX)
+
+
 #: "The basis trained on one database reconstructs materials of another" read as: their mean error at most
 #: this many times the held-out materials' (2 near-field images at the comparison FOV, min E(S)).
 UNSEEN_FACTOR: float = 2.0
@@ -674,7 +686,8 @@ def unseen_vs_heldout(errors: _Errors, path: str | os.PathLike[str]) -> list[Cla
     fov = errors.nearfield_fov()
     out = []
     for db, v in sorted(means.items()):
-        key, where, figs = f"xu-unseen-{db}", "§7 (materials outside the training set)", ("xu-unseen", "xu-unseen-table")
+        key, where, figs = (f"{UNSEEN_CLAIM_PREFIX}xu-{db}", "§7 (materials outside the training set)",
+                            ("xu-unseen", "xu-unseen-table"))
         claim = (f"2 near-field images (FOV {_deg(fov if fov is not None else 25)}, min E(S)) reconstruct the {db} "
                  f"materials, never seen by the {errors.database} model, within {UNSEEN_FACTOR:g}× the mean error of "
                  "the held-out materials")
@@ -716,7 +729,8 @@ def spectralon_albedo(paths: Sequence[str | os.PathLike[str]]) -> Claim:
     ``SPECTRALON["tolerance"]`` of 0.96.
     """
     sp = SPECTRALON
-    key, where, figs = "rgl-spectralon-albedo", "RGL database, spectralon (issue 22)", ("unseen-albedo",)
+    key, where, figs = f"{UNSEEN_CLAIM_PREFIX}rgl-spectralon-albedo", "RGL database, spectralon (issue 22)", \
+        ("unseen-albedo",)
     claim = (f"directional albedo (luminance) of the {sp['material']} fit at normal incidence within "
              f"±{sp['tolerance']:g} of {sp['albedo']:g}")
     paper_value = f"≈ {sp['albedo']:g} at normal incidence"
@@ -734,7 +748,7 @@ def spectralon_albedo(paths: Sequence[str | os.PathLike[str]]) -> Claim:
         raise ClaimsInputError(f"{found[1][0]}: {sp['material']} of {sp['database']} appears twice")
     p, r = found[0]
     lum = _num(p, r, "luminance")
-    measured = (f"r, g, b = {_num(p, r, 'r'):.3f}, {_num(p, r, 'g'):.3f}, {_num(p, r, 'b'):.3f}; "
+    measured = (f"{sp['database']} {sp['material']}: r, g, b = {_num(p, r, 'r'):.3f}, {_num(p, r, 'g'):.3f}, {_num(p, r, 'b'):.3f}; "
                 f"luminance {lum:.3f}")
     ok = abs(lum - sp["albedo"]) <= sp["tolerance"]
     return Claim(key, paper, where, claim, paper_value, measured, lum, _verdict(ok), sp["database"], str(p), figs)
