@@ -521,3 +521,26 @@ def test_unseen_claims_do_not_change_the_runs_database_side_by_side(tmp_path: Pa
                         json_path=tmp_path / "d.json", rst_path=tmp_path / "d.rst")
     with pytest.raises(claims.ClaimsInputError, match="claims of several databases"):
         sidebyside.read_run(tmp_path / "d.csv")
+
+
+def test_a_training_material_as_unseen_sits_at_its_own_latent_point(stores: dict[str, Path], acq: Acq,
+                                                                     tmp_path: Path) -> None:
+    """Real tables: a copy of a training material (another store, another label) is placed on its own x_i."""
+    gplvm.write_gram(stores["merl-nbrdf"], tmp_path / "gram.npz", space="standardised")
+    gplvm.fit_to_files(tmp_path / "gram.npz", tmp_path / "q2.npz", tmp_path / "q2.csv", q=2, mu=1e-4)
+    out = unseen.write_unseen(tmp_path / "unseen.csv", store=stores["merl-nbrdf"], gram=tmp_path / "gram.npz",
+                              models={2: tmp_path / "q2.npz"}, unseen_stores=[acq.unseen], pca_ks=[5])
+    _, rows = integrity.read_csv_rows(out)
+    by = {(r["material"], r["method"]): r for r in rows}
+    model = gplvm.load_model(tmp_path / "q2.npz")
+    for m in ("gold-paint", "teflon"):  # both in the manifold's store (the SVD's split is not the manifold's)
+        own = model.X[list(model.names).index(m)]
+        ls = by[(f"copy-{m}", "gplvm-least-squares")]
+        assert ls["nearest"] == m and float(ls["relative_error"]) < 1e-6
+        np.testing.assert_array_equal([float(v) for v in ls["latent"].split()], own)
+        # PCA on all N − 1 = 5 components of the centred training set reproduces it too
+        assert float(by[(f"copy-{m}", "pca")]["relative_error"]) < 1e-6
+    # the RGL materials are reproduced by neither
+    for m in ("spectralon-rgb", "paper-red-rgb"):
+        assert float(by[(m, "gplvm-least-squares")]["relative_error"]) > 1e-3
+        assert float(by[(m, "pca")]["relative_error"]) > 1e-3
