@@ -1058,7 +1058,7 @@ def plot_unseen(errors_csv: str | os.PathLike[str], unseen_csv: str | os.PathLik
             series = [(f"held-out ({model_db})", "#000000", held, "rms_log", "-"),
                       *[(f"unseen: {db}", colours[db], t, "rms_log", "-") for db, t in unseen.items()]]
             if loop is not None:
-                series.append((f"held-out, closed loop (sensor)", "#000000", loop, "closedloop_rms_log", "--"))
+                series.append(("held-out, closed loop (sensor)", "#000000", loop, "closedloop_rms_log", "--"))
             series += [(f"{db}, closed loop (sensor)", colours[db], t, "closedloop_rms_log", "--")
                        for db, t in unseen.items()]
             for label, colour, t, kind, ls in series:
