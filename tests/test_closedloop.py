@@ -354,3 +354,40 @@ def test_a_damaged_observation_table_is_refused(loop: Loop, tmp_path: Path, dama
         expect = re.escape(f"{bad}: truncated or corrupt observation table (not an npz file: no zip header)")
     with pytest.raises(ValueError, match=expect + ".*; rerun its rule: snakemake --forcerun capture_closedloop"):
         closedloop.read_observations(bad)
+
+
+@needs_llvm
+def test_many_materials_in_one_file_equal_one_capture_each(loop: Loop, tmp_path: Path) -> None:
+    """capture_materials_to_file (the unseen materials' capture): the tables of capture_to_files, in one checked file."""
+    from brdfpipe.acquisition import unseen as acq_unseen
+
+    name, folder = loop.test[0], tmp_path / "one"
+    settings = dict(spp=16, seed=5, light_distance=20.0, min_snr=3.0, sensor=capture.Sensor())
+    image_keys, table_keys = capture.output_layout(1, [1, 2])
+    capture.capture_to_files(
+        material=loop.sources[name], directions=[loop.directions], n_images=[1, 2],
+        renders=[folder / f"n{n}-{j}-render.exr" for _, n, j in image_keys],
+        photographs=[folder / f"n{n}-{j}.exr" for _, n, j in image_keys],
+        noiseless=[folder / f"n{n}-noiseless.npz" for _, n in table_keys],
+        observations=[folder / f"n{n}.npz" for _, n in table_keys], **settings)
+    many = tmp_path / "many.npz"
+    capture.capture_materials_to_file(materials={name: loop.sources[name]}, database="synthetic",
+                                      directions=[loop.directions], n_images=[1, 2], out=many, **settings)
+    assert capture.MANY_FORMAT == acq_unseen.MANY_FORMAT  # the reader's layer may not import the writer's
+    tables = {(t.material, t.n, t.source): t for t in acq_unseen.read_many_observations(many, database="synthetic")}
+    assert set(tables) == {(name, n, s) for n in (1, 2) for s in ("noiseless", "sensor")}
+    for n in (1, 2):
+        for source, path in (("noiseless", folder / f"n{n}-noiseless.npz"), ("sensor", folder / f"n{n}.npz")):
+            cells, rgb, counts = closedloop.read_observations(path)
+            t = tables[(name, n, source)]
+            assert (t.setup, t.fov, t.metric) == ("nearfield", 25.0, "error") and t.counts == counts
+            np.testing.assert_array_equal(t.cells, cells)
+            np.testing.assert_allclose(t.rgb, rgb, rtol=1e-5, atol=1e-7)
+    with pytest.raises(ValueError, match="observations of database 'synthetic', expected 'rgl-nbrdf'"):
+        acq_unseen.read_many_observations(many, database="rgl-nbrdf")
+    data = bytearray(many.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    damaged = tmp_path / "damaged.npz"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="damaged.npz"):
+        acq_unseen.read_many_observations(damaged, database="synthetic")

@@ -67,6 +67,12 @@ def test_every_rule_named_for_a_file_exists_in_the_workflow() -> None:
     (filenames.spaces_csv(), "compare_spaces"),
     (filenames.explorer_dir() + "/data/layers.js", "write_explorer"),
     (filenames.splits(), "write_splits"),
+    (filenames.unseen_binary("rgl-nbrdf", "spectralon-rgb"), "evaluate_unseen_fits"),
+    (filenames.unseen_store("rgl-nbrdf") + "/brdf/c/0/0", "evaluate_unseen_fits"),
+    (filenames.unseen_albedo("rgl-nbrdf"), "evaluate_unseen_fits"),
+    (filenames.unseen_observations("nielsen-nbrdf"), "capture_unseen_closedloop"),
+    (filenames.unseen_errors(), "evaluate_unseen"),
+    (filenames.unseen_manifold(), "locate_unseen"),
     ("/abs/work/" + filenames.svd_model("all"), "decompose_svd"),
     ("elsewhere/model.npz", None),
 ])

@@ -121,6 +121,19 @@ def _load_database():
 
 DATABASE, TEST_MATERIALS = _load_database()
 MATERIALS = DATABASE.materials
+
+
+def _load_unseen():
+    try:
+        return brdf_db.unseen_databases(config, DATABASE, fn.RESULTS)
+    except brdf_db.DatabaseError as err:
+        raise WorkflowError(f"invalid configuration: {err}") from None
+
+
+# Materials outside the run's database (config unseen): label -> its fits, each
+# evaluated into a store of its own (rules/unseen.smk).
+UNSEEN = _load_unseen()
+N_UNSEEN = sum(len(db.sources) for db in UNSEEN.values())
 TRAIN_MATERIALS = [m for m in MATERIALS if m not in TEST_MATERIALS]
 # The workflow generates the synthetic database (rules synthesize_material and
 # write_manifest) for database: synthetic only: a folder written by `brdfpipe
@@ -154,6 +167,12 @@ CLOSED = config["closed_loop"]
 CLOSEDLOOP_SETS = plan.closedloop_directions(config)
 CLOSEDLOOP_N = sorted(CLOSED["n_images"])
 CLOSEDLOOP_DIRECTIONS = [fn.directions("train", *s) for s in CLOSEDLOOP_SETS]
+# The unseen materials' acquisition: the training split's point and near-field
+# sets of the error metric looked up, the closed loop's sets photographed.
+UNSEEN_DIRECTIONS = plan.unseen_directions(ACQ) if UNSEEN else []
+UNSEEN_EVALUATED = bool(UNSEEN) and bool(UNSEEN_DIRECTIONS or CLOSEDLOOP_SETS)
+UNSEEN_FIGURES = plan.unseen_figures(unseen=bool(UNSEEN), evaluated=UNSEEN_EVALUATED)
+UNSEEN_MAP_Q = plan.unseen_map_q(MAN)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
 DEFAULT_CANDIDATE = plan.candidate_label(MAN["space"], MAN["mu"])
@@ -198,7 +217,9 @@ else:
 
 # Sizes the memory model reads, per scene folder (the floor check renders smaller).
 JOB_SIZES = {
-    scene: plan.job_sizes(config, resolution=res, n_test=len(TEST_MATERIALS))
+    scene: plan.job_sizes(
+        config, resolution=res, n_test=len(TEST_MATERIALS), n_unseen=N_UNSEEN
+    )
     for scene, (res, _) in RENDER_SETTINGS.items()
 }
 # No job may need more memory than one job may have: sizes and materials are
@@ -215,6 +236,7 @@ PLANNED_RULES = plan.planned_rules(
     fits=FITS,
     path_points=bool(PATH_POINTS),
     floor_check=bool(FLOOR_CANDIDATES),
+    unseen=bool(UNSEEN),
 )
 POINT_OUTPUTS = {r: len(PATH_POINTS) for r in plan.PER_OUTPUT_MB}
 try:
@@ -226,6 +248,7 @@ try:
         floor_resolution=FLOOR["resolution"] if FLOOR_CANDIDATES else None,
         materials_key=MATERIALS_KEY,
         n_test=len(TEST_MATERIALS),
+        n_unseen=N_UNSEEN,
     )
 except plan.ConfigError as err:
     raise WorkflowError(f"invalid configuration: {err}") from None
@@ -297,6 +320,7 @@ wildcard_constraints:
     path="|".join(re.escape(p) for p in PATH_ENDS) or "(?!)",
     t=r"\d+(\.\d+)?",
     scene="|".join(re.escape(s) for s in RENDER_SETTINGS),
+    database="|".join(re.escape(d) for d in UNSEEN) or "(?!)",
 
 
 def closedloop_images(material, kind):

@@ -21,6 +21,8 @@ rule write_claims:
         errormap_summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],
         floor_check=fn.floor_check_csv(FLOOR_SCENE) if FLOOR_CANDIDATES else [],
         closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
+        unseen=fn.unseen_errors() if UNSEEN_EVALUATED else [],
+        unseen_albedo=[fn.unseen_albedo(d) for d in UNSEEN],
         stamp=stamp_of("write_claims"),
     output:
         claims=reported(fn.claims_csv()),

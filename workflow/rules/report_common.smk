@@ -17,6 +17,11 @@ REPORT_ITEMS = report_plan.report_items(
     floor_check_table=fn.floor_check_csv(FLOOR_SCENE) if FLOOR_CANDIDATES else None,
     closedloop_figure=fn.figure_files(fn.CLOSEDLOOP_STEM) if CLOSEDLOOP_SETS else (),
     closedloop_table=fn.closedloop_errors() if CLOSEDLOOP_SETS else None,
+    unseen_figure=UNSEEN_FIGURES.get("acquisition", ()),
+    unseen_table=fn.unseen_errors() if UNSEEN_EVALUATED else None,
+    unseen_albedo=[fn.unseen_albedo(d) for d in UNSEEN],
+    manifold_unseen_figure=UNSEEN_FIGURES.get("manifold", ()),
+    manifold_unseen_table=fn.unseen_manifold() if UNSEEN else None,
 )
 _REPORTED = {item.path: item for item in REPORT_ITEMS}
 REPORT_CAPTIONS = sorted({item.caption for item in REPORT_ITEMS})
@@ -43,3 +48,23 @@ def reported(path):
 def reported_figures(figures):
     """A {key: [files]} figure mapping with its report files flagged (see reported)."""
     return {key: [reported(f) for f in files] for key, files in figures.items()}
+
+
+def reported_pattern(pattern, key):
+    """An output pattern with wildcards (``{database}``), flagged for the report as the items of ``key``.
+
+    Every concrete item of ``key`` shares one caption; the pattern's
+    wildcards become the ``unseen`` label (Snakemake expands them per job).
+    """
+    items = [item for item in REPORT_ITEMS if item.key == key]
+    if not items:
+        return pattern
+    first = items[0]
+    labels = {k: ("{database}" if k == "unseen" else v) for k, v in first.labels.items()}
+    return report(
+        pattern,
+        caption=os.path.abspath(first.caption),
+        category=first.category,
+        subcategory=first.subcategory,
+        labels=labels,
+    )

@@ -19,6 +19,8 @@ with log_to(snakemake.log[0]):
             errormap_summary=inp.errormap_summary or None,
             floor_check=inp.floor_check or None,
             closedloop=inp.closedloop or None,
+            unseen=inp.unseen or None,
+            unseen_albedo=list(inp.unseen_albedo),
         )
     )
     claims.write_claims(

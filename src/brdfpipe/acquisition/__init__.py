@@ -11,5 +11,6 @@ and the track's figures.  Imports :mod:`brdfpipe.data` and :mod:`brdfpipe.core`.
 * :mod:`brdfpipe.acquisition.optimize`    – the greedy few-to-many optimiser (§5.1) and directions files;
 * :mod:`brdfpipe.acquisition.reconstruct` – reconstruction from sparse observations, leave-out evaluation;
 * :mod:`brdfpipe.acquisition.closedloop`  – reconstruction from captured images next to the table lookup (issue 13);
+* :mod:`brdfpipe.acquisition.unseen`      – materials of other databases reconstructed with the run's model (issue 22);
 * :mod:`brdfpipe.acquisition.figures`     – the Xu et al. 2016 figure analogues.
 """

@@ -100,6 +100,9 @@ __all__ = [
     "fig18_per_material",
     "fig19_error_vs_n",
     "make_acquisition_figures",
+    "UNSEEN_COLUMNS",
+    "read_unseen",
+    "plot_unseen",
 ]
 
 logger = logging.getLogger("brdfpipe.acquisition.figures")
@@ -947,3 +950,135 @@ def plot_closedloop(closedloop_csv: str | os.PathLike[str], files: Sequence[str 
         title = f"Closed-loop vs table-lookup reconstruction ({database_label(table.database)})"
         return finish(fig, stem, title, f"{_split_text(split)}, photographed by the optimised set-ups (Mitsuba 3, "
                       "merl BSDF, point light, sensor model) and reconstructed from the images", table.database, warn)
+
+
+# ---------------------------------------------------------------------------
+# Materials outside the training database (config unseen)
+# ---------------------------------------------------------------------------
+
+#: Required columns of ``unseen.csv`` (those of errors.csv and the model's database).
+UNSEEN_COLUMNS: tuple[str, ...] = ("database", "model_database", *ERRORS_COLUMNS[1:])
+_UNSEEN_COLOURS = ("#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
+
+
+def read_unseen(path: str | os.PathLike[str]) -> tuple[str, dict[str, ErrorTable]]:
+    """``unseen.csv``: (the model's database, {unseen database: its rows as an :class:`ErrorTable`}).
+
+    :class:`FigureInputError` naming the file for rows of several model
+    databases, an empty label, a duplicate row or a bad number.
+    """
+    p, rows = read_csv(path, UNSEEN_COLUMNS)
+    model_db = single_database(p, (r["model_database"] for r in rows))
+    by_db: dict[str, dict[tuple[str, str, float, str, int, str, str, str], float]] = {}
+    for r in rows:
+        i = int(r["__line__"])
+        if not r["database"]:
+            raise FigureInputError(f"{p}: line {i}: empty 'database'")
+        if r["database"] == model_db:
+            raise FigureInputError(f"{p}: line {i}: a material of the model's own database {model_db} is not unseen")
+        key = (r["split"], r["setup"], parse_float(p, i, "fov", r["fov"]), r["metric"],
+               parse_int(p, i, "n", r["n"]), r["material"], r["channel"], r["kind"])
+        values = by_db.setdefault(r["database"], {})
+        if key in values:
+            raise FigureInputError(f"{p}: line {i}: duplicate row for {r['database']} "
+                                   f"{dict(zip(ERRORS_COLUMNS[1:9], key))}")
+        values[key] = parse_float(p, i, "value", r["value"])
+    return model_db, {db: ErrorTable(p, db, v) for db, v in sorted(by_db.items())}
+
+
+def _floor(table: ErrorTable, split: str) -> float | None:
+    n, v = table.series(split, "all", 0.0, "none", "deviation")
+    return float(v[0]) if v.size else None
+
+
+def plot_unseen(errors_csv: str | os.PathLike[str], unseen_csv: str | os.PathLike[str],
+                files: Sequence[str | os.PathLike[str]], *,
+                closedloop_csv: str | os.PathLike[str] | None = None, split: str = "train") -> FigureOutput:
+    """Materials outside the training database next to the held-out ones (Xu Figs. 5/6 layout).
+
+    Left: mean RMS log error of point sampling (min E(S)) vs n: the held-out
+    materials (``errors.csv``) and each unseen database (``unseen.csv``; thin
+    lines: its materials), the deviation floors dotted.  Then one panel per
+    near-field set size n (1 and 2 images when evaluated): error vs FOV by
+    table lookup (solid) and, where captured, by the closed loop from the
+    sensor's photographs (dashed; held-out from ``closedloop.csv``).
+    """
+    stem = figure_stem(files)
+    held = read_errors(errors_csv)
+    model_db, unseen = read_unseen(unseen_csv)
+    if held.database != model_db:
+        raise FigureInputError(f"{unseen_csv}: model of {model_db}, but {errors_csv} is of {held.database}")
+    loop = read_errors(closedloop_csv) if closedloop_csv is not None else None
+    if loop is not None and loop.database != model_db:
+        raise FigureInputError(f"{closedloop_csv}: database {loop.database}, the model's is {model_db}")
+    warn = Warnings("unseen")
+    split = _choose_split(held, split, warn)
+    sizes = sorted({k[4] for t in unseen.values() for k in t.values if k[1] == "nearfield" and k[4] in (1, 2)
+                    and k[0] == split})
+    colours = {db: _UNSEEN_COLOURS[i % len(_UNSEEN_COLOURS)] for i, db in enumerate(unseen)}
+    with style():
+        fig = new_figure(3.6 * (1 + max(1, len(sizes))) + 2.6, 4.2)
+        axes = fig.subplots(1, 1 + max(1, len(sizes)), squeeze=False).ravel()
+        ax = axes[0]
+        allv: list[float] = []
+        n, v = held.series(split, "point", 0.0, "error", "rms_log")
+        if n.size:
+            ax.plot(n, v, color="#000000", marker="o", label=f"held-out ({model_db})")
+            allv += v.tolist()
+        else:
+            warn("no held-out point rows (min E(S))")
+        fl = _floor(held, split)
+        if fl is not None:
+            ax.axhline(fl, color="#000000", lw=0.8, ls=":")
+        for db, t in unseen.items():
+            ns = sorted({k[4] for k in t.values if k[0] == split and k[1] == "point" and k[3] == "error"
+                         and k[7] == "rms_log"})
+            for mat in t.materials(split, "point", 0.0, "error", ns[0], "rms_log") if ns else []:
+                mv = [t.material_value(split, "point", 0.0, "error", k, "rms_log", mat) for k in ns]
+                ax.plot(ns, mv, color=colours[db], lw=0.5, alpha=0.3)
+            un, uv = t.series(split, "point", 0.0, "error", "rms_log")
+            if un.size:
+                ax.plot(un, uv, color=colours[db], marker="s", lw=2.0, label=f"unseen: {db}")
+                allv += uv.tolist()
+            uf = _floor(t, split)
+            if uf is not None:
+                ax.axhline(uf, color=colours[db], lw=0.8, ls=":")
+        if allv:
+            ax.set_xlabel("number of point samples n")
+            ax.set_ylabel(f"mean {_KIND_LABEL['rms_log']}")
+            _integer_x(ax)
+            ax.legend(loc="best", fontsize=7)
+        else:
+            no_data(ax, "no point rows")
+        ax.set_title("point samples, min E(S) (dotted: floors)")
+        for ax, size in zip(axes[1:], sizes or [None]):
+            if size is None:
+                no_data(ax, "no near-field rows of 1 or 2 images")
+                continue
+            series = [(f"held-out ({model_db})", "#000000", held, "rms_log", "-"),
+                      *[(f"unseen: {db}", colours[db], t, "rms_log", "-") for db, t in unseen.items()]]
+            if loop is not None:
+                series.append(("held-out, closed loop (sensor)", "#000000", loop, "closedloop_rms_log", "--"))
+            series += [(f"{db}, closed loop (sensor)", colours[db], t, "closedloop_rms_log", "--")
+                       for db, t in unseen.items()]
+            for label, colour, t, kind, ls in series:
+                fovs = [f for f in t.fovs(split, "nearfield", "error", kind)]
+                pts = [(f, t.values.get((split, "nearfield", f, "error", size, "mean", "all", kind), math.nan))
+                       for f in fovs]
+                pts = [(f, val) for f, val in pts if math.isfinite(val)]
+                if pts:
+                    ax.plot([f for f, _ in pts], [val for _, val in pts], color=colour, ls=ls,
+                            marker="o" if ls == "-" else "^", label=label)
+                    allv += [val for _, val in pts]
+            ax.set_xlabel("field of view (°)")
+            ax.set_title(f"near-field, {size} image{'s' if size > 1 else ''}, min E(S)")
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(loc="best", fontsize=6)
+        used = [a for a in axes if a.lines]
+        if used and allv:
+            _auto_log_y(used, allv)
+        names = ", ".join(f"{database_label(db)}" for db in unseen)
+        title = (f"Materials never seen by the model vs held-out materials (model: {database_label(model_db)})")
+        subtitle = (f"Xu 2016 Figs. 5/6 layout; unseen: {names}; model and directions from the {model_db} training "
+                    "split; means over each database's materials")
+        return finish(fig, stem, title, subtitle, model_db, warn)

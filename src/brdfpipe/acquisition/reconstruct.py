@@ -160,6 +160,8 @@ __all__ = [
     "write_reconstruction",
     "evaluate",
     "evaluate_selections",
+    "RowStatistics",
+    "row_statistics",
     "check_consistency",
     "training_size_curve",
     "write_errors",
@@ -927,6 +929,108 @@ def _linear_errors(mdl: Model, reader: _StoreColumns, coefs: F64, n_combo: int, 
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(den_all > 0, np.sqrt(num / den_all), np.where(num > 0, np.inf, 0.0))
     return rel.reshape(n_combo, m_t)
+
+
+# ==========================================================================
+# Materials of another database (config unseen)
+# ==========================================================================
+
+
+@dataclass(frozen=True, eq=False)
+class RowStatistics:
+    """What the Gram identity needs about some material-channels of a store, from one streamed pass.
+
+    Rows are ``3·i + c`` for material ``materials[i]`` and channel c, log-mapped
+    with the model's ρ_ref and w; ``y = x − μ``.  ``qtq`` = QᵀQ (k × k),
+    ``qty`` = QᵀY (k × m), ``yy`` = ‖y‖² per row, and Q and Y at the kept
+    model columns ``cols`` (sorted, unique).  :meth:`rms_log` and
+    :meth:`deviation` are then exact for any coefficient columns (as
+    :func:`evaluate`'s ``rms_log`` and ``deviation``), at O(k²) each.
+    """
+
+    model: Model
+    database: str
+    materials: tuple[str, ...]
+    qtq: F64
+    qty: F64
+    yy: F64
+    cols: NDArray[np.intp]
+    q_obs: F64
+    y_obs: F64
+
+    def _pos(self, cols: ArrayLike) -> NDArray[np.intp]:
+        c = np.asarray(cols, dtype=np.intp).ravel()
+        pos = np.searchsorted(self.cols, c)
+        if c.size and (pos.max() >= self.cols.size or not np.array_equal(self.cols[pos], c)):
+            raise ValueError("columns that the streamed pass did not keep")
+        return pos
+
+    def q_at(self, cols: ArrayLike) -> F64:
+        """Rows of Q (float64) at model columns ``cols`` (repeats allowed; each must be kept)."""
+        return self.q_obs[self._pos(cols)]
+
+    def y_at(self, cols: ArrayLike) -> F64:
+        """``y`` of every row at model columns ``cols``: (m, len(cols))."""
+        return self.y_obs[:, self._pos(cols)]
+
+    def rms_log(self, coefs: ArrayLike, owners: ArrayLike) -> F64:
+        """‖y − Qc‖/√p of each coefficient column ``coefs[:, j]`` against row ``owners[j]``."""
+        c = np.asarray(coefs, dtype=np.float64)
+        o = np.asarray(owners, dtype=np.intp)
+        if c.ndim != 2 or c.shape[0] != self.model.k or o.shape != (c.shape[1],):
+            raise ValueError(f"coefs must be (k = {self.model.k}, r) with one owner row per column")
+        return np.sqrt(_sq_err(self.yy[o], self.qty[:, o], self.qtq, c) / self.model.p)
+
+    def deviation(self) -> F64:
+        """The floor ‖(I − VVᵀ) y‖/√p of every row (all cells observed; eq. 9)."""
+        proj = scipy.linalg.solve(self.qtq, self.qty, assume_a="pos")
+        return np.sqrt(np.maximum(self.yy - np.einsum("kj,kj->j", self.qty, proj), 0.0) / self.model.p)
+
+
+def row_statistics(
+    store_path: BrdfStore | str | os.PathLike[str],
+    model_path: Model | str | os.PathLike[str],
+    materials: Sequence[str],
+    columns: ArrayLike,
+    *,
+    database: str | None = None,
+) -> RowStatistics:
+    """One streamed pass over Q and the rows of ``materials``: :class:`RowStatistics`, keeping ``columns``.
+
+    ``database`` None: the store must be of the model's database and the
+    materials held out (not training materials of the model), as in
+    :func:`evaluate`; a label: the store must be of that database (materials
+    from outside the training database, which the model has never seen),
+    named in any error.  Either way every model column must be a cell
+    measured in every material of the store.
+    """
+    mdl = _as_model(model_path)
+    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    if database is None:
+        if st.database != mdl.database:
+            raise ValueError(f"{st.path} is database {st.database!r}, the model {mdl.path} {mdl.database!r}")
+        names = _test_materials(st, mdl.train_materials, materials)
+    else:
+        if st.database != database:
+            raise ValueError(f"{st.path} is database {st.database!r}, expected {database!r}")
+        names = list(materials)
+    _check_columns(st, mdl)
+    rows = _material_rows(st, names, "materials")
+    cols = np.asarray(columns, dtype=np.intp).ravel()
+    if cols.size and (cols.min() < 0 or cols.max() >= mdl.p):
+        raise ValueError(f"columns must lie in [0, {mdl.p}) (model columns of {mdl.path})")
+    keep = _Gathered(cols)
+    reader = _StoreColumns(st, rows, mdl.cells)
+    m = 3 * len(names)
+
+    def residuals() -> Iterator[tuple[int, int, NDArray[np.float32], NDArray[np.float64]]]:
+        for a, b in _q_chunks(mdl):
+            rho = reader.get(a, b).reshape(m, b - a)
+            y = logmap.forward(rho, mdl.reference[a:b], mdl.weight[a:b], mdl.epsilon)
+            yield a, b, np.asarray(mdl.Q[a:b], dtype=np.float32), y - mdl.mean[a:b]
+
+    qtq, qty, yy, q_obs, y_obs = _gram_pass(mdl, keep, residuals(), m, f"row statistics of {st.path.name}")
+    return RowStatistics(mdl, st.database, tuple(names), qtq, qty, yy, keep.cols, q_obs, y_obs)
 
 
 # ==========================================================================

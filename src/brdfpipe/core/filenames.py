@@ -42,6 +42,15 @@ __all__ = [
     "closedloop_image",
     "closedloop_observations",
     "closedloop_errors",
+    "UNSEEN_STEM",
+    "MANIFOLD_UNSEEN_STEM",
+    "unseen_tables",
+    "unseen_binary",
+    "unseen_store",
+    "unseen_albedo",
+    "unseen_observations",
+    "unseen_errors",
+    "unseen_manifold",
     "gram",
     "gplvm_model",
     "gplvm_trace",
@@ -234,6 +243,49 @@ def closedloop_observations(material: str, setup: str, fov: float | str, metric:
 def closedloop_errors() -> str:
     """Table-lookup and closed-loop errors of the held-out materials (the columns of errors.csv)."""
     return f"{RESULTS}/evaluation/closedloop.csv"
+
+
+# -- materials outside the training database (config unseen) ----------------
+
+#: The unseen materials' acquisition errors next to the held-out ones (Xu Figs. 5/6 layout).
+UNSEEN_STEM = "unseen-vs-heldout"
+#: The unseen materials on the q = 2 latent map and their reproduction by the GPLVM and PCA.
+MANIFOLD_UNSEEN_STEM = "manifold-unseen"
+
+
+def unseen_tables(database: str) -> str:
+    """Folder of an unseen database's fit-made MERL files (``<material>.binary``; rule evaluate_unseen_fits)."""
+    return f"{RESULTS}/unseen/{database}"
+
+
+def unseen_binary(database: str, material: str) -> str:
+    """One fit-made MERL file of an unseen database (inside :func:`unseen_tables`)."""
+    return f"{unseen_tables(database)}/{material}.binary"
+
+
+def unseen_store(database: str) -> str:
+    """The store of an unseen database's materials (one store per database: a store has one label)."""
+    return f"{RESULTS}/unseen/{database}.zarr"
+
+
+def unseen_albedo(database: str) -> str:
+    """Directional albedo at normal incidence of every material of an unseen database (the radiometric check)."""
+    return f"{RESULTS}/unseen/{database}-albedo.csv"
+
+
+def unseen_observations(database: str) -> str:
+    """Every closed-loop observation table of an unseen database's materials (one NPZ per database)."""
+    return f"{RESULTS}/unseen/closedloop/{database}.npz"
+
+
+def unseen_errors() -> str:
+    """Acquisition errors of the unseen materials (the columns of errors.csv plus ``model_database``)."""
+    return f"{RESULTS}/evaluation/unseen.csv"
+
+
+def unseen_manifold() -> str:
+    """Latent positions of the unseen materials and their reproduction by the GPLVM and by PCA."""
+    return f"{RESULTS}/manifold/unseen.csv"
 
 
 # -- manifold track ---------------------------------------------------------
@@ -441,6 +493,12 @@ def _producers() -> list[tuple[str, str]]:
         (consistency(w), "check_directions"),
         (training_size(), "evaluate_training_size"),
         (closedloop_errors(), "evaluate_closedloop"),
+        (unseen_observations(w), "capture_unseen_closedloop"),
+        (unseen_errors(), "evaluate_unseen"),
+        (unseen_manifold(), "locate_unseen"),
+        (unseen_albedo(w), "evaluate_unseen_fits"),
+        (unseen_store(w), "evaluate_unseen_fits"),
+        (unseen_tables(w), "evaluate_unseen_fits"),
         (f"{RESULTS}/closedloop/{w}/{w}", "capture_closedloop"),
         (gram(w), "compute_gram"),
         (gplvm_model(w, w), "fit_gplvm"),

@@ -45,6 +45,10 @@ __all__ = [
     "floor_check_candidates",
     "closedloop_directions",
     "check_closed_loop",
+    "unseen_directions",
+    "unseen_figures",
+    "unseen_map_q",
+    "UNSEEN_RULES",
     "sensor_max_snr",
     "MEMORY_MB",
     "JOB_MEMORY_LIMIT_MB",
@@ -360,6 +364,37 @@ def closedloop_directions(config: Mapping[str, Any]) -> list[tuple[str, float, s
     return out
 
 
+def unseen_directions(acquisition: Mapping[str, Any]) -> list[str]:
+    """Direction sets the unseen materials are looked up with: the training split's point and near-field sets of the error metric.
+
+    ``[]`` when the config optimises neither (or not with the error metric).
+    """
+    if "error" not in acquisition["metrics"]:
+        return []
+    files = []
+    if "point" in acquisition["setups"]:
+        files.append(filenames.directions("train", "point", 0, "error"))
+    if "nearfield" in acquisition["setups"]:
+        files += [filenames.directions("train", "nearfield", fov, "error") for fov in acquisition["fovs"]]
+    return files
+
+
+def unseen_figures(*, unseen: bool, evaluated: bool) -> dict[str, list[str]]:
+    """The unseen materials' figures: ``acquisition`` (next to the held-out errors) when they are evaluated, ``manifold`` (latent map) when there are any."""
+    out: dict[str, list[str]] = {}
+    if unseen and evaluated:
+        out["acquisition"] = filenames.figure_files(filenames.UNSEEN_STEM)
+    if unseen:
+        out["manifold"] = filenames.figure_files(filenames.MANIFOLD_UNSEEN_STEM)
+    return out
+
+
+def unseen_map_q(manifold: Mapping[str, Any]) -> int:
+    """The latent dimension of the map the unseen materials are drawn on: 2 when fitted, else the smallest."""
+    dims = [int(q) for q in manifold["latent_dims"]]
+    return 2 if 2 in dims else min(dims)
+
+
 def check_closed_loop(config: Mapping[str, Any]) -> None:
     """The closed loop captures only direction sets the acquisition optimises; ConfigError naming the key."""
     cl = config["closed_loop"]
@@ -520,6 +555,13 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "capture_closedloop": (250.0, 0.0),  # 231-251 MB measured (default config, 33 × 33 images)
     "evaluate_closedloop": (900.0, 0.0),  # 1,135 MB measured: 10 held-out materials × 8 sets (default config)
     "plot_closedloop": (157.0, 0.0),  # as plot_acquisition_figures
+    # materials outside the training database (config unseen); see SIZE_MEMORY_MB for their number
+    "evaluate_unseen_fits": (480.0, 0.0),  # as evaluate_fits (same library call, up to 4 threads)
+    "capture_unseen_closedloop": (250.0, 0.0),  # as capture_closedloop, plus every material's tables
+    "evaluate_unseen": (280.0, 3.5),  # as evaluate_directions: one streamed pass per unseen database
+    "locate_unseen": (276.0, 3.93),  # as compute_gram: one streamed pass over the store
+    "plot_unseen_errors": (157.0, 0.0),  # as plot_acquisition_figures
+    "plot_unseen_latent": (204.0, 0.0),  # as plot_manifold_figures
     # manifold track
     "compute_gram": (276.0, 3.93),
     "fit_gplvm": (95.0, 0.0),
@@ -575,6 +617,7 @@ MEASURED_SIZES: dict[str, float] = {
     "q_plus": 5 + 4,
     "captured_lattice": (1 + 2) * 4 * 32 * 32,
     "test_materials": 10,
+    "unseen_materials": 59,
 }
 #: Path points whose tables the manifold analyses hold at once (brdfpipe.manifold.analysis: 24, and the end).
 PATH_CHUNK: int = 25
@@ -608,6 +651,11 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     # and geometry, 170 B per pixel); the evaluation holds every kept pixel's model column and value per source
     "capture_closedloop": (("lattice", (), 8.6e-3), ("captured_lattice", (), 1.7e-4)),
     "evaluate_closedloop": (("captured_lattice", ("test_materials",), 6.4e-5),),
+    # the unseen materials: every observation table of a database in one job (~200 B per lattice pixel and
+    # material); the streamed passes hold the unseen rows of a block (1.7 MB per material) and the cross products
+    "capture_unseen_closedloop": (("captured_lattice", ("unseen_materials",), 2.0e-4),),
+    "evaluate_unseen": (("unseen_materials", (), 2.0),),
+    "locate_unseen": (("unseen_materials", (), 2.0),),
     "analyze_manifold": (("path_chunk", (), 88.0), ("albedo_points", ("materials", "q_plus"), 1.2e-5)),
     "measure_gplvm_candidate": (("path_chunk", (), 88.0), ("albedo_points", ("materials", "q_plus"), 1.2e-5)),
 }
@@ -622,6 +670,7 @@ SIZE_KEYS: dict[str, str] = {
     "q_plus": "manifold.latent_dims",
     "captured_lattice": "acquisition.grid",
     "test_materials": "test_materials",
+    "unseen_materials": "unseen.materials",
 }
 
 #: Rules whose jobs render or read the noise-floor check's scene (render.floor_check.resolution).
@@ -632,11 +681,11 @@ FLOOR_RULES: frozenset[str] = frozenset({
 
 
 def job_sizes(
-    config: Mapping[str, Any], *, resolution: Sequence[int] | None = None, n_test: int = 10
+    config: Mapping[str, Any], *, resolution: Sequence[int] | None = None, n_test: int = 10, n_unseen: int = 0
 ) -> dict[str, float]:
     """The sizes of :data:`MEASURED_SIZES` in ``config`` (``resolution``: the scene's, default ``render.resolution``).
 
-    ``n_test``: the number of held-out materials.
+    ``n_test``: the number of held-out materials; ``n_unseen``: of unseen materials (config ``unseen``).
     """
     acq, man, render = config["acquisition"], config["manifold"], config["render"]
     w, h = resolution if resolution is not None else render["resolution"]
@@ -652,6 +701,7 @@ def job_sizes(
         "captured_lattice": float(sum(int(n) for n in config["closed_loop"]["n_images"])
                                   * max(1, len(closedloop_directions(config))) * lattice),
         "test_materials": float(n_test),
+        "unseen_materials": float(n_unseen),
     }
 
 
@@ -694,15 +744,28 @@ def mem_mb(
     return max(100, int(math.ceil(need / 50.0)) * 50)
 
 
+#: The rules of the materials outside the training database (config ``unseen``).
+UNSEEN_RULES: tuple[str, ...] = ("evaluate_unseen_fits", "capture_unseen_closedloop", "evaluate_unseen",
+                                 "locate_unseen", "plot_unseen_errors", "plot_unseen_latent")
+
+
 def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bool, floor_check: bool,
-                  fits: bool = False) -> list[str]:
+                  fits: bool = False, unseen: bool = False) -> list[str]:
     """The rules of :data:`MEMORY_MB` whose jobs ``config`` plans (for :func:`check_memory`).
 
     ``generated``: the run generates the synthetic database; ``fits``: it
     evaluates a database of fits (rule ``evaluate_fits`` instead of
-    ``ingest_material``).
+    ``ingest_material``); ``unseen``: it has materials outside its database
+    (config ``unseen``).
     """
     skip: set[str] = set()
+    if not unseen:
+        skip |= set(UNSEEN_RULES)
+    else:
+        if not closedloop_directions(config):
+            skip.add("capture_unseen_closedloop")
+        if not (closedloop_directions(config) or unseen_directions(config["acquisition"])):
+            skip |= {"evaluate_unseen", "plot_unseen_errors"}
     if not generated:
         skip |= {"synthesize_material", "write_manifest"}
     skip.add("ingest_material" if fits else "evaluate_fits")
@@ -746,6 +809,7 @@ def check_memory(
     floor_resolution: Sequence[int] | None = None,
     materials_key: str = "materials",
     n_test: int = 10,
+    n_unseen: int = 0,
     limit_mb: int = JOB_MEMORY_LIMIT_MB,
 ) -> None:
     """Refuse a configuration one of whose jobs would declare more than ``limit_mb`` (:data:`JOB_MEMORY_LIMIT_MB`).
@@ -769,7 +833,7 @@ def check_memory(
         else:  # prerender_material renders both scene folders
             scenes = [None, floor_resolution] if rule == "prerender_material" else [None]
         for res in scenes:
-            sizes = job_sizes(config, resolution=res, n_test=n_test)
+            sizes = job_sizes(config, resolution=res, n_test=n_test, n_unseen=n_unseen)
             n_out = int(outputs.get(rule, 1))
             jobs.append((mem_mb(rule, n_materials, outputs=n_out, sizes=sizes), rule, res, sizes, n_out))
     need, rule, res, sizes, n_out = max(jobs, key=lambda j: j[0])

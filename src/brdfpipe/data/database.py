@@ -49,6 +49,10 @@ __all__ = [
     "default_test_count",
     "select_materials",
     "resolve_test_materials",
+    "UNSEEN_DATABASES",
+    "UNSEEN_DEFAULT_FOR",
+    "DEFAULT_UNSEEN",
+    "unseen_databases",
     "write_splits",
 ]
 
@@ -398,6 +402,94 @@ def select_materials(db: Database, patterns: Sequence[str] | None, *, key: str =
         {n: f for n, f in db.fits.items() if n in keep},
         db.archive,
     )
+
+
+#: The databases whose materials the config's ``unseen`` may name: the shipped archives of fits.
+UNSEEN_DATABASES: tuple[str, ...] = tuple(n for n, d in databases.DATABASES.items() if d.source == "archive")
+#: The run databases that get :data:`DEFAULT_UNSEEN` when the config leaves ``unseen.databases`` unset (null):
+#: MERL's, whose model has seen none of the RGL and Nielsen materials.
+UNSEEN_DEFAULT_FOR: tuple[str, ...] = ("merl-nbrdf", "merl")
+#: The default materials outside MERL: RGL's spectralon (the radiometric check, albedo ≈ 0.96 at normal
+#: incidence), a white paper, a felt, a metallic and a satin paint, and three of Nielsen et al.'s.
+DEFAULT_UNSEEN: dict[str, tuple[str, ...]] = {
+    "rgl-nbrdf": ("spectralon-rgb", "paper-white-rgb", "acrylic-felt-green-rgb", "ilm-l3-37-metallic-rgb",
+                  "satin-gold-rgb"),
+    "nielsen-nbrdf": ("glossyredpaper", "paintedmetal", "greencloth"),
+}
+
+
+def unseen_databases(config: Mapping[str, Any], run: Database, results: str = "results") -> dict[str, Database]:
+    """The materials outside the run's database that the config's ``unseen`` names: database label → its fits.
+
+    ``unseen.databases`` lists shipped databases of fits
+    (:data:`UNSEEN_DATABASES`); ``unseen.materials`` (names or shell-style
+    patterns, None = all) picks among their materials.  Both unset (None):
+    :data:`DEFAULT_UNSEEN` for a run on MERL's materials
+    (:data:`UNSEEN_DEFAULT_FOR`), none otherwise.  Each database is a
+    :class:`Database` of fits whose tables go to ``results/unseen/<database>``;
+    a database none of whose materials is picked is left out.  Returned in
+    the order of ``unseen.databases``; empty when the list is empty (off).
+
+    Raises :class:`DatabaseError` naming the key for: an unknown or
+    non-shipped database, the run's own database (its materials are not
+    unseen), ``unseen.materials`` without ``unseen.databases``, a pattern
+    that matches no material of them, a material of the run's database
+    (the model has seen it) or a material name in two unseen databases.
+    """
+    spec = config.get("unseen") or {}
+    names = spec.get("databases")
+    patterns = spec.get("materials")
+    if names is None:
+        if patterns is not None:
+            raise DatabaseError("unseen.materials is set but unseen.databases is not: name the databases the "
+                                f"materials come from ({', '.join(UNSEEN_DATABASES)})")
+        if run.kind not in UNSEEN_DEFAULT_FOR:
+            return {}
+        names = list(DEFAULT_UNSEEN)
+        patterns = [m for ms in DEFAULT_UNSEEN.values() for m in ms]
+    names = list(names)
+    if not names:
+        if patterns:
+            raise DatabaseError("unseen.materials is set but unseen.databases is empty: name the databases the "
+                                f"materials come from ({', '.join(UNSEEN_DATABASES)})")
+        return {}
+    for name in names:
+        if name not in UNSEEN_DATABASES:
+            raise DatabaseError(f"unseen.databases: {name!r} is not a shipped database of fits; one of "
+                                f"{', '.join(UNSEEN_DATABASES)}")
+        if name == run.kind:
+            raise DatabaseError(f"unseen.databases: {name} is the run's own database (database: {run.kind}); its "
+                                "materials are not unseen: drop it from unseen.databases")
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise DatabaseError(f"unseen.databases: listed more than once: {', '.join(dupes)}")
+    found = {n: fits_database(n, databases.shipped_archive(n), f"{results}/unseen/{n}", key="unseen.databases")
+             for n in names}
+    if patterns is not None:
+        import fnmatch
+
+        every = sorted({m for db in found.values() for m in db.sources})
+        unmatched = [p for p in patterns if not fnmatch.filter(every, p)]
+        if unmatched:
+            raise DatabaseError(
+                f"unseen.materials: {', '.join(repr(p) for p in unmatched)} match(es) no material of "
+                f"{', '.join(names)} ({len(every)} materials: {', '.join(every[:8])}{' …' if len(every) > 8 else ''})"
+            )
+        found = {n: select_materials(db, [m for m in db.materials if any(fnmatch.fnmatch(m, p) for p in patterns)]
+                                     or [], key="unseen.materials")
+                 for n, db in found.items()}
+        found = {n: db for n, db in found.items() if db.sources}
+    seen_in: dict[str, str] = {}
+    for n, db in found.items():
+        for m in db.materials:
+            if m in run.sources:
+                raise DatabaseError(f"unseen.materials: {m} ({n}) is also a material of the run's {run.kind} "
+                                    "database, so the model has seen it; leave it out of unseen.materials")
+            if m in seen_in:
+                raise DatabaseError(f"unseen.materials: {m} is a material of both {seen_in[m]} and {n}; pick it "
+                                    "from one of them with unseen.materials")
+            seen_in[m] = n
+    return found
 
 
 def resolve_test_materials(requested: Sequence[str] | None, db: Database) -> list[str]:

@@ -49,7 +49,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import atomic
+from brdfpipe.core import atomic, integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import databases, merl, provenance
 
@@ -69,6 +69,9 @@ __all__ = [
     "write_fit",
     "write_fits",
     "evaluate_to_files",
+    "ALBEDO_COLUMNS",
+    "albedo_rows",
+    "evaluate_to_store",
 ]
 
 #: Layer widths of the published fits: input, hidden, hidden, output.
@@ -480,4 +483,84 @@ def evaluate_to_files(
         clamped = dict(pool.map(one, range(len(materials))))
     logger.info("%d %s fits evaluated on the MERL grid in %.1f s (%d threads); %d values clamped at 0",
                 len(materials), database, time.perf_counter() - t0, threads, sum(clamped.values()))
+    return clamped
+
+
+#: Columns of an unseen database's albedo CSV (:func:`evaluate_to_store`).
+ALBEDO_COLUMNS: Final = ("database", "material", "theta_i_deg", "r", "g", "b", "luminance")
+_LUMA: Final = (0.2126, 0.7152, 0.0722)
+
+
+def albedo_rows(binaries: Mapping[str, str | os.PathLike[str]], database: str,
+                theta_i_deg: float = 0.0) -> list[dict[str, Any]]:
+    """Directional albedo ``∫ ρ cos θo dωo`` at incidence ``theta_i_deg`` of each table (:data:`ALBEDO_COLUMNS`).
+
+    ``binaries`` maps material → MERL file; computed with
+    :func:`brdfpipe.data.merl.directional_albedo` (MERL's θh grid, 360 φh
+    steps).  A radiometric check of fit-made tables: a near-white diffuse
+    reference (RGL's spectralon) should reflect nearly all the light at
+    normal incidence.
+    """
+    out = []
+    for material, path in binaries.items():
+        a = merl.directional_albedo(merl.read_merl(path), np.radians([float(theta_i_deg)]))[0]
+        out.append({"database": database, "material": material, "theta_i_deg": float(theta_i_deg),
+                    "r": float(a[0]), "g": float(a[1]), "b": float(a[2]),
+                    "luminance": float(np.dot(a, _LUMA))})
+    return out
+
+
+def _csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> str:
+    import csv
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for r in rows:
+        w.writerow([repr(v) if isinstance(v, float) else str(v) for v in (r[c] for c in columns)])
+    return buf.getvalue()
+
+
+def evaluate_to_store(
+    *,
+    archive: str | os.PathLike[str],
+    fits: Mapping[str, str],
+    binaries: Sequence[str | os.PathLike[str]],
+    store_out: str | os.PathLike[str],
+    albedo_out: str | os.PathLike[str],
+    database: str,
+    threads: int = 1,
+) -> dict[str, int]:
+    """The fits of a database outside the run's (config ``unseen``): MERL files, a store of their own, albedos.
+
+    The workflow's ``evaluate_unseen_fits`` job, one per unseen database:
+    every fit of ``fits`` (material → fit name, in the order of
+    ``binaries``) evaluated on the MERL grid and written as a marked MERL
+    file (:func:`evaluate_to_files`, which refuses weights of another
+    database than ``database``), ingested into private row stores and
+    assembled into the store ``store_out`` (label ``database``: a store has
+    one label, so each unseen database has its own), and the directional
+    albedo of each table at normal incidence written to ``albedo_out``
+    (:func:`albedo_rows`; CSV, :data:`ALBEDO_COLUMNS`).  Returns the clamped
+    count per material.
+    """
+    from brdfpipe.data import store
+
+    store_out = Path(store_out)
+    atomic.check_replaceable(store_out, replaceable=store.is_store)
+    store_out.parent.mkdir(parents=True, exist_ok=True)
+    atomic.clean_stale_siblings(store_out)
+    work = atomic.tmp_sibling(store_out, "rows")
+    work.mkdir()
+    try:
+        rows = [work / f"{i:04d}.zarr" for i in range(len(binaries))]
+        clamped = evaluate_to_files(archive=archive, fits=fits, binaries=binaries, rows=rows, database=database,
+                                    threads=threads)
+        store.assemble_store(rows, store_out, database=database, threads=max(1, int(threads)), link=True)
+    finally:
+        atomic.remove_tree(work)
+    rows_a = albedo_rows(dict(zip(fits, binaries)), database)
+    integrity.write_csv(albedo_out, _csv_text(ALBEDO_COLUMNS, rows_a))
+    logger.info("%d %s tables -> %s; directional albedo at normal incidence -> %s", len(binaries), database,
+                store_out, albedo_out)
     return clamped

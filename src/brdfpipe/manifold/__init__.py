@@ -11,5 +11,6 @@ faithful it is per data space, and the track's figures.  Imports
 * :mod:`brdfpipe.manifold.albedo`     – the white-sky albedo of materials (§4.2);
 * :mod:`brdfpipe.manifold.analysis`   – analyses of a fitted manifold (§4, Figs. 7–10);
 * :mod:`brdfpipe.manifold.derivation` – the provenance marks of the materials it blends;
+* :mod:`brdfpipe.manifold.unseen`     – materials outside the training set: latent position x*, reproduction;
 * :mod:`brdfpipe.manifold.figures`    – the Soler et al. 2018 figure analogues.
 """

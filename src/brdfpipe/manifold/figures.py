@@ -81,6 +81,10 @@ __all__ = [
     "SpacesTable",
     "read_spaces",
     "manifold_spaces",
+    "UNSEEN_COLUMNS",
+    "UnseenTable",
+    "read_unseen",
+    "manifold_unseen",
 ]
 
 logger = logging.getLogger("brdfpipe.manifold.figures")
@@ -1421,3 +1425,134 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
     if "spaces" in stems and inp.spaces is not None:
         results.append(manifold_spaces(inp.spaces, stems["spaces"]))
     return [p for r in results for p in r.files]
+
+
+# ---------------------------------------------------------------------------
+# Materials outside the training set (config unseen)
+# ---------------------------------------------------------------------------
+
+#: Columns of the manifold's ``unseen.csv`` (:mod:`brdfpipe.manifold.unseen`).
+UNSEEN_COLUMNS: tuple[str, ...] = ("database", "model_database", "space", "material", "method", "k",
+                                   "relative_error", "log_likelihood", "nearest", "latent")
+_UNSEEN_COLOURS = ("#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
+
+
+@dataclass(frozen=True)
+class UnseenTable:
+    """The manifold's ``unseen.csv``: per (database, material, method, k) the error and, for the GPLVM, x*."""
+
+    path: Path
+    model_database: str
+    space: str
+    errors: dict[tuple[str, str, str, int], float]
+    latent: dict[tuple[str, str, str, int], tuple[float, ...]]
+
+    def databases(self) -> list[str]:
+        return sorted({k[0] for k in self.errors})
+
+
+def read_unseen(path: str | os.PathLike[str]) -> UnseenTable:
+    """Read and check the manifold's ``unseen.csv`` (:class:`FigureInputError` naming the file)."""
+    p, rows = read_csv(path, UNSEEN_COLUMNS)
+    model_db = single_database(p, (r["model_database"] for r in rows))
+    space = single_database(p, (r["space"] for r in rows))
+    errors: dict[tuple[str, str, str, int], float] = {}
+    latent: dict[tuple[str, str, str, int], tuple[float, ...]] = {}
+    for r in rows:
+        i = int(r["__line__"])
+        if not r["database"] or r["database"] == model_db:
+            raise FigureInputError(f"{p}: line {i}: database {r['database']!r} is not outside the model's {model_db}")
+        key = (r["database"], r["material"], r["method"], int(_finite(p, i, "k", r["k"])))
+        if key in errors:
+            raise FigureInputError(f"{p}: line {i}: duplicate row for {key}")
+        errors[key] = _finite(p, i, "relative_error", r["relative_error"])
+        if r["latent"]:
+            latent[key] = tuple(_finite(p, i, "latent", t) for t in r["latent"].split())
+    return UnseenTable(p, model_db, space, errors, latent)
+
+
+def manifold_unseen(model_path: str | os.PathLike[str], q: int, unseen_csv: str | os.PathLike[str],
+                    files: Sequence[str | os.PathLike[str]]) -> FigureOutput:
+    """The unseen materials on the latent map of the q model, and their reproduction by the GPLVM and PCA.
+
+    Left: the training materials' latent points (grey) and each unseen
+    material's x* by the GP likelihood (filled, named) and by least squares
+    (open), joined, coloured by database (q = 2: the plane; q > 2: dims 0, 1;
+    q = 1: dim 0 against the material index).  Right: relative reproduction
+    error of each unseen material by b(x*) (both ways, each q) and by the
+    projection on k principal components of the same training materials.
+    """
+    stem = figure_stem(files)
+    model = _read_model(model_path, q)
+    table = read_unseen(unseen_csv)
+    warn = Warnings("manifold-unseen")
+    X = np.asarray(model.X, dtype=np.float64)
+    if q < 2:
+        warn(f"the q = {q} model has one latent dimension: drawn against the material index")
+    dbs = table.databases()
+    colours = {db: _UNSEEN_COLOURS[i % len(_UNSEEN_COLOURS)] for i, db in enumerate(dbs)}
+
+    def plane(x: Sequence[float], index: float) -> tuple[float, float]:
+        return (x[0], x[1]) if q >= 2 else (x[0], index)
+
+    with style():
+        fig = new_figure(13.0, 6.2)
+        left, right = fig.subplots(1, 2, width_ratios=[1.25, 1.0])
+        P = np.array([plane(x, i) for i, x in enumerate(X)])
+        left.scatter(P[:, 0], P[:, 1], s=10, color="#b0b0b0", label=f"training materials ({table.model_database})",
+                     zorder=1)
+        drawn = 0
+        for db in dbs:
+            mats = sorted({k[1] for k in table.latent if k[0] == db and k[3] == q})
+            for j, mat in enumerate(mats):
+                gp = table.latent.get((db, mat, "gplvm-likelihood", q))
+                ls = table.latent.get((db, mat, "gplvm-least-squares", q))
+                idx = len(X) + j
+                if gp is not None and ls is not None:
+                    a, b = plane(gp, idx), plane(ls, idx)
+                    left.plot([a[0], b[0]], [a[1], b[1]], color=colours[db], lw=0.6, alpha=0.6, zorder=2)
+                if ls is not None:
+                    b = plane(ls, idx)
+                    left.scatter([b[0]], [b[1]], s=22, facecolors="none", edgecolors=colours[db], zorder=3)
+                if gp is not None:
+                    a = plane(gp, idx)
+                    left.scatter([a[0]], [a[1]], s=22, color=colours[db], zorder=4)
+                    left.annotate(mat, a, fontsize=LATENT_LABEL_SIZE, color=colours[db], xytext=(3, 2),
+                                  textcoords="offset points")
+                    drawn += 1
+            left.scatter([], [], s=22, color=colours[db], label=f"{db}: x* by likelihood (named)")
+            left.scatter([], [], s=22, facecolors="none", edgecolors=colours[db], label=f"{db}: x* by least squares")
+        if not drawn:
+            warn(f"no unseen latent position for q = {q}")
+        left.set_xlabel("latent dim 0")
+        left.set_ylabel("latent dim 1" if q >= 2 else "material index")
+        left.set_title(f"latent map, q = {q}, {len(X)} training materials")
+        left.legend(loc="best", fontsize=6)
+        methods = sorted({(k[2], k[3]) for k in table.errors},
+                         key=lambda mk: (mk[0] != "pca", mk[1], mk[0]))
+        labels = [("PCA" if m == "pca" else "GPLVM, " + m.removeprefix("gplvm-")) + f", k = {k}" for m, k in methods]
+        allv: list[float] = []
+        for xi, (m, k) in enumerate(methods):
+            for off, db in enumerate(dbs):
+                vals = [v for key, v in sorted(table.errors.items()) if key[0] == db and key[2] == m and key[3] == k]
+                if not vals:
+                    continue
+                xs = xi + (off - (len(dbs) - 1) / 2) * 0.18 + np.zeros(len(vals))
+                right.scatter(xs, vals, s=10, color=colours[db], alpha=0.7, label=db if xi == 0 else None)
+                right.plot([xi - 0.3, xi + 0.3], [float(np.median(vals))] * 2, color=colours[db], lw=1.5)
+                allv += vals
+        right.set_xticks(np.arange(len(methods)), labels, rotation=35, ha="right", fontsize=7)
+        right.set_ylabel(f"relative reproduction error ({table.space} space)")
+        right.set_title("reproduction of each unseen material (bar: median)")
+        if allv and min(allv) > 0 and max(allv) / min(allv) > 8:
+            right.set_yscale("log")
+        if allv:
+            right.legend(loc="best", fontsize=7)
+        else:
+            no_data(right, "no reproduction rows")
+        title = (f"Materials outside the training set on the GPLVM manifold "
+                 f"(model: {database_label(table.model_database)})")
+        subtitle = (f"Soler 2018 Fig. 10 / Fig. 8 analogue for unseen materials ({'; '.join(database_label(d) for d in dbs)}); "
+                    "x* maximises the "
+                    f"GP likelihood of the material or minimises ‖z − Σ bᵢ(x) zᵢ‖ in the {table.space} space")
+        return finish(fig, stem, title, subtitle, table.model_database, warn)

@@ -236,6 +236,8 @@ __all__ = [
     "FitResult",
     "GplvmModel",
     "gram_matrix",
+    "CrossGram",
+    "cross_gram",
     "save_gram",
     "load_gram",
     "kernel_matrix",
@@ -456,6 +458,114 @@ def gram_matrix(
     d = 3 * int(cells.size)
     Gc = centre_gram(G)
     return Gc, d, GramInfo(tuple(names), space, s, G, digests=tuple(int(st.digests[i]) for i in idx))
+
+
+@dataclass(frozen=True)
+class CrossGram:
+    """Materials outside a store in its data space: their products with the store's materials (:func:`cross_gram`).
+
+    ``materials``: the store's materials (rows of ``gram``), ``others``:
+    ``(database, material)`` of each outside material (columns of
+    ``cross``).  With ``Z`` the store's mapped rows, ``μ̄`` their column
+    mean and ``o_j`` an outside material mapped the same way: ``gram`` =
+    ``(Z − 1μ̄ᵀ)(Z − 1μ̄ᵀ)ᵀ`` (as :func:`gram_matrix`), ``cross[:, j]`` =
+    ``(Z − 1μ̄ᵀ)(o_j − μ̄)``, ``norms2[j]`` = ``‖o_j − μ̄‖²`` and
+    ``raw_norms2[j]`` = ``‖o_j‖²``; ``d`` = 3 × cells.
+    """
+
+    materials: tuple[str, ...]
+    others: tuple[tuple[str, str], ...]
+    space: str
+    gram: NDArray[np.float64] = field(repr=False)
+    cross: NDArray[np.float64] = field(repr=False)
+    norms2: NDArray[np.float64] = field(repr=False)
+    raw_norms2: NDArray[np.float64] = field(repr=False)
+    d: int
+
+
+def cross_gram(
+    store_path: str | os.PathLike[str] | BrdfStore,
+    others: Sequence[str | os.PathLike[str] | BrdfStore],
+    *,
+    space: str = "raw",
+    materials: Sequence[str] | None = None,
+) -> CrossGram:
+    """The store's centred Gram matrix and its products with every material of ``others`` (:class:`CrossGram`).
+
+    One streamed pass over the store's rows (``materials``, default all, in
+    that order) and the rows of every store of ``others`` (all of theirs),
+    cell block by cell block.  Each outside material is mapped to ``space``
+    with the *store's* maps — ρ_ref (median of ``materials``) for ``log`` and
+    ``relative``, σ of each cell and channel over ``materials`` for
+    ``standardised`` — and centred by the store's mean, so that it lies in
+    the data space the GPLVM of those materials was fitted in; the Gram
+    matrix is computed exactly as :func:`gram_matrix` does (the caller can
+    compare it with the one a model was fitted to).  ValueError for a cell
+    valid in every material of the store that is not measured in an outside
+    material (naming that store), or bad material names.
+    """
+    _check_space(space)
+    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
+    outs = [o if isinstance(o, BrdfStore) else open_store(o) for o in others]
+    idx = _select(st, materials)
+    names = [st.materials[i] for i in idx]
+    order = np.argsort(idx, kind="stable")
+    rows = idx[order]
+    cells = np.flatnonzero(np.asarray(st.valid[:], dtype=bool)).astype(np.int64)
+    if cells.size == 0:
+        raise ValueError(f"{st.path}: no cell is valid in every material")
+    for o in outs:
+        missing = int((~np.asarray(o.valid[:], dtype=bool)[cells]).sum())
+        if missing:
+            raise ValueError(f"{o.path}: {missing} cell(s) valid in every material of {st.path} are not measured in "
+                             f"every material of {o.path}; its materials cannot be mapped to that data space")
+    a_all, b_all = _space_maps(st, names, cells, space)
+    n = rows.size
+    m_each = [o.n_materials for o in outs]
+    m = sum(m_each)
+    G = np.zeros((n, n))
+    C = np.zeros((n, m))
+    norms2 = np.zeros(m)
+    raw2 = np.zeros(m)
+    blocks = [iter_cell_blocks(o, np.arange(o.n_materials, dtype=np.intp), cells) for o in outs]
+    for j0, j1, data in iter_cell_blocks(st, rows, cells):
+        other = []
+        for o, it in zip(outs, blocks):
+            k0, k1, od = next(it)
+            if (k0, k1) != (j0, j1):
+                raise AssertionError(f"{o.path}: cell blocks out of step")
+            other.append(od)
+        od_all = np.concatenate(other, axis=0) if other else np.zeros((0, 3, j1 - j0), dtype=np.float32)
+        for a0 in range(0, j1 - j0, _SUB_COLS):
+            a1 = min(a0 + _SUB_COLS, j1 - j0)
+            sa = None if a_all is None else a_all[j0 + a0 : j0 + a1]
+            sb = None if b_all is None else b_all[j0 + a0 : j0 + a1]
+            train = data[:, :, a0:a1]
+            B = _map_block(train, space, sa, sb)
+            O = od_all[:, :, a0:a1].astype(np.float64)
+            if space in ("cosine", "relative"):
+                assert sa is not None
+                O *= sa
+            elif space == "standardised":
+                assert sa is not None
+                O *= sa / np.maximum(train.astype(np.float64).std(axis=0), STANDARDISED_FLOOR)
+            elif space == "log":
+                assert sa is not None and sb is not None
+                O = logmap.forward(O, sa, sb)
+            B = B.reshape(n, -1)
+            O = O.reshape(m, -1)
+            G += B @ B.T
+            mean = B.mean(axis=0)
+            Oc = O - mean
+            C += (B - mean) @ Oc.T
+            norms2 += np.einsum("ij,ij->i", Oc, Oc)
+            raw2 += np.einsum("ij,ij->i", O, O)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(n)
+    G = G[np.ix_(inv, inv)]
+    C = C[inv]
+    others_names = tuple((o.database, name) for o in outs for name in o.materials)
+    return CrossGram(tuple(names), others_names, space, centre_gram(G), C, norms2, raw2, 3 * int(cells.size))
 
 
 def centre_gram(G: ArrayLike) -> NDArray[np.float64]:

@@ -57,7 +57,7 @@ import logging
 import math
 import os
 import zlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
@@ -78,6 +78,8 @@ __all__ = [
     "observations_from_image",
     "read_configurations",
     "capture_to_files",
+    "capture_materials_to_file",
+    "MANY_FORMAT",
     "output_layout",
     "OBSERVATION_KEYS",
 ]
@@ -439,6 +441,84 @@ def output_layout(n_directions: int, n_images: Sequence[int]) -> tuple[list[tupl
     return images, tables
 
 
+def _capture_material(
+    mat: Path,
+    name: str,
+    docs: Sequence[Mapping[str, Any]],
+    directions: Sequence[str | os.PathLike[str]],
+    n_images: Sequence[int],
+    *,
+    spp: int,
+    seed: int,
+    light_distance: float,
+    min_snr: float,
+    sens: Sensor,
+    on_image: Callable[[int, int, int, F64, F64, dict[str, str]], None] | None = None,
+) -> dict[tuple[int, int], dict[str, tuple[dict[str, NDArray[Any]], dict[str, int]]]]:
+    """Every set of size ``n_images`` of each directions file (``docs``: :func:`read_configurations`) of one material.
+
+    Returns per (d, n) and source (``noiseless``, ``sensor``) the merged
+    observation table (:data:`OBSERVATION_KEYS`) and its counts summed over
+    the images.  ``on_image(d, n, j, render, photograph, attrs)`` is called
+    for every image (the EXR writer of :func:`capture_to_files`).  A
+    configuration shared by two sets is rendered once (same seed: same
+    photograph).  Mitsuba's variant must be set and the ``merl`` plugin
+    registered.
+    """
+    cache: dict[tuple[Any, ...], tuple[F64, F64, F64, NDArray[np.bool_], PixelGeometry]] = {}
+    result: dict[tuple[int, int], dict[str, tuple[dict[str, NDArray[Any]], dict[str, int]]]] = {}
+    for d, (dpath, doc) in enumerate(zip(directions, docs)):
+        if doc["setup"] == "point":
+            raise ValueError(f"{dpath}: a point setup has no image to capture")
+        settings = CaptureSettings(fov_deg=doc["fov"], grid=doc["grid"], spp=spp, seed=seed,
+                                   light_distance=light_distance, min_snr=min_snr, sensor=sens)
+        for n in n_images:
+            if n not in doc["sets"]:
+                raise ValueError(f"{dpath}: no set of n = {n} images")
+            parts: dict[str, list[dict[str, F64]]] = {"noiseless": [], "sensor": []}
+            totals: dict[str, dict[str, int]] = {"noiseless": {}, "sensor": {}}
+            for j, (light, camera) in enumerate(doc["sets"][n]):
+                key = (doc["fov"], doc["grid"], tuple(np.round(light, 12)), tuple(np.round(camera, 12)))
+                if key not in cache:
+                    geom = pixel_geometry(settings, light, camera)
+                    img_seed = _image_seed(seed, name, light, camera)
+                    raw = render_capture(mat, settings, light, camera, seed=img_seed)
+                    inside = np.zeros(raw.shape[:2], dtype=bool)
+                    inside[geom.row[geom.inside], geom.col[geom.inside]] = True
+                    hdr, snr, sat = expose(raw, inside, sens, np.random.default_rng(img_seed))
+                    cache[key] = (raw, hdr, snr, sat, geom)
+                    logger.info("%s: rendered light %s camera %s (%d × %d, %d spp)", name,
+                                np.round(light, 4).tolist(), np.round(camera, 4).tolist(), raw.shape[0], raw.shape[1], spp)
+                raw, hdr, snr, sat, geom = cache[key]
+                if on_image is not None:
+                    attrs = {"material": name, "directions": str(dpath), "n": str(n), "image": str(j),
+                             "light": json.dumps(light.tolist()), "camera": json.dumps(camera.tolist()),
+                             "spp": str(spp), "light_distance": str(light_distance)}
+                    on_image(d, n, j, raw, hdr, attrs)
+                no_noise = (raw, np.full(raw.shape, np.inf), np.zeros(raw.shape, dtype=bool), 0.0)
+                for source, (im, sn, st, thr) in (("noiseless", no_noise), ("sensor", (hdr, snr, sat, min_snr))):
+                    table, counts = observations_from_image(im, sn, st, geom, thr)
+                    table["image"] = np.full(table["row"].shape, j, dtype=np.int64)
+                    parts[source].append(table)
+                    for k, v in counts.items():
+                        totals[source][k] = totals[source].get(k, 0) + v
+            result[(d, int(n))] = {
+                source: ({k: np.concatenate([p[k] for p in parts[source]]) for k in OBSERVATION_KEYS}, totals[source])
+                for source in ("noiseless", "sensor")
+            }
+            logger.info("%s: %s n = %d: sensor %s", name, Path(dpath).name, n, totals["sensor"])
+    return result
+
+
+def _start_mitsuba(variant: str, threads: int | None) -> None:
+    from brdfpipe.rendering import render
+
+    render.use_variant(variant)
+    if threads is not None:
+        render.set_cpu_threads(threads)
+    render.register_merl_bsdf()
+
+
 def capture_to_files(
     *,
     material: str | os.PathLike[str],
@@ -470,8 +550,6 @@ def capture_to_files(
     ``light_distance`` None (or inf): a distant light.  Returns the counts
     per (d, n).
     """
-    from brdfpipe.rendering import render
-
     light_distance = math.inf if light_distance is None else float(light_distance)
     image_keys, table_keys = output_layout(len(directions), n_images)
     if not len(renders) == len(photographs) == len(image_keys) or not len(noiseless) == len(observations) == len(table_keys):
@@ -483,54 +561,93 @@ def capture_to_files(
     if not mat.is_file():
         raise FileNotFoundError(f"{mat}: material file not found")
     sens = sensor if isinstance(sensor, Sensor) else Sensor(**dict(sensor))
-    render.use_variant(variant)
-    if threads is not None:
-        render.set_cpu_threads(threads)
-    render.register_merl_bsdf()
-    name = mat.stem
-    cache: dict[tuple[Any, ...], tuple[F64, F64, F64, NDArray[np.bool_], PixelGeometry]] = {}
+    _start_mitsuba(variant, threads)
+    docs = [read_configurations(p) for p in directions]
+
+    def write_images(d: int, n: int, j: int, raw: F64, hdr: F64, attrs: dict[str, str]) -> None:
+        raw_path, img_path = images[(d, n, j)]
+        write_exr(raw_path, raw, attrs={**attrs, "kind": "render"})
+        write_exr(img_path, hdr, attrs={**attrs, "kind": "sensor"})
+
+    captured = _capture_material(mat, mat.stem, docs, directions, n_images, spp=spp, seed=seed,
+                                 light_distance=light_distance, min_snr=min_snr, sens=sens, on_image=write_images)
     result: dict[tuple[int, int], dict[str, int]] = {}
-    for d, dpath in enumerate(directions):
-        doc = read_configurations(dpath)
-        if doc["setup"] == "point":
-            raise ValueError(f"{dpath}: a point setup has no image to capture")
-        settings = CaptureSettings(fov_deg=doc["fov"], grid=doc["grid"], spp=spp, seed=seed,
-                                   light_distance=light_distance, min_snr=min_snr, sensor=sens)
-        for n in n_images:
-            if n not in doc["sets"]:
-                raise ValueError(f"{dpath}: no set of n = {n} images")
-            parts: dict[str, list[dict[str, F64]]] = {"noiseless": [], "sensor": []}
-            totals: dict[str, dict[str, int]] = {"noiseless": {}, "sensor": {}}
-            for j, (light, camera) in enumerate(doc["sets"][n]):
-                key = (doc["fov"], doc["grid"], tuple(np.round(light, 12)), tuple(np.round(camera, 12)))
-                if key not in cache:
-                    geom = pixel_geometry(settings, light, camera)
-                    img_seed = _image_seed(seed, name, light, camera)
-                    raw = render_capture(mat, settings, light, camera, seed=img_seed)
-                    inside = np.zeros(raw.shape[:2], dtype=bool)
-                    inside[geom.row[geom.inside], geom.col[geom.inside]] = True
-                    hdr, snr, sat = expose(raw, inside, sens, np.random.default_rng(img_seed))
-                    cache[key] = (raw, hdr, snr, sat, geom)
-                    logger.info("%s: rendered light %s camera %s (%d × %d, %d spp)", name,
-                                np.round(light, 4).tolist(), np.round(camera, 4).tolist(), raw.shape[0], raw.shape[1], spp)
-                raw, hdr, snr, sat, geom = cache[key]
-                attrs = {"material": name, "directions": str(dpath), "n": str(n), "image": str(j),
-                         "light": json.dumps(light.tolist()), "camera": json.dumps(camera.tolist()),
-                         "spp": str(spp), "light_distance": str(light_distance)}
-                raw_path, img_path = images[(d, n, j)]
-                write_exr(raw_path, raw, attrs={**attrs, "kind": "render"})
-                write_exr(img_path, hdr, attrs={**attrs, "kind": "sensor"})
-                no_noise = (raw, np.full(raw.shape, np.inf), np.zeros(raw.shape, dtype=bool), 0.0)
-                for source, (im, sn, st, thr) in (("noiseless", no_noise), ("sensor", (hdr, snr, sat, min_snr))):
-                    table, counts = observations_from_image(im, sn, st, geom, thr)
-                    table["image"] = np.full(table["row"].shape, j, dtype=np.int64)
-                    parts[source].append(table)
-                    for k, v in counts.items():
-                        totals[source][k] = totals[source].get(k, 0) + v
-            for source, out in zip(("noiseless", "sensor"), tables[(d, n)]):
-                merged = {k: np.concatenate([p[k] for p in parts[source]]) for k in OBSERVATION_KEYS}
-                _write_npz(Path(out), merged, totals[source])
-            total = totals["sensor"]
-            logger.info("%s: %s n = %d: sensor %s", name, Path(dpath).name, n, total)
-            result[(d, n)] = total
+    for (d, n), by_source in captured.items():
+        for source, out in zip(("noiseless", "sensor"), tables[(d, n)]):
+            merged, totals = by_source[source]
+            _write_npz(Path(out), merged, totals)
+        result[(d, n)] = by_source["sensor"][1]
     return result
+
+
+#: Format of the one observations file of many materials (:func:`capture_materials_to_file`).
+MANY_FORMAT: Final = "brdfpipe.capture.observations-many/1"
+
+
+def capture_materials_to_file(
+    *,
+    materials: Mapping[str, str | os.PathLike[str]],
+    database: str,
+    directions: Sequence[str | os.PathLike[str]],
+    n_images: Sequence[int],
+    out: str | os.PathLike[str],
+    spp: int,
+    seed: int,
+    light_distance: float | None,
+    min_snr: float,
+    sensor: Sensor | Mapping[str, Any],
+    variant: str = "llvm_ad_rgb",
+    threads: int | None = None,
+) -> dict[tuple[str, int, int], dict[str, int]]:
+    """:func:`capture_to_files` for many materials in one process, every observation table in one NPZ.
+
+    The workflow's ``capture_unseen_closedloop`` job (one per database of
+    materials outside the training database): Mitsuba starts once, not once
+    per material (its start-up costs more than a capture).  ``materials``
+    maps each material to its MERL file (``database``: their label, recorded
+    in the file).  Same renders, seeds and observation tables as
+    :func:`capture_to_files` (no EXR is written).  ``out`` (NPZ, written
+    atomically) holds ``format`` (:data:`MANY_FORMAT`), ``database``,
+    ``index`` (JSON: one entry per table with ``material``, ``directions``
+    (file name), ``setup``, ``fov``, ``metric``, ``n``, ``source``
+    (``noiseless`` / ``sensor``) and ``counts``) and the arrays
+    ``<key>_<i>`` (:data:`OBSERVATION_KEYS`) of table i.  Returns the sensor
+    counts per (material, d, n).
+    """
+    light_distance = math.inf if light_distance is None else float(light_distance)
+    sens = sensor if isinstance(sensor, Sensor) else Sensor(**dict(sensor))
+    paths = {str(m): Path(p) for m, p in materials.items()}
+    missing = [str(p) for p in paths.values() if not p.is_file()]
+    if missing:
+        raise FileNotFoundError(f"{missing[0]}: material file not found")
+    docs = [read_configurations(p) for p in directions]
+    metrics = [_directions_metric(p) for p in directions]
+    _start_mitsuba(variant, threads)
+    index: list[dict[str, Any]] = []
+    arrays: dict[str, NDArray[Any]] = {}
+    result: dict[tuple[str, int, int], dict[str, int]] = {}
+    for name, mat in paths.items():
+        captured = _capture_material(mat, name, docs, directions, n_images, spp=spp, seed=seed,
+                                     light_distance=light_distance, min_snr=min_snr, sens=sens)
+        for (d, n), by_source in captured.items():
+            for source in ("noiseless", "sensor"):
+                merged, totals = by_source[source]
+                i = len(index)
+                index.append({"material": name, "directions": Path(directions[d]).name, "setup": docs[d]["setup"],
+                              "fov": docs[d]["fov"], "metric": metrics[d], "n": int(n), "source": source,
+                              "counts": {k: int(v) for k, v in totals.items()}})
+                for k in OBSERVATION_KEYS:
+                    arrays[f"{k}_{i}"] = merged[k]
+            result[(name, d, n)] = by_source["sensor"][1]
+    integrity.save_npz(out, {"format": np.array(MANY_FORMAT), "database": np.array(str(database)),
+                          "index": np.array(json.dumps(index, sort_keys=True)), **arrays})
+    logger.info("%d materials of %s captured: %d observation tables -> %s", len(paths), database, len(index), out)
+    return result
+
+
+def _directions_metric(path: str | os.PathLike[str]) -> str:
+    """The optimisation metric recorded in a directions file (its digest checked)."""
+    doc = integrity.read_json(path, kind="directions file")
+    if not isinstance(doc.get("metric"), str):
+        raise ValueError(f"{path}: not a directions file a capture can use (no metric)")
+    return str(doc["metric"])

@@ -53,6 +53,27 @@ DESCRIPTIONS: dict[str, str] = {
                            "table-lookup errors (kinds ``rms_log``, ``relrms_linear``), the closed-loop errors from "
                            "the noiseless render (``closedloop_noiseless_*``) and from the sensor "
                            "(``closedloop_*``), the observations used and the share of pixels masked.",
+    "xu-unseen": "Materials never seen by any model of the run (config ``unseen``: e.g. the RGL and Nielsen "
+                 "materials through their NBRDF fits), acquired with the model and direction sets trained on the "
+                 "run's database, next to its held-out materials. Left: mean RMS log error of point sampling (min "
+                 "E(S)) vs the number of samples, per unseen database (thin: each material; dotted: the floors with "
+                 "every cell observed). Then per set size (1, 2 images): near-field error vs field of view by table "
+                 "lookup (solid) and by the closed loop from rendered photographs (dashed).",
+    "xu-unseen-table": "``unseen.csv``: the columns of ``errors.csv`` plus ``model_database``: per unseen material "
+                       "(``database`` its own), channel and direction set the table-lookup error (``rms_log``), the "
+                       "closed loop's (``closedloop_noiseless_rms_log``, ``closedloop_rms_log``), the deviation "
+                       "floor and the observations used; means per database as material ``mean``.",
+    "unseen-albedo": "Directional albedo at normal incidence of each unseen material's fit-made table "
+                     "(``merl.directional_albedo``), a radiometric check of the tables: RGL's spectralon should "
+                     "reflect about 96 %.",
+    "soler-unseen": "Materials outside the training set on the default candidate's manifold: left, their latent "
+                    "position x* (filled: maximising the GP likelihood of the material given the fitted model; "
+                    "open: least squares of Σ bᵢ(x) zᵢ against it) among the training materials; right, the relative "
+                    "error of b(x*)'s reproduction of each, next to the projection on k principal components of the "
+                    "same training materials (k = each q and the configured PCA sizes).",
+    "soler-unseen-table": "``manifold/unseen.csv``: per unseen material and method (``gplvm-likelihood``, "
+                          "``gplvm-least-squares`` with k = q, ``pca`` with k) the relative reproduction error, the "
+                          "GP log-likelihood at x*, the nearest training material and x*.",
     "soler-fig05": "GPLVM log-likelihood over the optimiser's steps (start, L-BFGS, Newton, Hooke–Jeeves), default "
                    "candidate, each latent dimension q.",
     "soler-fig10_q2": "The 2-D latent space of the default candidate: every material at its latent point, "

@@ -52,6 +52,12 @@ __all__ = [
     "blend_vs_noise_floor",
     "closed_loop_vs_table",
     "CLOSED_LOOP_TOLERANCE",
+    "UNSEEN_CLAIM_PREFIX",
+    "is_unseen_claim",
+    "UNSEEN_FACTOR",
+    "SPECTRALON",
+    "unseen_vs_heldout",
+    "spectralon_albedo",
     "compute_claims",
     "write_claims",
     "read_claims",
@@ -113,6 +119,9 @@ class ClaimInputs:
     errormap_summary: str | os.PathLike[str] | None = None
     floor_check: str | os.PathLike[str] | None = None
     closedloop: str | os.PathLike[str] | None = None
+    #: ``evaluation/unseen.csv`` (materials outside the training database) and the unseen databases' albedo CSVs
+    unseen: str | os.PathLike[str] | None = None
+    unseen_albedo: Sequence[str | os.PathLike[str]] = ()
 
 
 # -- reading ------------------------------------------------------------------
@@ -634,6 +643,117 @@ def closed_loop_vs_table(path: str | os.PathLike[str]) -> Claim:
                  _database(p, rows), str(p), figs)
 
 
+#: Key prefix of the claims about materials outside the run's database (config ``unseen``): their ``database``
+#: column names those materials' database, not the run's (:func:`is_unseen_claim`).
+UNSEEN_CLAIM_PREFIX: str = "unseen-"
+
+
+def is_unseen_claim(key: str) -> bool:
+    """True for a claim about materials outside the run's database (its ``database`` is theirs, not the run's)."""
+    return str(key).startswith(UNSEEN_CLAIM_PREFIX)
+
+
+#: "The basis trained on one database reconstructs materials of another" read as: their mean error at most
+#: this many times the held-out materials' (2 near-field images at the comparison FOV, min E(S)).
+UNSEEN_FACTOR: float = 2.0
+
+
+def unseen_vs_heldout(errors: _Errors, path: str | os.PathLike[str]) -> list[Claim]:
+    """Materials outside the training database vs held-out ones, one claim per unseen database (``unseen.csv``).
+
+    Xu §7 acquires materials that are not in MERL with the MERL-trained
+    basis and direction sets.  Here: the mean RMS log error of 2 near-field
+    images (FOV of the paper's comparisons, min E(S)) over an unseen
+    database's materials against the held-out materials' (``errors.csv``);
+    holds when at most :data:`UNSEEN_FACTOR` × (value: the ratio).  1 image,
+    the largest point set and the closed loop (sensor) are reported next to it.
+    """
+    p, rows = _rows(path, ("database", "model_database", "split", "setup", "fov", "metric", "n", "material",
+                           "channel", "kind", "value"))
+    means: dict[str, dict[tuple[str, float, int, str], float]] = {}
+    models = sorted({r["model_database"] for r in rows})
+    if len(models) > 1:
+        raise ClaimsInputError(f"{p}: rows of several model databases: {models}")
+    if models and errors.database and models[0] != errors.database:
+        raise ClaimsInputError(f"{p}: model of {models[0]}, but {errors.path} is of {errors.database}")
+    for r in rows:
+        if not r["database"] or r["database"] == r["model_database"]:
+            raise ClaimsInputError(f"{p}: line {r['__line__']}: database {r['database']!r} is not outside the "
+                                   f"model's {r['model_database']}")
+        if r["split"] == "train" and r["material"] == "mean" and r["channel"] == "all" and r["metric"] == "error":
+            means.setdefault(r["database"], {})[(r["setup"], _num(p, r, "fov"), int(_num(p, r, "n")),
+                                                 r["kind"])] = _num(p, r, "value")
+    fov = errors.nearfield_fov()
+    out = []
+    for db, v in sorted(means.items()):
+        key, where, figs = (f"{UNSEEN_CLAIM_PREFIX}xu-{db}", "§7 (materials outside the training set)",
+                            ("xu-unseen", "xu-unseen-table"))
+        claim = (f"2 near-field images (FOV {_deg(fov if fov is not None else 25)}, min E(S)) reconstruct the {db} "
+                 f"materials, never seen by the {errors.database} model, within {UNSEEN_FACTOR:g}× the mean error of "
+                 "the held-out materials")
+        paper_value = "§7 acquires materials outside MERL with the MERL-trained basis (shown as renders, not measured)"
+        u2 = v.get(("nearfield", float(fov), 2, "rms_log")) if fov is not None else None
+        h2 = errors.get("nearfield", fov, "error", 2) if fov is not None else None
+        if u2 is None or h2 is None or not h2 > 0:
+            out.append(_not_measured(key, _XU, where, claim, paper_value, f"{p.name} or {errors.path.name} has no "
+                                     "2-image near-field set at that FOV", str(p), figs))
+            continue
+        parts = [f"2 images: {_g(u2)} vs held-out {_g(h2)} (×{u2 / h2:.2f})"]
+        u1, h1 = v.get(("nearfield", float(fov), 1, "rms_log")), errors.get("nearfield", fov, "error", 1)
+        if u1 is not None and h1:
+            parts.append(f"1 image: {_g(u1)} vs {_g(h1)} (×{u1 / h1:.2f})")
+        ns = sorted(n for (s_, _, n, k) in v if s_ == "point" and k == "rms_log")
+        if ns:
+            up, hp = v[("point", 0.0, ns[-1], "rms_log")], errors.get("point", 0.0, "error", ns[-1])
+            if hp:
+                parts.append(f"{ns[-1]} points: {_g(up)} vs {_g(hp)} (×{up / hp:.2f})")
+        ul = v.get(("nearfield", float(fov), 2, "closedloop_rms_log"))
+        if ul is not None:
+            parts.append(f"closed loop (sensor), 2 images: {_g(ul)}")
+        ratio = u2 / h2
+        out.append(Claim(key, _XU, where, claim, paper_value, f"{db}: " + "; ".join(parts), ratio,
+                         _verdict(ratio <= UNSEEN_FACTOR), db, f"{p}, {errors.path}", figs))
+    return out
+
+
+#: RGL's spectralon: directional albedo at normal incidence ≈ 0.96 (issue 22), "≈" read as this tolerance.
+SPECTRALON = {"database": "rgl-nbrdf", "material": "spectralon-rgb", "albedo": 0.96, "tolerance": 0.03}
+
+
+def spectralon_albedo(paths: Sequence[str | os.PathLike[str]]) -> Claim:
+    """A radiometric check of the fit-made tables: RGL's spectralon reflects ≈ 96 % at normal incidence.
+
+    Read from the unseen databases' albedo CSVs (``database, material,
+    theta_i_deg, r, g, b, luminance``): the luminance of the directional
+    albedo of ``spectralon-rgb`` of ``rgl-nbrdf`` at θi = 0 within
+    ``SPECTRALON["tolerance"]`` of 0.96.
+    """
+    sp = SPECTRALON
+    key, where, figs = f"{UNSEEN_CLAIM_PREFIX}rgl-spectralon-albedo", "RGL database, spectralon (issue 22)", \
+        ("unseen-albedo",)
+    claim = (f"directional albedo (luminance) of the {sp['material']} fit at normal incidence within "
+             f"±{sp['tolerance']:g} of {sp['albedo']:g}")
+    paper_value = f"≈ {sp['albedo']:g} at normal incidence"
+    paper = "Dupuy & Jakob 2018"
+    found = []
+    for path in paths:
+        p, rows = _rows(path, ("database", "material", "theta_i_deg", "r", "g", "b", "luminance"))
+        found += [(p, r) for r in rows if r["database"] == sp["database"] and r["material"] == sp["material"]
+                  and _num(p, r, "theta_i_deg") == 0.0]
+    if not found:
+        return _not_measured(key, paper, where, claim, paper_value,
+                             f"{sp['material']} of {sp['database']} is not among this run's unseen materials",
+                             ", ".join(str(x) for x in paths), figs)
+    if len(found) > 1:
+        raise ClaimsInputError(f"{found[1][0]}: {sp['material']} of {sp['database']} appears twice")
+    p, r = found[0]
+    lum = _num(p, r, "luminance")
+    measured = (f"{sp['database']} {sp['material']}: r, g, b = {_num(p, r, 'r'):.3f}, {_num(p, r, 'g'):.3f}, {_num(p, r, 'b'):.3f}; "
+                f"luminance {lum:.3f}")
+    ok = abs(lum - sp["albedo"]) <= sp["tolerance"]
+    return Claim(key, paper, where, claim, paper_value, measured, lum, _verdict(ok), sp["database"], str(p), figs)
+
+
 def compute_claims(inputs: ClaimInputs) -> list[Claim]:
     """Every claim this run's outputs allow, in report order; the others as ``not measured``.
 
@@ -681,6 +801,13 @@ def compute_claims(inputs: ClaimInputs) -> list[Claim]:
     if len(databases) > 1:
         by_db = {d: sorted({c.source for c in out if c.database == d}) for d in sorted(databases)}
         raise ClaimsInputError(f"the run's CSVs name different databases: {by_db}")
+    # materials outside the training database: each claim names its own (unseen) database
+    if inputs.unseen is not None:
+        if inputs.errors is None:
+            raise ClaimsInputError(f"{inputs.unseen}: the unseen materials' claims need errors.csv")
+        out += unseen_vs_heldout(read_errors(inputs.errors), inputs.unseen)
+    if inputs.unseen_albedo:
+        out.append(spectralon_albedo(inputs.unseen_albedo))
     return out
 
 

@@ -43,6 +43,9 @@ FIGURE_NUMBERS: dict[str, str] = {
     "xu-fig19": "Xu Fig. 19",
     "xu-closedloop": "Xu §7 (closed loop)",
     "xu-closedloop-table": "Xu §7 (closed loop, table)",
+    "xu-unseen": "Xu Figs. 5/6 (unseen materials)",
+    "xu-unseen-table": "Xu §7 (unseen materials, table)",
+    "unseen-albedo": "radiometric check (unseen materials)",
     "soler-fig05": "Soler Fig. 5",
     "soler-fig10_q2": "Soler Fig. 10 (q = 2)",
     "soler-fig10_q5": "Soler Fig. 10 (q = 5 slices)",
@@ -52,6 +55,8 @@ FIGURE_NUMBERS: dict[str, str] = {
     "soler-eq7": "Soler eq. 7",
     "soler-spaces": "Soler §4.1-4.3 (data spaces)",
     "soler-spaces-table": "Soler §4.1-4.3 (table)",
+    "soler-unseen": "Soler Figs. 10, 8 (unseen materials)",
+    "soler-unseen-table": "Soler Figs. 10, 8 (unseen materials, table)",
     "render-fig01": "Soler Fig. 1",
     "render-fig12": "Soler Fig. 12",
     "render-fig13": "Soler Fig. 13",
@@ -100,6 +105,11 @@ def report_items(
     floor_check_table: str | None = None,
     closedloop_figure: Sequence[str] = (),
     closedloop_table: str | None = None,
+    unseen_figure: Sequence[str] = (),
+    unseen_table: str | None = None,
+    unseen_albedo: Sequence[str] = (),
+    manifold_unseen_figure: Sequence[str] = (),
+    manifold_unseen_table: str | None = None,
 ) -> list[Item]:
     """Every report entry of a configuration, in report order.
 
@@ -108,7 +118,9 @@ def report_items(
     ``errormaps``: ``(path, t, error.png)`` per rendered path point (the EXR
     maps are data: browsers cannot show them, the captions name them);
     the summary tables when the configuration writes them; the closed
-    loop's figure and ``closedloop.csv`` when it runs; the claims table.
+    loop's figure and ``closedloop.csv`` when it runs; the unseen
+    materials' figures, tables and albedo CSVs (config ``unseen``) when
+    there are any (subcategory "Unseen materials"); the claims table.
     ``database``: ``merl`` or ``synthetic`` (a label of every entry).
     """
     items: list[Item] = []
@@ -125,10 +137,20 @@ def report_items(
         add("xu-closedloop", _png(closedloop_figure), ACQUISITION, "Closed loop")
     if closedloop_table:
         add("xu-closedloop-table", closedloop_table, ACQUISITION, "Closed loop")
+    if unseen_figure:
+        add("xu-unseen", _png(unseen_figure), ACQUISITION, "Unseen materials")
+    if unseen_table:
+        add("xu-unseen-table", unseen_table, ACQUISITION, "Unseen materials")
+    for path in unseen_albedo:
+        add("unseen-albedo", path, ACQUISITION, "Unseen materials", unseen=path.rsplit("/", 1)[-1][: -len("-albedo.csv")])
     for k, files in manifold_figures.items():
         add(f"soler-{k}", _png(files), MANIFOLD, "Figures")
     if spaces_table:
         add("soler-spaces-table", spaces_table, MANIFOLD, "Tables")
+    if manifold_unseen_figure:
+        add("soler-unseen", _png(manifold_unseen_figure), MANIFOLD, "Unseen materials")
+    if manifold_unseen_table:
+        add("soler-unseen-table", manifold_unseen_table, MANIFOLD, "Unseen materials")
     for k, files in render_figures.items():
         add(f"render-{k}", _png(files), RENDERING, "Figures")
     for path, t, png in errormaps:

@@ -51,6 +51,8 @@ TRACKS: dict[str, tuple[str, ...]] = {
                   "render_object_mask", "bounce_shares", "error_maps", "plot_render_figures",
                   "interpolate_candidate_path_points", "render_candidate_path_point", "measure_candidate_blends",
                   "summarize_floor_check", "plot_floor_check"),
+    "unseen materials": ("evaluate_unseen_fits", "capture_unseen_closedloop", "evaluate_unseen", "locate_unseen",
+                         "plot_unseen_errors", "plot_unseen_latent"),
 }
 _PACKAGES = ("snakemake", "numpy", "scipy", "zarr", "matplotlib", "mitsuba", "drjit")
 

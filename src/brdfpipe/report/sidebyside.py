@@ -5,7 +5,9 @@ Each run's ``results/report/claims.csv`` (digest-checked, through
 claims in the order of the first run, claims missing from a run say so.  A
 column is headed by the database its CSV names (``database`` column), never by
 what the caller believes it to be: a run made on synthetic data cannot be
-headed "MERL".  Nothing is typed in: every cell is a run's own ``measured``
+headed "MERL".  Claims about materials outside a run's database
+(:func:`brdfpipe.report.claims.is_unseen_claim`) name those materials'
+database and do not count; their ``measured`` text names it.  Nothing is typed in: every cell is a run's own ``measured``
 text and verdict.
 
 ``python -m brdfpipe.report.sidebyside RUN_A/results/report/claims.csv
@@ -36,7 +38,8 @@ class RunClaims:
         self.path = path
         self.rows = {r["key"]: r for r in rows}
         self.order = [r["key"] for r in rows]
-        names = sorted({r["database"] for r in rows if r["database"]})
+        # the run's own database: claims about materials outside it (config unseen) name theirs
+        names = sorted({r["database"] for r in rows if r["database"] and not claims_mod.is_unseen_claim(r["key"])})
         if len(names) > 1:
             raise claims_mod.ClaimsInputError(f"{path}: claims of several databases: {names}")
         self.database = names[0] if names else "(nothing measured)"
