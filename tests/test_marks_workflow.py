@@ -33,9 +33,9 @@ def test_a_synthetic_file_copied_over_another_fails_the_data_stage(
     tmp_path: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> None:
     # the data stage of the session's shared tiny-point run (tests/shared_runs.py), copied with its
-    # metadata and times: nothing is left to do until a file changes
+    # metadata, job stamps and times: nothing is left to do until a file changes
     shared = shared_run(tmp_path_factory, TINY_POINT)
-    for part in (".snakemake", "results/synthetic", "results/merl.zarr"):
+    for part in (".snakemake", "results/.stamps", "results/synthetic", "results/merl.zarr"):
         shutil.copytree(shared / part, tmp_path / part, symlinks=True)
     r = _data_stage(tmp_path, "-n")
     assert r.returncode == 0 and "Nothing to be done" in r.stdout + r.stderr, (r.stdout + r.stderr)[-3000:]
