@@ -317,6 +317,27 @@ def test_nearest_refuses_an_overflowing_point_and_prints_strict_json(
         cli._strict_json({"x": float("nan")}, "test")
 
 
+def test_interpolate_refuses_an_overflowing_t_and_writes_nothing(
+    latent_inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--t 1e308 between two materials wrote a table (with a numpy warning) at a point beyond float64."""
+    out = tmp_path / "far.binary"
+    argv = ["-q", "interpolate", "--model", str(latent_inputs["model"]), "--store", str(latent_inputs["store"]),
+            "--between", latent_inputs["a"], latent_inputs["b"], "--out", str(out)]
+    assert cli.main([*argv, "--t", "1e308"]) == 1
+    line = one_line(capsys, "interpolate")
+    assert "t = 1e+308: the latent distances overflow" in line, line
+    assert not out.exists()
+
+
+def test_a_file_where_a_store_folder_belongs_is_named_as_such(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"\0" * 1000)
+    assert cli.main(["-q", "info", str(junk)]) == 1
+    line = one_line(capsys, "info")
+    assert f"{junk}: not a" in line and "a store is a Zarr v3 folder" in line, line
+
+
 @pytest.mark.parametrize(("argv", "option"), [
     (["synth", "--count", "1", "--seed", "1", "--out", "x", "--noise", "inf"], "--noise"),
     (["synth", "--count", "1", "--seed", "-1", "--out", "x"], "--seed"),

@@ -95,6 +95,8 @@ def open_finished_group(
     ..."), or — with ``need_marker`` — no completion marker ("incomplete ...").
     """
     path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise error(f"{path}: not a {kind} (a file; a {what} is a Zarr v3 folder)")
     if not path.is_dir():
         raise error(f"{path}: no such {what}")
     try:

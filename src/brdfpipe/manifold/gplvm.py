@@ -2152,9 +2152,18 @@ def interpolate_to_file(
         if not np.isfinite(t):
             raise ValueError(f"t must be finite, got {t}")
         a, b = (model.X[model.names.index(m)] for m in between)
-        x_star = (1.0 - t) * a + t * b
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflowing point is refused below
+            x_star = (1.0 - t) * a + t * b
+        where = f"t = {t:g}"
     else:
         x_star = np.asarray(at, dtype=np.float64)
+        where = "at = " + ",".join(f"{v:g}" for v in np.ravel(x_star))
+    with np.errstate(over="ignore", invalid="ignore"):
+        far = not np.isfinite(x_star).all() or (
+            x_star.shape == model.X.shape[1:] and not np.isfinite(((model.X - x_star) ** 2).sum(axis=1)).all())
+    if far:
+        raise ValueError(f"{where}: the latent distances overflow (beyond 1.8e308 in units of ℓ = {model.ell:.6g}); "
+                         "give a point nearer the materials")
     w = blend_weights(weights(model, x_star))
     table, clamped = interpolate_table(st, w, materials=model.names, space=model.space, model=model)
     details: dict[str, Any] = {"between": list(between), "t": float(t)} if between is not None else {}
