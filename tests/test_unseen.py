@@ -442,7 +442,7 @@ def test_unseen_evaluation_refuses_the_models_own_database(acq: Acq) -> None:
 
 @pytest.mark.slow
 def test_tiny_nbrdf_runs_the_unseen_materials_end_to_end(tmp_path_factory: pytest.TempPathFactory) -> None:
-    """One shared run of tiny-nbrdf (~100 jobs): the unseen outputs exist, carry their digests and true labels."""
+    """One shared run of tiny-nbrdf (69 jobs): the unseen outputs exist, carry their digests and true labels."""
     from shared_runs import shared_run
 
     check_tiny_nbrdf_run(shared_run(tmp_path_factory, Path(__file__).resolve().parent / "config" / "tiny-nbrdf.yaml"))
