@@ -413,6 +413,10 @@ def measure_candidate(
     default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row per q)
     and ``stability_out`` (:data:`STABILITY_COLUMNS`).  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``).
+    Every interpolated table the measures need (the ``log`` space's hull
+    points of every q, the latent paths' points) is blended and measured in
+    one pass over the store (:func:`_shared_blends`); the materials' albedos
+    take one more.
     """
     from brdfpipe.core.plan import check_paths, default_paths
     from brdfpipe.data.store import open_store
