@@ -125,7 +125,9 @@ API
 :func:`pr12_distance` (two tables or features → float) and
 :func:`pr12_distances` (all distances between two batches, each table's
 features computed once).  Path distances as in Soler et al. Fig. 9:
-``pr12_distances(path_tables, [table_a, table_b])``.
+``pr12_distances(path_tables, [table_a, table_b])``.  :class:`StreamedDistances`:
+the same distances between tables seen a block of cells at a time (no table whole;
+:mod:`brdfpipe.manifold.blendpass`).
 """
 
 from __future__ import annotations
