@@ -90,12 +90,14 @@ def measure_blends(
     ``weights``, ``materials``, ``space`` and ``model`` as for
     :func:`brdfpipe.manifold.gplvm.interpolate_tables` (with ``model`` the store
     is checked to hold its rows and ``materials``/``space`` default to its
-    own; ``space`` None: the model's, or ``raw`` without one); ``pairs``: ``(i, j)`` row indices of ``weights`` whose tables'
-    distance is wanted (only the rows in a pair get PR12 features).  See the
-    module docstring.
+    own; ``space`` None: the model's, or ``raw`` without one).  ``pairs``:
+    ``(i, j)`` row indices of ``weights`` whose tables' distance is wanted
+    (only the rows in a pair get PR12 features).  Working memory is bounded
+    by :data:`POINT_CELLS`, whatever P.  See the module docstring.
     """
+    st = store if isinstance(store, BrdfStore) else open_store(store)
     if model is not None:
-        gplvm.check_store(model, store if isinstance(store, BrdfStore) else open_store(store))
+        gplvm.check_store(model, st)
         materials = model.names if materials is None else materials
         space = model.space if space is None else space
         if list(materials) != list(model.names) or space != model.space:
@@ -104,7 +106,6 @@ def measure_blends(
     space = "raw" if space is None else space
     if space not in gplvm.SPACES:
         raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(gplvm.SPACES)}")
-    st = store if isinstance(store, BrdfStore) else open_store(store)
     idx = (np.arange(st.n_materials, dtype=np.intp) if materials is None
            else material_indices(st, materials, "materials"))
     W = np.asarray(weights, dtype=np.float64)
