@@ -39,6 +39,8 @@ def main() -> None:
     # Manifold track: GPLVM fit vs scipy L-BFGS (and GPy, when a GPy environment is set up).
     # "entry" is the workflow's normalisation (manifold.normalise); "raw" the paper's units.
     run("benches/bench_gplvm.py", "--scaling", "entry")
+    # A GPLVM candidate's blends (measure_gplvm_candidate): one pass over the store vs a table per point.
+    run("benches/bench_blendpass.py", *(["--store", str(STORE)] if STORE.is_dir() else []))
     # Scale: time and peak memory of every stage at N = 50 … 400 synthetic materials (fewer cells),
     # growth exponents, log-log figure (its material files are kept in /tmp between runs).
     run("benches/bench_scaling.py")

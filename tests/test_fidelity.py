@@ -190,3 +190,56 @@ def test_albedo_map_hull_statistics(setup: dict) -> None:
     w = fidelity.smooth_weights(m, m.X)
     gap = np.abs((w @ A - A) @ np.array([0.2126, 0.7152, 0.0722]))
     assert float(amap["training_gap_max"]) == pytest.approx(gap.max())
+
+
+def test_log_candidate_measures_every_blend_of_its_fits_in_one_pass(setup: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The log space: the hull points of every q and the path points blended together (issue 23), the
+    measures equal to those of each point's table formed whole (the route before) to 1e-9."""
+    from brdfpipe.manifold import blendpass, perceptual
+
+    tmp = setup["tmp"]
+    G, d, info = gplvm.gram_matrix(setup["store"], space="log")
+    grams = {"raw": setup["grams"]["raw"], "log": tmp / "gram-log.npz"}
+    gplvm.save_gram(grams["log"], G, d, info)
+    models = {}
+    for q in (2, 3):
+        res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=q, mu=1e-4, seed=1)
+        models[q] = tmp / f"log-q{q}.npz"
+        gplvm.save_model(models[q], res, info.materials, space="log", data_digests=info.digests)
+    passes, given = [], {}
+    real_blends, real_measure = blendpass.measure_blends, fidelity.measure_model
+
+    def counted(*a, **k):
+        passes.append(1)
+        return real_blends(*a, **k)
+
+    def spied(m, **k):
+        given[m.X.shape[1]] = k["blend_albedo"]  # the albedos the shared pass measured
+        return real_measure(m, **k)
+
+    monkeypatch.setattr(blendpass, "measure_blends", counted)
+    monkeypatch.setattr(fidelity, "measure_model", spied)
+    names = setup["names"]
+    paths = [[names[0], names[5]], [names[3], names[1]]]
+    rows = fidelity.measure_candidate(
+        store=setup["store"], grams=grams, models=models, candidate="log-mu0.0001", default="log-mu0.0001",
+        paths=paths, path_q=3, seed=4, steps=4, spaces_out=tmp / "log.csv", stability_out=tmp / "log-stab.csv")
+    assert len(passes) == 1 and [r["q"] for r in rows] == [2, 3]
+    for q, row in zip((2, 3), rows):  # the albedo of each hull point's table, formed whole
+        m = gplvm.load_model(models[q])
+        H = latent.sample_in_hull(m.X, fidelity.HULL_POINTS, np.random.default_rng([4, q, *b"log-mu0.0001"]))
+        tables, clamped = gplvm.interpolate_tables(setup["store"], fidelity.smooth_weights(m, H[:16]), model=m,
+                                                   space="log")
+        want = np.stack([albedo.material_albedo(t) for t in tables])
+        np.testing.assert_allclose(given[q], want, rtol=1e-9, atol=0)
+        assert row["albedo_bad_hull"] == ((want < 0) | (want > 1)).any(axis=1).mean()
+    m3 = gplvm.load_model(models[3])
+    ref = []
+    for a, b in paths:  # each path's tables formed whole
+        p = analysis.latent_path(m3, a, b, 4)
+        tables, _ = gplvm.interpolate_tables(setup["store"], p.weights, model=m3, space="log")
+        ref += [{"path": a + b, "t": t, "perceptual_a": perceptual.pr12_distance(tab, tables[0])}
+                for t, tab in zip(p.ts, tables)]
+    want = fidelity.path_uniformity(ref)
+    assert rows[1]["perceptual_max_deviation"] == pytest.approx(want["perceptual_max_deviation"], rel=1e-9)
+    assert rows[1]["perceptual_decreasing_steps"] == want["perceptual_decreasing_steps"]

@@ -76,10 +76,11 @@ def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
 
 
 def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pytest.MonkeyPatch) -> None:
-    """manifold.path_steps: each point's 53 MB perceptual features are dropped once its distances are known.
+    """manifold.path_steps: no point's table (35 MB) or perceptual features (53 MB) is ever held whole.
 
-    (Holding all of them took one job to 22.7 GB.)  Chunks of two tables: the values are those of the
-    one-chunk computation, and the peak of 13 points stays that of 3.
+    (Holding all of them took one job to 22.7 GB.)  The points are blended a block of cells at a time, the
+    block the narrower the more points (blendpass.POINT_CELLS, made small here): the values are those of
+    the default blocks, and the peak of 13 points stays that of 3.
     """
     import tracemalloc
 
@@ -87,7 +88,9 @@ def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pyte
     G, _, _ = gplvm.load_gram(small["gram"])
     a, b = small["names"][0], small["names"][4]
     whole = analysis.path_analysis(small["store"], model, G, a, b, steps=12)
-    monkeypatch.setattr(analysis, "_MAX_TABLES_IN_MEMORY", 2)
+    from brdfpipe.manifold import blendpass
+
+    monkeypatch.setattr(blendpass, "POINT_CELLS", 3 * 4096)
     peaks = {}
     for steps in (2, 12):
         tracemalloc.start()
@@ -99,12 +102,6 @@ def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pyte
             assert r[k] == pytest.approx(w[k], rel=1e-9, abs=1e-9)
     feature_bytes = 8 * __import__("brdfpipe.manifold.perceptual", fromlist=["x"]).pr12_n_features()
     assert peaks[12] < peaks[2] + 2 * feature_bytes, peaks
-
-
-def test_the_memory_model_counts_the_path_points_held_at_once() -> None:
-    from brdfpipe.core import plan
-
-    assert plan.PATH_CHUNK == analysis._MAX_TABLES_IN_MEMORY + 1  # a chunk and the path's end
 
 
 def test_check_and_default_paths() -> None:

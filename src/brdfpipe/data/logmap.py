@@ -117,6 +117,7 @@ __all__ = [
     "cell_weights",
     "forward",
     "inverse",
+    "median_rows",
     "median_reference",
     "write_logmap",
     "open_logmap",
@@ -213,7 +214,7 @@ def _check_cells(cells: ArrayLike) -> NDArray[np.int64]:
     return idx
 
 
-def _median_rows(block: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
+def median_rows(block: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
     """Per-column median of a ``(rows, cols)`` block, in float64; equals ``np.median(block, axis=0)``.
 
     Partitions a transposed float32 copy, one row of values per column, in
@@ -251,7 +252,7 @@ def median_reference(
     cells64 = _check_cells(cells)
     ref = np.empty(cells64.size, dtype=np.float64)
     for j0, j1, data in iter_cell_blocks(st, idx, cells64):
-        ref[j0:j1] = _median_rows(data.reshape(-1, j1 - j0))
+        ref[j0:j1] = median_rows(data.reshape(-1, j1 - j0))
     return ref
 
 
@@ -370,7 +371,7 @@ def write_logmap(
             for a in range(0, j1 - j0, _SUB_COLS):
                 b = min(a + _SUB_COLS, j1 - j0)
                 sub = data[:, :, a:b]
-                r = _median_rows(sub[train_pos].reshape(-1, b - a))
+                r = median_rows(sub[train_pos].reshape(-1, b - a))
                 ref[j0 + a : j0 + b] = r
                 x = forward(sub[out_pos].reshape(m_out, b - a), r, w[j0 + a : j0 + b], eps)
                 writer.write(x.astype(np.float32))

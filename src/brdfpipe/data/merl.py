@@ -22,6 +22,7 @@ The public API of this module is stable: other tools call it.
 from __future__ import annotations
 
 import os
+from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
@@ -56,6 +57,7 @@ __all__ = [
     "cell_directions",
     "measured_mask",
     "directional_albedo",
+    "mean_directional_albedo_weights",
 ]
 
 N_THETA_H: Final = 90
@@ -320,6 +322,46 @@ def measured_mask() -> NDArray[np.bool_]:
 # --------------------------------------------------------------------------
 
 
+def _albedo_samples(
+    theta_i: NDArray[np.float64], n_phi: int
+) -> list[tuple[NDArray[np.intp], NDArray[np.float64]]]:
+    """Per incident angle: the cells ``idx`` read by :func:`directional_albedo` and their weights ``jac``.
+
+    ``a(θi) = Σ_k max(ρ[idx_k], 0) · jac_k`` per channel (a cell may occur
+    several times).  The geometry depends on the angles only, so it is
+    computed once per set of angles (:func:`_albedo_samples_cached`).
+    """
+    return _albedo_samples_cached(np.asarray(theta_i, dtype=np.float64).tobytes(), int(n_phi))
+
+
+@lru_cache(maxsize=8)
+def _albedo_samples_cached(theta_bytes: bytes, n_phi: int) -> list[tuple[NDArray[np.intp], NDArray[np.float64]]]:
+    """:func:`_albedo_samples` for angles given as float64 bytes (hashable; read-only arrays, ≤ 0.5 MB per angle)."""
+    theta_i = np.frombuffer(theta_bytes, dtype=np.float64)
+    # θh = u² π/2 with u uniform in [0, 1]: midpoint rule in u, dθh = π u du.
+    u = (np.arange(N_THETA_H) + 0.5) / N_THETA_H
+    th = u * u * _HALF_PI
+    w_th = np.pi * u / N_THETA_H * np.sin(th)
+    ph = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
+    TH, PH = np.meshgrid(th, ph, indexing="ij")
+    W = np.broadcast_to(w_th[:, None] * (2.0 * np.pi / n_phi), TH.shape).ravel()
+    h = np.stack(
+        [np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], axis=-1
+    ).reshape(-1, 3)
+    out = []
+    for t in theta_i:
+        wi = np.array([np.sin(t), 0.0, np.cos(t)])
+        cos_ih = h @ wi
+        wo = 2.0 * cos_ih[:, None] * h - wi
+        ok = (cos_ih > 0.0) & (wo[:, 2] > 0.0)
+        idx = cell_index(np.broadcast_to(wi, (int(ok.sum()), 3)), wo[ok])
+        jac = 4.0 * cos_ih[ok] * wo[ok, 2] * W[ok]
+        idx.setflags(write=False)
+        jac.setflags(write=False)
+        out.append((idx, jac))
+    return out
+
+
 def directional_albedo(
     table: ArrayLike, theta_i: ArrayLike, n_phi: int = 360
 ) -> NDArray[np.float64]:
@@ -335,25 +377,25 @@ def directional_albedo(
     if arr.shape != SHAPE:
         raise ValueError(f"table has shape {arr.shape}, expected {SHAPE}")
     theta_i = np.atleast_1d(np.asarray(theta_i, dtype=np.float64))
-    # θh = u² π/2 with u uniform in [0, 1]: midpoint rule in u, dθh = π u du.
-    u = (np.arange(N_THETA_H) + 0.5) / N_THETA_H
-    th = u * u * _HALF_PI
-    w_th = np.pi * u / N_THETA_H * np.sin(th)
-    ph = (np.arange(n_phi) + 0.5) / n_phi * 2.0 * np.pi
-    TH, PH = np.meshgrid(th, ph, indexing="ij")
-    W = np.broadcast_to(w_th[:, None] * (2.0 * np.pi / n_phi), TH.shape).ravel()
-    h = np.stack(
-        [np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], axis=-1
-    ).reshape(-1, 3)
     flat = arr.reshape(3, N_CELLS)
     out = np.empty((theta_i.size, 3))
-    for n, t in enumerate(theta_i):
-        wi = np.array([np.sin(t), 0.0, np.cos(t)])
-        cos_ih = h @ wi
-        wo = 2.0 * cos_ih[:, None] * h - wi
-        ok = (cos_ih > 0.0) & (wo[:, 2] > 0.0)
-        idx = cell_index(np.broadcast_to(wi, (int(ok.sum()), 3)), wo[ok])
+    for n, (idx, jac) in enumerate(_albedo_samples(theta_i, n_phi)):
         rho = np.maximum(flat[:, idx], 0.0)
-        jac = 4.0 * cos_ih[ok] * wo[ok, 2] * W[ok]
         out[n] = rho @ jac
     return out
+
+
+def mean_directional_albedo_weights(theta_i: ArrayLike, n_phi: int = 360) -> NDArray[np.float64]:
+    """Per-cell weights ``(N_CELLS,)`` of the mean of :func:`directional_albedo` over ``theta_i``.
+
+    The directional albedo is a linear functional of the table with its
+    negative (unmeasured) values set to 0, so
+    ``directional_albedo(t, theta_i).mean(axis=0) == max(t, 0).reshape(3, N_CELLS) @ weights``
+    up to the order of summation; ``weights[c]`` is the total weight of cell
+    ``c`` (the same for the three channels; zero for cells never read).
+    """
+    theta = np.atleast_1d(np.asarray(theta_i, dtype=np.float64))
+    out = np.zeros(N_CELLS)
+    for idx, jac in _albedo_samples(theta, n_phi):
+        out += np.bincount(idx, weights=jac, minlength=N_CELLS)
+    return out / theta.size

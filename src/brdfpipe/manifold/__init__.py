@@ -9,6 +9,7 @@ faithful it is per data space, and the track's figures.  Imports
 * :mod:`brdfpipe.manifold.perceptual` – perceptual BRDF distance (Pereira & Rusinkiewicz 2012);
 * :mod:`brdfpipe.manifold.fidelity`   – how faithful a manifold is, per data space (§3–§5);
 * :mod:`brdfpipe.manifold.albedo`     – the white-sky albedo of materials (§4.2);
+* :mod:`brdfpipe.manifold.blendpass`  – albedo and perceptual distances of many blends in one pass over the store;
 * :mod:`brdfpipe.manifold.analysis`   – analyses of a fitted manifold (§4, Figs. 7–10);
 * :mod:`brdfpipe.manifold.derivation` – the provenance marks of the materials it blends;
 * :mod:`brdfpipe.manifold.unseen`     – materials outside the training set: latent position x*, reproduction;

@@ -22,9 +22,11 @@ Paths (§4.3, Fig. 9) and the bound of eq. 7
 -------------------------------------------
 A path from material A to material B is the straight latent segment
 ``x(t) = (1 − t)x_A + t x_B`` at ``t = k/steps``.  At each point the
-interpolated BRDF is formed (:func:`brdfpipe.manifold.gplvm.interpolate_tables`) and its
-perceptual distance to both ends is measured with
-:mod:`brdfpipe.manifold.perceptual`.  The actual deviation from the nearest training
+interpolated BRDF is formed (as :func:`brdfpipe.manifold.gplvm.interpolate_tables`
+forms it) and its perceptual distance to both ends is measured with
+:mod:`brdfpipe.manifold.perceptual`; all points of all paths are blended and measured
+in one pass over the store, a block of cells at a time
+(:func:`brdfpipe.manifold.blendpass.measure_blends`, :func:`paths_analysis`).  The actual deviation from the nearest training
 material ``j`` (in latent space) is exact from the Gram matrix:
 ``z* − z_j = Σ (wᵢ − δᵢⱼ) zᵢ`` with weights summing to 0, so
 ``‖z* − z_j‖² = (w − e_j)ᵀ G_c (w − e_j)``.  Eq. 7 bounds it by
@@ -49,6 +51,7 @@ import io
 import logging
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -61,7 +64,7 @@ from brdfpipe.core.filenames import path_name
 from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
 from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, open_store
-from brdfpipe.manifold import derivation, gplvm, latent, perceptual
+from brdfpipe.manifold import blendpass, derivation, gplvm, latent
 from brdfpipe.manifold.albedo import material_albedos
 
 __all__ = [
@@ -77,6 +80,9 @@ __all__ = [
     "eq7_bound",
     "deviation",
     "reproduction_errors",
+    "LatentPath",
+    "latent_path",
+    "paths_analysis",
     "path_analysis",
     "analyze_manifold",
     "path_points_to_files",
@@ -92,7 +98,6 @@ PATH_COLUMNS: Final = (
 REPRODUCTION_COLUMNS: Final = ("database", "space", "material", "method", "k", "relative_error")
 ALBEDO_COLUMNS: Final = ("database", "material", "r", "g", "b", "luminance")
 _LUMA: Final = np.array([0.2126, 0.7152, 0.0722])
-_MAX_TABLES_IN_MEMORY: Final = 24
 
 
 # --------------------------------------------------------------------------
@@ -221,6 +226,97 @@ def reproduction_errors(
 # --------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class LatentPath:
+    """The points ``x(t) = (1 − t)x_A + t x_B``, ``t = k/steps``, of one latent path and their blend weights."""
+
+    a: str
+    b: str
+    ts: NDArray[np.float64]
+    points: NDArray[np.float64]
+    #: Blend weights ``(steps + 1, N)`` with the model's δ convention (the ends are A and B exactly).
+    weights: NDArray[np.float64]
+
+    def pairs(self, offset: int = 0) -> list[tuple[int, int]]:
+        """The PR12 distances :meth:`rows` needs, as pairs of blend rows (this path's rows from ``offset``).
+
+        Every point to A, every point to B, then A to B.
+        """
+        n = self.ts.size
+        first, last = offset, offset + n - 1
+        return ([(offset + k, first) for k in range(n)] + [(offset + k, last) for k in range(n)]
+                + [(first, last)])
+
+    def rows(self, model: gplvm.GplvmModel, gram: ArrayLike, distances: ArrayLike) -> list[dict[str, Any]]:
+        """One row per point (:data:`PATH_COLUMNS` without database, space, q); ``distances`` of :meth:`pairs`."""
+        n = self.ts.size
+        d = np.asarray(distances, dtype=np.float64)
+        to_a, to_b, d_ab = d[:n], d[n : 2 * n], float(d[2 * n])
+        names = list(model.names)
+        g = np.asarray(gram, dtype=np.float64)
+        xa, xb = model.X[names.index(self.a)], model.X[names.index(self.b)]
+        out = []
+        for k, (t, x) in enumerate(zip(self.ts, self.points)):
+            j = int(np.argmin(((model.X - x) ** 2).sum(axis=1)))
+            out.append({
+                "path": path_name(self.a, self.b), "material_a": self.a, "material_b": self.b, "step": k,
+                "t": float(t),
+                "latent_distance": float(t * np.linalg.norm(xb - xa)),
+                "perceptual_a": float(to_a[k]),
+                "perceptual_b": float(to_b[k]),
+                "perceptual_ab": d_ab,
+                "nearest": names[j],
+                "deviation": deviation(g, self.weights[k], j),
+                "bound": eq7_bound(model, g, x, j),
+            })
+        logger.info("path %s: %d points, perceptual distance A-B %.4g", path_name(self.a, self.b), n, d_ab)
+        return out
+
+
+def latent_path(model: gplvm.GplvmModel, a: str, b: str, steps: int = 20) -> LatentPath:
+    """The points and blend weights of the latent path from ``a`` to ``b`` (materials of ``model``)."""
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got {steps}")
+    names = list(model.names)
+    check_paths([(a, b)], names, what="path")
+    xa, xb = model.X[names.index(a)], model.X[names.index(b)]
+    ts = np.arange(steps + 1) / steps
+    pts = (1.0 - ts)[:, None] * xa + ts[:, None] * xb
+    W = np.stack([gplvm.blend_weights(gplvm.weights(model, x)) for x in pts])
+    return LatentPath(a, b, ts, pts, W)
+
+
+def paths_analysis(
+    store: BrdfStore | str | os.PathLike[str],
+    model: gplvm.GplvmModel,
+    gram: ArrayLike,
+    pairs: Sequence[tuple[str, str]],
+    steps: int = 20,
+) -> list[dict[str, Any]]:
+    """The rows of :func:`path_analysis` of every path ``pairs`` in order, all blended in one pass over the store.
+
+    The interpolated tables are never formed whole: their perceptual distances
+    are summed a block of cells at a time (:func:`brdfpipe.manifold.blendpass.measure_blends`),
+    so memory does not grow with ``steps``.
+    """
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got {steps}")
+    check_paths(pairs, list(model.names), what="path")
+    paths = [latent_path(model, a, b, steps) for a, b in pairs]
+    if not paths:
+        return []
+    offsets = np.cumsum([0] + [p.ts.size for p in paths])
+    wanted = [pair for p, o in zip(paths, offsets) for pair in p.pairs(int(o))]
+    measured = blendpass.measure_blends(store, np.vstack([p.weights for p in paths]), model=model, pairs=wanted)
+    rows: list[dict[str, Any]] = []
+    at = 0
+    for p in paths:
+        n = len(p.pairs())
+        rows += p.rows(model, gram, measured.distances[at : at + n])
+        at += n
+    return rows
+
+
 def path_analysis(
     store: BrdfStore | str | os.PathLike[str],
     model: gplvm.GplvmModel,
@@ -230,54 +326,7 @@ def path_analysis(
     steps: int = 20,
 ) -> list[dict[str, Any]]:
     """One row per point of the latent path from ``a`` to ``b`` (see the module docstring and PATH_COLUMNS)."""
-    if steps < 1:
-        raise ValueError(f"steps must be >= 1, got {steps}")
-    names = list(model.names)
-    check_paths([(a, b)], names, what="path")
-    st = gplvm.check_store(model, store)
-    xa, xb = model.X[names.index(a)], model.X[names.index(b)]
-    ts = np.arange(steps + 1) / steps
-    pts = (1.0 - ts)[:, None] * xa + ts[:, None] * xb
-    W = np.stack([gplvm.blend_weights(gplvm.weights(model, x)) for x in pts])
-    # Points in chunks of _MAX_TABLES_IN_MEMORY, the last point (B) in the first chunk: only each point's
-    # distances to the ends are kept, so memory does not grow with ``steps`` (a feature vector is ~53 MB).
-    n_pts = len(ts)
-    chunks = [list(range(c0, min(c0 + _MAX_TABLES_IN_MEMORY, n_pts))) for c0 in range(0, n_pts, _MAX_TABLES_IN_MEMORY)]
-    if n_pts - 1 not in chunks[0]:
-        chunks[-1].pop()
-        chunks[0].append(n_pts - 1)
-        chunks = [c for c in chunks if c]
-    to_a = np.zeros(n_pts)
-    to_b = np.zeros(n_pts)
-    f_a = f_b = None
-    for chunk in chunks:
-        tables, _ = gplvm.interpolate_tables(st, W[chunk], materials=names, space=model.space,
-                                             model=model)
-        feats = {k: perceptual.pr12_features(tab) for k, tab in zip(chunk, tables)}
-        del tables
-        if f_a is None:
-            f_a, f_b = feats[0], feats[n_pts - 1]
-        for k, f in feats.items():
-            to_a[k] = perceptual.pr12_distance(f, f_a)
-            to_b[k] = perceptual.pr12_distance(f, f_b)
-        del feats
-    d_ab = perceptual.pr12_distance(f_a, f_b)
-    g = np.asarray(gram, dtype=np.float64)
-    rows = []
-    for k, (t, x) in enumerate(zip(ts, pts)):
-        j = int(np.argmin(((model.X - x) ** 2).sum(axis=1)))
-        rows.append({
-            "path": path_name(a, b), "material_a": a, "material_b": b, "step": k, "t": float(t),
-            "latent_distance": float(t * np.linalg.norm(xb - xa)),
-            "perceptual_a": float(to_a[k]),
-            "perceptual_b": float(to_b[k]),
-            "perceptual_ab": d_ab,
-            "nearest": names[j],
-            "deviation": deviation(g, W[k], j),
-            "bound": eq7_bound(model, g, x, j),
-        })
-    logger.info("path %s: %d points, perceptual distance A-B %.4g", path_name(a, b), len(rows), d_ab)
-    return rows
+    return paths_analysis(store, model, gram, [(a, b)], steps)
 
 
 # --------------------------------------------------------------------------
@@ -353,10 +402,8 @@ def analyze_manifold(
         amap["database"] = np.array(database)
         integrity.save_npz(target, amap)
 
-    rows = []
-    for a, b in pairs:
-        for r in path_analysis(st, fits[int(path_q)], G, a, b, steps):
-            rows.append({"database": database, "space": info.space, "q": int(path_q), **r})
+    rows = [{"database": database, "space": info.space, "q": int(path_q), **r}
+            for r in paths_analysis(st, fits[int(path_q)], G, pairs, steps)]
     _write_csv(Path(paths_out), PATH_COLUMNS, rows)
 
     rep = []

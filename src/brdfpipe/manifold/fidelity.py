@@ -61,8 +61,8 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
-from brdfpipe.manifold import analysis, gplvm, latent, perceptual
-from brdfpipe.manifold.albedo import material_albedo, material_albedos
+from brdfpipe.manifold import analysis, blendpass, gplvm, latent
+from brdfpipe.manifold.albedo import material_albedos
 
 __all__ = [
     "EPSILONS",
@@ -76,6 +76,7 @@ __all__ = [
     "stability",
     "nearest_neighbour_spread",
     "path_uniformity",
+    "hull_sample",
     "measure_model",
     "measure_candidate",
     "combine_candidates",
@@ -153,20 +154,15 @@ def albedo_outside(
     """For each latent point: is the albedo of its interpolated material outside [0, 1] in some channel?
 
     Linear spaces: ``w·A`` with the materials' albedos ``A`` (N, 3).  The
-    ``log`` space: the albedo of each interpolated table (needs ``store``).
+    ``log`` space: the albedo of each interpolated table (needs ``store``;
+    all points in one pass over it, :func:`brdfpipe.manifold.blendpass.measure_blends`).
     """
     W = smooth_weights(model, points)
     if model.space in gplvm.LINEAR_SPACES:
         return _outside(W @ np.asarray(albedos, dtype=np.float64))
     if store is None:
         raise ValueError(f"albedo in the {model.space!r} space needs the store (the blend is not linear)")
-    out = np.empty(W.shape[0], dtype=bool)
-    for c0 in range(0, W.shape[0], 8):
-        tables, _ = gplvm.interpolate_tables(store, W[c0 : c0 + 8], materials=model.names, space=model.space,
-                                             model=model)
-        out[c0 : c0 + 8] = _outside(np.stack([material_albedo(t) for t in tables]))
-        del tables
-    return out
+    return _outside(blendpass.measure_blends(store, W, model=model).albedo)
 
 
 # --------------------------------------------------------------------------
@@ -245,7 +241,8 @@ def path_uniformity(path_rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
 # --------------------------------------------------------------------------
 
 
-def _hull_points(model: gplvm.GplvmModel, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+def hull_sample(model: gplvm.GplvmModel, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """``n`` latent points uniform in the convex hull of the model's training points (drawn from ``rng``)."""
     return latent.sample_in_hull(model.X, n, rng)
 
 
@@ -261,6 +258,8 @@ def measure_model(
     store: Any = None,
     hull_points: int = HULL_POINTS,
     albedo_grid: int = 96,
+    hull: ArrayLike | None = None,
+    blend_albedo: ArrayLike | None = None,
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Every measure of the module docstring for one fit: a :data:`SPACE_COLUMNS` row (partial) and stability rows.
 
@@ -268,6 +267,13 @@ def measure_model(
     materials in raw units and in the model's space (``space_gram`` may be
     None for the ``log`` space, whose stability is not a Gram quantity and
     is left empty).  ``paths``: latent paths (material pairs) for ``Σ|w|``.
+
+    ``hull``: the hull points, already drawn from ``rng`` (:func:`hull_sample`;
+    ``rng`` then in the state after the draw); None: drawn here.
+    ``blend_albedo``: in the ``log`` space, the albedo ``(P, 3)`` of the
+    interpolated tables at the first :data:`LOG_ALBEDO_POINTS` hull points,
+    measured by the caller in a pass over the store it shares with other
+    blends (:func:`measure_candidate`); None: measured here from ``store``.
     """
     A = np.asarray(albedos, dtype=np.float64)
     n, q = model.X.shape
@@ -276,13 +282,19 @@ def measure_model(
     row["kappa"] = float(np.linalg.cond(K))
     linear = model.space in gplvm.LINEAR_SPACES
 
-    H = _hull_points(model, hull_points, rng)
+    H = hull_sample(model, hull_points, rng) if hull is None else np.asarray(hull, dtype=np.float64)
     row["hull_points"] = int(H.shape[0])
     if linear:
         row["albedo_bad_hull"] = float(albedo_outside(model, H, A).mean())
     else:
         pick = H[: LOG_ALBEDO_POINTS]
-        row["albedo_bad_hull"] = float(albedo_outside(model, pick, A, store=store).mean())
+        if blend_albedo is None:
+            row["albedo_bad_hull"] = float(albedo_outside(model, pick, A, store=store).mean())
+        else:
+            alb = np.asarray(blend_albedo, dtype=np.float64)
+            if alb.shape != (pick.shape[0], 3):
+                raise ValueError(f"blend_albedo must have shape ({pick.shape[0]}, 3), got {alb.shape}")
+            row["albedo_bad_hull"] = float(_outside(alb).mean())
         row["hull_points"] = int(pick.shape[0])
     if q == 2 and linear:
         xs, ys = analysis.latent_grid(model.X, (0, 1), albedo_grid)
@@ -315,6 +327,48 @@ def measure_model(
         row[f"{key}_median_1e-6"] = float(np.median(res[1e-6]))
         row[f"{key}_p90_1e-6"] = float(np.percentile(res[1e-6], 90))
     return row, stab_rows
+
+
+@dataclass(frozen=True)
+class _SharedBlends:
+    hull_albedo: dict[int, NDArray[np.float64]]  # q → albedo (LOG_ALBEDO_POINTS, 3) (non-linear spaces)
+    path_distances: list[NDArray[np.float64]]  # per latent path: the distances of LatentPath.pairs()
+
+
+def _shared_blends(
+    st: Any, fits: Mapping[int, gplvm.GplvmModel], hulls: Mapping[int, NDArray[np.float64]],
+    paths: Sequence[analysis.LatentPath],
+) -> _SharedBlends:
+    """Every interpolated table a candidate's measures need, measured in one pass over the store.
+
+    The fits of one candidate share materials and data space, so the hull
+    points of every q (non-linear spaces: their albedo) and the points of the
+    latent paths (their perceptual distances) are blended together
+    (:func:`brdfpipe.manifold.blendpass.measure_blends`).
+    """
+    first = next(iter(fits.values()))
+    blocks: list[NDArray[np.float64]] = []
+    hull_rows: dict[int, slice] = {}
+    at = 0
+    if first.space not in gplvm.LINEAR_SPACES:
+        for q, model in fits.items():
+            W = smooth_weights(model, hulls[q][:LOG_ALBEDO_POINTS])
+            hull_rows[q] = slice(at, at + W.shape[0])
+            blocks.append(W)
+            at += W.shape[0]
+    pairs: list[tuple[int, int]] = []
+    counts = []
+    for p in paths:
+        pairs += p.pairs(at)
+        counts.append(len(p.pairs()))
+        blocks.append(p.weights)
+        at += p.weights.shape[0]
+    if not blocks:
+        return _SharedBlends({}, [])
+    got = blendpass.measure_blends(st, np.vstack(blocks), materials=first.names, space=first.space, pairs=pairs)
+    ends = np.cumsum([0] + counts)
+    return _SharedBlends({q: got.albedo[r] for q, r in hull_rows.items()},
+                         [got.distances[a:b] for a, b in zip(ends[:-1], ends[1:])])
 
 
 def _fmt(v: Any) -> str:
@@ -359,6 +413,10 @@ def measure_candidate(
     default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row per q)
     and ``stability_out`` (:data:`STABILITY_COLUMNS`).  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``).
+    Every interpolated table the measures need (the ``log`` space's hull
+    points of every q, the latent paths' points) is blended and measured in
+    one pass over the store (:func:`_shared_blends`); the materials' albedos
+    take one more.
     """
     from brdfpipe.core.plan import check_paths, default_paths
     from brdfpipe.data.store import open_store
@@ -373,8 +431,7 @@ def measure_candidate(
     raw_gram = loaded["raw"][2].raw_gram
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
     A = material_albedos(st, names)
-    rows: list[dict[str, Any]] = []
-    stab: list[dict[str, Any]] = []
+    fits: dict[int, gplvm.GplvmModel] = {}
     for q, path in sorted(models.items()):
         model = gplvm.load_model(path)
         if list(model.names) != names:
@@ -382,15 +439,22 @@ def measure_candidate(
         if candidate_label(model.space, model.mu) != candidate:
             raise ValueError(f"{path}: a {candidate_label(model.space, model.mu)} fit, expected {candidate}")
         gplvm.check_store(model, st)
+        fits[int(q)] = model
+    rngs = {q: np.random.default_rng([seed, int(q), *candidate.encode()]) for q in fits}
+    hulls = {q: hull_sample(m, HULL_POINTS, rngs[q]) for q, m in fits.items()}
+    lp = [analysis.latent_path(fits[int(path_q)], a, b, steps) for a, b in pairs] \
+        if perceptual_paths and int(path_q) in fits else []
+    shared = _shared_blends(st, fits, hulls, lp)
+    rows: list[dict[str, Any]] = []
+    stab: list[dict[str, Any]] = []
+    for q, model in fits.items():
         sg = loaded[model.space][2].raw_gram if model.space in loaded else None
-        rng = np.random.default_rng([seed, int(q), *candidate.encode()])
         row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=sg, paths=pairs,
-                                   steps=steps, rng=rng, store=st, albedo_grid=albedo_grid)
-        if perceptual_paths and int(q) == int(path_q):
-            prow = []
+                                   steps=steps, rng=rngs[q], store=st, albedo_grid=albedo_grid,
+                                   hull=hulls[q], blend_albedo=shared.hull_albedo.get(q))
+        if lp and q == int(path_q):
             gram = loaded[model.space][0] if model.space in loaded else loaded["raw"][0]
-            for a, b in pairs:
-                prow += analysis.path_analysis(st, model, gram, a, b, steps)
+            prow = [r for p, d in zip(lp, shared.path_distances) for r in p.rows(model, gram, d)]
             row.update(path_uniformity(prow))
         else:
             row.update({"perceptual_max_deviation": float("nan"), "perceptual_decreasing_steps": -1})

@@ -125,7 +125,9 @@ API
 :func:`pr12_distance` (two tables or features → float) and
 :func:`pr12_distances` (all distances between two batches, each table's
 features computed once).  Path distances as in Soler et al. Fig. 9:
-``pr12_distances(path_tables, [table_a, table_b])``.
+``pr12_distances(path_tables, [table_a, table_b])``.  :class:`StreamedDistances`:
+the same distances between tables seen a block of cells at a time (no table whole;
+:mod:`brdfpipe.manifold.blendpass`).
 """
 
 from __future__ import annotations
@@ -146,6 +148,7 @@ __all__ = [
     "pr12_distance",
     "pr12_distances",
     "pr12_n_features",
+    "StreamedDistances",
 ]
 
 #: Linear sRGB / Rec. 709 (D65) to CIE XYZ (IEC 61966-2-1).
@@ -158,6 +161,8 @@ RGB_TO_XYZ: Final = np.array(
 )
 #: Integration points per cell: (ωi, ωo) and its reciprocal (ωo, ωi).
 N_BRANCHES: Final = 2
+#: Pairs of :class:`StreamedDistances` whose differences are formed at once.
+_PAIR_GROUP: Final = 32
 
 _DELTA: Final = 6.0 / 29.0
 _EPS: Final = _DELTA**3  # CIELAB breakpoint (6/29)³ ≈ 0.008856
@@ -255,24 +260,36 @@ def pr12_features(table: ArrayLike) -> NDArray[np.float64]:
     arr = _as_table(table)
     geo = _geometry()
     rho = arr.reshape(3, merl.N_CELLS)[:, geo.cells]  # (3, n) copy
-    unmeasured = (rho < 0.0).any(axis=0)
-    xyz = _RGB_TO_XYZN @ rho  # (3, n): (X/Xn, Y/Yn, Z/Zn) per unit of π cos
+    return _cell_features(rho, geo.cos, geo.sqrt_w).reshape(-1)
+
+
+def _cell_features(
+    rho: NDArray[np.float64], cos: NDArray[np.float64], sqrt_w: NDArray[np.float64],
+    unmeasured: NDArray[np.bool_] | None = None,
+) -> NDArray[np.float64]:
+    """Features ``(…, 2, 3, m)`` of the values ``rho`` ``(…, 3, m)`` of m domain cells (NaN where unmeasured).
+
+    ``unmeasured``: ``(rho < 0).any(axis=-2)`` if the caller has it.
+    """
+    if unmeasured is None:
+        unmeasured = (rho < 0.0).any(axis=-2)
+    xyz = _RGB_TO_XYZN @ rho  # (…, 3, m): (X/Xn, Y/Yn, Z/Zn) per unit of π cos
     xyz *= np.pi
-    out = np.empty((N_BRANCHES, 3, geo.cells.size))
+    out = np.empty((*rho.shape[:-2], N_BRANCHES, 3, rho.shape[-1]))
     for b in range(N_BRANCHES):
-        f = _lab_f(xyz * geo.cos[b])  # (3, n): f(X/Xn), f(Y/Yn), f(Z/Zn)
-        fx, fy, fz = f
-        o = out[b]
-        np.multiply(fy, 116.0, out=o[0])
-        o[0] -= 16.0
-        np.subtract(fx, fy, out=o[1])
-        o[1] *= 500.0
-        np.subtract(fy, fz, out=o[2])
-        o[2] *= 200.0
-        o *= geo.sqrt_w
+        f = _lab_f(xyz * cos[b])  # (…, 3, m): f(X/Xn), f(Y/Yn), f(Z/Zn)
+        fx, fy, fz = f[..., 0, :], f[..., 1, :], f[..., 2, :]
+        o = out[..., b, :, :]
+        np.multiply(fy, 116.0, out=o[..., 0, :])
+        o[..., 0, :] -= 16.0
+        np.subtract(fx, fy, out=o[..., 1, :])
+        o[..., 1, :] *= 500.0
+        np.subtract(fy, fz, out=o[..., 2, :])
+        o[..., 2, :] *= 200.0
+        o *= sqrt_w
     if unmeasured.any():
-        out[:, :, unmeasured] = np.nan
-    return out.reshape(-1)
+        out[np.broadcast_to(unmeasured[..., None, None, :], out.shape)] = np.nan
+    return out
 
 
 def _as_features(x: ArrayLike, what: str) -> NDArray[np.float64]:
@@ -380,3 +397,75 @@ def pr12_distances(
         for j in range(len(fy)):
             out[i, j] = np.sqrt(_sq_distance(fx[i], fy[j], mx[i], my[j]))
     return out
+
+
+class StreamedDistances:
+    """:func:`pr12_distance` between pairs of P tables that are seen a block of cells at a time.
+
+    For measures of many interpolated tables in one pass over a store
+    (:mod:`brdfpipe.manifold.blendpass`), where no table is ever whole.
+    ``pairs`` are ``(i, j)`` indices into the P tables.  Feed every cell at
+    most once, with the values of all P tables (:meth:`add`); domain cells
+    never fed count as unmeasured in every table.  :meth:`distances` equals
+    ``pr12_distance(table_i, table_j)`` for each pair up to the order of
+    summation (the squared differences are summed block by block).
+    """
+
+    def __init__(self, n_tables: int, pairs: Sequence[tuple[int, int]]) -> None:
+        pr = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
+        if pr.size and (pr.min() < 0 or pr.max() >= n_tables):
+            raise ValueError(f"pairs must index the {n_tables} tables, got {pr.min()} … {pr.max()}")
+        self._pairs = pr
+        self._n_tables = int(n_tables)
+        self._sq = np.zeros(len(pr))  # Σ over the cells measured in both: ‖f_i − f_j‖²
+        self._common_w = np.zeros(len(pr))  # Σ of the per-branch weight of those cells
+        self._measured = np.zeros(n_tables, dtype=np.int64)  # domain cells measured per table
+        self._by_second = {int(j): np.flatnonzero(pr[:, 1] == j) for j in np.unique(pr[:, 1])}
+
+    def add(self, cells: NDArray[np.integer], values: NDArray[np.floating]) -> None:
+        """Values ``(P, 3, m)`` (physical units, negative = unmeasured) of the flat cells ``cells`` ``(m,)``."""
+        geo = _geometry()
+        cells = np.asarray(cells)
+        if values.shape != (self._n_tables, 3, cells.size):
+            raise ValueError(f"values must have shape ({self._n_tables}, 3, {cells.size}), got {values.shape}")
+        pos = np.searchsorted(geo.cells, cells)
+        inside = (pos < geo.cells.size) & (geo.cells[np.minimum(pos, geo.cells.size - 1)] == cells)
+        if not inside.any():
+            return
+        rho = np.asarray(values, dtype=np.float64)
+        if not inside.all():
+            pos, rho = pos[inside], rho[:, :, inside]
+        unmeasured = (rho < 0.0).any(axis=1)  # (P, m')
+        feats = _cell_features(rho, geo.cos[:, pos], geo.sqrt_w[pos], unmeasured)  # (P, 2, 3, m')
+        measured = ~unmeasured
+        self._measured += measured.sum(axis=1)
+        w = geo.w[pos]
+        # pairs grouped by their second table, a few at a time: one subtraction and one reduction per
+        # group (a loop over pairs allocates a difference of 6 m' values per pair and is ~8x slower)
+        for j, ks in self._by_second.items():
+            for c0 in range(0, ks.size, _PAIR_GROUP):
+                k = ks[c0 : c0 + _PAIR_GROUP]
+                i = self._pairs[k, 0]
+                d = feats[i] - feats[j]  # (g, 2, 3, m')
+                common = measured[i] & measured[j]  # (g, m')
+                if common.all():
+                    self._sq[k] += np.einsum("gbcm,gbcm->g", d, d)
+                    self._common_w[k] += w.sum()
+                else:
+                    d = np.where(common[:, None, None, :], d, 0.0)
+                    self._sq[k] += np.einsum("gbcm,gbcm->g", d, d)
+                    self._common_w[k] += common @ w
+
+    def distances(self) -> NDArray[np.float64]:
+        """Distance per pair ``(len(pairs),)``; ValueError when a pair has no measured cell in common."""
+        full = self._measured == _geometry().cells.size
+        out = np.empty(len(self._pairs))
+        for k, (i, j) in enumerate(self._pairs):
+            if full[i] and full[j]:
+                out[k] = np.sqrt(self._sq[k])
+                continue
+            frac = N_BRANCHES * float(self._common_w[k])
+            if frac <= 0.0:
+                raise ValueError(f"tables {i} and {j} have no measured cell in common")
+            out[k] = np.sqrt(self._sq[k] / frac)
+        return out
