@@ -18,9 +18,9 @@ rule map_logrelative:
         "logs/map_logrelative/{split}.log",
     benchmark:
         "benchmarks/map_logrelative/{split}.tsv"
+    priority: 20
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 20
     threads: 1
     resources:
         mem_mb=mem("map_logrelative"),
@@ -43,9 +43,9 @@ rule accumulate_gram:
         "logs/accumulate_gram/{split}-{scatteritem}.log",
     benchmark:
         "benchmarks/accumulate_gram/{split}-{scatteritem}.tsv"
+    priority: 20
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 20
     threads: 1
     resources:
         mem_mb=mem("accumulate_gram"),
@@ -67,9 +67,9 @@ rule decompose_svd:
         "logs/decompose_svd/{split}.log",
     benchmark:
         "benchmarks/decompose_svd/{split}.tsv"
+    priority: 20
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 20
     threads: 2
     resources:
         mem_mb=mem("decompose_svd"),
@@ -90,10 +90,10 @@ rule optimize_directions:
         "logs/optimize_directions/{split}/{setup}-fov{fov}-{metric}.log",
     benchmark:
         "benchmarks/optimize_directions/{split}/{setup}-fov{fov}-{metric}.tsv"
-    conda:
-        "../envs/brdfpipe.yaml"
     # BLAS limited to these threads by the script (brdfpipe.core.threads.blas_threads).
     priority: 10
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=mem("optimize_directions"),

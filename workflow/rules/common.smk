@@ -227,9 +227,11 @@ JOB_SIZES = {
 if config["materials"] is not None:
     MATERIALS_KEY = "materials"
 else:
-    MATERIALS_KEY = {"synthetic": "synthetic.count", "merl": "merl_dir", "nbrdf": "nbrdf_archive"}.get(
-        config["database"], "database"
-    )
+    MATERIALS_KEY = {
+        "synthetic": "synthetic.count",
+        "merl": "merl_dir",
+        "nbrdf": "nbrdf_archive",
+    }.get(config["database"], "database")
 PLANNED_RULES = plan.planned_rules(
     config,
     generated=GENERATED,

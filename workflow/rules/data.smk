@@ -14,9 +14,9 @@ if GENERATED:
             "logs/synthesize_material/{material}.log",
         benchmark:
             "benchmarks/synthesize_material/{material}.tsv"
+        priority: 30
         conda:
             "../envs/brdfpipe.yaml"
-        priority: 30
         threads: 1
         resources:
             mem_mb=mem("synthesize_material"),
@@ -39,9 +39,9 @@ if GENERATED:
             "logs/write_manifest.log",
         benchmark:
             "benchmarks/write_manifest.tsv"
+        priority: 30
         conda:
             "../envs/brdfpipe.yaml"
-        priority: 30
         threads: 1
         resources:
             mem_mb=mem("write_manifest"),
@@ -85,9 +85,9 @@ if FITS:
             "logs/evaluate_fits.log",
         benchmark:
             "benchmarks/evaluate_fits.tsv"
+        priority: 30
         conda:
             "../envs/brdfpipe.yaml"
-        priority: 30
         threads: min(4, workflow.cores)
         resources:
             mem_mb=mem("evaluate_fits"),
@@ -111,9 +111,9 @@ else:
             "logs/ingest_material/{material}.log",
         benchmark:
             "benchmarks/ingest_material/{material}.tsv"
+        priority: 30
         conda:
             "../envs/brdfpipe.yaml"
-        priority: 30
         threads: 1
         resources:
             mem_mb=mem("ingest_material"),
@@ -135,9 +135,9 @@ rule assemble_store:
         "logs/assemble_store.log",
     benchmark:
         "benchmarks/assemble_store.tsv"
+    priority: 30
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 30
     threads: 1
     resources:
         mem_mb=mem("assemble_store"),
@@ -160,9 +160,9 @@ rule write_splits:
         "logs/write_splits.log",
     benchmark:
         "benchmarks/write_splits.tsv"
+    priority: 30
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 30
     threads: 1
     resources:
         mem_mb=mem("write_splits"),

@@ -14,9 +14,9 @@ rule compute_gram:
         "logs/compute_gram/{space}.log",
     benchmark:
         "benchmarks/compute_gram/{space}.tsv"
+    priority: 20
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 20
     threads: 1
     resources:
         mem_mb=mem("compute_gram"),
@@ -38,10 +38,10 @@ rule fit_gplvm:
         "logs/fit_gplvm/{candidate}/q{q}.log",
     benchmark:
         "benchmarks/fit_gplvm/{candidate}/q{q}.tsv"
-    conda:
-        "../envs/brdfpipe.yaml"
     # BLAS limited to these threads by the script (brdfpipe.core.threads.blas_threads).
     priority: 20
+    conda:
+        "../envs/brdfpipe.yaml"
     threads: 1
     resources:
         mem_mb=mem("fit_gplvm"),
@@ -73,9 +73,9 @@ rule analyze_manifold:
         "logs/analyze_manifold.log",
     benchmark:
         "benchmarks/analyze_manifold.tsv"
+    priority: 20
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 20
     threads: 1
     resources:
         mem_mb=mem("analyze_manifold"),
@@ -107,9 +107,9 @@ rule measure_gplvm_candidate:
         "logs/measure_gplvm_candidate/{candidate}.log",
     benchmark:
         "benchmarks/measure_gplvm_candidate/{candidate}.tsv"
+    priority: 20
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 20
     threads: 1
     resources:
         mem_mb=mem("measure_gplvm_candidate"),
@@ -138,9 +138,9 @@ rule compare_spaces:
         stability=fn.spaces_stability_csv(),
     log:
         "logs/compare_spaces.log",
+    priority: 20
     conda:
         "../envs/brdfpipe.yaml"
-    priority: 20
     threads: 1
     resources:
         mem_mb=mem("compare_spaces"),

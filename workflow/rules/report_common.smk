@@ -60,7 +60,9 @@ def reported_pattern(pattern, key):
     if not items:
         return pattern
     first = items[0]
-    labels = {k: ("{database}" if k == "unseen" else v) for k, v in first.labels.items()}
+    labels = {
+        k: ("{database}" if k == "unseen" else v) for k, v in first.labels.items()
+    }
     return report(
         pattern,
         caption=os.path.abspath(first.caption),

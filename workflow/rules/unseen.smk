@@ -27,7 +27,9 @@ if UNSEEN:
             mem_mb=mem("evaluate_unseen_fits"),
             runtime=10,
         params:
-            fits=lambda w: {m: UNSEEN[w.database].fits[m] for m in UNSEEN[w.database].materials},
+            fits=lambda w: {
+                m: UNSEEN[w.database].fits[m] for m in UNSEEN[w.database].materials
+            },
             binaries=lambda w: [
                 fn.unseen_binary(w.database, m) for m in UNSEEN[w.database].materials
             ],
@@ -57,7 +59,8 @@ if UNSEEN:
                 runtime=30,
             params:
                 binaries=lambda w: {
-                    m: fn.unseen_binary(w.database, m) for m in UNSEEN[w.database].materials
+                    m: fn.unseen_binary(w.database, m)
+                    for m in UNSEEN[w.database].materials
                 },
                 n_images=CLOSEDLOOP_N,
                 spp=CLOSED["spp"],
@@ -79,7 +82,9 @@ if UNSEEN:
                 directions=UNSEEN_DIRECTIONS,
                 closedloop_directions=CLOSEDLOOP_DIRECTIONS,
                 observations=(
-                    [fn.unseen_observations(d) for d in UNSEEN] if CLOSEDLOOP_SETS else []
+                    [fn.unseen_observations(d) for d in UNSEEN]
+                    if CLOSEDLOOP_SETS
+                    else []
                 ),
                 stamp=stamp_of("evaluate_unseen"),
             output:
@@ -107,7 +112,9 @@ if UNSEEN:
         input:
             store=fn.store(),
             gram=fn.gram(MAN["space"]),
-            models=expand(fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
+            models=expand(
+                fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]
+            ),
             unseen=[fn.unseen_store(d) for d in UNSEEN],
             stamp=stamp_of("locate_unseen"),
         output:
