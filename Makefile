@@ -72,7 +72,7 @@ report: setup
 	$(SMK) --configfile $(CONFIG) --report results/report.zip
 
 test: setup lint chromium $(SLURM_STAMP)
-	$(PY) -m pytest -q -n 3 --durations=20
+	$(PY) -m pytest -q -n 2 --durations=20
 
 bench: setup
 	$(PY) benches/run_all.py

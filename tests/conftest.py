@@ -2,7 +2,7 @@
 
 The Slurm test (tests/test_slurm.py) takes minutes, most of them waiting on
 Slurm's job-state polling: it is moved to the front of the collection so that,
-under pytest-xdist (`make test` runs `-n 3`), one worker starts it at once and
+under pytest-xdist (`make test` runs `-n 2`), one worker starts it at once and
 the other worker runs the rest of the suite beside it.  It first builds the
 session's shared local run of tiny-point (tests/shared_runs.py); the other test
 that reads that run is moved to the end, so that it finds the run built rather

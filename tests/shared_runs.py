@@ -1,6 +1,6 @@
 """Workflow runs that several tests read, built once per test session.
 
-`make test` runs pytest under xdist (`-n 3`): each worker is its own process,
+`make test` runs pytest under xdist (`-n 2`): each worker is its own process,
 so a session fixture alone would build the same run once per worker.  The
 first caller builds the run under an exclusive ``flock`` in the session's
 shared temporary folder; the others wait for it and read the same folder.
