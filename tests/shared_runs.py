@@ -26,7 +26,7 @@ SNAKEFILE = ROOT / "workflow" / "Snakefile"
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 
 
-def _shared_root(factory: pytest.TempPathFactory) -> Path:
+def shared_root(factory: pytest.TempPathFactory) -> Path:
     base = factory.getbasetemp()
     # under xdist each worker's basetemp is <session>/popen-gwN; the session folder is shared
     return base.parent if base.name.startswith("popen-gw") else base
@@ -40,7 +40,7 @@ def workflow_env() -> dict[str, str]:
 
 def shared_run(factory: pytest.TempPathFactory, config: Path, *, cores: int = 2, timeout: int = 900) -> Path:
     """The working directory of a finished local run of ``config`` (built by the first caller)."""
-    folder = _shared_root(factory) / f"shared-{config.stem}"
+    folder = shared_root(factory) / f"shared-{config.stem}"
     folder.mkdir(exist_ok=True)
     work, status = folder / "work", folder / "status.json"
     with open(folder / "lock", "w") as lock:
@@ -71,7 +71,7 @@ def shared_build(factory: pytest.TempPathFactory, name: str, build: Callable[[Pa
     A build that raised fails every caller, with its message.  Readers must
     not write into the folder.
     """
-    folder = _shared_root(factory) / f"shared-{name}"
+    folder = shared_root(factory) / f"shared-{name}"
     folder.mkdir(exist_ok=True)
     work, status = folder / "work", folder / "status.json"
     with open(folder / "lock", "w") as lock:

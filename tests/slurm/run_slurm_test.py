@@ -16,7 +16,9 @@
    Snakemake running exactly the non-local jobs that the main log announced.
 4. Runs the same config locally (--cores 2) in another scratch directory and
    compares every file under results/ byte for byte; with --reference, compares
-   with that finished local run of the same config instead of running one.
+   with that finished local run of the same config instead of running one; with
+   --no-compare, leaves the comparison to the caller (the Slurm run's results/
+   are in <scratch>/slurm/results).
 5. Prints the wall times and their ratio; stops only the daemons it started.
 
 Exit status 0: all checks passed; 1: a check failed; 77: cannot run here (skip).
@@ -224,7 +226,13 @@ def main() -> int:
     ap.add_argument("--reference", type=Path, default=None,
                     help="a finished local run (its working directory) of the same config to compare with, "
                          "instead of running one")
+    ap.add_argument("--no-compare", action="store_true",
+                    help="check Slurm's records only: the caller compares <scratch>/slurm/results with a local run")
+    ap.add_argument("--summary", type=Path, default=None,
+                    help="also write the JSON summary to this file (once the daemons are stopped)")
     args = ap.parse_args()
+    if args.no_compare and args.scratch is None:
+        ap.error("--no-compare needs --scratch: the caller reads the Slurm run's results/ there")
     if args.reference is not None and not (args.reference / "results").is_dir():
         ap.error(f"--reference {args.reference}: no results/ folder there (a finished local run of the config)")
     config = args.config.resolve()
@@ -281,7 +289,9 @@ def main() -> int:
         log(f"Slurm run: {wall_slurm:.1f} s, {summary['slurm_jobs']} Slurm jobs holding "
             f"{summary['workflow_jobs_in_slurm']} workflow jobs; {summary['local_jobs']} local jobs")
 
-        if args.reference is not None:
+        if args.no_compare:
+            summary.update(wall_slurm_s=round(wall_slurm, 1), results=str(slurm_dir / "results"))
+        elif args.reference is not None:
             summary.update(compare_results(slurm_dir / "results", args.reference.resolve() / "results"))
             summary.update(reference=str(args.reference), wall_slurm_s=round(wall_slurm, 1))
             log(f"results/: {summary['files_compared']} files, byte-identical to the reference run "
@@ -314,6 +324,11 @@ def main() -> int:
         else:
             log(f"run folders kept in {scratch}")
     print(json.dumps(summary))
+    if args.summary is not None:
+        summary["exit_status"] = status
+        partial = args.summary.with_name(args.summary.name + ".partial")
+        partial.write_text(json.dumps(summary))
+        partial.replace(args.summary)
     return status
 
 
