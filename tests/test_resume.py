@@ -80,6 +80,17 @@ def _group_gone(pgid: int, timeout: float) -> bool:
     return False
 
 
+def _default_sigint() -> None:
+    """In the child before exec: SIGINT back to its default action.
+
+    A shell starts a background command (``make test &`` in a script) with
+    SIGINT ignored, and an ignored signal stays ignored across exec: Snakemake
+    would never see the Ctrl-C this test sends, and the test would wait for
+    its watchdog.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run_and_kill(work: Path, config: Path, env: dict[str, str], *, sig: int, rule: str | None = None,
                  hold: Path | None = None, cores: int = 2) -> tuple[bool, str]:
     """Run Snakemake and send ``sig`` to its whole process group at a known point.
@@ -92,7 +103,7 @@ def run_and_kill(work: Path, config: Path, env: dict[str, str], *, sig: int, rul
     nothing writes afterwards.
     """
     proc = subprocess.Popen(snakemake_cmd(work, config, cores=cores), cwd=work, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True, preexec_fn=_default_sigint)
     killed = threading.Event()
 
     def kill() -> None:
