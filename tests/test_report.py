@@ -381,6 +381,12 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         assert " ".join(row["measured"].split()) in front, row["key"]
     for needle in ("Claims", "Versions", "Wall time per stage", "Database: synthetic", "0.1.0+src."):
         assert needle in front, needle
+    # beside this synthetic run's column: the recorded merl-nbrdf run's (config report.compare_with, default),
+    # its measurements as its claims.csv has them; no recorded synthetic column (this run's database)
+    recorded = Path(__file__).resolve().parents[1] / "docs" / "results" / "runs" / "2026-11-26-h200"
+    assert "merl-nbrdf (recorded run)" in front and "synthetic (recorded run)" not in front
+    for row in claims.read_claims(recorded / "merl-nbrdf" / "claims.csv"):
+        assert " ".join(row["measured"].split()) in front, row["key"]
     n_bench = len(list((workdir / "benchmarks").rglob("*.tsv")))
     assert f"over {n_bench} jobs." in front
     # two claims recomputed from the run's CSVs, independently of brdfpipe.report

@@ -61,6 +61,8 @@ __all__ = [
     "compute_claims",
     "write_claims",
     "read_claims",
+    "RunClaims",
+    "read_run",
     "claims_table_rst",
     "rst_cell",
 ]
@@ -812,8 +814,12 @@ def compute_claims(inputs: ClaimInputs) -> list[Claim]:
 
 
 def write_claims(claims: Sequence[Claim], *, csv_path: str | os.PathLike[str], json_path: str | os.PathLike[str],
-                 rst_path: str | os.PathLike[str]) -> None:
-    """``claims.csv`` (:data:`CLAIM_COLUMNS`), ``claims.json`` (with the figures of each claim) and the rst table."""
+                 rst_path: str | os.PathLike[str], recorded: Sequence[RunClaims] = ()) -> None:
+    """``claims.csv`` (:data:`CLAIM_COLUMNS`), ``claims.json`` (with the figures of each claim) and the rst table.
+
+    The table shows the ``recorded`` runs' columns beside this run's (:func:`claims_table_rst`);
+    the CSV and JSON hold this run's claims only.
+    """
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(CLAIM_COLUMNS), lineterminator="\n")
     w.writeheader()
@@ -823,7 +829,7 @@ def write_claims(claims: Sequence[Claim], *, csv_path: str | os.PathLike[str], j
     records = [{**c.row(), "value": None if not math.isfinite(c.value) else c.value, "figures": list(c.figures)}
                for c in claims]
     atomic.write_text(json_path, json.dumps(records, indent=1, ensure_ascii=False) + "\n")
-    atomic.write_text(rst_path, claims_table_rst(claims))
+    atomic.write_text(rst_path, claims_table_rst(claims, recorded))
 
 
 def read_claims(path: str | os.PathLike[str]) -> list[dict[str, str]]:
@@ -840,14 +846,56 @@ def rst_cell(text: str) -> str:
 _MARK = {"yes": "**yes**", "no": "**NO**", "not measured": "not measured"}
 
 
-def claims_table_rst(claims: Sequence[Claim]) -> str:
-    """The claims table: paper, where, claim, paper value, this run, holds, database (a ``list-table``)."""
-    lines = [".. list-table::", "   :header-rows: 1", "   :widths: 8 10 26 20 26 6 8", "",
+class RunClaims:
+    """The claims of another run, read back from its ``claims.csv``: its database and its rows by claim key.
+
+    ``database`` is the one the CSV's rows name (claims about materials
+    outside the run's database, :func:`is_unseen_claim`, name theirs and do
+    not count), never what a caller believes it to be: a run made on
+    synthetic data cannot be shown as MERL.  ``source`` is how the run is
+    named where it is shown (the path as configured).
+    """
+
+    def __init__(self, path: Path, rows: Sequence[Mapping[str, str]], source: str | None = None) -> None:
+        self.path = path
+        self.source = str(path) if source is None else source
+        self.rows = {r["key"]: dict(r) for r in rows}
+        self.order = [r["key"] for r in rows]
+        names = sorted({r["database"] for r in rows if r["database"] and not is_unseen_claim(r["key"])})
+        if len(names) > 1:
+            raise ClaimsInputError(f"{path}: claims of several databases: {names}")
+        self.database = names[0] if names else "(nothing measured)"
+
+
+def read_run(path: str | os.PathLike[str], source: str | None = None) -> RunClaims:
+    """Another run's ``claims.csv`` (its digest checked; :class:`ClaimsInputError` naming the file)."""
+    p = Path(path)
+    return RunClaims(p, read_claims(p), source)
+
+
+def claims_table_rst(claims: Sequence[Claim], recorded: Sequence[RunClaims] = ()) -> str:
+    """The claims table (a ``list-table``): paper, where, claim, paper value, this run, holds, database.
+
+    Each run of ``recorded`` (another database's run, read back with
+    :func:`read_run`) adds a column: its measurement and verdict for the same
+    claim, headed by the database its CSV names; the runs' files are listed
+    under the table.
+    """
+    widths = " ".join(["8 10 26 20 26 6 8", *["26"] * len(recorded)])
+    lines = [".. list-table::", "   :header-rows: 1", f"   :widths: {widths}", "",
              "   * - paper", "     - where", "     - claim (as checked)", "     - paper value", "     - this run",
              "     - holds", "     - database"]
+    lines += [f"     - {rst_cell(r.database)} (recorded run)" for r in recorded]
     for c in claims:
         cells = [rst_cell(c.paper), rst_cell(c.where), rst_cell(c.claim), rst_cell(c.paper_value), rst_cell(c.measured),
                  _MARK[c.holds], rst_cell(c.database)]
+        for r in recorded:
+            row = r.rows.get(c.key)
+            cells.append("(not in that run)" if row is None
+                         else f"{rst_cell(row['measured'])} ({_MARK.get(row['holds'], rst_cell(row['holds']))})")
         lines.append(f"   * - {cells[0]}")
         lines += [f"     - {x}" for x in cells[1:]]
+    if recorded:
+        lines += ["", "Recorded runs, each column read from its ``claims.csv`` (digest checked):", ""]
+        lines += [f"- {rst_cell(r.database)}: {rst.literal(r.source)}" for r in recorded]
     return "\n".join(lines) + "\n"
