@@ -405,9 +405,12 @@ def test_error_maps_of_the_one_bounce_part(tmp_path: Path) -> None:
         assert row["ratio_one"] == pytest.approx(rb / rn, rel=1e-12)
         assert row["ratio_one_seed2"] == pytest.approx(rb2 / rn, rel=1e-12)
         assert row["mean_reference_one"] == pytest.approx(ref.mean(), rel=1e-12)
+        assert row["ratio_one_seed2_se"] == pytest.approx(blend.ratio_standard_error(direct, ref, ref2), rel=1e-12)
+        assert 0 < row["ratio_one_seed2_se"] < np.inf and 0 < row["ratio_seed2_se"] < np.inf
     with io.StringIO(integrity.read_csv_text(out / "s.csv"), newline="") as fh:
         table = list(csv.DictReader(fh))
     assert float(table[1]["ratio_one_seed2"]) == pytest.approx(rows[1]["ratio_one_seed2"], rel=1e-8)
+    assert float(table[1]["ratio_seed2_se"]) == pytest.approx(rows[1]["ratio_seed2_se"], rel=1e-8)
     # without I¹⁻ images the columns are empty; a point lacking its I¹⁻ reference is named
     error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=out / "s.csv", database="synthetic")
     with io.StringIO(integrity.read_csv_text(out / "s.csv"), newline="") as fh:
@@ -597,3 +600,32 @@ def test_a_relabelled_image_is_refused(tmp_path: Path) -> None:
         g.write(str(prerenders["chrome"]))
     with pytest.raises(ExrError, match="chrome.exr: its pixels or attributes do not match"):
         read_exr(prerenders["chrome"])
+
+
+def test_ratio_standard_error_is_the_spread_of_the_ratio_over_seeds() -> None:
+    """The standard error of blend / floor from one pair of seeds equals the spread of that ratio over many pairs.
+
+    A blend without bias (its own noise like a reference's) against a floor between two references: over
+    400 independent noise draws the ratio's standard deviation is what :func:`blend.ratio_standard_error`
+    estimates from each single draw's pixels (here 1.5 %); a heavy-tailed noise (a few fireflies) widens both.
+    """
+    rng = np.random.default_rng(7)
+    truth = rng.uniform(0.2, 1.0, size=(24, 32, 3))
+
+    def draws(noise) -> tuple[float, float]:
+        ratios, ses = [], []
+        for _ in range(400):
+            ref, ref2, bl = (truth + noise() for _ in range(3))
+            ratios.append(blend.rmse(bl, ref2) / blend.rmse(ref, ref2))
+            ses.append(blend.ratio_standard_error(bl, ref, ref2))
+        return float(np.std(ratios, ddof=1)), float(np.median(ses))
+
+    spread, se = draws(lambda: 0.05 * rng.normal(size=truth.shape))
+    assert se == pytest.approx(spread, rel=0.15) and 0.01 < se < 0.03
+    fireflies = lambda: 0.05 * rng.normal(size=truth.shape) * np.where(rng.random(truth.shape) < 0.003, 20.0, 1.0)  # noqa: E731
+    spread_ff, se_ff = draws(fireflies)
+    assert se_ff > 2 * se and se_ff == pytest.approx(spread_ff, rel=0.35)
+    # degenerate: identical references (no floor) or a single pixel give no error estimate
+    assert np.isnan(blend.ratio_standard_error(truth, truth, truth))
+    assert np.isnan(blend.ratio_standard_error(truth[:1, :1], truth[:1, :1] + 1, truth[:1, :1]))
+

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from brdfpipe.report import claims, sidebyside
+from brdfpipe.report import claims, rst, sidebyside
 
 
 def _claim(key: str, measured: str, holds: str, database: str) -> claims.Claim:
@@ -52,3 +52,42 @@ def test_command_line_writes_the_page(tmp_path: Path) -> None:
     out = tmp_path / "page.md"
     assert sidebyside.main([str(a), "--out", str(out), "--title", "Claims"]) == 0
     assert out.read_text().startswith("# Claims\n")
+
+
+def test_recorded_runs_leave_out_the_runs_own_database_and_name_the_key_of_a_bad_file(tmp_path: Path) -> None:
+    a = _write(tmp_path / "a", [_claim("one_shot", "θh 7.2°", "no", "merl-nbrdf")])
+    b = _write(tmp_path / "b", [_claim("one_shot", "θh 11.7°", "no", "synthetic")])
+    entries = ["a/claims.csv", str(b)]  # relative to the root, or absolute
+    runs = sidebyside.recorded_runs(entries, root=tmp_path, exclude="synthetic")
+    assert [(r.database, r.source) for r in runs] == [("merl-nbrdf", "a/claims.csv")]
+    assert [r.database for r in sidebyside.recorded_runs(entries, root=tmp_path, exclude="merl")] == [
+        "merl-nbrdf", "synthetic"]
+    with pytest.raises(claims.ClaimsInputError, match=r"report.compare_with\[1\] = 'x.csv': no such file"):
+        sidebyside.recorded_runs(["a/claims.csv", "x.csv"], root=tmp_path, exclude="synthetic")
+    with pytest.raises(claims.ClaimsInputError, match=r"compare_with\[1\].*second recorded run of merl-nbrdf"):
+        sidebyside.recorded_runs(["a/claims.csv", "a/claims.csv"], root=tmp_path, exclude="synthetic")
+    a.write_text(a.read_text().replace("7.2", "3.0"))  # edited: its digest no longer matches
+    with pytest.raises(claims.ClaimsInputError, match=r"compare_with\[0\] = 'a/claims.csv': not a run's claims.csv"):
+        sidebyside.recorded_runs(entries, root=tmp_path, exclude="synthetic")
+
+
+def test_the_report_table_shows_recorded_runs_beside_this_run(tmp_path: Path) -> None:
+    recorded = _write(tmp_path / "rec", [_claim("one_shot", "θh 11.7°", "no", "synthetic"),
+                                         _claim("bounces", "10.5 % | pipe", "yes", "synthetic")])
+    run = sidebyside.recorded_runs(["rec/claims.csv"], root=tmp_path, exclude="merl-nbrdf")
+    mine = [_claim("one_shot", "θh 7.2°", "no", "merl-nbrdf"), _claim("albedo", "4.3 %", "no", "merl-nbrdf")]
+    table = claims.claims_table_rst(mine, run)
+    lines = table.splitlines()
+    assert lines[2] == "   :widths: 8 10 26 20 26 6 8 26"
+    assert "     - synthetic (recorded run)" in lines
+    rows = table.split("   * - ")[2:]
+    assert rows[0].rstrip().splitlines()[-1] == f"     - {claims.rst_cell('θh 11.7°')} (**NO**)"  # text, not markup
+    assert rows[1].split("\n\n")[0].splitlines()[-1] == "     - (not in that run)"  # the recorded run has no albedo claim
+    assert f"- synthetic: {rst.literal('rec/claims.csv')}" in lines
+    # only this run's claims go to its CSV; the table holds the recorded column
+    out = tmp_path / "out"
+    out.mkdir()
+    claims.write_claims(mine, csv_path=out / "claims.csv", json_path=out / "claims.json", rst_path=out / "claims.rst",
+                        recorded=run)
+    assert {r["database"] for r in claims.read_claims(out / "claims.csv")} == {"merl-nbrdf"}
+    assert (out / "claims.rst").read_text() == table

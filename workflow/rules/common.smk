@@ -16,6 +16,8 @@ from brdfpipe.core import filenames as fn
 from brdfpipe.core import plan
 from brdfpipe.core import stamps as job_stamps
 from brdfpipe.core.version import script_digest
+from brdfpipe.report import claims as report_claims
+from brdfpipe.report import sidebyside
 
 SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
 
@@ -133,6 +135,22 @@ def _load_unseen():
 # Materials outside the run's database (config unseen): label -> its fits, each
 # evaluated into a store of its own (rules/unseen.smk).
 UNSEEN = _load_unseen()
+
+
+def _load_recorded():
+    try:
+        return sidebyside.recorded_runs(
+            config["report"]["compare_with"],
+            root=Path(workflow.basedir).parent,
+            exclude=DATABASE.kind,
+        )
+    except report_claims.ClaimsInputError as err:
+        raise WorkflowError(f"invalid configuration: {err}") from None
+
+
+# Recorded runs on other databases, whose claims the report shows beside this
+# run's (config report.compare_with; rule write_claims).
+RECORDED = _load_recorded()
 N_UNSEEN = sum(len(db.sources) for db in UNSEEN.values())
 TRAIN_MATERIALS = [m for m in MATERIALS if m not in TEST_MATERIALS]
 # The workflow generates the synthetic database (rules synthesize_material and

@@ -23,6 +23,7 @@ rule write_claims:
         closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
         unseen=fn.unseen_errors() if UNSEEN_EVALUATED else [],
         unseen_albedo=[fn.unseen_albedo(d) for d in UNSEEN],
+        recorded=[str(run.path) for run in RECORDED],
         stamp=stamp_of("write_claims"),
     output:
         claims=reported(fn.claims_csv()),
@@ -44,6 +45,7 @@ rule write_claims:
             for it in REPORT_ITEMS
         ],
         latent_dims=MAN["latent_dims"],
+        recorded=[run.source for run in RECORDED],
         config=dict(config),
         configfiles=[str(f) for f in workflow.configfiles],
         targets={k: len(v) if isinstance(v, list) else 1 for k, v in TARGETS.items()},

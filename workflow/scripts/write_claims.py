@@ -23,11 +23,14 @@ with log_to(snakemake.log[0]):
             unseen_albedo=list(inp.unseen_albedo),
         )
     )
+    # other databases' recorded runs, shown beside this run's claims (config report.compare_with)
+    recorded = [claims.read_run(path, source) for path, source in zip(inp.recorded, snakemake.params.recorded)]
     claims.write_claims(
         found,
         csv_path=snakemake.output.claims,
         json_path=snakemake.output.json,
         rst_path=snakemake.output.rst,
+        recorded=recorded,
     )
     splits = integrity.read_json(inp.splits, kind="splits file")  # its digest checked
     captions.write_captions(snakemake.params.entries, found,
@@ -40,4 +43,5 @@ with log_to(snakemake.log[0]):
         configfiles=snakemake.params.configfiles,
         targets=snakemake.params.targets,
         versions=runinfo.versions(),
+        recorded=recorded,
     )

@@ -60,6 +60,7 @@ __all__ = [
     "error_maps",
     "error_maps_from_files",
     "SUMMARY_ONE_COLUMNS",
+    "ratio_standard_error",
     "SHARE_COLUMNS",
     "bounce_shares",
     "FLOOR_CHECK_COLUMNS",
@@ -73,9 +74,10 @@ logger = logging.getLogger("brdfpipe.rendering.blend")
 SUMMARY_COLUMNS: Final = (
     "database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "rmse_blend_seed2", "ratio_seed2", "mean_reference",
     "rmse_blend_one", "rmse_noise_one", "ratio_one", "rmse_blend_one_seed2", "ratio_one_seed2", "mean_reference_one",
+    "ratio_seed2_se", "ratio_one_seed2_se",
 )
 #: The I¹⁻ columns of :data:`SUMMARY_COLUMNS`.
-SUMMARY_ONE_COLUMNS: Final = SUMMARY_COLUMNS[9:]
+SUMMARY_ONE_COLUMNS: Final = SUMMARY_COLUMNS[9:15] + ("ratio_one_seed2_se",)
 #: Columns of the I²⁺ share CSV written by :func:`bounce_shares`, in order.
 SHARE_COLUMNS: Final = (
     "database", "material", "mean_image", "mean_one", "share_image", "mean_image_object", "mean_one_object",
@@ -183,6 +185,37 @@ def rmse(a: ArrayLike, b: ArrayLike) -> float:
     """Root mean squared difference of two same-shape images over all pixels and channels."""
     a64, b64 = _pair(a, b)
     return float(np.sqrt(np.mean(np.square(a64 - b64))))
+
+
+def ratio_standard_error(blend: ArrayLike, reference: ArrayLike, reference_seed2: ArrayLike) -> float:
+    """Standard error of ``rmse(blend, reference_seed2) / rmse(reference, reference_seed2)``, from the pixels.
+
+    The noise floor is measured from one pair of seeds: its own estimate is
+    uncertain, and so is the ratio a verdict compares with 1.  With per-pixel
+    squared differences (summed over the channels) uᵢ = |blend − ref₂|² and
+    vᵢ = |ref − ref₂|², the ratio is R = √(ū / v̄); pixels of a Monte Carlo
+    render carry independent noise, so (delta method, a paired comparison of
+    uᵢ and vᵢ over the n pixels) SE(R²) = sd(uᵢ − R² vᵢ) / (√n · v̄) and
+    SE(R) = SE(R²) / (2R).  Heavy-tailed noise (fireflies) widens it, as it
+    should.  ``nan`` when the ratio is not finite and positive or there is a
+    single pixel.
+    """
+    b64, r2 = _pair(blend, reference_seed2)
+    r64, _ = _pair(reference, r2)
+    if b64.ndim == 3:
+        u = np.square(b64 - r2).sum(axis=2).ravel()
+        v = np.square(r64 - r2).sum(axis=2).ravel()
+    else:
+        u, v = np.square(b64 - r2).ravel(), np.square(r64 - r2).ravel()
+    n = u.size
+    vbar = float(v.mean()) if n else 0.0
+    if n < 2 or not vbar > 0.0:
+        return math.nan
+    ratio2 = float(u.mean()) / vbar
+    if not (math.isfinite(ratio2) and ratio2 > 0.0):
+        return math.nan
+    se2 = float(np.std(u - ratio2 * v, ddof=1)) / (math.sqrt(n) * vbar)
+    return se2 / (2.0 * math.sqrt(ratio2))
 
 
 def relative_rmse(a: ArrayLike, b: ArrayLike, reference: ArrayLike) -> float:
@@ -314,7 +347,8 @@ def _one_row(blend: NDArray[np.float64], ref_path: Path, ref2_path: Path) -> dic
     rmse_blend2 = relative_rmse(blend, ref2, ref)
     return {"rmse_blend_one": rmse_blend, "rmse_noise_one": rmse_noise,
             "ratio_one": _ratio(rmse_blend, rmse_noise), "rmse_blend_one_seed2": rmse_blend2,
-            "ratio_one_seed2": _ratio(rmse_blend2, rmse_noise), "mean_reference_one": float(ref.mean())}
+            "ratio_one_seed2": _ratio(rmse_blend2, rmse_noise), "mean_reference_one": float(ref.mean()),
+            "ratio_one_seed2_se": ratio_standard_error(blend, ref, ref2)}
 
 
 def error_maps(
@@ -357,16 +391,21 @@ def error_maps(
       ``rmse_blend`` optimistic; against the independent second seed, a
       blend without bias gives ``ratio_seed2`` ≈ 1 (both sides noisy) and
       a visible blending bias gives more;
-    * ``mean_reference`` = mean of the reference over pixels and channels.
+    * ``mean_reference`` = mean of the reference over pixels and channels;
+    * ``ratio_seed2_se`` = :func:`ratio_standard_error`: the uncertainty of
+      ``ratio_seed2`` that comes from measuring the noise floor from one
+      pair of seeds (a verdict "blend within the floor" compares
+      ``ratio_seed2`` with 1 within a few of these).
 
     With ``prerenders_one`` (each material's ``I¹⁻`` pre-render: light paths
     with at most one scattering on the material, :mod:`brdfpipe.rendering.bounce`;
     same materials as ``prerenders``), every point also needs
     ``reference_one`` and ``reference_one_seed2`` (the references' ``I¹⁻``
     images), the ``I¹⁻`` pre-renders are blended with the same weights, and
-    the row gets the same six numbers for them, suffixed ``_one``
+    the row gets the same seven numbers for them, suffixed ``_one``
     (``rmse_blend_one``, ``rmse_noise_one``, ``ratio_one``,
-    ``rmse_blend_one_seed2``, ``ratio_one_seed2``, ``mean_reference_one``;
+    ``rmse_blend_one_seed2``, ``ratio_one_seed2``, ``mean_reference_one``,
+    ``ratio_one_seed2_se``;
     relative to the ``I¹⁻`` reference's mean).  ``I¹⁻`` is exactly affine in
     the material, so its blend has no bias from ``I²⁺``: ``ratio_one_seed2``
     ≈ 1 apart from the material interpolation's own error.  Without
@@ -473,7 +512,7 @@ def error_maps(
         errs.append(err)
         row = {"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
                "ratio": ratio, "rmse_blend_seed2": rmse_blend2, "ratio_seed2": ratio2,
-               "mean_reference": mean_ref}
+               "mean_reference": mean_ref, "ratio_seed2_se": ratio_standard_error(blend, ref, ref2)}
         msg = (f"{name} t={s}: relative RMSE blend {rmse_blend:.4g}, noise {rmse_noise:.4g}, "
                f"ratio {ratio:.3g}, vs seed 2 {ratio2:.3g}")
         if blends_one is not None:
@@ -633,6 +672,7 @@ FLOOR_CHECK_COLUMNS: Final = (
     "database", "candidate", "space", "mu", "default", "path", "t", "width", "height", "spp",
     "sum_abs_w", "norm2_w", "clamped_fraction",
     "rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2",
+    "ratio_seed2_se", "ratio_one_seed2_se",
 )
 
 
@@ -682,7 +722,8 @@ def floor_check_table(
     Σ|wᵢ| and ‖w‖₂ (noise of the pre-renders enters the blend with ‖w‖₂),
     the share of the interpolated table's measured values clamped at 0
     (a clamp the linear blend of images cannot know), the noise floor and
-    the ratios of the summary (whole image and I¹⁻).  Writes ``out``
+    the ratios of the summary with their standard errors (whole image and
+    I¹⁻).  Writes ``out``
     (columns :data:`FLOOR_CHECK_COLUMNS`, numbers ``%.9g``) atomically.
     :class:`BlendError` naming the file when a summary is of another
     database, its rows and the weights disagree on the points, or the renders
@@ -731,7 +772,8 @@ def floor_check_table(
                 "sum_abs_w": float(np.abs(w).sum()), "norm2_w": float(np.linalg.norm(w)),
                 "clamped_fraction": doc["clamped"] / doc["measured"],
             }
-            for col in ("rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2"):
+            for col in ("rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2",
+                        "ratio_seed2_se", "ratio_one_seed2_se"):
                 row[col] = float(srow[col]) if srow[col] != "" else math.nan
             rows.append(row)
     buf = io.StringIO()

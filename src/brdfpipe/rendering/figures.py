@@ -263,7 +263,8 @@ def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.
     ``table`` is :func:`brdfpipe.rendering.blend.floor_check_table`'s CSV.  Left: the
     whole image, right: its I¹⁻ part; one row of markers per candidate, one
     marker per path point, against the independent-seed reference
-    (``ratio_seed2``, ``ratio_one_seed2``); lines at 1 (no error beyond the
+    (``ratio_seed2``, ``ratio_one_seed2``) with ± 2 standard errors of the
+    floor's own estimate (``*_se``); lines at 1 (no error beyond the
     noise) and :data:`FLOOR_RATIO_TARGET`.  The subtitle gives the renders'
     size, spp and the floor's range.  :class:`FigureInputError` for a
     missing table, a missing column or another database.
@@ -290,6 +291,12 @@ def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.
         for ax, col, name in panels:
             for y, c in enumerate(labels):
                 vals = np.array([float(r[col]) for r in rows if r["candidate"] == c], dtype=np.float64)
+                se = np.array([float(r[f"{col}_se"]) for r in rows if r["candidate"] == c], dtype=np.float64)
+                # ± 2 standard errors of the floor's own estimate (one pair of seeds), clipped to the log axis
+                lo = np.where(np.isfinite(se), np.minimum(2 * se, 0.9 * vals), 0.0)
+                hi = np.where(np.isfinite(se), 2 * se, 0.0)
+                ax.errorbar(vals, np.full(vals.size, y), xerr=np.vstack([lo, hi]), fmt="none", lw=0.6,
+                            color="C3" if c == default else "C0", alpha=0.6, zorder=2)
                 ax.scatter(vals, np.full(vals.size, y), s=14, marker="o" if c == default else "x",
                            color="C3" if c == default else "C0", zorder=3)
                 worst = np.nanmax(vals) if np.isfinite(vals).any() else math.nan
@@ -309,6 +316,6 @@ def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.
         floors = np.array([float(r["rmse_noise"]) for r in rows], dtype=np.float64)
         subtitle = (f"{len(points)} path points per candidate, {first['width']}×{first['height']} px, "
                     f"{first['spp']} spp; noise floor (two seeds) {floors.min():.3g}–{floors.max():.3g} "
-                    f"relative; dotted: {FLOOR_RATIO_TARGET}×")
+                    f"relative; bars: ± 2 s.e. of the floor's estimate; dotted: {FLOOR_RATIO_TARGET}×")
         title = f"Blended pre-renders vs renders at the noise floor, every data space — {database_label(database)}"
         return finish(fig, stem, title, subtitle, database, warn)

@@ -25,7 +25,7 @@ from typing import Any
 
 from brdfpipe.core import atomic, version
 from brdfpipe.report import rst
-from brdfpipe.report.claims import Claim, claims_table_rst, rst_cell
+from brdfpipe.report.claims import Claim, RunClaims, claims_table_rst, rst_cell
 
 __all__ = [
     "TRACKS",
@@ -190,8 +190,13 @@ def _database_note(database: str) -> str:
 
 
 def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Mapping[str, Any],
-              configfiles: Sequence[str], targets: Mapping[str, int], versions: Mapping[str, str]) -> str:
-    """The front page body (reStructuredText): what ran, the claims, versions, the configuration."""
+              configfiles: Sequence[str], targets: Mapping[str, int], versions: Mapping[str, str],
+              recorded: Sequence[RunClaims] = ()) -> str:
+    """The front page body (reStructuredText): what ran, the claims, versions, the configuration.
+
+    The claims table shows the ``recorded`` runs (other databases, config
+    ``report.compare_with``) beside this run's.
+    """
     database = str(splits["database"])
     title = str(splits.get("database_title") or database)
     counts = {h: sum(c.holds == h for c in claims) for h in ("yes", "no", "not measured")}
@@ -209,8 +214,10 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
     lines += ["", "Claims", "------", "",
               f"Each quantitative claim of the two papers, computed from this run's CSVs: {counts['yes']} hold, "
               f"{counts['no']} do not, {counts['not measured']} were not measured by this configuration "
-              "(``results/report/claims.csv``). The figure captions repeat the claims next to their figures.", "",
-              claims_table_rst(claims), "",
+              "(``results/report/claims.csv``). The figure captions repeat the claims next to their figures."
+              + (" Beside this run's column, the same claims as measured by recorded runs on other databases "
+                 "(config ``report.compare_with``)." if recorded else ""), "",
+              claims_table_rst(claims, recorded), "",
               "Versions", "--------", "",
               ".. list-table::", "   :header-rows: 1", "", "   * - package", "     - version"]
     for k, v in versions.items():

@@ -1,7 +1,7 @@
 """The papers' claims on several databases side by side: paper · run A · run B …
 
 Each run's ``results/report/claims.csv`` (digest-checked, through
-:func:`brdfpipe.report.claims.read_claims`) gives one column; the rows are the
+:func:`brdfpipe.report.claims.read_run`) gives one column; the rows are the
 claims in the order of the first run, claims missing from a run say so.  A
 column is headed by the database its CSV names (``database`` column), never by
 what the caller believes it to be: a run made on synthetic data cannot be
@@ -25,30 +25,44 @@ from pathlib import Path
 
 from brdfpipe.core import atomic
 from brdfpipe.report import claims as claims_mod
+from brdfpipe.report.claims import RunClaims, read_run
 
-__all__ = ["RunClaims", "read_run", "side_by_side_markdown", "main"]
+__all__ = ["RunClaims", "read_run", "recorded_runs", "side_by_side_markdown", "main"]
 
 _MARK = {"yes": "yes", "no": "**NO**", "not measured": "not measured"}
 
 
-class RunClaims:
-    """The claims of one run: its database (from the CSV) and its rows by claim key."""
+def recorded_runs(entries: Sequence[str], *, root: Path, exclude: str) -> list[RunClaims]:
+    """The recorded runs of config ``report.compare_with`` shown beside a run on database ``exclude``.
 
-    def __init__(self, path: Path, rows: Sequence[dict[str, str]]) -> None:
-        self.path = path
-        self.rows = {r["key"]: r for r in rows}
-        self.order = [r["key"] for r in rows]
-        # the run's own database: claims about materials outside it (config unseen) name theirs
-        names = sorted({r["database"] for r in rows if r["database"] and not claims_mod.is_unseen_claim(r["key"])})
-        if len(names) > 1:
-            raise claims_mod.ClaimsInputError(f"{path}: claims of several databases: {names}")
-        self.database = names[0] if names else "(nothing measured)"
-
-
-def read_run(path: str | os.PathLike[str]) -> RunClaims:
-    """One run's ``claims.csv`` (its digest checked)."""
-    p = Path(path)
-    return RunClaims(p, claims_mod.read_claims(p))
+    Each entry is a run's ``claims.csv``; a relative path is taken from
+    ``root`` (the repository, whose ``docs/results/runs/`` keeps the project's
+    recorded runs).  A run on the database ``exclude`` (the run's own) is left
+    out: the run's own column is that database's.  A file that is missing,
+    damaged, without claims or with several databases' claims, or a second
+    run of one database, raises :class:`~brdfpipe.report.claims.ClaimsInputError`
+    naming the key.
+    """
+    runs: list[RunClaims] = []
+    seen: dict[str, int] = {}
+    for k, entry in enumerate(entries):
+        key = f"config report.compare_with[{k}] = {entry!r}"
+        path = Path(entry) if os.path.isabs(entry) else root / entry
+        if not path.is_file():
+            raise claims_mod.ClaimsInputError(f"{key}: no such file ({path})")
+        try:
+            run = read_run(path, entry)
+        except (claims_mod.ClaimsInputError, OSError, UnicodeDecodeError, ValueError) as err:
+            raise claims_mod.ClaimsInputError(f"{key}: not a run's claims.csv: {err}") from None
+        if not run.rows or run.database == "(nothing measured)":
+            raise claims_mod.ClaimsInputError(f"{key}: measures no claim on any database")
+        if run.database in seen:
+            raise claims_mod.ClaimsInputError(
+                f"{key}: a second recorded run of {run.database} (report.compare_with[{seen[run.database]}] is one)")
+        seen[run.database] = k
+        if run.database != exclude:
+            runs.append(run)
+    return runs
 
 
 def _cell(text: str) -> str:
