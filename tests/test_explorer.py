@@ -258,6 +258,104 @@ def test_pointer_moves_change_the_image(page: chromium.Browser, inputs: dict) ->
     assert page.errors == []
 
 
+def _overlap(a: dict, b: dict) -> bool:
+    return a["x"] < b["x"] + b["w"] and b["x"] < a["x"] + a["w"] and a["y"] < b["y"] + b["h"] and b["y"] < a["y"] + a["h"]
+
+
+@needs_chromium
+def test_map_labels_never_overlap_and_a_dense_cluster_keeps_the_labels_that_fit(page: chromium.Browser) -> None:
+    """Issue 24 item 7: the labels of a dense cluster no longer overlap into an unreadable block."""
+    page.evaluate("explorer.setMode('map')")
+    page.evaluate("explorer.setModel(2)")
+    mw, mh = page.evaluate("explorer.mapSize()")
+    drawn = page.evaluate("explorer.labels()")
+    assert drawn and all(not _overlap(a, b) for i, a in enumerate(drawn) for b in drawn[i + 1:])
+    assert all(0 <= l["x"] and l["x"] + l["w"] <= mw and 0 <= l["y"] and l["y"] + l["h"] <= mh for l in drawn)
+    # 60 points within 40 pixels (a MERL-like cluster): the placement keeps only labels that fit, none overlapping
+    rng = np.random.default_rng(3)
+    pts = [{"name": f"material-{k:02d}", "px": float(260 + 20 * u), "py": float(220 + 20 * v)}
+           for k, (u, v) in enumerate(rng.uniform(-1, 1, size=(60, 2)))]
+    placed = page.evaluate(f"explorer.placeLabels({json.dumps(pts)})")
+    assert 3 <= len(placed) < 60
+    assert all(not _overlap(a, b) for i, a in enumerate(placed) for b in placed[i + 1:])
+    # no label covers another point's marker (5 pixels around its centre)
+    names = {p["name"]: p for p in pts}
+    for lab in placed:
+        for p in pts:
+            if p["name"] != lab["name"]:
+                marker = {"x": p["px"] - 5, "y": p["py"] - 5, "w": 10, "h": 10}
+                assert not _overlap(lab, marker), (lab, p)
+        p = names[lab["name"]]  # and each label sits next to its own point
+        assert abs(lab["x"] + lab["w"] / 2 - p["px"]) <= lab["w"] / 2 + 8 and abs(lab["y"] + lab["h"] / 2 - p["py"]) <= 13
+    # spread the same points 8 times wider (as zooming in does): more of them get their label
+    wide = [{**p, "px": 260 + 8 * (p["px"] - 260), "py": 220 + 8 * (p["py"] - 220)} for p in pts]
+    assert len(page.evaluate(f"explorer.placeLabels({json.dumps(wide)})")) > len(placed)
+    assert page.errors == []
+
+
+@needs_chromium
+def test_wheel_zooms_about_the_pointer_and_drag_pans_the_map(page: chromium.Browser, inputs: dict) -> None:
+    page.evaluate("explorer.setMode('map')")
+    page.evaluate("explorer.setModel(2)")
+    model = gplvm.load_model(inputs["models"][0])
+    # pointer events carry whole page pixels: hover one, and its latent point (the state's) is the anchor
+    x, y = (round(v) for v in page.evaluate(f"explorer.mapToPage({json.dumps(list(model.X[3]))})"))
+    page.mouse("mouseMoved", x, y)
+    anchor = page.evaluate("explorer.state().point")
+    assert page.evaluate(f"explorer.mapToPage({json.dumps(anchor)})") == pytest.approx([x, y], abs=1e-6)
+    other = list(model.X[7])
+    ox, oy = page.evaluate(f"explorer.mapToPage({json.dumps(other)})")
+    for _ in range(4):
+        page.wheel(x, y, -120)
+    view = page.evaluate("explorer.view()")
+    assert view["zoom"] == pytest.approx(1.2 ** 4.8, rel=1e-6)
+    # the latent point under the pointer stays under it; the others move away from it by the zoom factor
+    assert page.evaluate(f"explorer.mapToPage({json.dumps(anchor)})") == pytest.approx([x, y], abs=1e-6)
+    ox2, oy2 = page.evaluate(f"explorer.mapToPage({json.dumps(other)})")
+    assert [ox2 - x, oy2 - y] == pytest.approx([view["zoom"] * (ox - x), view["zoom"] * (oy - y)], rel=1e-6)
+    # a drag pans by the drag, and leaves the point where the press put it
+    page.mouse("mouseMoved", x + 3, y + 60)
+    page.mouse("mousePressed", x + 3, y + 60, buttons=1)
+    point = page.evaluate("explorer.state().point")
+    for k in range(1, 5):
+        page.mouse("mouseMoved", x + 3 + 10 * k, y + 60 + 5 * k, buttons=1)
+    page.mouse("mouseReleased", x + 43, y + 80)
+    assert page.evaluate(f"explorer.mapToPage({json.dumps(anchor)})") == pytest.approx([x + 40, y + 20], abs=1e-6)
+    assert page.evaluate("explorer.state().point") == point
+    # hovering after the drag moves the point again; a double click resets the view
+    page.mouse("mouseMoved", x + 50, y + 90)
+    assert page.evaluate("explorer.state().point") != point
+    page.call("Input.dispatchMouseEvent", {"type": "mousePressed", "x": x, "y": y, "button": "left", "clickCount": 2})
+    page.call("Input.dispatchMouseEvent", {"type": "mouseReleased", "x": x, "y": y, "button": "left", "clickCount": 2})
+    assert page.evaluate("explorer.view()") == {"zoom": 1, "dx": 0, "dy": 0}
+    assert page.errors == []
+
+
+@needs_chromium
+def test_the_nearest_materials_are_listed_under_the_pointer(page: chromium.Browser, inputs: dict) -> None:
+    page.evaluate("explorer.setMode('map')")
+    for path in inputs["models"]:
+        model = gplvm.load_model(path)
+        page.evaluate(f"explorer.setModel({model.X.shape[1]})")
+        x = model.X.mean(0) + 0.3 * (model.X[2] - model.X.mean(0))
+        page.evaluate(f"explorer.setPoint({json.dumps(list(x))})")
+        d = np.linalg.norm(model.X - x, axis=1)
+        want = [model.names[j] for j in np.argsort(d, kind="stable")[:5]]
+        got = page.evaluate("explorer.nearest()")
+        assert [n["name"] for n in got] == want
+        assert [n["d"] for n in got] == pytest.approx(np.sort(d)[:5].tolist(), rel=1e-9)
+        shown = page.evaluate("Array.from(document.querySelectorAll('#nearest button'), b => b.textContent)")
+        assert [t.rsplit(" (", 1)[0] for t in shown] == want
+    # a click on a listed material puts the point on it: w = e_i
+    first = page.evaluate("explorer.nearest()[0].name")
+    page.evaluate("document.querySelector('#nearest button').click()")
+    w = np.array(page.evaluate("explorer.state().w"))
+    names = list(gplvm.load_model(inputs["models"][-1]).names)
+    np.testing.assert_allclose(w, np.eye(len(w))[names.index(first)], atol=1e-9)
+    page.evaluate("explorer.setModel(2)")  # the page is shared by the module's tests: back to the first model
+    assert page.errors == []
+
+
 @needs_chromium
 def test_weights_and_hull_in_the_page_equal_the_library(page: chromium.Browser, inputs: dict) -> None:
     rng = np.random.default_rng(5)

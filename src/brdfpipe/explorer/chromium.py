@@ -234,6 +234,11 @@ class Browser:
             params.update(button="left", clickCount=1)
         self.call("Input.dispatchMouseEvent", params)
 
+    def wheel(self, x: float, y: float, delta_y: float) -> None:
+        """A mouse-wheel turn at page coordinates (``delta_y`` < 0: away from the user, zoom in on a map)."""
+        self.call("Input.dispatchMouseEvent", {"type": "mouseWheel", "x": float(x), "y": float(y),
+                                               "deltaX": 0.0, "deltaY": float(delta_y)})
+
     def screenshot(self, path: str | os.PathLike[str] | None = None) -> bytes:
         """PNG screenshot of the viewport (written to ``path`` if given)."""
         data = base64.b64decode(self.call("Page.captureScreenshot", {"format": "png"})["data"])

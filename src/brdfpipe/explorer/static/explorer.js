@@ -478,18 +478,84 @@
   }
 
   const mapCanvas = $('map'), mctx = mapCanvas.getContext('2d');
-  const MW = mapCanvas.width, MH = mapCanvas.height, MARGIN = 28;
+  const MW = mapCanvas.width, MH = mapCanvas.height, MARGIN = 28, MAX_ZOOM = 64;
+  // zoom and pan of the map: a factor on the fitted scale and the latent offset of the map's centre
+  const mapView = { zoom: 1, dx: 0, dy: 0 };
+  function resetView() { mapView.zoom = 1; mapView.dx = 0; mapView.dy = 0; }
   function frame() {
     const m = model(), [dx, dy] = state.dims;
     const ex = extent(m, dx), ey = dy === null ? [-1, 1] : extent(m, dy);
     // equal scale on both axes
     const sx = (MW - 2 * MARGIN) / (ex[1] - ex[0]), sy = (MH - 2 * MARGIN) / (ey[1] - ey[0]);
-    const s = Math.min(sx, sy);
-    const cx = (ex[0] + ex[1]) / 2, cy = (ey[0] + ey[1]) / 2;
+    const s = Math.min(sx, sy) * mapView.zoom;
+    const cx = (ex[0] + ex[1]) / 2 + mapView.dx, cy = (ey[0] + ey[1]) / 2 + mapView.dy;
     return {
+      scale: s,
       toPx: (x, y) => [MW / 2 + (x - cx) * s, MH / 2 - (y - cy) * s],
       fromPx: (px, py) => [cx + (px - MW / 2) / s, cy - (py - MH / 2) / s],
     };
+  }
+  // zoom by `factor` about the map pixel (px, py): the latent point under it stays under it
+  function zoomAt(px, py, factor) {
+    const before = frame().fromPx(px, py);
+    mapView.zoom = Math.min(MAX_ZOOM, Math.max(1, mapView.zoom * factor));
+    if (mapView.zoom === 1) { resetView(); } else {
+      const after = frame().fromPx(px, py);
+      mapView.dx += before[0] - after[0];
+      if (state.dims[1] !== null) mapView.dy += before[1] - after[1];
+    }
+    drawMap();
+  }
+  // pan by a drag of (dpx, dpy) map pixels
+  function panBy(dpx, dpy) {
+    const s = frame().scale;
+    mapView.dx -= dpx / s;
+    if (state.dims[1] !== null) mapView.dy += dpy / s;
+    drawMap();
+  }
+
+  // Labels that do not collide: in order of priority (nearest the pointer first), each label tries four
+  // places around its point (right, left, above, below) and is drawn at the first one that stays on the
+  // map and overlaps no label already placed and no other point; a label that fits nowhere is left out
+  // (zoom in to see it; the nearest materials are listed under the map).
+  const LABEL_H = 10, MARKER = 5;
+  function placeLabels(points, measure) {
+    const boxes = [], placed = [];
+    const overlaps = (a, b) => a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h;
+    const markers = points.map((p) => ({ x: p.px - MARKER, y: p.py - MARKER, w: 2 * MARKER, h: 2 * MARKER }));
+    points.forEach((p, i) => {
+      const w = measure(p.name), h = LABEL_H;
+      const spots = [[p.px + 7, p.py - h / 2], [p.px - 7 - w, p.py - h / 2],
+                     [p.px - w / 2, p.py - 7 - h], [p.px - w / 2, p.py + 7]];
+      for (const [x, y] of spots) {
+        const box = { x, y, w, h };
+        if (x < 0 || y < 0 || x + w > MW || y + h > MH) continue;
+        if (boxes.some((b) => overlaps(box, b))) continue;
+        if (markers.some((mk, k) => k !== i && overlaps(box, mk))) continue;
+        boxes.push(box);
+        placed.push({ name: p.name, j: p.j, x, y, w, h });
+        break;
+      }
+    });
+    return placed;
+  }
+  let drawnLabels = [];
+
+  // the materials nearest a latent point (all q coordinates), nearest first
+  function nearestTo(m, x, k = 5) {
+    const d = [];
+    for (let j = 0; j < N; j++) {
+      let s = 0;
+      for (let a = 0; a < m.q; a++) s += (m.X[j * m.q + a] - x[a]) ** 2;
+      d.push([Math.sqrt(s), j]);
+    }
+    d.sort((a, b) => a[0] - b[0] || a[1] - b[1]);
+    return d.slice(0, k).map(([dist, j]) => ({ j, name: NAMES[j], d: dist }));
+  }
+  function updateNearest() {
+    const m = model(), near = nearestTo(m, state.point);
+    $('nearest').replaceChildren('nearest: ', ...near.map((n, i) => el('button', { type: 'button', 'data-j': String(n.j),
+      title: `latent distance ${n.d.toFixed(3)}` }, `${n.name} (${n.d.toFixed(2)})`)).flatMap((b, i) => i ? [' ', b] : [b]));
   }
   function project(m, j) {
     const [dx, dy] = state.dims;
@@ -502,7 +568,8 @@
   let hullCache = { key: null, img: null };
   function hullShade(m, f) {
     // outside the hull (in this slice) in grey, on a grid of 4-pixel cells
-    const key = [state.q, state.dims.join(','), state.point && m.q > 2 ? state.point.filter((_, a) => !state.dims.includes(a)).join(',') : ''].join('|');
+    const key = [state.q, state.dims.join(','), state.point && m.q > 2 ? state.point.filter((_, a) => !state.dims.includes(a)).join(',') : '',
+                 mapView.zoom, mapView.dx, mapView.dy].join('|');
     if (hullCache.key === key) return hullCache.img;
     const img = mctx.createImageData(MW, MH), cell = 4, x = state.point ? state.point.slice() : centre(m);
     for (let py = 0; py < MH; py += cell) {
@@ -540,18 +607,32 @@
     for (let a = 0; a < m.q; a++) if (!state.dims.includes(a)) others.push(a);
     const x = state.point || centre(m);
     mctx.font = '9px system-ui, sans-serif';
+    const alphas = new Float64Array(N), onMap = [];
     for (let j = 0; j < N; j++) {
       const [px, py] = f.toPx(...project(m, j));
       let d2 = 0;
       for (const a of others) { const d = m.X[j * m.q + a] - x[a]; d2 += d * d; }
       const alpha = others.length ? Math.max(0.2, Math.exp(-d2 / (2 * m.ell * m.ell))) : 1;
+      alphas[j] = alpha;
       mctx.globalAlpha = alpha;
       mctx.fillStyle = `rgb(${srgb8(ALBEDO[3 * j])},${srgb8(ALBEDO[3 * j + 1])},${srgb8(ALBEDO[3 * j + 2])})`;
       mctx.beginPath(); mctx.arc(px, py, 4.5, 0, 2 * Math.PI); mctx.fill();
       mctx.strokeStyle = '#333'; mctx.lineWidth = 0.8; mctx.stroke();
-      if (state.labels) { mctx.fillStyle = '#333'; mctx.fillText(NAMES[j], px + 6, py + 3); }
       mctx.globalAlpha = 1;
+      if (px >= -MARKER && px <= MW + MARKER && py >= -MARKER && py <= MH + MARKER) onMap.push({ j, name: NAMES[j], px, py });
     }
+    drawnLabels = [];
+    if (state.labels) {
+      // nearest the pointer first (its pixel), then the rest
+      const [ppx, ppy] = f.toPx(x[state.dims[0]], state.dims[1] === null ? 0 : x[state.dims[1]]);
+      onMap.sort((a, b) => Math.hypot(a.px - ppx, a.py - ppy) - Math.hypot(b.px - ppx, b.py - ppy) || a.j - b.j);
+      drawnLabels = placeLabels(onMap, (name) => mctx.measureText(name).width);
+      mctx.fillStyle = '#333'; mctx.textBaseline = 'top';
+      for (const l of drawnLabels) { mctx.globalAlpha = alphas[l.j]; mctx.fillText(l.name, l.x, l.y); }
+      mctx.globalAlpha = 1; mctx.textBaseline = 'alphabetic';
+    }
+    $('zoom-out').textContent = mapView.zoom === 1 ? '' : `zoom ×${mapView.zoom.toFixed(1)}`;
+    $('reset-view').hidden = mapView.zoom === 1 && mapView.dx === 0 && mapView.dy === 0;
     if (state.mode === 'path' && state.pathA !== null) {
       const [ax, ay] = f.toPx(...project(m, state.pathA)), [bx, by] = f.toPx(...project(m, state.pathB));
       mctx.strokeStyle = '#d07a00'; mctx.lineWidth = 2;
@@ -614,6 +695,7 @@
     const r = weightsAt(m, state.point);
     state.b = r.b; state.w = r.w;
     updatePanel(hullContains(m, state.point));
+    updateNearest();
     drawMap();
     schedule();
   }
@@ -693,6 +775,7 @@
     options($('dim-x'), axes); options($('dim-y'), axes);
     $('dim-x').value = '0'; $('dim-y').value = '1';
     hullCache.key = null;
+    resetView();
     state.point = centre(m);
     buildSlices();
     if (keepPoint) setPoint(state.point);
@@ -706,6 +789,7 @@
     state.dims = [i, j];
     $('dim-x').value = String(i); $('dim-y').value = String(j);
     hullCache.key = null;
+    resetView();
     buildSlices();
     setPoint(state.point);
   }
@@ -761,10 +845,23 @@
     $('path-refs').addEventListener('click', (e) => {
       if (e.target.dataset && e.target.dataset.t) setPath(state.pathA, state.pathB, Number(e.target.dataset.t));
     });
-    const pointer = (e) => {
-      if (state.mode !== 'map') return;
+    const mapPixel = (e) => {
       const r = mapCanvas.getBoundingClientRect();
-      const px = (e.clientX - r.left) * MW / r.width, py = (e.clientY - r.top) * MH / r.height;
+      return [(e.clientX - r.left) * MW / r.width, (e.clientY - r.top) * MH / r.height];
+    };
+    let drag = null;  // a press on the map: dragging it pans (the point stays where the press put it)
+    const pointer = (e) => {
+      const [px, py] = mapPixel(e);
+      if (e.type === 'pointermove' && drag && (e.buttons & 1)) {
+        if (drag.moved || Math.hypot(px - drag.px, py - drag.py) > 3) {
+          drag.moved = true;
+          panBy(px - drag.last[0], py - drag.last[1]);
+          drag.last = [px, py];
+        }
+        return;
+      }
+      if (e.type === 'pointerdown') drag = { px, py, last: [px, py], moved: false };
+      if (state.mode !== 'map') return;
       const f = frame(), m = model(), [u, v] = f.fromPx(px, py), x = state.point.slice();
       x[state.dims[0]] = u;
       if (state.dims[1] !== null) x[state.dims[1]] = v;
@@ -778,6 +875,18 @@
     };
     mapCanvas.addEventListener('pointermove', pointer);
     mapCanvas.addEventListener('pointerdown', pointer);
+    window.addEventListener('pointerup', () => { drag = null; });
+    mapCanvas.addEventListener('wheel', (e) => {
+      e.preventDefault();
+      const [px, py] = mapPixel(e);
+      zoomAt(px, py, Math.pow(1.2, -e.deltaY / 100));
+    }, { passive: false });
+    mapCanvas.addEventListener('dblclick', () => { resetView(); drawMap(); });
+    $('reset-view').addEventListener('click', () => { resetView(); drawMap(); });
+    $('nearest').addEventListener('click', (e) => {
+      const j = e.target.dataset && e.target.dataset.j;
+      if (j !== undefined) setPoint(Array.from(model().X.subarray(Number(j) * model().q, (Number(j) + 1) * model().q)));
+    });
 
     selectModel(state.q, false);
     // start at the material nearest the centre of the map
@@ -830,6 +939,16 @@
     setPath: (a, b, t) => { setMode('path'); setPath(NAMES.indexOf(a), NAMES.indexOf(b), t); render(); return api.state(); },
     setExposure: (e) => { state.exposure = e; $('exposure').value = e; $('exposure-out').textContent = fmt(e, 1); render(); return e; },
     setBasis: (name) => { state.basis = name; $('basis').value = name; render(); return name; },
+    // the map's view (zoom, latent offset of its centre), the labels drawn (map pixels) and the nearest materials
+    view: () => ({ zoom: mapView.zoom, dx: mapView.dx, dy: mapView.dy }),
+    labels: () => drawnLabels.map((l) => ({ name: l.name, x: l.x, y: l.y, w: l.w, h: l.h })),
+    nearest: (k = 5) => nearestTo(model(), state.point, k).map((n) => ({ name: n.name, d: n.d })),
+    // the label placement alone, on given points ([{name, px, py}], map pixels) with the map's font
+    placeLabels: (points) => {
+      mctx.font = '9px system-ui, sans-serif';
+      return placeLabels(points.map((p, j) => ({ ...p, j })), (name) => mctx.measureText(name).width);
+    },
+    mapSize: () => [MW, MH],
     // the map's pixel (page coordinates) of a latent point, for pointer events
     mapToPage: (x) => {
       const f = frame(), r = mapCanvas.getBoundingClientRect();
