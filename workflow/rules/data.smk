@@ -4,6 +4,9 @@
 
 if GENERATED:
 
+    localrules:
+        write_manifest,
+
     rule synthesize_material:
         input:
             stamp=stamp_of("synthesize_material"),
