@@ -158,7 +158,8 @@ def test_workflow_on_slurm_matches_local_run(tmp_path_factory: pytest.TempPathFa
     assert summary["slurm_jobs"] > 0
     compared = _harness().compare_results(Path(summary["results"]), reference / "results")
     assert compared["files_compared"] > 0
-    # the localrules stay in the main process; everything else ran inside Slurm jobs
+    # the localrules stay in the main process (the synthetic manifest's too); everything else ran in Slurm jobs
+    assert "write_manifest" in summary["local_rules"]
     assert set(summary["local_rules"]) <= {"all", "write_manifest", "write_splits", "make_envmap",
                                            "plot_acquisition_figures", "plot_manifold_figures",
                                            "plot_render_figures", "compare_spaces", "write_claims",

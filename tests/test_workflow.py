@@ -54,6 +54,16 @@ def test_lint_is_clean(tmp_path: Path) -> None:
     assert "Congratulations" in r.stdout + r.stderr, r.stdout + r.stderr
 
 
+def test_the_shipped_config_plans_without_warnings(tmp_path: Path) -> None:
+    """make run's default (merl-nbrdf, no synthetic manifest): a dry run plans it and warns about nothing."""
+    r = snakemake(tmp_path, "-n", "--quiet", "rules", configfile=ROOT / "config" / "config.yaml")
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out[-3000:]
+    assert "evaluate_fits" in out and "write_manifest" not in out
+    assert "not present" not in out and "warning" not in out.lower(), out[-3000:]
+    assert not (tmp_path / "results").exists()
+
+
 def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
     r = snakemake(tmp_path, "-n", "--quiet", "rules")
     assert r.returncode == 0, r.stderr
