@@ -86,11 +86,12 @@ import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 import google_crc32c
-import numpy as np
-from numpy.typing import NDArray
+
+if TYPE_CHECKING:  # NumPy is imported by the functions that use it: the Snakefile parses with this module
+    from numpy.typing import NDArray
 
 from brdfpipe.core import atomic
 from brdfpipe.core.filenames import rule_of
@@ -193,6 +194,8 @@ def _sha(data: bytes) -> str:
 
 def npz_digest(arrays: Mapping[str, Any]) -> str:
     """``"sha256:<hex>"`` over the arrays (all but :data:`DIGEST_KEY`) in name order: name, dtype, shape, bytes."""
+    import numpy as np
+
     h = hashlib.sha256(_NPZ_TAG)
     for name in sorted(arrays):
         if name == DIGEST_KEY:
@@ -207,6 +210,8 @@ def npz_digest(arrays: Mapping[str, Any]) -> str:
 
 def save_npz(path: str | os.PathLike[str], arrays: Mapping[str, Any], *, compressed: bool = False) -> None:
     """``np.savez`` of ``arrays`` plus the :data:`DIGEST_KEY` entry, atomically (:func:`brdfpipe.core.atomic.save_npz`)."""
+    import numpy as np
+
     if DIGEST_KEY in arrays:
         raise ValueError(f"{path}: {DIGEST_KEY!r} is reserved for the digest")
     plain = {str(k): np.asarray(v) for k, v in arrays.items()}
@@ -228,6 +233,8 @@ def load_npz(
     member, pickled data), no digest (unless ``require=False``: files from
     elsewhere, e.g. a user's observations) or one that does not match.
     """
+    import numpy as np
+
     path = Path(path)
     try:
         with open(path, "rb") as fh:
@@ -350,6 +357,8 @@ def exr_digest(planes: Mapping[str, NDArray[Any]], attrs: Mapping[str, str]) -> 
     Planes: name, dtype (``dtype.str``, so half and float differ), shape,
     bytes; attributes (all but :data:`DIGEST_KEY`, sorted): name, value.
     """
+    import numpy as np
+
     h = hashlib.sha256(_EXR_TAG)
     for name in sorted(planes):
         a = np.asarray(planes[name])
