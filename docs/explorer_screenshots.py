@@ -1,13 +1,14 @@
 #!/usr/bin/env python
 """Screenshots of the explorer for docs/design/explorer.md: docs/explorer-{map,path,q5}.png.
 
-Usage: python docs/explorer_screenshots.py [results/explorer]  (headless chromium, SwiftShader)
+Usage: python docs/explorer_screenshots.py [results/explorer] [--only map|path|q5 ...]
+(headless chromium, SwiftShader)
 """
 
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 from pathlib import Path
 
 from brdfpipe.explorer.chromium import Browser
@@ -16,7 +17,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    site = Path(sys.argv[1] if len(sys.argv) > 1 else ROOT / "results" / "explorer")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("site", nargs="?", type=Path, default=ROOT / "results" / "explorer")
+    ap.add_argument("--only", nargs="+", choices=("map", "path", "q5"), default=("map", "path", "q5"))
+    args = ap.parse_args()
+    site, only = args.site, set(args.only)
     out = ROOT / "docs"
     with Browser(width=1280, height=800) as b:
         b.open(site / "index.html", ready="window.explorer && (window.explorer.ready || window.explorer.error)",
@@ -29,15 +34,16 @@ def main() -> None:
         x, y = b.evaluate(f"explorer.mapToPage({json.dumps(st['point'])})")
         b.mouse("mouseMoved", x + 25, y - 15)
         b.evaluate("new Promise(r => requestAnimationFrame(() => r(1)))")
-        b.screenshot(out / "explorer-map.png")
+        if "map" in only:
+            b.screenshot(out / "explorer-map.png")
         # path mode at the first rendered reference
-        if man["paths"]:
+        if man["paths"] and "path" in only:
             p = man["paths"][len(man["paths"]) // 2]
             b.evaluate(f"explorer.setPath({json.dumps(p['a'])}, {json.dumps(p['b'])}, {p['t']})")
             b.screenshot(out / "explorer-path.png")
         b.evaluate("explorer.setMode('map')")
         qs = [m["q"] for m in man["models"] if m["q"] > 2]
-        if qs:
+        if qs and "q5" in only:
             b.evaluate(f"explorer.setModel({qs[0]})")
             b.evaluate("explorer.setDims(0, 2)")
             b.screenshot(out / "explorer-q5.png")
