@@ -347,7 +347,7 @@ def test_the_shipped_configs_satisfy_the_schema() -> None:
     [
         ({"colour": "red"}, "config colour: unknown key; top-level keys are: database, merl_dir, nbrdf_archive, "
                             "synthetic, materials, test_materials, unseen, acquisition, manifold, render, "
-                            "closed_loop"),
+                            "closed_loop, report"),
         ({"render": {"resolutoin": [3, 4]}}, "config render.resolutoin: unknown key; did you mean 'resolution'? "
                                               "render has: variant, scene, resolution, spp"),
         ({"closed_loop": {"sensor": {"gain": 2, "iso": 100}}}, "config closed_loop.sensor.gain: unknown key "

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from brdfpipe.core import filenames, integrity, plan
-from brdfpipe.report import captions, claims, items, runinfo
+from brdfpipe.report import captions, claims, items, runinfo, sidebyside
 
 
 def write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, object]]) -> Path:
@@ -391,9 +391,8 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         assert needle in front, needle
     # beside this synthetic run's column: the recorded merl-nbrdf run's (config report.compare_with, default),
     # its measurements as its claims.csv has them; no recorded synthetic column (this run's database)
-    recorded = Path(__file__).resolve().parents[1] / "docs" / "results" / "runs" / "2026-11-26-h200"
     assert "merl-nbrdf (recorded run)" in front and "synthetic (recorded run)" not in front
-    for row in claims.read_claims(recorded / "merl-nbrdf" / "claims.csv"):
+    for row in claims.read_claims(sidebyside.RECORDED["merl-nbrdf"]):
         assert " ".join(row["measured"].split()) in front, row["key"]
     n_bench = len(list((workdir / "benchmarks").rglob("*.tsv")))
     assert f"over {n_bench} jobs." in front

@@ -91,3 +91,20 @@ def test_the_report_table_shows_recorded_runs_beside_this_run(tmp_path: Path) ->
                         recorded=run)
     assert {r["database"] for r in claims.read_claims(out / "claims.csv")} == {"merl-nbrdf"}
     assert (out / "claims.rst").read_text() == table
+
+
+def test_the_runs_recorded_with_brdfpipe_are_the_default_and_ship_with_the_package() -> None:
+    """report.compare_with: null shows the shipped recorded runs, found from the package (a copied workflow too)."""
+    import tomllib
+
+    for exclude, want in (("merl-nbrdf", ["synthetic"]), ("synthetic", ["merl-nbrdf"]), ("rgl-nbrdf", ["merl-nbrdf", "synthetic"])):
+        runs = sidebyside.recorded_runs(None, root=Path("/nonexistent"), exclude=exclude)
+        assert [r.database for r in runs] == want
+        assert all(r.source.startswith("brdfpipe's recorded run 2026-11-26-h200") for r in runs)
+    assert sidebyside.recorded_runs([], root=Path("/nonexistent"), exclude="synthetic") == []
+    # the package data ships them (an installed, non-editable brdfpipe has them too)
+    root = Path(__file__).resolve().parents[1]
+    globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["brdfpipe.report"]
+    package = root / "src" / "brdfpipe" / "report"
+    shipped = {p for g in globs for p in package.glob(g)}
+    assert set(sidebyside.RECORDED.values()) <= shipped

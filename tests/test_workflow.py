@@ -252,7 +252,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"render": {"envmap": {"width": 100000, "height": 50000}}}, "render.envmap.width × height = 5,000,000,000"),
         ({"closed_loop": {"sensor": {"enabled": True, "brackets": [2, 8]}}}, "closed_loop.sensor.brackets"),
         ({"report": {"compare_with": ["no/such/claims.csv"]}}, "report.compare_with[0] = 'no/such/claims.csv': no such file"),
-        ({"report": {"compare_with": ["README.md"]}}, "report.compare_with[0] = 'README.md': not a run's claims.csv"),
+        ({"report": {"compare_with": [str(ROOT / "README.md")]}}, "README.md': not a run's claims.csv"),
     ],
 )
 def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, message: str) -> None:

@@ -141,7 +141,7 @@ def _load_recorded():
     try:
         return sidebyside.recorded_runs(
             config["report"]["compare_with"],
-            root=Path(workflow.basedir).parent,
+            root=Path.cwd(),
             exclude=DATABASE.kind,
         )
     except report_claims.ClaimsInputError as err:

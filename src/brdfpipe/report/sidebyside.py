@@ -27,22 +27,32 @@ from brdfpipe.core import atomic
 from brdfpipe.report import claims as claims_mod
 from brdfpipe.report.claims import RunClaims, read_run
 
-__all__ = ["RunClaims", "read_run", "recorded_runs", "side_by_side_markdown", "main"]
+__all__ = ["RunClaims", "read_run", "RECORDED", "recorded_runs", "side_by_side_markdown", "main"]
+
+#: The runs recorded with brdfpipe (the default workflow on a 16-core H200 host, 2026-11-26, commit
+#: 3ed34f7; docs/results/runs/2026-11-26-h200/ has their configs): each one's claims.csv, shipped in
+#: the package so that a copied workflow or an installed library finds them.
+RECORDED: dict[str, Path] = {
+    db: Path(__file__).resolve().parent / "recorded" / f"2026-11-26-h200-{db}.csv" for db in ("merl-nbrdf", "synthetic")
+}
 
 _MARK = {"yes": "yes", "no": "**NO**", "not measured": "not measured"}
 
 
-def recorded_runs(entries: Sequence[str], *, root: Path, exclude: str) -> list[RunClaims]:
+def recorded_runs(entries: Sequence[str] | None, *, root: Path, exclude: str) -> list[RunClaims]:
     """The recorded runs of config ``report.compare_with`` shown beside a run on database ``exclude``.
 
-    Each entry is a run's ``claims.csv``; a relative path is taken from
-    ``root`` (the repository, whose ``docs/results/runs/`` keeps the project's
-    recorded runs).  A run on the database ``exclude`` (the run's own) is left
-    out: the run's own column is that database's.  A file that is missing,
-    damaged, without claims or with several databases' claims, or a second
-    run of one database, raises :class:`~brdfpipe.report.claims.ClaimsInputError`
-    naming the key.
+    ``None``: the runs recorded with brdfpipe (:data:`RECORDED`).  Otherwise
+    each entry is a run's ``claims.csv``; a relative path is taken from
+    ``root`` (the working directory).  A run on the database ``exclude`` (the
+    run's own) is left out: the run's own column is that database's.  A file
+    that is missing, damaged, without claims or with several databases'
+    claims, or a second run of one database, raises
+    :class:`~brdfpipe.report.claims.ClaimsInputError` naming the key.
     """
+    if entries is None:
+        shipped = [read_run(path, f"brdfpipe's recorded run 2026-11-26-h200 ({db})") for db, path in RECORDED.items()]
+        return [run for run in shipped if run.database != exclude]
     runs: list[RunClaims] = []
     seen: dict[str, int] = {}
     for k, entry in enumerate(entries):
