@@ -23,7 +23,6 @@ rule write_claims:
         closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
         unseen=fn.unseen_errors() if UNSEEN_EVALUATED else [],
         unseen_albedo=[fn.unseen_albedo(d) for d in UNSEEN],
-        recorded=[str(run.path) for run in RECORDED],
         stamp=stamp_of("write_claims"),
     output:
         claims=reported(fn.claims_csv()),
@@ -45,7 +44,12 @@ rule write_claims:
             for it in REPORT_ITEMS
         ],
         latent_dims=MAN["latent_dims"],
-        recorded=[run.source for run in RECORDED],
+        # the recorded runs' claims, read (digest-checked) at parse time: by content, so that
+        # where the library or a user's file lives does not rerun the job, and an edit of them does
+        recorded=[
+            {"source": run.source, "rows": [run.rows[k] for k in run.order]}
+            for run in RECORDED
+        ],
         config=dict(config),
         configfiles=[str(f) for f in workflow.configfiles],
         targets={k: len(v) if isinstance(v, list) else 1 for k, v in TARGETS.items()},

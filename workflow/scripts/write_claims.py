@@ -1,5 +1,7 @@
 """The papers' claims from the run's CSVs, the report's captions and front page (rule write_claims)."""
 
+from pathlib import Path
+
 from brdfpipe.core import integrity
 from brdfpipe.core.logutil import log_to
 from brdfpipe.report import captions, claims, runinfo
@@ -23,8 +25,8 @@ with log_to(snakemake.log[0]):
             unseen_albedo=list(inp.unseen_albedo),
         )
     )
-    # other databases' recorded runs, shown beside this run's claims (config report.compare_with)
-    recorded = [claims.read_run(path, source) for path, source in zip(inp.recorded, snakemake.params.recorded)]
+    # other databases' recorded runs, shown beside this run's claims (config report.compare_with; read at parse time)
+    recorded = [claims.RunClaims(Path(r["source"]), r["rows"], r["source"]) for r in snakemake.params.recorded]
     claims.write_claims(
         found,
         csv_path=snakemake.output.claims,
