@@ -510,6 +510,26 @@ def test_training_size_curve(data: Data, evaluation: list[dict[str, Any]], tmp_p
     assert {r[2] for r in back[1:]} == {"5"} and {r[5] for r in back[1:]} == {"rms_log"}
 
 
+def test_training_size_over_several_orders_is_each_orders_curve(data: Data, tmp_path: Path) -> None:
+    """orders = 3: the curves of seeds 5, 6 and 7, one after the other, each equal to its single-order curve."""
+    out = reconstruct.write_training_size(data.store, data.logmap, data.dirs["nearfield"], tmp_path / "t.csv",
+                                          test_materials=data.test, sizes=(3, 6), order_seed=5, orders=3)
+    _, rows = integrity.read_csv_rows(out, required=TRAINING_SIZE_COLUMNS)
+    assert [r["order_seed"] for r in rows][:: len(rows) // 3] == ["5", "6", "7"]
+    for seed in (5, 6, 7):
+        single = reconstruct.training_size_curve(data.store, data.logmap, data.dirs["nearfield"],
+                                                 test_materials=data.test, sizes=(3, 6), order_seed=seed)
+        mine = [r for r in rows if r["order_seed"] == str(seed)]
+        assert [(r["n_train"], r["material"], r["channel"]) for r in mine] == [
+            (str(r["n_train"]), r["material"], r["channel"]) for r in single]
+        np.testing.assert_allclose([float(r["value"]) for r in mine], [r["value"] for r in single], rtol=1e-8)
+    # the three orders pick different first materials here: their curves differ at N = 3
+    assert len({r["value"] for r in rows if r["n_train"] == "3" and r["material"] == "mean"}) > 1
+    with pytest.raises(ValueError, match="orders must be in"):
+        reconstruct.write_training_size(data.store, data.logmap, data.dirs["nearfield"], tmp_path / "u.csv",
+                                        test_materials=data.test, orders=0)
+
+
 def test_evaluation_functions_write_one_file_each(data: Data, evaluation: list[dict[str, Any]],
                                                  tmp_path: Path) -> None:
     """write_evaluation, check_consistency and write_training_size each write exactly the path given."""

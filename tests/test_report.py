@@ -126,6 +126,7 @@ def test_training_size_and_one_shot_optimum(tmp_path: Path) -> None:
 
     c = claims.training_size_decreasing(curve("a.csv", [0.5, 0.4, 0.3]))
     assert c.holds == "yes" and c.database == "merl" and c.value == pytest.approx(0.305 / 0.505)
+    assert c.measured.startswith("mean of 2 material orders: 30: 0.505, 60: 0.405")
     assert claims.training_size_decreasing(curve("b.csv", [0.5, 0.3, 0.4])).holds == "no"
 
     fcols = ("fov_deg", "n_images", "image", "theta_h_deg", "light_theta_deg", "split", "database")

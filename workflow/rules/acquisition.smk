@@ -187,6 +187,7 @@ if CURVE_DIRECTIONS:
             eta=ACQ["eta"],
             sizes=TRAINING_SIZES,
             order_seed=ACQ["seed"],
+            orders=ACQ["training_orders"],
             code=code("evaluate_training_size.py"),
         script:
             "../scripts/evaluate_training_size.py"

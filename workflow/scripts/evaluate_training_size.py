@@ -12,5 +12,6 @@ with log_to(snakemake.log[0]):
         test_materials=snakemake.params.test_materials,
         sizes=snakemake.params.sizes,
         order_seed=snakemake.params.order_seed,
+        orders=snakemake.params.orders,
         eta=snakemake.params.eta,
     )

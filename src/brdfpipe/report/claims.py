@@ -392,15 +392,18 @@ def training_size_decreasing(path: str | os.PathLike[str]) -> Claim:
     p, rows = _rows(path, ("database", "n_train", "order_seed", "material", "channel", "kind", "value"))
     database = _database(p, rows)
     by_n: dict[int, list[float]] = {}
+    orders = set()
     for r in rows:
         if r["material"] == "mean" and r["channel"] == "all" and r["kind"] == "rms_log":
             by_n.setdefault(int(_num(p, r, "n_train")), []).append(_num(p, r, "value"))
+            orders.add(r["order_seed"])
     if len(by_n) < 2:
         return _not_measured(key, _XU, where, claim, paper_value, f"{p.name} has {len(by_n)} training size(s)",
                              str(p), figs)
     series = [(n, statistics.fmean(v)) for n, v in sorted(by_n.items())]
     ok = all(_le(v1, v0) for (_, v0), (_, v1) in zip(series, series[1:]))
-    measured = ", ".join(f"{n}: {_g(v)}" for n, v in series)
+    measured = (f"mean of {len(orders)} material orders: " if len(orders) > 1 else "") + ", ".join(
+        f"{n}: {_g(v)}" for n, v in series)
     return Claim(key, _XU, where, claim, paper_value, measured, series[-1][1] / series[0][1], _verdict(ok),
                  database, str(p), figs)
 
