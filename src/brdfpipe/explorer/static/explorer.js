@@ -554,8 +554,9 @@
   }
   function updateNearest() {
     const m = model(), near = nearestTo(m, state.point);
-    $('nearest').replaceChildren('nearest: ', ...near.map((n, i) => el('button', { type: 'button', 'data-j': String(n.j),
-      title: `latent distance ${n.d.toFixed(3)}` }, `${n.name} (${n.d.toFixed(2)})`)).flatMap((b, i) => i ? [' ', b] : [b]));
+    const buttons = near.map((n) => el('button', { type: 'button', 'data-j': String(n.j),
+      title: `latent distance ${n.d.toFixed(3)}` }, `${n.name} (${n.d.toFixed(2)})`));
+    $('nearest').replaceChildren('nearest: ', ...buttons.flatMap((b, i) => (i ? [' ', b] : [b])));
   }
   function project(m, j) {
     const [dx, dy] = state.dims;
