@@ -566,7 +566,7 @@ def test_one_changed_pixel_of_an_input_stops_the_error_maps(tmp_path: Path, whic
     prerenders, points, _ = _setup(tmp_path / "results" / "renders")
     if which == "prerender":
         bad = prerenders["chrome"]
-        rule = "prerender_material"
+        rule = "prerender_materials"
         moved = tmp_path / "results" / "renders" / "preview" / "materials" / "chrome.exr"
     else:
         bad = Path(points[1]["reference"])
@@ -581,9 +581,10 @@ def test_one_changed_pixel_of_an_input_stops_the_error_maps(tmp_path: Path, whic
     _rewrite_pixel(moved, 1e6)
     out = tmp_path / "out"
     summary = out / "summary.csv"
+    hint = (f"delete it and rerun the workflow (a {rule}_* job writes it again)" if which == "prerender"
+            else f"rerun its rule: snakemake --forcerun {rule}")
     with pytest.raises(ExrError, match=re.escape(f"{moved}: its pixels or attributes do not match their recorded "
-                                                 f"digest (damaged or edited); rerun its rule: snakemake "
-                                                 f"--forcerun {rule}")):
+                                                 f"digest (damaged or edited); {hint}")):
         error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=summary, database="synthetic")
     assert not summary.exists()
 

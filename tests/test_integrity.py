@@ -34,6 +34,7 @@ def test_every_rule_named_for_a_file_exists_in_the_workflow() -> None:
     rules = set()
     for smk in (ROOT / "workflow" / "rules").glob("*.smk"):
         rules |= set(re.findall(r"^\s*(?:rule|checkpoint)\s+(\w+)\s*:", smk.read_text(), flags=re.M))
+        rules |= set(re.findall(r'batch_rule\(\s*"(\w+)"', smk.read_text()))  # one rule per batch
     named = {rule for _, rule in filenames._producers()}
     assert named <= rules, sorted(named - rules)
 
@@ -52,8 +53,8 @@ def test_every_rule_named_for_a_file_exists_in_the_workflow() -> None:
     (filenames.gplvm_trace("standardised-mu1e-06", 5), "fit_gplvm"),
     (filenames.albedo(), "analyze_manifold"),
     (filenames.albedo_map(2), "analyze_manifold"),
-    (filenames.prerender("preview", "brass"), "prerender_material"),
-    (filenames.prerender_one("preview", "brass"), "prerender_material"),
+    (filenames.prerender("preview", "brass"), "prerender_materials"),
+    (filenames.prerender_one("preview", "brass"), "prerender_materials"),
     (filenames.path_point("preview", "a--b", 0.5, "weights"), "interpolate_path_points"),
     (filenames.path_point("preview", "a--b", 0.5, "noise"), "render_path_point"),
     (filenames.candidate_path_point("p-48x36-4096spp", "raw-mu1", "a--b", 0.5, "weights"),
@@ -79,8 +80,47 @@ def test_every_rule_named_for_a_file_exists_in_the_workflow() -> None:
 def test_rule_of_a_file(path: str, rule: str | None) -> None:
     assert filenames.rule_of(path) == rule
     hint = integrity.rerun_hint(path)
-    assert hint == (f"rerun its rule: snakemake --forcerun {rule}" if rule
-                    else "write it again with the command that made it")
+    if rule in filenames.BATCH_RULE_FAMILIES:  # one rule per batch: no single rule name to force
+        assert hint == f"delete it and rerun the workflow (a {rule}_* job writes it again)"
+    else:
+        assert hint == (f"rerun its rule: snakemake --forcerun {rule}" if rule
+                        else "write it again with the command that made it")
+
+
+@pytest.mark.parametrize(("name", "family"), [
+    ("prerender_materials_b00", "prerender_materials"),
+    ("prerender_materials_floor_b12", "prerender_materials"),
+    ("prerender_materials_b123", "prerender_materials"),
+    ("prerender_materials", "prerender_materials"),
+    ("prerender_materials_floor", "prerender_materials_floor"),  # no batch number: not a batch rule
+    ("render_path_point", "render_path_point"),
+    ("fit_gplvm_b01", "fit_gplvm_b01"),  # not a batch family
+])
+def test_rule_family(name: str, family: str) -> None:
+    assert filenames.rule_family(name) == family
+
+
+def test_batch_rule_names_round_trip() -> None:
+    for k in (0, 7, 42, 150):
+        for floor in (False, True):
+            name = filenames.batch_rule("prerender_materials", k, floor=floor)
+            assert filenames.rule_family(name) == "prerender_materials"
+            assert ("_floor_" in name) == floor
+    with pytest.raises(ValueError, match="not a batch-rule family"):
+        filenames.batch_rule("fit_gplvm", 0)
+
+
+@pytest.mark.parametrize(("n", "per_job", "sizes"), [
+    (100, 10, [10] * 10), (12, 10, [6, 6]), (11, 10, [6, 5]), (3, 1, [1, 1, 1]), (5, 50, [5]), (0, 4, []),
+])
+def test_split_batches_keeps_order_and_balances(n: int, per_job: int, sizes: list[int]) -> None:
+    items = [f"m{i:03d}" for i in range(n)]
+    batches = filenames.split_batches(items, per_job)
+    assert [len(b) for b in batches] == sizes
+    assert [m for b in batches for m in b] == items
+    assert all(len(b) <= per_job for b in batches)
+    with pytest.raises(ValueError, match="per_job must be >= 1"):
+        filenames.split_batches(items, 0)
 
 
 # --------------------------------------------------------------------------

@@ -303,6 +303,7 @@ def test_every_rule_has_a_memory_model_that_grows_with_retries() -> None:
     rules = set()
     for smk in (ROOT / "workflow" / "rules").glob("*.smk"):
         rules |= set(re.findall(r"^\s*rule (\w+):", smk.read_text(), flags=re.M))
+        rules |= set(re.findall(r'mem\("(\w+)", scene=', smk.read_text()))  # batch rules: their family's model
     assert rules == set(plan.MEMORY_MB), rules ^ set(plan.MEMORY_MB)
     for rule in rules:
         first, second, third = (plan.mem_mb(rule, 100, a) for a in (1, 2, 3))
@@ -317,7 +318,7 @@ def test_memory_grows_with_the_outputs_a_job_holds() -> None:
     nine = plan.mem_mb("interpolate_path_points", 100, outputs=9)
     extra = 8 * plan.PER_OUTPUT_MB["interpolate_path_points"] * plan.MEMORY_HEADROOM
     assert extra - 50 <= nine - one <= extra + 50
-    assert plan.mem_mb("prerender_material", 100, outputs=9) == plan.mem_mb("prerender_material", 100)
+    assert plan.mem_mb("prerender_materials", 100, outputs=9) == plan.mem_mb("prerender_materials", 100)
 
 
 def test_floor_check_candidates() -> None:
@@ -451,7 +452,7 @@ def test_the_shipped_configs_fit_the_memory_limit() -> None:
     sizes = plan.job_sizes(DEFAULT)
     assert all(plan.mem_mb(r, 100, sizes=sizes) == plan.mem_mb(r, 100) for r in plan.MEMORY_MB)
     big = plan.job_sizes(_sections(DEFAULT, render={"resolution": [1024, 768]}))
-    assert plan.mem_mb("prerender_material", 100, sizes=big) > plan.mem_mb("prerender_material", 100)
+    assert plan.mem_mb("prerender_materials", 100, sizes=big) > plan.mem_mb("prerender_materials", 100)
     assert plan.mem_mb("write_explorer", 200, sizes=big) > 1.9 * plan.mem_mb("write_explorer", 100, sizes=big) - 500
 
 

@@ -285,6 +285,52 @@ def test_render_material_uses_the_merl_plugin(mi: Any, envmap: Path, tmp_path: P
                                     variant="llvm_ad_rgb", **kw)
 
 
+def test_a_batch_renders_each_material_as_it_renders_alone(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    """render_materials (one process, one Mitsuba start): every image is the one its material gives alone,
+    whatever the order of the batch (nothing of one material carries over to the next)."""
+    from brdfpipe.data import merl
+    from brdfpipe.rendering import render
+
+    tables = {"grey": render.lambertian_table(0.5), "dark": render.lambertian_table(0.1),
+              "red": render.lambertian_table([0.6, 0.1, 0.1])}
+    for name, table in tables.items():
+        merl.write_merl(tmp_path / f"{name}.binary", table)
+    kw = dict(envmap=envmap, resolution=(24, 18), spp=8, max_depth=3, variant="llvm_ad_rgb", seed=2)
+
+    def batch(order: list[str], tag: str) -> dict[str, Path]:
+        outs = {m: tmp_path / f"{tag}-{m}.exr" for m in order}
+        scene.render_materials([tmp_path / f"{m}.binary" for m in order], [outs[m] for m in order],
+                               outs_one=[tmp_path / f"{tag}-{m}-one.exr" for m in order], materials=order,
+                               attrs={"database": "synthetic"}, **kw)
+        return outs
+
+    forward = batch(["grey", "dark", "red"], "f")
+    backward = batch(["red", "dark", "grey"], "b")
+    for m in tables:
+        alone = scene.render_material(tmp_path / f"{m}.binary", tmp_path / f"alone-{m}.exr", **kw)
+        assert np.array_equal(read_exr(forward[m]), alone), m
+        assert np.array_equal(read_exr(backward[m]), alone), m
+        assert read_exr_attrs(forward[m])["material"] == m
+        assert (tmp_path / f"f-{m}-one.exr").is_file()
+    # the materials differ (the batch did not render one material three times)
+    assert read_exr(forward["grey"]).mean() > read_exr(forward["dark"]).mean() + 0.1
+    assert not np.array_equal(read_exr(forward["grey"]), read_exr(forward["red"]))
+
+    # a missing source stops the batch before any render, naming the file
+    with pytest.raises(FileNotFoundError, match="missing.binary"):
+        scene.render_materials([tmp_path / "grey.binary", tmp_path / "missing.binary"],
+                               [tmp_path / "m1.exr", tmp_path / "m2.exr"],
+                               outs_one=[tmp_path / "m1o.exr", tmp_path / "m2o.exr"], materials=["a", "b"], **kw)
+    assert not (tmp_path / "m1.exr").exists()
+    with pytest.raises(ValueError, match="1 outs for 2 MERL files"):
+        scene.render_materials([tmp_path / "grey.binary", tmp_path / "dark.binary"], [tmp_path / "m1.exr"],
+                               outs_one=[tmp_path / "a.exr", tmp_path / "b.exr"], materials=["a", "b"], **kw)
+    with pytest.raises(ValueError, match="materials repeat"):
+        scene.render_materials([tmp_path / "grey.binary", tmp_path / "dark.binary"],
+                               [tmp_path / "m1.exr", tmp_path / "m2.exr"],
+                               outs_one=[tmp_path / "a.exr", tmp_path / "b.exr"], materials=["a", "a"], **kw)
+
+
 def test_one_thread_render_finishes_and_equals_two_threads(mi: Any, envmap: Path, tmp_path: Path) -> None:
     """A job given one core (Snakemake --cores 1) renders, and the image does not depend on the thread count.
 

@@ -233,6 +233,18 @@ else:
     FLOOR_FIGURE = []
 
 
+# Pre-render batches per scene folder (render.materials_per_job materials a job).
+RENDER_BATCHES = {
+    scene: fn.split_batches(MATERIALS, RENDER["materials_per_job"])
+    for scene in RENDER_SETTINGS
+}
+
+
+def render_batch_rule(scene, k):
+    """Name of the rule that pre-renders batch k of a scene folder."""
+    return fn.batch_rule("prerender_materials", k, floor=scene != SCENE)
+
+
 # Sizes the memory model reads, per scene folder (the floor check renders smaller).
 JOB_SIZES = {
     scene: plan.job_sizes(
@@ -274,10 +286,13 @@ except plan.ConfigError as err:
     raise WorkflowError(f"invalid configuration: {err}") from None
 
 
-def mem(rule, outputs=1):
-    """A rule's mem_mb: modelled peak for this many materials, outputs and sizes, growing by half per retry (brdfpipe.core.plan)."""
+def mem(rule, outputs=1, scene=None):
+    """A rule's mem_mb: modelled peak for this many materials, outputs and sizes, growing by half per retry (brdfpipe.core.plan).
 
-    own_scene = FLOOR_SCENE if rule in plan.FLOOR_RULES else SCENE
+    ``scene``: the scene folder of a rule without a {scene} wildcard (a batch rule's).
+    """
+
+    own_scene = scene or (FLOOR_SCENE if rule in plan.FLOOR_RULES else SCENE)
 
     def mem_mb(wildcards, attempt):
         sizes = JOB_SIZES[wildcards.get("scene", own_scene)]

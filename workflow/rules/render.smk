@@ -29,37 +29,46 @@ rule make_envmap:
         "../scripts/make_envmap.py"
 
 
-# One job per material and scene folder: the render settings' (RENDER_SETTINGS:
-# the configured render, and the floor check's small, many-sample one).
-rule prerender_material:
-    input:
-        merl=source_file,
-        envmap=fn.envmap(SCENE),
-        stamp=stamp_of("prerender_material"),
-    output:
-        image=fn.prerender("{scene}", "{material}"),
-        one=fn.prerender_one("{scene}", "{material}"),
-    log:
-        "logs/prerender_material/{scene}/{material}.log",
-    benchmark:
-        "benchmarks/prerender_material/{scene}/{material}.tsv"
-    conda:
-        "../envs/brdfpipe.yaml"
-    threads: 2
-    resources:
-        gpu=RENDER_GPUS,
-        mem_mb=mem("prerender_material"),
-        runtime=30,
-    params:
-        variant=RENDER["variant"],
-        resolution=lambda w: RENDER_SETTINGS[w.scene][0],
-        spp=lambda w: RENDER_SETTINGS[w.scene][1],
-        max_depth=RENDER["max_depth"],
-        seed=RENDER["seed"],
-        database=DATABASE.kind,
-        code=code("prerender_material.py"),
-    script:
-        "../scripts/prerender_material.py"
+# Pre-renders in batches: a job renders render.materials_per_job materials of
+# one scene folder (RENDER_SETTINGS: the configured render, and the floor
+# check's small, many-sample one) in one process, so Mitsuba, its plugins and
+# compiled kernels start once per batch (RENDER_BATCHES; one rule per batch,
+# prerender_materials[_floor]_bNN, each declaring its materials' files).
+for _scene, _batches in RENDER_BATCHES.items():
+    for _k, _batch in enumerate(_batches):
+
+        rule:
+            name:
+                render_batch_rule(_scene, _k)
+            input:
+                merl=[str(DATABASE.sources[m]) for m in _batch],
+                envmap=fn.envmap(SCENE),
+                stamp=stamp_of(render_batch_rule(_scene, _k)),
+            output:
+                images=[fn.prerender(_scene, m) for m in _batch],
+                ones=[fn.prerender_one(_scene, m) for m in _batch],
+            log:
+                f"logs/prerender_materials/{_scene}/b{_k:02d}.log",
+            benchmark:
+                f"benchmarks/prerender_materials/{_scene}/b{_k:02d}.tsv"
+            conda:
+                "../envs/brdfpipe.yaml"
+            threads: 2
+            resources:
+                gpu=RENDER_GPUS,
+                mem_mb=mem("prerender_materials", scene=_scene),
+                runtime=5 + 2 * len(_batch),
+            params:
+                materials=list(_batch),
+                variant=RENDER["variant"],
+                resolution=RENDER_SETTINGS[_scene][0],
+                spp=RENDER_SETTINGS[_scene][1],
+                max_depth=RENDER["max_depth"],
+                seed=RENDER["seed"],
+                database=DATABASE.kind,
+                code=code("prerender_materials.py"),
+            script:
+                "../scripts/prerender_materials.py"
 
 
 if PATH_POINTS:

@@ -22,6 +22,10 @@ __all__ = [
     "RENDER_FIGURE_STEMS",
     "FLOOR_CHECK_STEM",
     "fov_tag",
+    "BATCH_RULE_FAMILIES",
+    "batch_rule",
+    "rule_family",
+    "split_batches",
     "format_t",
     "path_name",
     "synthetic_binary",
@@ -395,6 +399,44 @@ def errormap(scene: str, path: str, t: float | str, kind: str) -> str:
 # rendered at an spp where the Monte Carlo floor is small --------------------
 
 
+#: Rules written once per batch of materials (``<family>_bNN``, ``<family>_floor_bNN`` for the
+#: floor check's scene folder): each job serves several materials in one process.
+BATCH_RULE_FAMILIES: tuple[str, ...] = ("prerender_materials",)
+_BATCH_RULE_RE = re.compile(r"^(?P<family>[a-z_]+?)(?:_floor)?_b\d{2,}$")
+
+
+def batch_rule(family: str, index: int, *, floor: bool = False) -> str:
+    """Name of batch ``index`` of a batch-rule family (``prerender_materials_b03``, ``…_floor_b03``)."""
+    if family not in BATCH_RULE_FAMILIES:
+        raise ValueError(f"{family!r} is not a batch-rule family ({', '.join(BATCH_RULE_FAMILIES)})")
+    return f"{family}{'_floor' if floor else ''}_b{int(index):02d}"
+
+
+def rule_family(name: str) -> str:
+    """The family of a batch rule's name (``prerender_materials_floor_b03`` → ``prerender_materials``); other names unchanged."""
+    m = _BATCH_RULE_RE.match(name)
+    if m is not None and m.group("family") in BATCH_RULE_FAMILIES:
+        return m.group("family")
+    return name
+
+
+def split_batches(items: list[str] | tuple[str, ...], per_job: int) -> list[list[str]]:
+    """``items`` in order, cut into ⌈n / per_job⌉ consecutive batches whose sizes differ by at most one."""
+    if per_job < 1:
+        raise ValueError(f"per_job must be >= 1, got {per_job}")
+    n = len(items)
+    count = -(-n // per_job)
+    if count == 0:
+        return []
+    base, extra = divmod(n, count)
+    out, start = [], 0
+    for k in range(count):
+        size = base + (1 if k < extra else 0)
+        out.append(list(items[start:start + size]))
+        start += size
+    return out
+
+
 def floor_scene(scene: str, resolution: tuple[int, int] | list[int], spp: int) -> str:
     """Folder name of the floor check's renders: the scene, its resolution and spp (``preview-48x36-4096spp``)."""
     w, h = resolution
@@ -513,8 +555,8 @@ def _producers() -> list[tuple[str, str]]:
         (reproduction(), "analyze_manifold"),
         (f"{FIGURES}/{w}", "plot_acquisition_figures"),  # fig08's table: the one figure file read back
         (envmap(w), "make_envmap"),
-        (prerender(w, w), "prerender_material"),
-        (prerender_one(w, w), "prerender_material"),
+        (prerender(w, w), "prerender_materials"),
+        (prerender_one(w, w), "prerender_materials"),
         (object_mask(w), "render_object_mask"),
         (bounce_shares(w), "bounce_shares"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}.binary", "interpolate_candidate_path_points"),

@@ -94,7 +94,7 @@ if TYPE_CHECKING:  # NumPy is imported by the functions that use it: the Snakefi
     from numpy.typing import NDArray
 
 from brdfpipe.core import atomic
-from brdfpipe.core.filenames import rule_of
+from brdfpipe.core.filenames import BATCH_RULE_FAMILIES, rule_of
 
 __all__ = [
     "DIGEST_KEY",
@@ -151,6 +151,8 @@ class IntegrityError(ValueError):
 def rerun_hint(path: str | os.PathLike[str]) -> str:
     """What to rerun to get ``path`` back: its workflow rule, else the command that made it."""
     rule = rule_of(Path(path).as_posix())
+    if rule in BATCH_RULE_FAMILIES:  # one rule per batch: the file names its job
+        return f"delete it and rerun the workflow (a {rule}_* job writes it again)"
     if rule is not None:
         return f"rerun its rule: snakemake --forcerun {rule}"
     return "write it again with the command that made it"

@@ -571,7 +571,7 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "plot_manifold_figures": (204.0, 0.0),
     # rendering track
     "make_envmap": (116.0, 0.0),
-    "prerender_material": (253.0, 0.0),
+    "prerender_materials": (350.0, 0.0),  # a batch: 248 MB for 1 material, 344 MB for 12 or 24 (4 tables cached)
     "interpolate_path_points": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
     "render_path_point": (253.0, 0.0),
     "render_object_mask": (253.0, 0.0),  # as render_path_point: one small render, not measured alone
@@ -630,7 +630,7 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     "make_envmap": (("envmap_pixels", (), 3.0e-4),),
     # a render: film, AOVs and float64 accumulators, 240 B per pixel (1024 × 768: 437 MB, 2048 × 1536:
     # 1,028 MB, 32 spp per pass); Mitsuba's copy of the envmap, 63 B per pixel (4096 × 2048: +529 MB)
-    "prerender_material": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "prerender_materials": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_path_point": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_object_mask": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_candidate_path_point": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
@@ -830,8 +830,8 @@ def check_memory(
             scenes: list[Sequence[int] | None] = [None]
         elif rule in FLOOR_RULES:
             scenes = [floor_resolution]
-        else:  # prerender_material renders both scene folders
-            scenes = [None, floor_resolution] if rule == "prerender_material" else [None]
+        else:  # prerender_materials renders both scene folders
+            scenes = [None, floor_resolution] if rule == "prerender_materials" else [None]
         for res in scenes:
             sizes = job_sizes(config, resolution=res, n_test=n_test, n_unseen=n_unseen)
             n_out = int(outputs.get(rule, 1))

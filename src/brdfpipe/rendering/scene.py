@@ -63,7 +63,8 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections.abc import Callable, Mapping
+import time
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -628,7 +629,7 @@ def render_material(
 ) -> NDArray[np.float32]:
     """Render the preview scene with a MERL material (the ``merl`` plugin) to an EXR.
 
-    The workflow's ``prerender_material`` and ``render_path_point`` jobs.
+    The workflow's ``render_path_point`` jobs (and, per material, its ``prerender_materials`` jobs: :func:`render_materials`).
     The integrator is ``bouncesplit`` (:mod:`brdfpipe.rendering.bounce`: Mitsuba's
     ``path`` with the same ``max_depth``, Russian roulette and sampler draws,
     so the whole image is ``path``'s), so one render gives the whole image
@@ -659,6 +660,50 @@ def render_material(
     whole, _ = render_split_to_exr(scene, out, out_one=out_one, spp=spp, seed=seed, attrs=meta,
                                    progress=progress)
     return whole
+
+
+def render_materials(
+    merl_paths: Sequence[str | os.PathLike[str]],
+    outs: Sequence[str | os.PathLike[str]],
+    *,
+    outs_one: Sequence[str | os.PathLike[str]],
+    materials: Sequence[str],
+    attrs: Mapping[str, str] | None = None,
+    progress: Callable[[str], None] | None = None,
+    **kwargs: Any,
+) -> None:
+    """:func:`render_material` for many materials in one process (the workflow's ``prerender_materials`` jobs).
+
+    Mitsuba, its variant, the plugins and the compiled kernels are set up
+    once and reused: only the material changes between renders (one render
+    of the default scene costs about 0.6 s on two CPU cores in a warm process
+    and about 2 s in a fresh one).  ``merl_paths[k]`` is rendered to
+    ``outs[k]`` (whole image) and ``outs_one[k]`` (its ``I¹⁻`` part), with
+    ``material = materials[k]`` added to ``attrs`` in the headers; every
+    other keyword argument is :func:`render_material`'s, the same for all.
+    Each image is exactly the one :func:`render_material` gives alone (same
+    bytes).  Every source is checked to exist before the first render; a
+    source that fails to load stops the batch with the error naming it.
+    """
+    lists = {"outs": list(outs), "outs_one": list(outs_one), "materials": list(materials)}
+    n = len(merl_paths)
+    for name, values in lists.items():
+        if len(values) != n:
+            raise ValueError(f"render_materials: {len(values)} {name} for {n} MERL files")
+    for name in ("outs", "outs_one", "materials"):
+        values = [str(v) for v in lists[name]]
+        if len(set(values)) != len(values):
+            raise ValueError(f"render_materials: {name} repeat an entry")
+    missing = [str(p) for p in merl_paths if not Path(p).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{missing[0]}: MERL file not found"
+                                + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+    say = progress if progress is not None else logger.info
+    start = time.perf_counter()
+    for k, (src, out, one, material) in enumerate(zip(merl_paths, outs, outs_one, materials)):
+        render_material(src, out, out_one=one, attrs={**(attrs or {}), "material": material},
+                        progress=progress, **kwargs)
+        say(f"material {k + 1}/{n} rendered: {material} ({time.perf_counter() - start:.1f} s so far)")
 
 
 def render_material_seeds(

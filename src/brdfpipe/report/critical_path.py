@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
+from brdfpipe.core.filenames import rule_family
+
 __all__ = [
     "Job",
     "Run",
@@ -254,7 +256,7 @@ def cpu_per_rule(run: Run) -> list[RuleCpu]:
     """Per rule, from the benchmark files of this run's jobs; largest CPU first."""
     by: dict[str, list[Job]] = {}
     for j in run.jobs.values():
-        by.setdefault(j.rule, []).append(j)
+        by.setdefault(rule_family(j.rule), []).append(j)  # a batch rule's jobs count as its family's
     out = [
         RuleCpu(rule, len(js), sum(j.cpu or 0.0 for j in js), sum(j.duration for j in js),
                 max(j.duration for j in js))

@@ -47,7 +47,7 @@ TRACKS: dict[str, tuple[str, ...]] = {
                               "plot_acquisition_figures"),
     "manifold (Soler 2018)": ("compute_gram", "fit_gplvm", "analyze_manifold", "measure_gplvm_candidate",
                               "compare_spaces", "plot_manifold_figures"),
-    "rendering": ("make_envmap", "prerender_material", "interpolate_path_points", "render_path_point",
+    "rendering": ("make_envmap", "prerender_materials", "interpolate_path_points", "render_path_point",
                   "render_object_mask", "bounce_shares", "error_maps", "plot_render_figures",
                   "interpolate_candidate_path_points", "render_candidate_path_point", "measure_candidate_blends",
                   "summarize_floor_check", "plot_floor_check"),

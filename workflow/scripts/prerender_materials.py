@@ -1,13 +1,14 @@
-"""Global-illumination pre-render of one material and its I¹⁻ part, one render (rule prerender_material)."""
+"""Global-illumination pre-renders of a batch of materials and their I¹⁻ parts, in one process (rules prerender_materials_*)."""
 
 from brdfpipe.core.logutil import log_to
 from brdfpipe.rendering import scene
 
 with log_to(snakemake.log[0]):
-    scene.render_material(
+    scene.render_materials(
         snakemake.input.merl,
-        snakemake.output.image,
-        out_one=snakemake.output.one,
+        snakemake.output.images,
+        outs_one=snakemake.output.ones,
+        materials=snakemake.params.materials,
         envmap=snakemake.input.envmap,
         variant=snakemake.params.variant,
         resolution=snakemake.params.resolution,
@@ -15,5 +16,5 @@ with log_to(snakemake.log[0]):
         max_depth=snakemake.params.max_depth,
         threads=snakemake.threads,
         seed=snakemake.params.seed,
-        attrs={"database": snakemake.params.database, "material": snakemake.wildcards.material},
+        attrs={"database": snakemake.params.database},
     )
