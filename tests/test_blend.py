@@ -570,7 +570,7 @@ def test_one_changed_pixel_of_an_input_stops_the_error_maps(tmp_path: Path, whic
         moved = tmp_path / "results" / "renders" / "preview" / "materials" / "chrome.exr"
     else:
         bad = Path(points[1]["reference"])
-        rule = "render_path_point"
+        rule = "render_path_points"
         moved = tmp_path / "results" / "renders" / "preview" / "paths" / "chrome--silver-t0.5.exr"
     moved.parent.mkdir(parents=True, exist_ok=True)
     bad.rename(moved)

@@ -303,7 +303,7 @@ def test_every_rule_has_a_memory_model_that_grows_with_retries() -> None:
     rules = set()
     for smk in (ROOT / "workflow" / "rules").glob("*.smk"):
         rules |= set(re.findall(r"^\s*rule (\w+):", smk.read_text(), flags=re.M))
-        rules |= set(re.findall(r'mem\("(\w+)", scene=', smk.read_text()))  # batch rules: their family's model
+        rules |= set(re.findall(r'mem\("(\w+)", scenes=', smk.read_text()))  # batch rules: their family's model
     assert rules == set(plan.MEMORY_MB), rules ^ set(plan.MEMORY_MB)
     for rule in rules:
         first, second, third = (plan.mem_mb(rule, 100, a) for a in (1, 2, 3))

@@ -295,21 +295,30 @@ def test_a_batch_renders_each_material_as_it_renders_alone(mi: Any, envmap: Path
               "red": render.lambertian_table([0.6, 0.1, 0.1])}
     for name, table in tables.items():
         merl.write_merl(tmp_path / f"{name}.binary", table)
-    kw = dict(envmap=envmap, resolution=(24, 18), spp=8, max_depth=3, variant="llvm_ad_rgb", seed=2)
+    kw = dict(envmap=envmap, max_depth=3, variant="llvm_ad_rgb", seed=2)
 
     def batch(order: list[str], tag: str) -> dict[str, Path]:
         outs = {m: tmp_path / f"{tag}-{m}.exr" for m in order}
-        scene.render_materials([tmp_path / f"{m}.binary" for m in order], [outs[m] for m in order],
-                               outs_one=[tmp_path / f"{tag}-{m}-one.exr" for m in order], materials=order,
+        # two settings (scene folders): the configured render and a smaller one with more samples
+        scene.render_materials([tmp_path / f"{m}.binary" for m in order],
+                               [[outs[m] for m in order], [tmp_path / f"{tag}-{m}-small.exr" for m in order]],
+                               outs_one=[[tmp_path / f"{tag}-{m}-one.exr" for m in order],
+                                         [tmp_path / f"{tag}-{m}-small-one.exr" for m in order]],
+                               materials=order, settings=[((24, 18), 8), ((8, 8), 40)],
                                attrs={"database": "synthetic"}, **kw)
         return outs
 
     forward = batch(["grey", "dark", "red"], "f")
     backward = batch(["red", "dark", "grey"], "b")
     for m in tables:
-        alone = scene.render_material(tmp_path / f"{m}.binary", tmp_path / f"alone-{m}.exr", **kw)
+        alone = scene.render_material(tmp_path / f"{m}.binary", tmp_path / f"alone-{m}.exr", resolution=(24, 18),
+                                      spp=8, **kw)
         assert np.array_equal(read_exr(forward[m]), alone), m
         assert np.array_equal(read_exr(backward[m]), alone), m
+        small = scene.render_material(tmp_path / f"{m}.binary", tmp_path / f"alone-{m}-s.exr", resolution=(8, 8),
+                                      spp=40, **kw)
+        assert np.array_equal(read_exr(tmp_path / f"f-{m}-small.exr"), small), m
+        assert read_exr_attrs(tmp_path / f"f-{m}-small.exr")["spp"] == "40"
         assert read_exr_attrs(forward[m])["material"] == m
         assert (tmp_path / f"f-{m}-one.exr").is_file()
     # the materials differ (the batch did not render one material three times)
@@ -319,16 +328,50 @@ def test_a_batch_renders_each_material_as_it_renders_alone(mi: Any, envmap: Path
     # a missing source stops the batch before any render, naming the file
     with pytest.raises(FileNotFoundError, match="missing.binary"):
         scene.render_materials([tmp_path / "grey.binary", tmp_path / "missing.binary"],
-                               [tmp_path / "m1.exr", tmp_path / "m2.exr"],
-                               outs_one=[tmp_path / "m1o.exr", tmp_path / "m2o.exr"], materials=["a", "b"], **kw)
+                               [[tmp_path / "m1.exr", tmp_path / "m2.exr"]],
+                               outs_one=[[tmp_path / "m1o.exr", tmp_path / "m2o.exr"]], materials=["a", "b"],
+                               settings=[((24, 18), 8)], **kw)
     assert not (tmp_path / "m1.exr").exists()
-    with pytest.raises(ValueError, match="1 outs for 2 MERL files"):
-        scene.render_materials([tmp_path / "grey.binary", tmp_path / "dark.binary"], [tmp_path / "m1.exr"],
-                               outs_one=[tmp_path / "a.exr", tmp_path / "b.exr"], materials=["a", "b"], **kw)
+    with pytest.raises(ValueError, match="outs needs one list of 2 files per setting"):
+        scene.render_materials([tmp_path / "grey.binary", tmp_path / "dark.binary"], [[tmp_path / "m1.exr"]],
+                               outs_one=[[tmp_path / "a.exr", tmp_path / "b.exr"]], materials=["a", "b"],
+                               settings=[((24, 18), 8)], **kw)
     with pytest.raises(ValueError, match="materials repeat"):
         scene.render_materials([tmp_path / "grey.binary", tmp_path / "dark.binary"],
-                               [tmp_path / "m1.exr", tmp_path / "m2.exr"],
-                               outs_one=[tmp_path / "a.exr", tmp_path / "b.exr"], materials=["a", "a"], **kw)
+                               [[tmp_path / "m1.exr", tmp_path / "m2.exr"]],
+                               outs_one=[[tmp_path / "a.exr", tmp_path / "b.exr"]], materials=["a", "a"],
+                               settings=[((24, 18), 8)], **kw)
+    with pytest.raises(ValueError, match="named twice"):
+        scene.render_materials([tmp_path / "grey.binary"], [[tmp_path / "m1.exr"]],
+                               outs_one=[[tmp_path / "m1.exr"]], materials=["a"], settings=[((24, 18), 8)], **kw)
+
+
+def test_path_points_render_in_one_call_as_each_alone(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    """render_points: two seeds per point, the same images as render_material_seeds point by point."""
+    from brdfpipe.data import merl
+    from brdfpipe.rendering import render
+
+    for name, albedo in (("p0", 0.3), ("p1", 0.7)):
+        merl.write_merl(tmp_path / f"{name}.binary", render.lambertian_table(albedo))
+    kw = dict(envmap=envmap, resolution=(24, 18), spp=8, max_depth=3, variant="llvm_ad_rgb")
+    outs = [[tmp_path / f"{p}-s{s}.exr" for s in (0, 1)] for p in ("p0", "p1")]
+    ones = [[tmp_path / f"{p}-s{s}-one.exr" for s in (0, 1)] for p in ("p0", "p1")]
+    scene.render_points([tmp_path / "p0.binary", tmp_path / "p1.binary"], outs=outs, outs_one=ones,
+                        seeds=[0, 1], labels=["a--b-t0.25", "a--b-t0.75"], attrs={"database": "synthetic"}, **kw)
+    for k, p in enumerate(("p0", "p1")):
+        alone = [tmp_path / f"alone-{p}-{s}.exr" for s in (0, 1)]
+        scene.render_material_seeds(tmp_path / f"{p}.binary", alone, seeds=[0, 1], **kw)
+        for s in (0, 1):
+            assert np.array_equal(read_exr(outs[k][s]), read_exr(alone[s])), (p, s)
+        assert not np.array_equal(read_exr(outs[k][0]), read_exr(outs[k][1]))  # two seeds, two images
+        assert read_exr_attrs(outs[k][0])["path_point"] == ["a--b-t0.25", "a--b-t0.75"][k]
+    with pytest.raises(ValueError, match="one output per seed"):
+        scene.render_points([tmp_path / "p0.binary"], outs=[[tmp_path / "x.exr"]], outs_one=[[tmp_path / "y.exr"]],
+                            seeds=[0, 1], labels=["a"], **kw)
+    with pytest.raises(FileNotFoundError, match="nope.binary"):
+        scene.render_points([tmp_path / "nope.binary"], outs=[[tmp_path / "x.exr", tmp_path / "x2.exr"]],
+                            outs_one=[[tmp_path / "y.exr", tmp_path / "y2.exr"]], seeds=[0, 1], labels=["a"], **kw)
+    assert not (tmp_path / "x.exr").exists()
 
 
 def test_one_thread_render_finishes_and_equals_two_threads(mi: Any, envmap: Path, tmp_path: Path) -> None:

@@ -78,13 +78,12 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("compute_gram", 2), ("fit_gplvm", 4), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
                     ("make_envmap", 1), ("interpolate_path_points", 1),
-                    # pre-renders: 12 materials in 2 batches of 6 (materials_per_job 10), per scene folder
+                    # pre-renders: 12 materials in 2 batches of 6 (materials_per_job 10), both scene folders
                     ("prerender_materials_b00", 1), ("prerender_materials_b01", 1),
-                    ("prerender_materials_floor_b00", 1), ("prerender_materials_floor_b01", 1),
-                    ("render_path_point", 3), ("error_maps", 1), ("render_object_mask", 1),
+                    ("render_path_points", 1), ("error_maps", 1), ("render_object_mask", 1),
                     ("bounce_shares", 1),
                     # the noise-floor check: both candidates' path points, every material again
-                    ("interpolate_candidate_path_points", 2), ("render_candidate_path_point", 2 * 3),
+                    ("interpolate_candidate_path_points", 2), ("render_candidate_path_points", 2),
                     ("measure_candidate_blends", 2), ("summarize_floor_check", 1), ("plot_floor_check", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
 

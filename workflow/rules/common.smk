@@ -233,16 +233,13 @@ else:
     FLOOR_FIGURE = []
 
 
-# Pre-render batches per scene folder (render.materials_per_job materials a job).
-RENDER_BATCHES = {
-    scene: fn.split_batches(MATERIALS, RENDER["materials_per_job"])
-    for scene in RENDER_SETTINGS
-}
+# Pre-render batches (render.materials_per_job materials a job, every scene folder).
+RENDER_BATCHES = fn.split_batches(MATERIALS, RENDER["materials_per_job"])
 
 
-def render_batch_rule(scene, k):
-    """Name of the rule that pre-renders batch k of a scene folder."""
-    return fn.batch_rule("prerender_materials", k, floor=scene != SCENE)
+def render_batch_rule(k):
+    """Name of the rule that pre-renders batch k."""
+    return fn.batch_rule("prerender_materials", k)
 
 
 # Sizes the memory model reads, per scene folder (the floor check renders smaller).
@@ -286,17 +283,23 @@ except plan.ConfigError as err:
     raise WorkflowError(f"invalid configuration: {err}") from None
 
 
-def mem(rule, outputs=1, scene=None):
+def mem(rule, outputs=1, scenes=None):
     """A rule's mem_mb: modelled peak for this many materials, outputs and sizes, growing by half per retry (brdfpipe.core.plan).
 
-    ``scene``: the scene folder of a rule without a {scene} wildcard (a batch rule's).
+    ``scenes``: the scene folders a job without a {scene} wildcard renders in
+    (a pre-render batch's), one after another: the largest need of them.
     """
 
-    own_scene = scene or (FLOOR_SCENE if rule in plan.FLOOR_RULES else SCENE)
+    own_scene = FLOOR_SCENE if rule in plan.FLOOR_RULES else SCENE
 
     def mem_mb(wildcards, attempt):
-        sizes = JOB_SIZES[wildcards.get("scene", own_scene)]
-        return plan.mem_mb(rule, len(MATERIALS), attempt, outputs=outputs, sizes=sizes)
+        folders = scenes or [wildcards.get("scene", own_scene)]
+        n = len(MATERIALS)
+        need = [
+            plan.mem_mb(rule, n, attempt, outputs=outputs, sizes=JOB_SIZES[s])
+            for s in folders
+        ]
+        return max(need)
 
     return mem_mb
 

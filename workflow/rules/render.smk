@@ -29,46 +29,45 @@ rule make_envmap:
         "../scripts/make_envmap.py"
 
 
-# Pre-renders in batches: a job renders render.materials_per_job materials of
-# one scene folder (RENDER_SETTINGS: the configured render, and the floor
-# check's small, many-sample one) in one process, so Mitsuba, its plugins and
-# compiled kernels start once per batch (RENDER_BATCHES; one rule per batch,
-# prerender_materials[_floor]_bNN, each declaring its materials' files).
-for _scene, _batches in RENDER_BATCHES.items():
-    for _k, _batch in enumerate(_batches):
+# Pre-renders in batches: a job renders render.materials_per_job materials in
+# one process, in every scene folder (RENDER_SETTINGS: the configured render,
+# and the floor check's small, many-sample one), so Mitsuba, its plugins and
+# compiled kernels start once per batch and each material's table is loaded
+# and fitted once (RENDER_BATCHES; one rule per batch, prerender_materials_bNN,
+# each declaring its materials' files).
+for _k, _batch in enumerate(RENDER_BATCHES):
 
-        rule:
-            name:
-                render_batch_rule(_scene, _k)
-            input:
-                merl=[str(DATABASE.sources[m]) for m in _batch],
-                envmap=fn.envmap(SCENE),
-                stamp=stamp_of(render_batch_rule(_scene, _k)),
-            output:
-                images=[fn.prerender(_scene, m) for m in _batch],
-                ones=[fn.prerender_one(_scene, m) for m in _batch],
-            log:
-                f"logs/prerender_materials/{_scene}/b{_k:02d}.log",
-            benchmark:
-                f"benchmarks/prerender_materials/{_scene}/b{_k:02d}.tsv"
-            conda:
-                "../envs/brdfpipe.yaml"
-            threads: 2
-            resources:
-                gpu=RENDER_GPUS,
-                mem_mb=mem("prerender_materials", scene=_scene),
-                runtime=5 + 2 * len(_batch),
-            params:
-                materials=list(_batch),
-                variant=RENDER["variant"],
-                resolution=RENDER_SETTINGS[_scene][0],
-                spp=RENDER_SETTINGS[_scene][1],
-                max_depth=RENDER["max_depth"],
-                seed=RENDER["seed"],
-                database=DATABASE.kind,
-                code=code("prerender_materials.py"),
-            script:
-                "../scripts/prerender_materials.py"
+    rule:
+        name:
+            render_batch_rule(_k)
+        input:
+            merl=[str(DATABASE.sources[m]) for m in _batch],
+            envmap=fn.envmap(SCENE),
+            stamp=stamp_of(render_batch_rule(_k)),
+        output:
+            images=[fn.prerender(s, m) for s in RENDER_SETTINGS for m in _batch],
+            ones=[fn.prerender_one(s, m) for s in RENDER_SETTINGS for m in _batch],
+        log:
+            f"logs/prerender_materials/b{_k:02d}.log",
+        benchmark:
+            f"benchmarks/prerender_materials/b{_k:02d}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 2
+        resources:
+            gpu=RENDER_GPUS,
+            mem_mb=mem("prerender_materials", scenes=list(RENDER_SETTINGS)),
+            runtime=5 + 2 * len(_batch) * len(RENDER_SETTINGS),
+        params:
+            materials=list(_batch),
+            settings=[list(v) for v in RENDER_SETTINGS.values()],
+            variant=RENDER["variant"],
+            max_depth=RENDER["max_depth"],
+            seed=RENDER["seed"],
+            database=DATABASE.kind,
+            code=code("prerender_materials.py"),
+        script:
+            "../scripts/prerender_materials.py"
 
 
 if PATH_POINTS:
@@ -99,38 +98,40 @@ if PATH_POINTS:
         script:
             "../scripts/interpolate_path_points.py"
 
-
-rule render_path_point:
-    input:
-        merl=fn.path_point(SCENE, "{path}", "{t}", "binary"),
-        envmap=fn.envmap(SCENE),
-        stamp=stamp_of("render_path_point"),
-    output:
-        image=fn.path_point(SCENE, "{path}", "{t}", "image"),
-        noise=fn.path_point(SCENE, "{path}", "{t}", "noise"),
-        one=fn.path_point(SCENE, "{path}", "{t}", "one"),
-        one_noise=fn.path_point(SCENE, "{path}", "{t}", "one_noise"),
-    log:
-        f"logs/render_path_point/{SCENE}/{{path}}-t{{t}}.log",
-    benchmark:
-        f"benchmarks/render_path_point/{SCENE}/{{path}}-t{{t}}.tsv"
-    conda:
-        "../envs/brdfpipe.yaml"
-    threads: 2
-    resources:
-        gpu=RENDER_GPUS,
-        mem_mb=mem("render_path_point"),
-        runtime=60,
-    params:
-        variant=RENDER["variant"],
-        resolution=RENDER["resolution"],
-        spp=RENDER["spp"],
-        max_depth=RENDER["max_depth"],
-        seeds=[RENDER["seed"], RENDER["noise_seed"]],
-        database=DATABASE.kind,
-        code=code("render_path_point.py"),
-    script:
-        "../scripts/render_path_point.py"
+    # One job renders every path point (two seeds each): the points come from
+    # one interpolation job, so they change together; one Mitsuba start.
+    rule render_path_points:
+        input:
+            merl=path_point_files("binary"),
+            envmap=fn.envmap(SCENE),
+            stamp=stamp_of("render_path_points"),
+        output:
+            images=path_point_files("image"),
+            noises=path_point_files("noise"),
+            ones=path_point_files("one"),
+            ones_noise=path_point_files("one_noise"),
+        log:
+            f"logs/render_path_points/{SCENE}.log",
+        benchmark:
+            f"benchmarks/render_path_points/{SCENE}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 2
+        resources:
+            gpu=RENDER_GPUS,
+            mem_mb=mem("render_path_points"),
+            runtime=10 + 4 * len(PATH_POINTS),
+        params:
+            labels=[f"{p}-t{t}" for p, t in PATH_POINTS],
+            variant=RENDER["variant"],
+            resolution=RENDER["resolution"],
+            spp=RENDER["spp"],
+            max_depth=RENDER["max_depth"],
+            seeds=[RENDER["seed"], RENDER["noise_seed"]],
+            database=DATABASE.kind,
+            code=code("render_path_points.py"),
+        script:
+            "../scripts/render_path_points.py"
 
 
 # The object's pixels (for the I²⁺ share over the object): one small render.
@@ -292,47 +293,38 @@ if FLOOR_CANDIDATES:
         script:
             "../scripts/interpolate_path_points.py"
 
-    rule render_candidate_path_point:
+    rule render_candidate_path_points:
         input:
-            merl=fn.candidate_path_point(
-                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "binary"
-            ),
+            merl=candidate_point_files("{candidate}", "binary"),
             envmap=fn.envmap(SCENE),
-            stamp=stamp_of("render_candidate_path_point"),
+            stamp=stamp_of("render_candidate_path_points"),
         output:
-            image=fn.candidate_path_point(
-                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "image"
-            ),
-            noise=fn.candidate_path_point(
-                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "noise"
-            ),
-            one=fn.candidate_path_point(
-                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "one"
-            ),
-            one_noise=fn.candidate_path_point(
-                FLOOR_SCENE, "{candidate}", "{path}", "{t}", "one_noise"
-            ),
+            images=candidate_point_files("{candidate}", "image"),
+            noises=candidate_point_files("{candidate}", "noise"),
+            ones=candidate_point_files("{candidate}", "one"),
+            ones_noise=candidate_point_files("{candidate}", "one_noise"),
         log:
-            f"logs/render_candidate_path_point/{FLOOR_SCENE}/{{candidate}}/{{path}}-t{{t}}.log",
+            f"logs/render_candidate_path_points/{FLOOR_SCENE}/{{candidate}}.log",
         benchmark:
-            f"benchmarks/render_candidate_path_point/{FLOOR_SCENE}/{{candidate}}/{{path}}-t{{t}}.tsv"
+            f"benchmarks/render_candidate_path_points/{FLOOR_SCENE}/{{candidate}}.tsv"
         conda:
             "../envs/brdfpipe.yaml"
         threads: 2
         resources:
             gpu=RENDER_GPUS,
-            mem_mb=mem("render_candidate_path_point"),
-            runtime=60,
+            mem_mb=mem("render_candidate_path_points"),
+            runtime=10 + 4 * len(PATH_POINTS),
         params:
+            labels=[f"{p}-t{t}" for p, t in PATH_POINTS],
             variant=RENDER["variant"],
             resolution=FLOOR["resolution"],
             spp=FLOOR["spp"],
             max_depth=RENDER["max_depth"],
             seeds=[RENDER["seed"], RENDER["noise_seed"]],
             database=DATABASE.kind,
-            code=code("render_path_point.py"),
+            code=code("render_path_points.py"),
         script:
-            "../scripts/render_path_point.py"
+            "../scripts/render_path_points.py"
 
     rule measure_candidate_blends:
         input:

@@ -399,21 +399,21 @@ def errormap(scene: str, path: str, t: float | str, kind: str) -> str:
 # rendered at an spp where the Monte Carlo floor is small --------------------
 
 
-#: Rules written once per batch of materials (``<family>_bNN``, ``<family>_floor_bNN`` for the
-#: floor check's scene folder): each job serves several materials in one process.
+#: Rules written once per batch of materials (``<family>_bNN``): each job serves several
+#: materials in one process.
 BATCH_RULE_FAMILIES: tuple[str, ...] = ("prerender_materials",)
-_BATCH_RULE_RE = re.compile(r"^(?P<family>[a-z_]+?)(?:_floor)?_b\d{2,}$")
+_BATCH_RULE_RE = re.compile(r"^(?P<family>[a-z_]+)_b\d{2,}$")
 
 
-def batch_rule(family: str, index: int, *, floor: bool = False) -> str:
-    """Name of batch ``index`` of a batch-rule family (``prerender_materials_b03``, ``…_floor_b03``)."""
+def batch_rule(family: str, index: int) -> str:
+    """Name of batch ``index`` of a batch-rule family (``prerender_materials_b03``)."""
     if family not in BATCH_RULE_FAMILIES:
         raise ValueError(f"{family!r} is not a batch-rule family ({', '.join(BATCH_RULE_FAMILIES)})")
-    return f"{family}{'_floor' if floor else ''}_b{int(index):02d}"
+    return f"{family}_b{int(index):02d}"
 
 
 def rule_family(name: str) -> str:
-    """The family of a batch rule's name (``prerender_materials_floor_b03`` → ``prerender_materials``); other names unchanged."""
+    """The family of a batch rule's name (``prerender_materials_b03`` → ``prerender_materials``); other names unchanged."""
     m = _BATCH_RULE_RE.match(name)
     if m is not None and m.group("family") in BATCH_RULE_FAMILIES:
         return m.group("family")
@@ -561,10 +561,10 @@ def _producers() -> list[tuple[str, str]]:
         (bounce_shares(w), "bounce_shares"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}.binary", "interpolate_candidate_path_points"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}-weights.json", "interpolate_candidate_path_points"),
-        (floor_point.rsplit("/", 1)[0] + f"/{w}.exr", "render_candidate_path_point"),
+        (floor_point.rsplit("/", 1)[0] + f"/{w}.exr", "render_candidate_path_points"),
         (path_point(w, w, w, "binary"), "interpolate_path_points"),
         (path_point(w, w, w, "weights"), "interpolate_path_points"),
-        (f"{RESULTS}/renders/{w}/paths/{w}.exr", "render_path_point"),
+        (f"{RESULTS}/renders/{w}/paths/{w}.exr", "render_path_points"),
         (floor_check_csv(w), "summarize_floor_check"),
         (candidate_errormap_summary(w, w), "measure_candidate_blends"),
         (f"{RESULTS}/errormaps/{w}/{w}/{w}", "measure_candidate_blends"),

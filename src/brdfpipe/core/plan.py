@@ -573,12 +573,12 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "make_envmap": (116.0, 0.0),
     "prerender_materials": (350.0, 0.0),  # a batch: 248 MB for 1 material, 344 MB for 12 or 24 (4 tables cached)
     "interpolate_path_points": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
-    "render_path_point": (253.0, 0.0),
-    "render_object_mask": (253.0, 0.0),  # as render_path_point: one small render, not measured alone
+    "render_path_points": (350.0, 0.0),  # as prerender_materials: several renders in one process
+    "render_object_mask": (253.0, 0.0),  # as one render of render_path_points: one small render, not measured alone
     "bounce_shares": (110.0, 0.0),  # not measured: reads two images at a time, less than error_maps
     "error_maps": (110.0, 0.1),  # reads the I¹⁻ pre-renders too: twice error_maps' per-material share
     "interpolate_candidate_path_points": (250.0, 2.22),  # as interpolate_path_points
-    "render_candidate_path_point": (253.0, 0.0),  # as render_path_point
+    "render_candidate_path_points": (350.0, 0.0),  # as render_path_points
     "measure_candidate_blends": (110.0, 0.1),  # as error_maps (smaller images)
     "summarize_floor_check": (120.0, 0.0),  # one small CSV per candidate
     "plot_floor_check": (240.0, 0.0),  # as plot_render_figures, without the images
@@ -631,9 +631,9 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     # a render: film, AOVs and float64 accumulators, 240 B per pixel (1024 × 768: 437 MB, 2048 × 1536:
     # 1,028 MB, 32 spp per pass); Mitsuba's copy of the envmap, 63 B per pixel (4096 × 2048: +529 MB)
     "prerender_materials": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
-    "render_path_point": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_path_points": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_object_mask": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
-    "render_candidate_path_point": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_candidate_path_points": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     # readers of the renders (tiny config, 12 materials, 32 × 24 → 384 × 288: +5.6, +30, +56 and +264 MB)
     "bounce_shares": (("render_pixels", (), 6.0e-5),),
     "error_maps": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
@@ -675,7 +675,7 @@ SIZE_KEYS: dict[str, str] = {
 
 #: Rules whose jobs render or read the noise-floor check's scene (render.floor_check.resolution).
 FLOOR_RULES: frozenset[str] = frozenset({
-    "render_candidate_path_point", "measure_candidate_blends", "summarize_floor_check", "plot_floor_check",
+    "render_candidate_path_points", "measure_candidate_blends", "summarize_floor_check", "plot_floor_check",
     "interpolate_candidate_path_points",
 })
 
@@ -772,7 +772,7 @@ def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bo
     if not closedloop_directions(config):
         skip |= {"capture_closedloop", "evaluate_closedloop", "plot_closedloop"}
     if not path_points:
-        skip |= {"interpolate_path_points", "render_path_point", "error_maps"}
+        skip |= {"interpolate_path_points", "render_path_points", "error_maps"}
     if not floor_check:
         skip |= FLOOR_RULES
     if not curve_directions(config["acquisition"]):

@@ -629,7 +629,7 @@ def render_material(
 ) -> NDArray[np.float32]:
     """Render the preview scene with a MERL material (the ``merl`` plugin) to an EXR.
 
-    The workflow's ``render_path_point`` jobs (and, per material, its ``prerender_materials`` jobs: :func:`render_materials`).
+    One render of the workflow's ``prerender_materials`` jobs (:func:`render_materials`) and path points' jobs (:func:`render_points`).
     The integrator is ``bouncesplit`` (:mod:`brdfpipe.rendering.bounce`: Mitsuba's
     ``path`` with the same ``max_depth``, Russian roulette and sampler draws,
     so the whole image is ``path``'s), so one render gives the whole image
@@ -664,45 +664,53 @@ def render_material(
 
 def render_materials(
     merl_paths: Sequence[str | os.PathLike[str]],
-    outs: Sequence[str | os.PathLike[str]],
+    outs: Sequence[Sequence[str | os.PathLike[str]]],
     *,
-    outs_one: Sequence[str | os.PathLike[str]],
+    outs_one: Sequence[Sequence[str | os.PathLike[str]]],
     materials: Sequence[str],
+    settings: Sequence[tuple[Sequence[int], int]],
     attrs: Mapping[str, str] | None = None,
     progress: Callable[[str], None] | None = None,
     **kwargs: Any,
 ) -> None:
-    """:func:`render_material` for many materials in one process (the workflow's ``prerender_materials`` jobs).
+    """:func:`render_material` for many materials and render settings in one process (the ``prerender_materials`` jobs).
 
-    Mitsuba, its variant, the plugins and the compiled kernels are set up
-    once and reused: only the material changes between renders (one render
-    of the default scene costs about 0.6 s on two CPU cores in a warm process
-    and about 2 s in a fresh one).  ``merl_paths[k]`` is rendered to
-    ``outs[k]`` (whole image) and ``outs_one[k]`` (its ``I¹⁻`` part), with
-    ``material = materials[k]`` added to ``attrs`` in the headers; every
-    other keyword argument is :func:`render_material`'s, the same for all.
-    Each image is exactly the one :func:`render_material` gives alone (same
-    bytes).  Every source is checked to exist before the first render; a
-    source that fails to load stops the batch with the error naming it.
+    ``settings[s]`` is ``(resolution, spp)`` of scene folder ``s``;
+    ``merl_paths[k]`` is rendered with each of them to ``outs[s][k]`` (whole
+    image) and ``outs_one[s][k]`` (its ``I¹⁻`` part), with ``material =
+    materials[k]`` added to ``attrs`` in the headers; every other keyword
+    argument is :func:`render_material`'s, the same for all.  Mitsuba, its
+    variant, the plugins and the compiled kernels are set up once, and a
+    material's table is loaded and its sampling fitted once for all its
+    settings (materials in the outer loop): only the material changes between
+    renders.  One render of the default scene costs about 0.6 s on two CPU
+    cores in a warm process, about 2 s in a fresh one.  Each image is exactly
+    the one :func:`render_material` gives alone (same bytes).  Every source
+    is checked to exist before the first render; a source that fails to load
+    stops the batch with the error naming it.
     """
-    lists = {"outs": list(outs), "outs_one": list(outs_one), "materials": list(materials)}
     n = len(merl_paths)
-    for name, values in lists.items():
-        if len(values) != n:
-            raise ValueError(f"render_materials: {len(values)} {name} for {n} MERL files")
-    for name in ("outs", "outs_one", "materials"):
-        values = [str(v) for v in lists[name]]
-        if len(set(values)) != len(values):
-            raise ValueError(f"render_materials: {name} repeat an entry")
+    if len(materials) != n:
+        raise ValueError(f"render_materials: {len(materials)} materials for {n} MERL files")
+    if len(set(materials)) != n:
+        raise ValueError("render_materials: materials repeat an entry")
+    for name, table in (("outs", outs), ("outs_one", outs_one)):
+        if len(table) != len(settings) or any(len(row) != n for row in table):
+            raise ValueError(f"render_materials: {name} needs one list of {n} files per setting "
+                             f"({len(settings)} settings)")
+    files = [str(f) for table in (outs, outs_one) for row in table for f in row]
+    if len(set(files)) != len(files):
+        raise ValueError("render_materials: an output file is named twice")
     missing = [str(p) for p in merl_paths if not Path(p).is_file()]
     if missing:
         raise FileNotFoundError(f"{missing[0]}: MERL file not found"
                                 + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
     say = progress if progress is not None else logger.info
     start = time.perf_counter()
-    for k, (src, out, one, material) in enumerate(zip(merl_paths, outs, outs_one, materials)):
-        render_material(src, out, out_one=one, attrs={**(attrs or {}), "material": material},
-                        progress=progress, **kwargs)
+    for k, (src, material) in enumerate(zip(merl_paths, materials)):
+        for s, (resolution, spp) in enumerate(settings):
+            render_material(src, outs[s][k], out_one=outs_one[s][k], resolution=tuple(resolution), spp=int(spp),
+                            attrs={**(attrs or {}), "material": material}, progress=progress, **kwargs)
         say(f"material {k + 1}/{n} rendered: {material} ({time.perf_counter() - start:.1f} s so far)")
 
 
@@ -724,6 +732,46 @@ def render_material_seeds(
     for out, one, seed in zip(outs, ones, seeds):
         render_material(merl_path, out, out_one=one, seed=seed,
                         attrs={**(attrs or {}), "seed_role": f"seed {seed}"}, **kwargs)
+
+
+def render_points(
+    merl_paths: Sequence[str | os.PathLike[str]],
+    *,
+    outs: Sequence[Sequence[str | os.PathLike[str]]],
+    outs_one: Sequence[Sequence[str | os.PathLike[str]]],
+    seeds: list[int],
+    labels: Sequence[str],
+    attrs: Mapping[str, str] | None = None,
+    progress: Callable[[str], None] | None = None,
+    **kwargs: Any,
+) -> None:
+    """:func:`render_material_seeds` for many interpolated materials in one process (the path points' jobs).
+
+    ``merl_paths[k]`` is rendered once per seed, ``outs[k][s]`` and
+    ``outs_one[k][s]`` with ``seeds[s]``, and ``path_point = labels[k]`` in
+    the headers; the other keywords are :func:`render_material`'s.  One
+    Mitsuba start for all points (the points of a path come from one
+    interpolation job, so they change together); each image is the one the
+    point gives alone.  Every source is checked to exist before the first render.
+    """
+    n = len(merl_paths)
+    for name, values in (("outs", outs), ("outs_one", outs_one), ("labels", labels)):
+        if len(values) != n:
+            raise ValueError(f"render_points: {len(values)} {name} for {n} MERL files")
+    if any(len(o) != len(seeds) for o in list(outs) + list(outs_one)):
+        raise ValueError(f"render_points: every point needs one output per seed ({len(seeds)})")
+    if len(set(labels)) != len(labels):
+        raise ValueError("render_points: labels repeat an entry")
+    missing = [str(p) for p in merl_paths if not Path(p).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{missing[0]}: interpolated MERL file not found"
+                                + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+    say = progress if progress is not None else logger.info
+    start = time.perf_counter()
+    for k, (src, label) in enumerate(zip(merl_paths, labels)):
+        render_material_seeds(src, list(outs[k]), outs_one=list(outs_one[k]), seeds=seeds,
+                              attrs={**(attrs or {}), "path_point": label}, progress=progress, **kwargs)
+        say(f"point {k + 1}/{n} rendered: {label} ({time.perf_counter() - start:.1f} s so far)")
 
 
 def render_object_mask(
