@@ -393,3 +393,29 @@ def test_one_thread_render_finishes_and_equals_two_threads(mi: Any, envmap: Path
         subprocess.run([sys.executable, "-c", code, str(tmp_path / "lambert.binary"), str(tmp_path / f"t{threads}.exr"),
                         str(envmap), str(threads)], check=True, timeout=120)
     assert np.array_equal(read_exr(tmp_path / "t1.exr"), read_exr(tmp_path / "t2.exr"))
+
+
+@pytest.mark.parametrize(("size", "spp", "expected"), [
+    ((256, 192), 64, 32),      # the default render: passes of 32, as always
+    ((1024, 768), 64, 32),     # larger images never take larger passes
+    ((48, 36), 4096, 512),     # the floor check: 8 passes instead of 128
+    ((16, 12), 64, 64),        # one pass: never more than spp
+    ((32, 24), 4, 32),         # one pass either way: the default, as always
+    ((48, 36), 32, 32),
+    ((257, 192), 64, 32),
+])
+def test_small_images_render_in_fewer_larger_passes(size: tuple[int, int], spp: int, expected: int) -> None:
+    p = scene.auto_pass_spp(*size, spp)
+    assert p == expected
+    assert size[0] * size[1] * p <= max(scene.PASS_SAMPLES, size[0] * size[1] * scene.DEFAULT_PASS_SPP)
+
+
+def test_render_material_records_its_pass_size(mi: Any, envmap: Path, tmp_path: Path) -> None:
+    from brdfpipe.data import merl
+    from brdfpipe.rendering import render
+
+    merl.write_merl(tmp_path / "lambert.binary", render.lambertian_table(0.5))
+    scene.render_material(tmp_path / "lambert.binary", tmp_path / "m.exr", envmap=envmap, resolution=(16, 12),
+                          spp=200, max_depth=2, variant="llvm_ad_rgb", seed=0)
+    attrs = read_exr_attrs(tmp_path / "m.exr")
+    assert attrs["pass_spp"] == str(scene.auto_pass_spp(16, 12, 200)) == "200" and attrs["spp"] == "200"
