@@ -46,6 +46,8 @@ def main() -> None:
     run("benches/bench_scaling.py")
     # Rendering track: the merl BSDF vs Mitsuba's analytic plugins.
     run("benches/bench_render.py")
+    # Pre-renders: one process per material (before issue 23) vs one per batch, same images.
+    run("benches/bench_render_batch.py")
     # The explorer: blend frame rate in headless chromium (SwiftShader), naive vs packed shaders.
     run("benches/bench_explorer.py")
     # Trust and cluster: verifying the store on open, parse time, declared memory vs the run's peaks.

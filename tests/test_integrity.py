@@ -51,6 +51,7 @@ def test_every_rule_named_for_a_file_exists_in_the_workflow() -> None:
     (filenames.gram("raw"), "compute_gram"),
     (filenames.gplvm_model("standardised-mu1e-06", 5), "fit_gplvm"),
     (filenames.gplvm_trace("standardised-mu1e-06", 5), "fit_gplvm"),
+    (filenames.material_albedos(), "measure_material_albedos"),
     (filenames.albedo(), "analyze_manifold"),
     (filenames.albedo_map(2), "analyze_manifold"),
     (filenames.prerender("preview", "brass"), "prerender_materials"),

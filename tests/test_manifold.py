@@ -50,6 +50,41 @@ def test_material_albedos_match_per_table(small: dict) -> None:
         albedo.material_albedos(small["store"], ["nope"])
 
 
+def test_material_albedo_file_round_trips_and_refuses_another_store(small: dict, tmp_path) -> None:
+    """measure_material_albedos' file: the albedos computed once, read back bit for bit in any order;
+    a damaged file, a file of another store (rows re-ingested) and a missing material are refused."""
+    st = store.open_store(small["store"])
+    names = small["names"]
+    out = tmp_path / "material-albedo.npz"
+    written = albedo.write_material_albedos(store=small["store"], out=out)
+    assert np.array_equal(written, albedo.material_albedos(st, names))
+    picked = [names[4], names[1]]
+    assert np.array_equal(albedo.read_material_albedos(out, st, picked), written[[4, 1]])
+    with pytest.raises(albedo.MaterialAlbedoError, match="no albedo of material 'nope'"):
+        albedo.read_material_albedos(out, st, ["nope"])
+    # a file written from another store of the same names (rows ingested from other data): its recorded
+    # row digest differs from the store's, so the file is refused (written consistently, digest and all)
+    doc = integrity.load_npz(out)
+    doc = {k: v for k, v in doc.items() if k != integrity.DIGEST_KEY}
+    doc["row_digests"] = doc["row_digests"].copy()
+    doc["row_digests"][1] += 1
+    other = tmp_path / "other.npz"
+    integrity.save_npz(other, doc)
+    assert np.array_equal(albedo.read_material_albedos(other, st, [names[0]]), written[[0]])
+    with pytest.raises(albedo.MaterialAlbedoError, match=f"albedo of {names[1]!r} was computed from other data"):
+        albedo.read_material_albedos(other, st, names)
+    doc["database"] = np.array("merl")
+    integrity.save_npz(other, doc)
+    with pytest.raises(albedo.MaterialAlbedoError, match="written from a merl store"):
+        albedo.read_material_albedos(other, st, names)
+    # a damaged file is refused by its digest
+    raw = bytearray(out.read_bytes())
+    raw[len(raw) // 2] ^= 0xFF
+    out.write_bytes(bytes(raw))
+    with pytest.raises(albedo.MaterialAlbedoError, match=str(out)):
+        albedo.read_material_albedos(out, st, names)
+
+
 def test_deviation_is_exact_norm_of_the_blend_difference(small: dict) -> None:
     G, _, _ = gplvm.load_gram(small["gram"])
     cols = np.flatnonzero(np.tile(small["valid"], 3))

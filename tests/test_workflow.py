@@ -75,7 +75,7 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("plot_acquisition_figures", 1),
                     # the closed loop: one capture per held-out material, one evaluation, one figure
                     ("capture_closedloop", 3), ("evaluate_closedloop", 1), ("plot_closedloop", 1),
-                    ("compute_gram", 2), ("fit_gplvm", 4), ("analyze_manifold", 1),
+                    ("compute_gram", 2), ("fit_gplvm", 4), ("measure_material_albedos", 1), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
                     ("make_envmap", 1), ("interpolate_path_points", 1),
                     # pre-renders: 12 materials in 2 batches of 6 (materials_per_job 10), both scene folders

@@ -58,9 +58,34 @@ rule fit_gplvm:
         "../scripts/fit_gplvm.py"
 
 
+# Every material's albedo, once: each candidate's measurement and the analyses read it.
+rule measure_material_albedos:
+    input:
+        store=fn.store(),
+        stamp=stamp_of("measure_material_albedos"),
+    output:
+        albedos=fn.material_albedos(),
+    log:
+        "logs/measure_material_albedos.log",
+    benchmark:
+        "benchmarks/measure_material_albedos.tsv"
+    priority: 20
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=mem("measure_material_albedos"),
+        runtime=10,
+    params:
+        code=code("measure_material_albedos.py"),
+    script:
+        "../scripts/measure_material_albedos.py"
+
+
 rule analyze_manifold:
     input:
         store=fn.store(),
+        albedos=fn.material_albedos(),
         gram=fn.gram(MAN["space"]),
         models=expand(fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
         stamp=stamp_of("analyze_manifold"),
@@ -97,6 +122,7 @@ rule analyze_manifold:
 rule measure_gplvm_candidate:
     input:
         store=fn.store(),
+        albedos=fn.material_albedos(),
         grams=lambda w: [fn.gram(s) for s in candidate_gram_spaces(w.candidate)],
         models=expand(fn.gplvm_model("{{candidate}}", "{q}"), q=MAN["latent_dims"]),
         stamp=stamp_of("measure_gplvm_candidate"),

@@ -14,6 +14,7 @@ with log_to(snakemake.log[0]):
         steps=snakemake.params.steps,
         albedo_grid=snakemake.params.albedo_grid,
         pca_ks=snakemake.params.pca_ks,
+        albedos=snakemake.input.albedos,
         albedo_out=snakemake.output.albedo,
         albedo_maps_out=dict(zip(snakemake.params.albedo_map_dims, snakemake.output.albedo_maps)),
         paths_out=snakemake.output.paths,

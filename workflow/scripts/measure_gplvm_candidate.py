@@ -15,6 +15,7 @@ with log_to(snakemake.log[0]):
         seed=snakemake.params.seed,
         steps=snakemake.params.steps,
         albedo_grid=snakemake.params.albedo_grid,
+        albedos=snakemake.input.albedos,
         spaces_out=snakemake.output.spaces,
         stability_out=snakemake.output.stability,
     )

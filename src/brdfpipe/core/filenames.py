@@ -63,6 +63,7 @@ __all__ = [
     "candidate_spaces_csv",
     "candidate_stability_csv",
     "albedo",
+    "material_albedos",
     "albedo_map",
     "paths_csv",
     "reproduction",
@@ -330,6 +331,11 @@ def albedo() -> str:
     return f"{RESULTS}/manifold/albedo.csv"
 
 
+def material_albedos() -> str:
+    """Every material's albedo, computed once from the store (``measure_material_albedos``)."""
+    return f"{RESULTS}/manifold/material-albedo.npz"
+
+
 def albedo_map(q: int | str) -> str:
     return f"{RESULTS}/manifold/albedo-map-q{q}.npz"
 
@@ -549,6 +555,7 @@ def _producers() -> list[tuple[str, str]]:
         (candidate_stability_csv(w), "measure_gplvm_candidate"),
         (spaces_csv(), "compare_spaces"),
         (spaces_stability_csv(), "compare_spaces"),
+        (material_albedos(), "measure_material_albedos"),
         (albedo(), "analyze_manifold"),
         (albedo_map(w), "analyze_manifold"),
         (paths_csv(), "analyze_manifold"),

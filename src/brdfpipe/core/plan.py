@@ -565,6 +565,7 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     # manifold track
     "compute_gram": (276.0, 3.93),
     "fit_gplvm": (95.0, 0.0),
+    "measure_material_albedos": (720.0, 0.0),  # 8 float64 tables at a time: 709 MB peak RSS, N = 100
     "analyze_manifold": (380.0, 16.8),
     "measure_gplvm_candidate": (400.0, 16.8),
     "compare_spaces": (60.0, 0.0),

@@ -65,7 +65,7 @@ from brdfpipe.core.plan import check_paths, default_paths, SOLER_PATHS
 from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, open_store
 from brdfpipe.manifold import blendpass, derivation, gplvm, latent
-from brdfpipe.manifold.albedo import material_albedos
+from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
 
 __all__ = [
     "SOLER_PATHS",
@@ -360,6 +360,7 @@ def analyze_manifold(
     steps: int = 20,
     albedo_grid: int = 96,
     pca_ks: Sequence[int] = (20, 40),
+    albedos: str | os.PathLike[str] | None = None,
     albedo_out: str | os.PathLike[str],
     albedo_maps_out: Mapping[int, str | os.PathLike[str]],
     paths_out: str | os.PathLike[str],
@@ -371,7 +372,9 @@ def analyze_manifold(
     ``albedo_maps_out`` (q → npz; q must have a model and be ≥ 2),
     ``paths_out`` (CSV: paths of the ``path_q`` model; ``paths=None``:
     :func:`default_paths`) and ``reproduction_out`` (CSV).  ValueError for an
-    unknown material in a path or a ``path_q`` without a model.
+    unknown material in a path or a ``path_q`` without a model.  ``albedos``:
+    the materials' albedos (:func:`brdfpipe.manifold.albedo.write_material_albedos`,
+    checked against the store); None computes them here.
     """
     st = open_store(store)
     G, d, info = gplvm.load_gram(gram)
@@ -387,7 +390,7 @@ def analyze_manifold(
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
     database = st.database
 
-    A = material_albedos(st, names)
+    A = material_albedos(st, names) if albedos is None else read_material_albedos(albedos, st, names)
     for q in albedo_maps_out:
         if int(q) not in fits:
             raise ValueError(f"albedo map for q = {q} requested, but there is no q = {q} model")

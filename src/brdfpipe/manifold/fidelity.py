@@ -62,7 +62,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, blendpass, gplvm, latent
-from brdfpipe.manifold.albedo import material_albedos
+from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
 
 __all__ = [
     "EPSILONS",
@@ -401,6 +401,7 @@ def measure_candidate(
     steps: int = 20,
     albedo_grid: int = 96,
     perceptual_paths: bool = True,
+    albedos: str | os.PathLike[str] | None = None,
     spaces_out: str | os.PathLike[str],
     stability_out: str | os.PathLike[str],
 ) -> list[dict[str, Any]]:
@@ -411,12 +412,13 @@ def measure_candidate(
     ``models``: {q: model file} of the candidate (:func:`candidate_label`
     must give ``candidate``); ``default``: the label of the configured
     default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row per q)
-    and ``stability_out`` (:data:`STABILITY_COLUMNS`).  The random hull
+    and ``stability_out`` (:data:`STABILITY_COLUMNS`).  ``albedos``: the
+    materials' albedos (:func:`brdfpipe.manifold.albedo.write_material_albedos`,
+    checked against the store); None computes them here.  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``).
     Every interpolated table the measures need (the ``log`` space's hull
     points of every q, the latent paths' points) is blended and measured in
-    one pass over the store (:func:`_shared_blends`); the materials' albedos
-    take one more.
+    one pass over the store (:func:`_shared_blends`).
     """
     from brdfpipe.core.plan import check_paths, default_paths
     from brdfpipe.data.store import open_store
@@ -430,7 +432,7 @@ def measure_candidate(
     names = list(loaded["raw"][2].materials)
     raw_gram = loaded["raw"][2].raw_gram
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)
-    A = material_albedos(st, names)
+    A = material_albedos(st, names) if albedos is None else read_material_albedos(albedos, st, names)
     fits: dict[int, gplvm.GplvmModel] = {}
     for q, path in sorted(models.items()):
         model = gplvm.load_model(path)

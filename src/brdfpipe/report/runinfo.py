@@ -45,7 +45,7 @@ TRACKS: dict[str, tuple[str, ...]] = {
     "acquisition (Xu 2016)": ("map_logrelative", "accumulate_gram", "decompose_svd", "optimize_directions",
                               "evaluate_directions", "check_directions", "evaluate_training_size",
                               "plot_acquisition_figures"),
-    "manifold (Soler 2018)": ("compute_gram", "fit_gplvm", "analyze_manifold", "measure_gplvm_candidate",
+    "manifold (Soler 2018)": ("compute_gram", "fit_gplvm", "measure_material_albedos", "analyze_manifold", "measure_gplvm_candidate",
                               "compare_spaces", "plot_manifold_figures"),
     "rendering": ("make_envmap", "prerender_materials", "interpolate_path_points", "render_path_points",
                   "render_object_mask", "bounce_shares", "error_maps", "plot_render_figures",
