@@ -22,6 +22,7 @@ the per-process ones (same bytes: same passes).  It never fails a build.
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import subprocess
 import sys
@@ -73,7 +74,7 @@ def _children_cpu() -> float:
 def _timed(cmds: list[list[str]]) -> tuple[float, float]:
     c0, t0 = _children_cpu(), time.perf_counter()
     for cmd in cmds:
-        subprocess.run(cmd, check=True, env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin"})
+        subprocess.run(cmd, check=True, env={**os.environ, "PYTHONPATH": str(ROOT / "src")})  # HOME: Dr.Jit's kernel cache
     return time.perf_counter() - t0, _children_cpu() - c0
 
 

@@ -242,6 +242,8 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"manifold": {"path_q": 3}}, "is not one of manifold.latent_dims"),
         ({"render": {"variant": "scalar_spectral"}}, "render.variant = 'scalar_spectral': must be one of"),
         ({"render": {"noise_seed": 0}}, "must differ from render.seed"),
+        ({"render": {"materials_per_job": 0}}, "render.materials_per_job = 0: must be ≥ 1"),
+        ({"render": {"materials_per_job": 2.5}}, "render.materials_per_job = 2.5: must be an integer"),
         ({"manifold": {"ell": float("nan")}}, "manifold.ell"),
         ({"manifold": {"mu": float("inf")}}, "manifold.mu"),
         ({"acquisition": {"eta": float("nan")}}, "acquisition.eta"),
