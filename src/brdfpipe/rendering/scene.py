@@ -689,6 +689,14 @@ def render_material(
     return whole
 
 
+def _check_sources(paths: Sequence[str | os.PathLike[str]], what: str) -> None:
+    """FileNotFoundError naming the first of ``paths`` that is not a file (and how many more), before any render."""
+    missing = [str(p) for p in paths if not Path(p).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{missing[0]}: {what} not found"
+                                + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+
+
 def render_materials(
     merl_paths: Sequence[str | os.PathLike[str]],
     outs: Sequence[Sequence[str | os.PathLike[str]]],
@@ -728,10 +736,7 @@ def render_materials(
     files = [str(f) for table in (outs, outs_one) for row in table for f in row]
     if len(set(files)) != len(files):
         raise ValueError("render_materials: an output file is named twice")
-    missing = [str(p) for p in merl_paths if not Path(p).is_file()]
-    if missing:
-        raise FileNotFoundError(f"{missing[0]}: MERL file not found"
-                                + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+    _check_sources(merl_paths, "MERL file")
     say = progress if progress is not None else logger.info
     start = time.perf_counter()
     for k, (src, material) in enumerate(zip(merl_paths, materials)):
@@ -789,10 +794,7 @@ def render_points(
         raise ValueError(f"render_points: every point needs one output per seed ({len(seeds)})")
     if len(set(labels)) != len(labels):
         raise ValueError("render_points: labels repeat an entry")
-    missing = [str(p) for p in merl_paths if not Path(p).is_file()]
-    if missing:
-        raise FileNotFoundError(f"{missing[0]}: interpolated MERL file not found"
-                                + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+    _check_sources(merl_paths, "interpolated MERL file")
     say = progress if progress is not None else logger.info
     start = time.perf_counter()
     for k, (src, label) in enumerate(zip(merl_paths, labels)):
