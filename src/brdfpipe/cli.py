@@ -567,6 +567,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
     sub = parser.add_subparsers(dest="command", required=True)
 
+    _add_data_commands(sub)
+    _add_manifold_commands(sub)
+    _add_tool_commands(sub)
+    return parser
+
+
+def _add_data_commands(sub: Any) -> None:
+    """synth, nbrdf, ingest: making and ingesting databases."""
     p = sub.add_parser("synth", help="generate a synthetic MERL-format database")
     p.add_argument("--count", type=_positive_int, required=True, help="number of materials")
     p.add_argument("--seed", type=_non_negative_int, required=True, help="seed of every random choice")
@@ -594,6 +602,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="worker processes (default: all cores)")
     p.set_defaults(func=_cmd_ingest)
 
+
+def _add_manifold_commands(sub: Any) -> None:
+    """interpolate, nearest, extrapolate, sample: a fitted GPLVM's latent space."""
     p = sub.add_parser("interpolate", help="write the BRDF at a point of a GPLVM latent space")
     p.add_argument("--model", required=True, help="a fit written by the workflow (results/gplvm/q5.npz)")
     where = p.add_mutually_exclusive_group(required=True)
@@ -637,6 +648,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="folder for sample-NNN.binary, samples.json and samples.csv (created if needed)")
     p.set_defaults(func=_cmd_sample)
 
+
+def _add_tool_commands(sub: Any) -> None:
+    """info, reconstruct, render, capture: a store, a reconstruction, a render, a photograph."""
     p = sub.add_parser("info", help="validate a store and print a summary")
     p.add_argument("store", help="path of a store written by ingest")
     p.add_argument("--verify", action=argparse.BooleanOptionalAction, default=True,
@@ -689,7 +703,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="relative exposure times (HDR bracketing; default 1 8 64)")
     p.add_argument("--variant", default="llvm_ad_rgb", help="llvm_ad_rgb (CPU, default) or cuda_ad_rgb (GPU)")
     p.set_defaults(func=_cmd_capture)
-    return parser
 
 
 def _render_errors() -> tuple[type[Exception], ...]:

@@ -437,8 +437,45 @@ def error_maps(
             + (f"; without an I1- pre-render: {', '.join(lacking)}" if lacking else "")
         )
     ref_keys = ("reference", "reference_seed2") + (("reference_one", "reference_one_seed2") if with_one else ())
-
     # validate the points and every input file up front, before any work
+    points, W = _check_points(paths, materials, ref_keys)
+    inputs = [Path(prerenders[m]) for m in materials]
+    if prerenders_one is not None:
+        inputs += [Path(prerenders_one[m]) for m in materials]
+    inputs += [Path(pt[key]) for pt in paths for key in ref_keys]
+    _check_files(inputs, [Path(pt[key]) for pt in paths for key in ("blended", "error_exr", "error_png")] + [summary])
+
+    blends = _blend_many([Path(prerenders[m]) for m in materials], W, progress)
+    blends_one = (_blend_many([Path(prerenders_one[m]) for m in materials], W, progress)
+                  if prerenders_one is not None else None)
+
+    rows: list[dict[str, Any]] = []
+    errs: list[NDArray[np.float64]] = []
+    for k, ((name, t, s), pt) in enumerate(zip(points, paths)):
+        row, err = _point_row(blends[k], None if blends_one is None else blends_one[k], pt, name, t, s, database)
+        rows.append(row)
+        errs.append(err)
+        msg = (f"{name} t={s}: relative RMSE blend {row['rmse_blend']:.4g}, noise {row['rmse_noise']:.4g}, "
+               f"ratio {row['ratio']:.3g}, vs seed 2 {row['ratio_seed2']:.3g}")
+        if blends_one is not None:
+            msg += f"; I1- ratio {row['ratio_one']:.3g}, vs seed 2 {row['ratio_one_seed2']:.3g}"
+        _say(progress, msg)
+
+    vmax = max(float(np.percentile(e, 99.0)) for e in errs) or max(float(e.max()) for e in errs) or 1.0
+    for (name, _, s), err, row, pt in zip(points, errs, rows, paths):
+        write_error_map_png(
+            Path(pt["error_png"]), err, vmax=vmax, database=database,
+            title=f"path {name}, t = {s}: |blended − reference|\n"
+                  f"relative RMSE {row['rmse_blend']:.3g} (noise between seeds {row['rmse_noise']:.3g})",
+        )
+    _write_summary(summary, database, points, rows)
+    return rows
+
+
+def _check_points(
+    paths: Sequence[Mapping[str, Any]], materials: Sequence[str], ref_keys: tuple[str, ...]
+) -> tuple[list[tuple[str, float, str]], NDArray[np.float64]]:
+    """``(path, t, format_t(t))`` of each point and the weights ``(points, materials)``; BlendError naming a bad point."""
     points: list[tuple[str, float, str]] = []
     W = np.empty((len(paths), len(materials)), dtype=np.float64)
     seen: dict[tuple[str, str], int] = {}
@@ -466,14 +503,14 @@ def error_maps(
             )
         W[k] = _check_weights([weights[m] for m in materials], len(materials), f"path {name} t={s} weights")
         points.append((name, t, s))
-    inputs = [Path(prerenders[m]) for m in materials]
-    if prerenders_one is not None:
-        inputs += [Path(prerenders_one[m]) for m in materials]
-    inputs += [Path(pt[key]) for pt in paths for key in ref_keys]
+    return points, W
+
+
+def _check_files(inputs: Sequence[Path], outputs: Sequence[Path]) -> None:
+    """Every input is a file (ExrError naming it); no output is named twice or is an input (BlendError)."""
     for f in inputs:
         if not f.is_file():
             raise ExrError(f"{f}: no such file")
-    outputs = [Path(pt[key]) for pt in paths for key in ("blended", "error_exr", "error_png")] + [summary]
     resolved = [o.resolve() for o in outputs]
     clash = sorted({str(o) for o, r in zip(outputs, resolved) if resolved.count(r) > 1})
     if clash:
@@ -481,61 +518,49 @@ def error_maps(
     for o in outputs:
         check_not_input(o, inputs, what="output")
 
-    blends = _blend_many([Path(prerenders[m]) for m in materials], W, progress)
-    blends_one = (_blend_many([Path(prerenders_one[m]) for m in materials], W, progress)
-                  if prerenders_one is not None else None)
 
-    rows: list[dict[str, Any]] = []
-    errs: list[NDArray[np.float64]] = []
-    for k, ((name, t, s), pt) in enumerate(zip(points, paths)):
-        ref_path, ref2_path = Path(pt["reference"]), Path(pt["reference_seed2"])
-        ref = read_exr(ref_path).astype(np.float64)
-        ref2 = read_exr(ref2_path).astype(np.float64)
-        blend = blends[k]
-        for p, img in ((ref_path, ref), (ref2_path, ref2)):
-            if img.shape != blend.shape:
-                raise BlendError(
-                    f"{p}: image has shape {img.shape}, but the pre-renders have {blend.shape}"
-                )
-        mean_ref = float(ref.mean())
-        rmse_blend = relative_rmse(blend, ref, ref)
-        rmse_noise = relative_rmse(ref, ref2, ref)
-        rmse_blend2 = relative_rmse(blend, ref2, ref)
-        ratio, ratio2 = (_ratio(e, rmse_noise) for e in (rmse_blend, rmse_blend2))
-        attrs = {"database": database, "path": name, "t": s}
-        write_exr(Path(pt["blended"]), blend.astype(np.float32),
-                  attrs={**attrs, "image": "blend of pre-renders"})
-        err = error_map(blend, ref)
-        write_error_map_exr(Path(pt["error_exr"]), err,
-                            attrs={**attrs, "image": "mean over RGB of |blended - reference|",
-                                   "reference": ref_path.name})
-        errs.append(err)
-        row = {"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
-               "ratio": ratio, "rmse_blend_seed2": rmse_blend2, "ratio_seed2": ratio2,
-               "mean_reference": mean_ref, "ratio_seed2_se": ratio_standard_error(blend, ref, ref2)}
-        msg = (f"{name} t={s}: relative RMSE blend {rmse_blend:.4g}, noise {rmse_noise:.4g}, "
-               f"ratio {ratio:.3g}, vs seed 2 {ratio2:.3g}")
-        if blends_one is not None:
-            row.update(_one_row(blends_one[k], Path(pt["reference_one"]), Path(pt["reference_one_seed2"])))
-            msg += f"; I1- ratio {row['ratio_one']:.3g}, vs seed 2 {row['ratio_one_seed2']:.3g}"
-        rows.append(row)
-        _say(progress, msg)
+def _point_row(
+    blend: NDArray[np.float64], blend_one: NDArray[np.float64] | None, pt: Mapping[str, Any],
+    name: str, t: float, s: str, database: str,
+) -> tuple[dict[str, Any], NDArray[np.float64]]:
+    """One point of :func:`error_maps`: its blend and error-map EXRs written, its summary row and error map."""
+    ref_path, ref2_path = Path(pt["reference"]), Path(pt["reference_seed2"])
+    ref = read_exr(ref_path).astype(np.float64)
+    ref2 = read_exr(ref2_path).astype(np.float64)
+    for p, img in ((ref_path, ref), (ref2_path, ref2)):
+        if img.shape != blend.shape:
+            raise BlendError(
+                f"{p}: image has shape {img.shape}, but the pre-renders have {blend.shape}"
+            )
+    mean_ref = float(ref.mean())
+    rmse_blend = relative_rmse(blend, ref, ref)
+    rmse_noise = relative_rmse(ref, ref2, ref)
+    rmse_blend2 = relative_rmse(blend, ref2, ref)
+    ratio, ratio2 = (_ratio(e, rmse_noise) for e in (rmse_blend, rmse_blend2))
+    attrs = {"database": database, "path": name, "t": s}
+    write_exr(Path(pt["blended"]), blend.astype(np.float32),
+              attrs={**attrs, "image": "blend of pre-renders"})
+    err = error_map(blend, ref)
+    write_error_map_exr(Path(pt["error_exr"]), err,
+                        attrs={**attrs, "image": "mean over RGB of |blended - reference|",
+                               "reference": ref_path.name})
+    row = {"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
+           "ratio": ratio, "rmse_blend_seed2": rmse_blend2, "ratio_seed2": ratio2,
+           "mean_reference": mean_ref, "ratio_seed2_se": ratio_standard_error(blend, ref, ref2)}
+    if blend_one is not None:
+        row.update(_one_row(blend_one, Path(pt["reference_one"]), Path(pt["reference_one_seed2"])))
+    return row, err
 
-    vmax = max(float(np.percentile(e, 99.0)) for e in errs) or max(float(e.max()) for e in errs) or 1.0
-    for (name, _, s), err, row, pt in zip(points, errs, rows, paths):
-        write_error_map_png(
-            Path(pt["error_png"]), err, vmax=vmax, database=database,
-            title=f"path {name}, t = {s}: |blended − reference|\n"
-                  f"relative RMSE {row['rmse_blend']:.3g} (noise between seeds {row['rmse_noise']:.3g})",
-        )
 
+def _write_summary(summary: Path, database: str, points: Sequence[tuple[str, float, str]],
+                   rows: Sequence[Mapping[str, Any]]) -> None:
+    """The summary CSV of :func:`error_maps` (:data:`SUMMARY_COLUMNS`), atomically with its digest."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(SUMMARY_COLUMNS)
     for (_, _, s), row in zip(points, rows):
         writer.writerow([database, row["path"], s] + [_fmt(row[c]) if c in row else "" for c in SUMMARY_COLUMNS[3:]])
     integrity.write_csv(summary, buf.getvalue())
-    return rows
 
 
 def error_maps_from_files(
