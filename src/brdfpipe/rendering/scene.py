@@ -110,7 +110,7 @@ DEFAULT_PASS_SPP: Final = 32
 #: Samples (pixels × spp) a pass of :func:`render_material` may hold: a 256 × 192 image's 32 spp.
 #: Smaller images render in fewer, larger passes (:func:`auto_pass_spp`), so a 48 × 36 render of
 #: 4,096 spp takes 8 passes instead of 128: each pass costs a trace of the integrator and a kernel
-#: launch (2-core AMD EPYC, llvm_ad_rgb: 1.18 s at 32 spp per pass, 0.75 s at 512).
+#: launch (measured: docs/results/whole-run-2026-11-28-cpu.md).
 PASS_SAMPLES: Final = 256 * 192 * 32
 #: Default sun azimuth (degrees, :func:`sun_direction` convention): right of and in front of the object.
 SUN_AZIMUTH_DEG: Final = 135.0
@@ -718,8 +718,7 @@ def render_materials(
     variant, the plugins and the compiled kernels are set up once, and a
     material's table is loaded and its sampling fitted once for all its
     settings (materials in the outer loop): only the material changes between
-    renders.  One render of the default scene costs about 0.6 s on two CPU
-    cores in a warm process, about 2 s in a fresh one.  Each image is exactly
+    renders (what that saves: ``benches/bench_render_batch.py``).  Each image is exactly
     the one :func:`render_material` gives alone (same bytes).  Every source
     is checked to exist before the first render; a source that fails to load
     stops the batch with the error naming it.
