@@ -4,7 +4,7 @@ Layers, bottom to top (a module may import its own subpackage and the
 subpackages :data:`ALLOWED` lists for it, never a higher one nor a sibling
 stage)::
 
-    core  <-  data  <-  {acquisition, manifold}  <-  rendering  <-  cli (top-level modules)
+    spec  <-  core  <-  data  <-  {acquisition, manifold}  <-  rendering  <-  cli (top-level modules)
 
 (rendering may use manifold, not acquisition: the tracks meet in files.)
 
@@ -26,14 +26,16 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "brdfpipe"
 #: Subpackage (stage) → the other subpackages it may import; top-level modules
 #: (cli, the package's __init__) may import all of them.
 ALLOWED: dict[str, set[str]] = {
-    "core": set(),
-    "data": {"core"},
-    "acquisition": {"data", "core"},
-    "manifold": {"data", "core"},
-    "rendering": {"manifold", "data", "core"},
+    # the records of what people add (set-ups, data spaces, figures): the standard library only
+    "spec": set(),
+    "core": {"spec"},
+    "data": {"core", "spec"},
+    "acquisition": {"data", "core", "spec"},
+    "manifold": {"data", "core", "spec"},
+    "rendering": {"manifold", "data", "core", "spec"},
     # for people: the report reads the run's CSVs; the explorer exports models and pre-renders
-    "report": {"core"},
-    "explorer": {"rendering", "manifold", "data", "core"},
+    "report": {"core", "spec"},
+    "explorer": {"rendering", "manifold", "data", "core", "spec"},
 }
 
 
@@ -204,7 +206,8 @@ def test_no_upward_or_sideways_import_and_no_private_import() -> None:
 def test_no_cycle_between_subpackages() -> None:
     graph = subpackage_graph(module_sources())
     assert find_cycle(graph) is None, find_cycle(graph)
-    assert graph.get("core", set()) == set()  # core imports nothing of brdfpipe above it
+    assert graph.get("core", set()) <= {"spec"}  # core imports nothing of brdfpipe above it (the specs are below)
+    assert graph.get("spec", set()) == set()  # the specs import nothing of brdfpipe
 
 
 def test_no_cycle_between_modules() -> None:
@@ -261,3 +264,29 @@ def test_subpackage_inits_are_documented_and_light() -> None:
         imported = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
         imported |= {(n.module or "").split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
         assert imported <= set(sys.stdlib_module_names) | {"__future__"}, (pkg, imported)  # the standard library only
+
+
+def test_spec_modules_import_only_the_standard_library() -> None:
+    """The specs are read at parse time and by every stage: no third-party import outside TYPE_CHECKING or a function."""
+    for path in sorted((PACKAGE / "spec").glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        typing_only = _type_checking_lines(path.read_text(encoding="utf-8"))
+        for node in tree.body:  # module level only: a function body may import NumPy lazily
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or ""]
+            for name in names:
+                if node.lineno not in typing_only:
+                    assert name.split(".")[0] in set(sys.stdlib_module_names) | {"__future__"}, (path.name, name)
+
+
+def test_the_spec_check_catches_a_third_party_import(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A spec module importing NumPy at module level fails the check above (it can fail)."""
+    fake = tmp_path / "spec"
+    fake.mkdir()
+    (fake / "bad.py").write_text("import numpy as np\n", encoding="utf-8")
+    monkeypatch.setattr(sys.modules[__name__], "PACKAGE", tmp_path)
+    with pytest.raises(AssertionError, match="numpy"):
+        test_spec_modules_import_only_the_standard_library()

@@ -178,6 +178,8 @@ PARSE_TIME_MODULES = {
     "brdfpipe.core.filenames": (), "brdfpipe.core.plan": (), "brdfpipe.core.stamps": (), "brdfpipe.core.version": (),
     "brdfpipe.data.databases": (), "brdfpipe.report.claims": (), "brdfpipe.report.sidebyside": (),
     "brdfpipe.report.items": (), "brdfpipe.explorer": (), "brdfpipe.data.database": ("numpy",),
+    "brdfpipe.spec.acquisition": (), "brdfpipe.spec.manifold": (), "brdfpipe.spec.figures": (),
+    "brdfpipe.spec.nearfield": (),
 }
 HEAVY = ("numpy", "scipy", "zarr", "matplotlib", "mitsuba", "h5py")
 
@@ -505,3 +507,50 @@ def test_the_schema_offers_exactly_the_registered_databases() -> None:
     entry = SCHEMA["properties"]["database"]
     assert entry["enum"] == list(databases.DATABASES)
     assert entry["default"] == databases.DEFAULT_DATABASE
+
+
+def _schema_enums(schema: object, path: str = "") -> dict[str, list]:
+    """Every ``enum`` of the schema, keyed by its property path (``acquisition.setups[]``)."""
+    found: dict[str, list] = {}
+    if isinstance(schema, dict):
+        if "enum" in schema:
+            found[path] = list(schema["enum"])
+        for key, sub in schema.get("properties", {}).items():
+            found.update(_schema_enums(sub, f"{path}.{key}" if path else key))
+        if "items" in schema:
+            found.update(_schema_enums(schema["items"], path + "[]"))
+    return found
+
+
+def test_each_schema_enum_equals_its_spec() -> None:
+    """The schema's lists of set-ups, metrics, data spaces and optimisers are the specs' (brdfpipe.spec), in order."""
+    from brdfpipe.spec import acquisition as acq
+    from brdfpipe.spec import manifold as man
+
+    enums = _schema_enums(SCHEMA)
+    expected = {
+        "acquisition.setups[]": list(acq.SETUP_NAMES),
+        "acquisition.metrics[]": list(acq.METRICS),
+        "closed_loop.setups[]": list(acq.IMAGE_SETUPS),
+        "closed_loop.metric": list(acq.METRICS),
+        "manifold.space": list(man.SPACE_NAMES),
+        "manifold.candidates[].space": list(man.SPACE_NAMES),
+        "manifold.method": list(man.OPTIMISERS),
+    }
+    for key, names in expected.items():
+        assert enums.get(key) == names, f"schema {key}: {enums.get(key)} != spec {names}"
+    # every enum of a spec'd kind is covered above (a new enum of set-ups or spaces must be added here)
+    spec_values = {tuple(v) for v in expected.values()}
+    for key, values in enums.items():
+        if set(values) & (set(acq.SETUP_NAMES) | set(man.SPACE_NAMES)):
+            assert tuple(values) in spec_values and key in expected, f"schema {key} lists spec'd names: {values}"
+
+
+def test_the_workflow_wildcards_come_from_the_specs() -> None:
+    """common.smk builds its set-up, metric and data-space wildcard constraints from the specs, not literals."""
+    text = (Path(__file__).resolve().parents[1] / "workflow" / "rules" / "common.smk").read_text()
+    assert 'setup="|".join(setup_specs.SETUP_NAMES)' in text
+    assert 'metric="|".join(setup_specs.METRICS)' in text
+    assert 'space="|".join(manifold_specs.SPACE_NAMES)' in text
+    for literal in ("nearfield|", "standardised", "error|condition"):
+        assert literal not in text.split("wildcard_constraints:")[1].split("\n\n")[0], literal

@@ -99,9 +99,7 @@ rule optimize_directions:
         mem_mb=mem("optimize_directions"),
         runtime=60,
     params:
-        n_max=lambda wildcards: ACQ[
-            "n_max_point" if wildcards.setup == "point" else "n_max_images"
-        ],
+        n_max=lambda wildcards: ACQ[setup_specs.SETUPS[wildcards.setup].n_max_key],
         candidates=ACQ["candidates"],
         grid=ACQ["grid"],
         eta=ACQ["eta"],

@@ -18,6 +18,8 @@ from brdfpipe.core import stamps as job_stamps
 from brdfpipe.core.version import script_digest
 from brdfpipe.report import claims as report_claims
 from brdfpipe.report import sidebyside
+from brdfpipe.spec import acquisition as setup_specs
+from brdfpipe.spec import manifold as manifold_specs
 
 SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
 
@@ -349,11 +351,11 @@ wildcard_constraints:
     material="|".join(re.escape(m) for m in MATERIALS),
     split="all|train",
     scatteritem=r"\d+-of-\d+",
-    setup="point|nearfield|fixed_camera|fixed_light",
-    metric="error|condition",
+    setup="|".join(setup_specs.SETUP_NAMES),
+    metric="|".join(setup_specs.METRICS),
     fov=r"\d+(\.\d+)?",
     q=r"\d+",
-    space="raw|cosine|log|relative|standardised",
+    space="|".join(manifold_specs.SPACE_NAMES),
     candidate="|".join(re.escape(c) for c in CANDIDATES),
     path="|".join(re.escape(p) for p in PATH_ENDS) or "(?!)",
     t=r"\d+(\.\d+)?",

@@ -67,6 +67,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.filenames import FIGURE_STEMS
 from brdfpipe.data.databases import title as database_label
+from brdfpipe.spec import acquisition as acquisition_spec
 from brdfpipe.core.plot import (
     COLOURS,
     FigureInputError,
@@ -125,12 +126,7 @@ _KIND_LABEL = {
     "relrms_linear": "relative RMS error (cosine-weighted BRDF)",
     "deviation": "E_deviation (log-mapped BRDF)",
 }
-_SETUP_LABEL = {
-    "point": "point samples",
-    "nearfield": "near-field",
-    "fixed_camera": "fixed camera, moving light",
-    "fixed_light": "fixed light, moving camera",
-}
+_SETUP_LABEL = {name: s.label for name, s in acquisition_spec.SETUPS.items()}
 _FOV_TOL = 1e-6
 
 
@@ -413,11 +409,11 @@ def fig13_fixed_camera_light(errors_csv: str | os.PathLike[str], stem: str | os.
         for setup, f, colour in curves:
             for metric in metrics:
                 n, v = table.series(split, setup, f, metric, kind)
-                where = f"{setup}" + ("" if setup == "point" else f" FOV {_fov_text(f)}")
+                where = f"{setup}" + (f" FOV {_fov_text(f)}" if acquisition_spec.SETUPS[setup].images else "")
                 if n.size == 0:
                     warn(f"no mean {kind} rows for {where}, metric {metric}; curve skipped")
                     continue
-                label = _SETUP_LABEL[setup] + ("" if setup == "point" else f" ({_fov_text(f)})")
+                label = _SETUP_LABEL[setup] + (f" ({_fov_text(f)})" if acquisition_spec.SETUPS[setup].images else "")
                 label += ", min E(S)" if metric == "error" else ", min κ"
                 _plot_series(ax, n, v, color=colour, marker="o" if metric == "error" else "s",
                              linestyle="-" if metric == "error" else "--",

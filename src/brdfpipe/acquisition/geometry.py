@@ -22,7 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import nearfield
+from brdfpipe.spec import acquisition as acquisition_spec
+from brdfpipe.spec import nearfield
 from brdfpipe.data import merl
 
 __all__ = [
@@ -91,7 +92,7 @@ F64 = NDArray[np.float64]
 # radius ν about the origin, which subtends the half-angle asin(ν) from C, so
 # in tangent-plane coordinates (u, v) its image lies in [−h, h]² with
 #
-#     h = tan(asin ν) = ν / √(1 − ν²)          (:func:`brdfpipe.core.nearfield.image_half_width`)
+#     h = tan(asin ν) = ν / √(1 − ν²)          (:func:`brdfpipe.spec.nearfield.image_half_width`)
 #
 # (h = 0.2273 against ν = 0.2217 at 25°, 0.4551 against 0.4142 at 45°; a
 # square image of half-width ν — the bound at the zenith — clipped 2–3.8 %
@@ -99,13 +100,13 @@ F64 = NDArray[np.float64]
 # lattice of pitch Δ *centred on the optical axis*: u = (i − ⌊grid/2⌋)·Δ,
 # i = 0 … grid − 1, so there always is a centre pixel, looking exactly along
 # −wo.  Δ is the smallest pitch whose pixel footprints [u − Δ/2, u + Δ/2]
-# cover [−h, h] (:func:`brdfpipe.core.nearfield.pixel_pitch`): Δ = 2h/grid for an odd grid; an even
+# cover [−h, h] (:func:`brdfpipe.spec.nearfield.pixel_pitch`): Δ = 2h/grid for an odd grid; an even
 # grid has one more column on the negative side than on the positive one,
 # so Δ = 2h/(grid − 1) (its negative side reaches past −h).  Camera frame:
 # forward f = −wo, right e_r = (−sin φo, cos φo, 0) (horizontal, normal to
 # the camera's plane of incidence; φo = atan2(wo_y, wo_x), 0 at the zenith),
-# up e_u = e_r × f (:func:`brdfpipe.core.nearfield.camera_basis`); where
-# lattice index (a, b) sits in a rendered image: :func:`brdfpipe.core.nearfield.image_frame`.
+# up e_u = e_r × f (:func:`brdfpipe.spec.nearfield.camera_basis`); where
+# lattice index (a, b) sits in a rendered image: :func:`brdfpipe.spec.nearfield.image_frame`.
 # The ray f + u·e_r + v·e_u from C meets the plane z = 0
 # at P (rays with non-negative z component never do and are dropped); a
 # pixel is kept iff |P| ≤ r: pixels outside the disk are masked, they are
@@ -122,8 +123,8 @@ F64 = NDArray[np.float64]
 # cell centre above the horizon); the optimiser passes the model's columns.
 
 
-#: The acquisition setups.
-SETUP_KINDS: tuple[str, ...] = ("point", "nearfield", "fixed_camera", "fixed_light")
+#: The acquisition setups (their records: :data:`brdfpipe.spec.acquisition.SETUPS`).
+SETUP_KINDS: tuple[str, ...] = acquisition_spec.SETUP_NAMES
 #: Default pixel lattice (grid × grid) of an image setup.
 DEFAULT_GRID: int = 32
 _MAX_GRID: int = 4096
@@ -138,9 +139,8 @@ Config = tuple[int, int, int]
 CONFIG_DIMS: tuple[int, int, int] = (merl.N_THETA_H, merl.N_THETA_D, merl.N_PHI_D)
 _FIXED_THETA_DEG: float = 1.0  # elevation steps of fixed_* (shared and per image)
 _FIXED_PHI_DEG: float = 2.0  # azimuth steps of fixed_* (per image)
-_IMAGE_KINDS = frozenset({"nearfield", "fixed_camera", "fixed_light"})
 #: The setups whose images share one direction (its elevation is common to the set).
-FIXED_KINDS = frozenset({"fixed_camera", "fixed_light"})
+FIXED_KINDS = frozenset(acquisition_spec.FIXED_SETUPS)
 
 
 @dataclass(frozen=True)
@@ -170,7 +170,7 @@ class Setup:
         if isinstance(self.grid, bool) or not isinstance(self.grid, (int, np.integer)):
             raise ValueError(f"grid must be an integer, got {self.grid!r}")
         grid = int(self.grid)
-        if self.kind == "point":
+        if not self.spec.images:
             if fov != 0.0:
                 raise ValueError(f"a point setup has no field of view: fov_deg must be 0, got {self.fov_deg!r}")
             if grid < 1:
@@ -185,9 +185,14 @@ class Setup:
         object.__setattr__(self, "grid", grid)
 
     @property
+    def spec(self) -> acquisition_spec.SetupKind:
+        """The set-up's record (:data:`brdfpipe.spec.acquisition.SETUPS`)."""
+        return acquisition_spec.SETUPS[self.kind]
+
+    @property
     def is_image(self) -> bool:
         """True for the image (near-field) setups."""
-        return self.kind in _IMAGE_KINDS
+        return self.spec.images
 
     @property
     def nu(self) -> float:
@@ -243,7 +248,7 @@ def _fixed_directions(kind: str, configs: NDArray[np.intp]) -> tuple[F64, F64]:
     """(wi, wo), each (n, 3), of (n, 3) fixed_* configurations."""
     shared = _unit_vectors(configs[:, 0] * _FIXED_THETA_DEG, 0.0)
     other = _unit_vectors(configs[:, 1] * _FIXED_THETA_DEG, configs[:, 2] * _FIXED_PHI_DEG)
-    return (other, shared) if kind == "fixed_camera" else (shared, other)
+    return (other, shared) if acquisition_spec.SETUPS[kind].shared == "camera" else (shared, other)
 
 
 def centre_cells(setup: Setup, configs: NDArray[np.intp]) -> NDArray[np.intp]:
@@ -272,7 +277,7 @@ def centre_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
     return wi[0], wo[0]
 
 
-#: Re-exported from :mod:`brdfpipe.core.nearfield` (the capture frames the same image).
+#: Re-exported from :mod:`brdfpipe.spec.nearfield` (the capture frames the same image).
 image_half_width = nearfield.image_half_width
 pixel_pitch = nearfield.pixel_pitch
 lattice_shape_in_image = nearfield.image_frame
@@ -423,7 +428,7 @@ def config_from_dict(setup: Setup, record: dict[str, Any]) -> Config:
     if setup.kind not in FIXED_KINDS:
         return _check_config(setup, cell_config(int(cell)))
     light, camera = _vector(record, "light"), _vector(record, "camera")
-    shared, other = (camera, light) if setup.kind == "fixed_camera" else (light, camera)
+    shared, other = (camera, light) if setup.spec.shared == "camera" else (light, camera)
     ts = math.degrees(math.acos(min(1.0, max(-1.0, shared[2]))))
     to = math.degrees(math.acos(min(1.0, max(-1.0, other[2]))))
     phi_s = math.degrees(math.atan2(shared[1], shared[0])) if np.hypot(shared[0], shared[1]) > 1e-12 else 0.0

@@ -28,6 +28,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl
+from brdfpipe.spec import acquisition as acquisition_spec
 from brdfpipe.acquisition.geometry import (
     CONFIG_DIMS,
     FIXED_KINDS,
@@ -129,18 +130,12 @@ logger = logging.getLogger("brdfpipe.acquisition.optimize")
 
 #: Format tag of the directions JSON file.
 DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
-_METRICS = ("error", "condition")
+_METRICS = acquisition_spec.METRICS
 _REL_IMPROVE: float = 1e-12
 _CELL_CACHE_MAX: int = 10_000 * 1024  # observed cells cached over all configurations (int32: ≤ ~40 MB at any grid)
 _EVAL_CHUNK_ROWS: int = 4096  # distinct candidate rows gathered from Q at a time (≤ ~9 MB as float64)
 _MAX_UPDATE_DEPTH: int = 32  # the current set's statistics are rebuilt after this many derivations
 _Q_READ_ROWS: int = 36_450 * 4
-_AXIS_NAMES = {
-    "point": ("iθh", "iθd", "iφd"),
-    "nearfield": ("iθh", "iθd", "iφd"),
-    "fixed_camera": ("θcam", "θlight", "φlight"),
-    "fixed_light": ("θlight", "θcam", "φcam"),
-}
 
 
 class ModelLike(Protocol):
@@ -287,7 +282,7 @@ class _Optimizer:
         self.Q = _load_q(model.Q)
         self.fixed = setup.kind in FIXED_KINDS
         self.axes: tuple[int, ...] = (1, 2) if self.fixed else (0, 1, 2)
-        self.wrap = (False, False, setup.kind != "nearfield")
+        self.wrap = (False, False, setup.spec.wrap_phi)
         self._cache: dict[Config, NDArray[np.int32] | None] = {}
         self._cached_cells = 0
         self.evaluations = 0
@@ -471,7 +466,7 @@ class _Optimizer:
         return f"κ = {key[0]:.6g} (E = {key[1]:.6g})"
 
     def describe(self, config: Config) -> str:
-        names = _AXIS_NAMES[self.setup.kind]
+        names = self.setup.spec.axes
         inner = ", ".join(f"{n}={v}" for n, v in zip(names, config))
         if self.fixed:
             return f"({inner}; cell {int(centre_cells(self.setup, np.asarray([config]))[0])})"
@@ -577,7 +572,7 @@ class _Optimizer:
         self._current = (tuple(b.config for b in new_blocks),
                          base.updated(add=self.row_block(nb.idx, (nb.G, nb.qsum)),
                                       remove=None if remove is None else self.row_block(old.idx, (old.G, old.qsum))))
-        unit = "direction" if self.setup.kind == "point" else "image"
+        unit = self.setup.spec.unit
         return key, new_blocks, f"{unit} {j + 1} {self.describe(cfg)} -> {self.describe(new_cfg)}"
 
     def move_shared(
@@ -606,7 +601,7 @@ class _Optimizer:
         if best is None or not _better(best[0], current):
             return None
         new_blocks = [self.block(c, i) for c, i in zip(best[1], best[2])]
-        name = _AXIS_NAMES[self.setup.kind][0]
+        name = self.setup.spec.axes[0]
         return best[0], new_blocks, f"shared {name} {blocks[0].config[0]} -> {best[1][0][0]}"
 
     def local_search(
@@ -910,7 +905,8 @@ def optimize_to_file(
     from brdfpipe.acquisition.svd import open_model
 
     model = open_model(model_path)
-    kind_setup = Setup(setup, fov_deg=0.0 if setup == "point" else float(fov), grid=int(grid))
+    known = acquisition_spec.SETUPS.get(setup)  # an unknown name: Setup says which exist
+    kind_setup = Setup(setup, fov_deg=0.0 if known is not None and not known.images else float(fov), grid=int(grid))
     log = logging.getLogger("brdfpipe.acquisition.optimize")
     log.info(
         "optimising %s fov %g (%s metric) on %s: n_max %d, %d candidates, seed %d",

@@ -10,7 +10,6 @@ the Snakefile at parse time, so this ``__init__`` imports nothing.
 * :mod:`brdfpipe.core.exr`       – OpenEXR images that are data (renders, blends, error maps);
 * :mod:`brdfpipe.core.filenames` – every file name of the workflow's DAG (and the rule that writes it);
 * :mod:`brdfpipe.core.integrity` – digests of every intermediate, written by its writer, checked by its readers;
-* :mod:`brdfpipe.core.nearfield` – the near-field camera frame shared by the acquisition geometry and the capture;
 * :mod:`brdfpipe.core.logutil`   – logging set-up of the command line and the workflow scripts;
 * :mod:`brdfpipe.core.plan`      – what the workflow plans from its configuration;
 * :mod:`brdfpipe.core.plot`      – figure helpers shared by every track (style, inputs, atomic saving);

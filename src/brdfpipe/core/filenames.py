@@ -14,6 +14,8 @@ from __future__ import annotations
 import math
 import re
 
+from brdfpipe.spec import figures as figure_specs
+
 __all__ = [
     "RESULTS",
     "FIGURES",
@@ -102,35 +104,16 @@ STAMPS = f"{RESULTS}/.stamps"
 #: Folder of the figures (PNG + PDF, and Fig. 8's table).
 FIGURES = f"{RESULTS}/figures"
 
-#: Xu 2016 figure analogues: key → file stem.
-FIGURE_STEMS: dict[str, str] = {
-    "fig05": "fig05-error-vs-images",
-    "fig06": "fig06-fov-vs-point",
-    "fig07": "fig07-training-size",
-    "fig08": "fig08-optimal-configurations",
-    "fig13": "fig13-fixed-camera-light",
-    "fig18": "fig18-per-material",
-    "fig19": "fig19-error-vs-n",
-}
+#: Xu 2016 figure analogues drawn by rule plot_acquisition_figures: key → file stem (:mod:`brdfpipe.spec.figures`).
+FIGURE_STEMS: dict[str, str] = {f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_acquisition_figures")}
 #: Soler 2018 figure analogues of the manifold track: key → file stem.
 MANIFOLD_FIGURE_STEMS: dict[str, str] = {
-    "fig05": "manifold-fig05-likelihood",
-    "fig10_q2": "manifold-fig10-latent-q2",
-    "fig10_q5": "manifold-fig10-latent-q5",
-    "fig07": "manifold-fig07-albedo",
-    "fig09": "manifold-fig09-paths",
-    "fig08": "manifold-fig08-reproduction",
-    "eq7": "manifold-eq7-bound",
-    "spaces": "manifold-spaces",
+    f.key: f.stem for f in figure_specs.track_figures("manifold", "plot_manifold_figures")
 }
 #: Rendering-track figures: key → file stem.
-RENDER_FIGURE_STEMS: dict[str, str] = {
-    "fig01": "render-fig01-prerenders",
-    "fig12": "render-fig12-interpolation",
-    "fig13": "render-fig13-errors",
-}
+RENDER_FIGURE_STEMS: dict[str, str] = {f.key: f.stem for f in figure_specs.track_figures("rendering", "plot_render_figures")}
 #: The blends-vs-noise-floor figure of every GPLVM candidate (render.floor_check).
-FLOOR_CHECK_STEM = "render-floor-check"
+FLOOR_CHECK_STEM = figure_specs.figure("render-floor-check").stem
 
 
 def fov_tag(fov: float | str) -> str:
@@ -226,7 +209,7 @@ def training_size() -> str:
 # -- closed-loop acquisition ------------------------------------------------
 
 #: The closed loop's figure (table-lookup vs closed-loop error per FOV and n).
-CLOSEDLOOP_STEM = "closedloop-vs-table"
+CLOSEDLOOP_STEM = figure_specs.figure("xu-closedloop").stem
 
 
 def closedloop_image(material: str, setup: str, fov: float | str, metric: str, n: int | str, j: int | str,
@@ -253,9 +236,9 @@ def closedloop_errors() -> str:
 # -- materials outside the training database (config unseen) ----------------
 
 #: The unseen materials' acquisition errors next to the held-out ones (Xu Figs. 5/6 layout).
-UNSEEN_STEM = "unseen-vs-heldout"
+UNSEEN_STEM = figure_specs.figure("xu-unseen").stem
 #: The unseen materials on the q = 2 latent map and their reproduction by the GPLVM and PCA.
-MANIFOLD_UNSEEN_STEM = "manifold-unseen"
+MANIFOLD_UNSEEN_STEM = figure_specs.figure("soler-unseen").stem
 
 
 def unseen_tables(database: str) -> str:

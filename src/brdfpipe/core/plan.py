@@ -20,6 +20,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from brdfpipe.core import filenames
+from brdfpipe.spec.acquisition import FIXED_SETUPS, setup_fovs
+from brdfpipe.spec import figures as figure_specs
+from brdfpipe.spec.manifold import SOLER_PATHS, candidate_label
 
 __all__ = [
     "ConfigError",
@@ -60,14 +63,6 @@ __all__ = [
     "planned_rules",
     "check_memory",
 ]
-
-#: The latent paths of Soler et al. 2018, Fig. 9 (used when all six materials exist).
-SOLER_PATHS: tuple[tuple[str, str], ...] = (
-    ("blue-metallic-paint", "dark-blue-paint"),
-    ("teflon", "silver-paint"),
-    ("black-oxidized-steel", "color-changing-paint3"),
-)
-
 
 #: Mitsuba renders at most 2^32 − 1 samples in one pass (its wavefront index is 32-bit; 3.9's own split of a
 #: larger render fails).
@@ -201,11 +196,6 @@ def path_q(manifold: Mapping[str, Any]) -> int:
     return q
 
 
-def candidate_label(space: str, mu: float) -> str:
-    """``"<space>-mu<μ>"`` (e.g. ``standardised-mu1e-06``): a GPLVM candidate's name in files and tables."""
-    return f"{space}-mu{float(mu):g}"
-
-
 def manifold_candidates(manifold: Mapping[str, Any]) -> dict[str, tuple[str, float]]:
     """Label → (space, μ) of every GPLVM candidate: the default (``space``, ``mu``) first, then ``candidates``.
 
@@ -332,12 +322,7 @@ def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
     for setup in acquisition["setups"]:
         if split == "all" and setup != "nearfield":
             continue
-        if setup == "point":
-            fovs: Sequence[float] = [0]
-        elif setup == "nearfield":
-            fovs = acquisition["fovs"]
-        else:
-            fovs = [acquisition["fixed_fov"]]
+        fovs = setup_fovs(setup, acquisition["fovs"], acquisition["fixed_fov"])
         metrics = acquisition["metrics"] if split == "train" else ["error"]
         files += [filenames.directions(split, setup, fov, metric) for fov in fovs for metric in metrics]
     return files
@@ -356,10 +341,7 @@ def closedloop_directions(config: Mapping[str, Any]) -> list[tuple[str, float, s
     acq = config["acquisition"]
     out = []
     for setup in cl["setups"]:
-        if setup == "nearfield":
-            fovs = acq["fovs"] if cl["fovs"] is None else cl["fovs"]
-        else:
-            fovs = [acq["fixed_fov"]]
+        fovs = setup_fovs(setup, acq["fovs"] if cl["fovs"] is None else cl["fovs"], acq["fixed_fov"])
         out += [(setup, float(f), cl["metric"]) for f in fovs]
     return out
 
@@ -415,7 +397,7 @@ def check_closed_loop(config: Mapping[str, Any]) -> None:
     big = [n for n in cl["n_images"] if int(n) > int(acq["n_max_images"])]
     if big:
         raise ConfigError(f"config closed_loop.n_images: {big} exceed acquisition.n_max_images = {acq['n_max_images']}")
-    size = int(acq["grid"]) + (1 - int(acq["grid"]) % 2)  # the capture's image: brdfpipe.core.nearfield.image_frame
+    size = int(acq["grid"]) + (1 - int(acq["grid"]) % 2)  # the capture's image: brdfpipe.spec.nearfield.image_frame
     most = (MITSUBA_MAX_SAMPLES - 1) // (size * size)
     if int(cl["spp"]) > most:
         raise ConfigError(f"config closed_loop.spp = {cl['spp']}: at most {most} with acquisition.grid = {acq['grid']} "
@@ -460,7 +442,7 @@ def curve_fov(acquisition: Mapping[str, Any]) -> float:
 
 def curve_directions(acquisition: Mapping[str, Any]) -> str | None:
     """The direction set of the training-size curve, or None when the config has none (no curve)."""
-    if "nearfield" in acquisition["setups"] and "error" in acquisition["metrics"] and acquisition["training_sizes"]:
+    if figure_specs.figure("xu-fig07").produced(acquisition):  # the curve is drawn exactly when it is computed
         return filenames.directions("train", "nearfield", curve_fov(acquisition), "error")
     return None
 
@@ -470,41 +452,25 @@ def albedo_map_dims(manifold: Mapping[str, Any]) -> list[int]:
     return [int(q) for q in manifold["latent_dims"] if int(q) >= 2]
 
 
+def _track_figures(track: str, rule: str, settings: Mapping[str, Any]) -> dict[str, list[str]]:
+    """The figures of ``track`` drawn by ``rule`` that a config with the track's ``settings`` produces: key → files."""
+    return {f.key: filenames.figure_files(f.stem, table=f.table)
+            for f in figure_specs.track_figures(track, rule) if f.produced(settings)}
+
+
 def acquisition_figures(acquisition: Mapping[str, Any]) -> dict[str, list[str]]:
     """Xu 2016 figure analogues this config produces: key → files (PNG, PDF[, CSV, MD])."""
-    setups = set(acquisition["setups"])
-    keys = ["fig05", "fig06", "fig19"]
-    if curve_directions(acquisition) is not None:
-        keys.append("fig07")
-    if "nearfield" in setups:
-        keys.append("fig08")
-    if setups & {"fixed_camera", "fixed_light"}:
-        keys.append("fig13")
-    if "point" in setups:
-        keys.append("fig18")
-    order = list(filenames.FIGURE_STEMS)
-    return {
-        k: filenames.figure_files(filenames.FIGURE_STEMS[k], table=(k == "fig08"))
-        for k in sorted(keys, key=order.index)
-    }
+    return _track_figures("acquisition", "plot_acquisition_figures", acquisition)
 
 
 def manifold_figures(manifold: Mapping[str, Any]) -> dict[str, list[str]]:
     """Soler 2018 figure analogues this config produces: key → files (PNG, PDF)."""
-    dims = [int(q) for q in manifold["latent_dims"]]
-    keys = ["fig05", "fig10_q2", "fig09", "fig08", "eq7", "spaces"]
-    if max(dims) >= 3:
-        keys.append("fig10_q5")
-    if albedo_map_dims(manifold):
-        keys.append("fig07")
-    order = list(filenames.MANIFOLD_FIGURE_STEMS)
-    return {k: filenames.figure_files(filenames.MANIFOLD_FIGURE_STEMS[k]) for k in sorted(keys, key=order.index)}
+    return _track_figures("manifold", "plot_manifold_figures", manifold)
 
 
 def render_figures(n_path_points: int) -> dict[str, list[str]]:
     """Rendering-track figures: the pre-render grid always; the path figures when there are path points."""
-    keys = ["fig01"] + (["fig12", "fig13"] if n_path_points else [])
-    return {k: filenames.figure_files(filenames.RENDER_FIGURE_STEMS[k]) for k in keys}
+    return _track_figures("rendering", "plot_render_figures", {"n_path_points": n_path_points})
 
 
 def floor_check_candidates(

@@ -63,6 +63,7 @@ from numpy.typing import ArrayLike, NDArray
 from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, blendpass, gplvm, latent
 from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
+from brdfpipe.spec.manifold import candidate_label
 
 __all__ = [
     "EPSILONS",
@@ -112,16 +113,6 @@ class Candidate:
     @property
     def label(self) -> str:
         return candidate_label(self.space, self.mu)
-
-
-def candidate_label(space: str, mu: float) -> str:
-    """``"<space>-mu<μ>"``, e.g. ``raw-mu0.0001``: the candidate's name in file names and tables."""
-    if space not in gplvm.SPACES:
-        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(gplvm.SPACES)}")
-    mu_f = float(mu)
-    if not np.isfinite(mu_f) or mu_f < 0:
-        raise ValueError(f"mu must be a finite number >= 0, got {mu!r}")
-    return f"{space}-mu{mu_f:g}"
 
 
 # --------------------------------------------------------------------------

@@ -222,7 +222,8 @@ from brdfpipe.data.store import (
     material_indices,
     open_store,
 )
-from brdfpipe.manifold import derivation
+from brdfpipe.manifold import derivation, spaces
+from brdfpipe.spec import manifold as manifold_spec
 
 __all__ = [
     "SPACES",
@@ -267,13 +268,13 @@ __all__ = [
 
 logger = logging.getLogger("brdfpipe.manifold.gplvm")
 
-#: Data spaces of :func:`gram_matrix` (see the module docstring).
-SPACES: Final = ("raw", "cosine", "log", "relative", "standardised")
+#: Data spaces of :func:`gram_matrix` (see the module docstring; records: :data:`brdfpipe.spec.manifold.DATA_SPACES`).
+SPACES: Final = manifold_spec.SPACE_NAMES
 #: Spaces that scale each raw value by a constant: their interpolant is linear in the raw BRDFs.
-LINEAR_SPACES: Final = ("raw", "cosine", "relative", "standardised")
-#: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space.
-RELATIVE_FLOOR: Final = 1e-3
-STANDARDISED_FLOOR: Final = 1e-6
+LINEAR_SPACES: Final = manifold_spec.LINEAR_SPACES
+#: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space (:mod:`brdfpipe.manifold.spaces`).
+RELATIVE_FLOOR: Final = spaces.RELATIVE_FLOOR
+STANDARDISED_FLOOR: Final = spaces.STANDARDISED_FLOOR
 #: Initial-scale rules of :func:`fit` (plus ``"best"``: try all, keep the best L).
 INIT_SCALES: Final = ("nn", "rms", "unit")
 #: The rules ``init_scale="best"`` tries with ``method="newton"`` (module docstring, "Optimisation").
@@ -379,19 +380,8 @@ def _select(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
 def _space_maps(
     st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64], space: str
 ) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
-    """Per-cell maps of a space: factor (cosine, relative), (ρ_ref, w) (log), √cos (standardised); None for raw."""
-    if space in ("cosine", "relative", "standardised"):
-        wi, wo = merl.cell_directions(cells)
-        cos = wi[:, 2] * wo[:, 2]
-        if space == "cosine":
-            return cos, None
-        if space == "standardised":
-            return np.sqrt(np.maximum(cos, 0.0)), None
-        ref = logmap.median_reference(st, list(names), cells)
-        return cos / np.maximum(ref, RELATIVE_FLOOR), None
-    if space == "log":
-        return logmap.median_reference(st, list(names), cells), logmap.cell_weights(cells, "product")
-    return None, None
+    """Per-cell maps of a space over ``cells`` (:mod:`brdfpipe.manifold.spaces`)."""
+    return spaces.space_maps(space).cell_maps(st, names, cells)
 
 
 def _map_block(
@@ -399,17 +389,7 @@ def _map_block(
 ) -> NDArray[np.float64]:
     """Map a float32 ``(n, 3, cols)`` block to float64 in ``space`` (a, b: the block's per-cell maps)."""
     x = data.astype(np.float64)
-    if space in ("cosine", "relative"):
-        assert a is not None
-        x *= a
-    elif space == "standardised":
-        # σ of each (channel, cell) over the materials of the block: every row is in the block
-        assert a is not None
-        x *= a / np.maximum(x.std(axis=0), STANDARDISED_FLOOR)
-    elif space == "log":
-        assert a is not None and b is not None
-        x = logmap.forward(x, a, b)
-    return x
+    return spaces.space_maps(space).forward(x, a, b, x)
 
 
 def gram_matrix(
@@ -542,16 +522,7 @@ def cross_gram(
             sb = None if b_all is None else b_all[j0 + a0 : j0 + a1]
             train = data[:, :, a0:a1]
             B = _map_block(train, space, sa, sb)
-            O = od_all[:, :, a0:a1].astype(np.float64)
-            if space in ("cosine", "relative"):
-                assert sa is not None
-                O *= sa
-            elif space == "standardised":
-                assert sa is not None
-                O *= sa / np.maximum(train.astype(np.float64).std(axis=0), STANDARDISED_FLOOR)
-            elif space == "log":
-                assert sa is not None and sb is not None
-                O = logmap.forward(O, sa, sb)
+            O = spaces.space_maps(space).forward(od_all[:, :, a0:a1].astype(np.float64), sa, sb, train)
             B = B.reshape(n, -1)
             O = O.reshape(m, -1)
             G += B @ B.T

@@ -10,9 +10,9 @@ Mitsuba 3 what the near-field camera of that configuration sees:
   BSDF (:mod:`brdfpipe.rendering.render`);
 * the camera: a pinhole at C = wo (R = 1) looking at the origin, ``up`` the
   frame's e_u, square film of the set-up's frame
-  (:func:`brdfpipe.core.nearfield.image_frame`: the grid × grid lattice of
+  (:func:`brdfpipe.spec.nearfield.image_frame`: the grid × grid lattice of
   the acquisition geometry inside the smallest odd image centred on the
-  optical axis, pitch :func:`brdfpipe.core.nearfield.pixel_pitch`, which
+  optical axis, pitch :func:`brdfpipe.spec.nearfield.pixel_pitch`, which
   frames the whole disk from every direction); box pixel filter, ``spp``
   uniformly jittered samples per pixel (the pixel *footprint* is averaged);
 * the light: a ``point`` emitter at L = D·wi (D = ``light_distance``, in units
@@ -65,7 +65,9 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.core import integrity, nearfield
+from brdfpipe.core import integrity
+from brdfpipe.spec import acquisition as acquisition_spec
+from brdfpipe.spec import nearfield
 from brdfpipe.core.exr import write_exr
 
 __all__ = [
@@ -468,8 +470,9 @@ def _capture_material(
     cache: dict[tuple[Any, ...], tuple[F64, F64, F64, NDArray[np.bool_], PixelGeometry]] = {}
     result: dict[tuple[int, int], dict[str, tuple[dict[str, NDArray[Any]], dict[str, int]]]] = {}
     for d, (dpath, doc) in enumerate(zip(directions, docs)):
-        if doc["setup"] == "point":
-            raise ValueError(f"{dpath}: a point setup has no image to capture")
+        kind = acquisition_spec.SETUPS.get(doc["setup"])
+        if kind is None or not kind.images:
+            raise ValueError(f"{dpath}: a {doc['setup']} setup has no image to capture")
         settings = CaptureSettings(fov_deg=doc["fov"], grid=doc["grid"], spp=spp, seed=seed,
                                    light_distance=light_distance, min_snr=min_snr, sensor=sens)
         for n in n_images:

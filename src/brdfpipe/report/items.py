@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 from brdfpipe.core import filenames
+from brdfpipe.spec import figures as figure_specs
 
 __all__ = [
     "ACQUISITION",
@@ -31,41 +32,8 @@ MANIFOLD = "Manifold — Soler 2018"
 RENDERING = "Rendering"
 CLAIMS = "Claims"
 
-#: Caption key → the paper figure (or equation) the output is an analogue of.
-FIGURE_NUMBERS: dict[str, str] = {
-    "xu-fig05": "Xu Fig. 5",
-    "xu-fig06": "Xu Fig. 6",
-    "xu-fig07": "Xu Fig. 7",
-    "xu-fig08": "Xu Fig. 8",
-    "xu-fig08-table": "Xu Fig. 8 (table)",
-    "xu-fig13": "Xu Fig. 13",
-    "xu-fig18": "Xu Fig. 18",
-    "xu-fig19": "Xu Fig. 19",
-    "xu-closedloop": "Xu §7 (closed loop)",
-    "xu-closedloop-table": "Xu §7 (closed loop, table)",
-    "xu-unseen": "Xu Figs. 5/6 (unseen materials)",
-    "xu-unseen-table": "Xu §7 (unseen materials, table)",
-    "unseen-albedo": "radiometric check (unseen materials)",
-    "soler-fig05": "Soler Fig. 5",
-    "soler-fig10_q2": "Soler Fig. 10 (q = 2)",
-    "soler-fig10_q5": "Soler Fig. 10 (q = 5 slices)",
-    "soler-fig07": "Soler Fig. 7",
-    "soler-fig09": "Soler Fig. 9",
-    "soler-fig08": "Soler Fig. 8",
-    "soler-eq7": "Soler eq. 7",
-    "soler-spaces": "Soler §4.1-4.3 (data spaces)",
-    "soler-spaces-table": "Soler §4.1-4.3 (table)",
-    "soler-unseen": "Soler Figs. 10, 8 (unseen materials)",
-    "soler-unseen-table": "Soler Figs. 10, 8 (unseen materials, table)",
-    "render-fig01": "Soler Fig. 1",
-    "render-fig12": "Soler Fig. 12",
-    "render-fig13": "Soler Fig. 13",
-    "render-errormap": "Soler Fig. 13 (error map)",
-    "render-summary": "Soler Fig. 13 (table)",
-    "render-floor-check": "Soler Fig. 13 (noise-floor check)",
-    "render-floor-check-table": "Soler Fig. 13 (noise-floor check, table)",
-    "claims": "all claims",
-}
+#: Caption key → the paper figure (or equation) the output is an analogue of (:mod:`brdfpipe.spec.figures`).
+FIGURE_NUMBERS: dict[str, str] = figure_specs.paper_figures()
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """The near-field camera of Xu et al. 2016 §5.2, shared by the acquisition geometry and the capture.
 
-Pure math (NumPy only), so both the acquisition track
+Pure math (the standard library; NumPy only inside :func:`camera_basis`), so both the acquisition track
 (:mod:`brdfpipe.acquisition.geometry`: which MERL cells a configuration
 predicts) and the rendering track (:mod:`brdfpipe.rendering.capture`: what
 the camera of that configuration records) frame the same image from one
@@ -21,9 +21,11 @@ sample disk of radius ν = tan(α/2) lies in the plane z = 0.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
-import numpy as np
-from numpy.typing import NDArray
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
 
 __all__ = ["nu", "image_half_width", "pixel_pitch", "image_frame", "camera_basis"]
 
@@ -83,6 +85,8 @@ def camera_basis(wo: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[
     the camera's plane of incidence; φo = atan2(wo_y, wo_x), 0 at the
     zenith), up e_u = e_r × f.
     """
+    import numpy as np
+
     wo = np.asarray(wo, dtype=np.float64)
     phi = math.atan2(wo[1], wo[0]) if (wo[0] != 0.0 or wo[1] != 0.0) else 0.0
     e_r = np.array([-math.sin(phi), math.cos(phi), 0.0])

@@ -1,0 +1,118 @@
+"""The maps of the manifold's data spaces: how a block of stored values becomes what the GPLVM sees.
+
+One :class:`SpaceMaps` per data space of :data:`brdfpipe.spec.manifold.DATA_SPACES`
+(the records: name, linear or not), registered under the same name in
+:data:`MAPS`.  A space maps in two steps, so the Gram matrix
+(:func:`brdfpipe.manifold.gplvm.gram_matrix`) streams the store once:
+
+* ``cell_maps(store, names, cells)`` → ``(a, b)``: per-cell arrays computed
+  once over the materials used (``None`` where the space needs none);
+* ``forward(x, a, b, train)``: a float64 block ``x`` (n, 3, cols) of values
+  mapped with the block's ``a``, ``b``; ``train``, the same cells of the
+  training materials (float32 or float64: the statistic is taken in float64), for spaces whose scale is a statistic over
+  the materials (``standardised``: σ of each channel of each cell).
+
+Every map but ``log`` multiplies each value by a constant (the spec's
+``linear``): the interpolant of such a space blends the raw BRDFs with the
+same weights.  A space that is not linear also needs its inverse where the
+interpolant and the blend pass map the blend back
+(:func:`brdfpipe.manifold.gplvm.interpolate`, :mod:`brdfpipe.manifold.blendpass`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from brdfpipe.data import logmap, merl
+from brdfpipe.data.store import BrdfStore
+
+__all__ = ["RELATIVE_FLOOR", "STANDARDISED_FLOOR", "CellMaps", "SpaceMaps", "MAPS", "space_maps"]
+
+#: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space.
+RELATIVE_FLOOR: Final = 1e-3
+STANDARDISED_FLOOR: Final = 1e-6
+
+F64 = NDArray[np.float64]
+#: Per-cell maps of a space over the cells used: ``(a, b)``, either None when the space needs none.
+CellMaps = tuple[F64 | None, F64 | None]
+
+
+@dataclass(frozen=True)
+class SpaceMaps:
+    """The two steps of one data space's map (module docstring)."""
+
+    cell_maps: Callable[[BrdfStore, Sequence[str], NDArray[np.int64]], CellMaps]
+    forward: Callable[[F64, F64 | None, F64 | None, NDArray[Any]], F64]
+
+
+def _cosines(cells: NDArray[np.int64]) -> F64:
+    """cos θi · cos θo of each cell's centre."""
+    wi, wo = merl.cell_directions(cells)
+    return wi[:, 2] * wo[:, 2]
+
+
+def _no_maps(st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64]) -> CellMaps:
+    return None, None
+
+
+def _cosine_maps(st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64]) -> CellMaps:
+    return _cosines(cells), None
+
+
+def _relative_maps(st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64]) -> CellMaps:
+    cos = _cosines(cells)
+    ref = logmap.median_reference(st, list(names), cells)
+    return cos / np.maximum(ref, RELATIVE_FLOOR), None
+
+
+def _standardised_maps(st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64]) -> CellMaps:
+    return np.sqrt(np.maximum(_cosines(cells), 0.0)), None
+
+
+def _log_maps(st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64]) -> CellMaps:
+    return logmap.median_reference(st, list(names), cells), logmap.cell_weights(cells, "product")
+
+
+def _identity(x: F64, a: F64 | None, b: F64 | None, train: NDArray[Any]) -> F64:
+    return x
+
+
+def _scale(x: F64, a: F64 | None, b: F64 | None, train: NDArray[Any]) -> F64:
+    assert a is not None
+    x *= a
+    return x
+
+
+def _standardise(x: F64, a: F64 | None, b: F64 | None, train: NDArray[Any]) -> F64:
+    # σ of each (channel, cell) over the training materials of the block: every row is in the block
+    assert a is not None
+    x *= a / np.maximum(np.asarray(train, dtype=np.float64).std(axis=0), STANDARDISED_FLOOR)
+    return x
+
+
+def _log_forward(x: F64, a: F64 | None, b: F64 | None, train: NDArray[Any]) -> F64:
+    assert a is not None and b is not None
+    return logmap.forward(x, a, b)
+
+
+#: Data space → its maps (the names of :data:`brdfpipe.spec.manifold.DATA_SPACES`; a test keeps them equal).
+MAPS: dict[str, SpaceMaps] = {
+    "raw": SpaceMaps(_no_maps, _identity),
+    "cosine": SpaceMaps(_cosine_maps, _scale),
+    "log": SpaceMaps(_log_maps, _log_forward),
+    "relative": SpaceMaps(_relative_maps, _scale),
+    "standardised": SpaceMaps(_standardised_maps, _standardise),
+}
+
+
+def space_maps(space: str) -> SpaceMaps:
+    """The maps of ``space``; ValueError naming the known spaces otherwise."""
+    try:
+        return MAPS[space]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(MAPS)}") from None

@@ -1,0 +1,104 @@
+"""The acquisition set-ups and metrics: one record per set-up, which every stage asks.
+
+A set-up (Xu et al. 2016) is how an acquisition observes a sample: point
+samples (one light/view pair per observation), near-field images (camera
+and light both move, §5.2), or images with one fixed camera or one fixed
+light shared by all images (§8).  The geometry
+(:mod:`brdfpipe.acquisition.geometry`), the optimiser
+(:mod:`brdfpipe.acquisition.optimize`), the capture
+(:mod:`brdfpipe.rendering.capture`), the figures and the planner read a
+set-up's properties from its :class:`SetupKind` instead of testing names.
+
+Adding a set-up: a record in :data:`SETUPS` here, its physics in
+``acquisition/geometry.py`` (the cells one configuration observes) and its
+name in the config schema's two enums (``acquisition.setups``, and
+``closed_loop.setups`` for an image set-up; a test keeps them equal to this
+registry).  See ``docs/design/extending.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = [
+    "SetupKind",
+    "SETUPS",
+    "SETUP_NAMES",
+    "IMAGE_SETUPS",
+    "FIXED_SETUPS",
+    "METRICS",
+    "setup",
+    "setup_fovs",
+]
+
+
+@dataclass(frozen=True)
+class SetupKind:
+    """What the stages need to know about one acquisition set-up.
+
+    ``images``: an observation is an image (it has a field of view and a
+    pixel lattice; the closed loop can photograph it) rather than one
+    direction pair.  ``fov``: which fields of view a config optimises it at:
+    ``"none"`` (0, a point has none), ``"fovs"`` (every ``acquisition.fovs``)
+    or ``"fixed"`` (``acquisition.fixed_fov``).  ``shared``: the direction the
+    images of a set share (``"camera"``, ``"light"``) or ``""``; a shared
+    direction's elevation is common to the set, and its optimiser searches
+    two of the three axes per image.  ``axes``: the names of a
+    configuration's three grid indices in logs.  ``wrap_phi``: the third axis
+    is an azimuth that wraps round.  ``n_max_key``: the config key bounding
+    the set size.  ``label``: a figure's legend.
+    """
+
+    name: str
+    label: str
+    images: bool
+    fov: str
+    shared: str
+    axes: tuple[str, str, str]
+    wrap_phi: bool
+    n_max_key: str
+
+    @property
+    def unit(self) -> str:
+        """What one observation is called in logs: ``image`` or ``direction``."""
+        return "image" if self.images else "direction"
+
+
+#: Every set-up, in the order the config's default lists them.
+SETUPS: dict[str, SetupKind] = {
+    s.name: s
+    for s in (
+        SetupKind("point", "point samples", images=False, fov="none", shared="",
+                  axes=("iθh", "iθd", "iφd"), wrap_phi=True, n_max_key="n_max_point"),
+        SetupKind("nearfield", "near-field", images=True, fov="fovs", shared="",
+                  axes=("iθh", "iθd", "iφd"), wrap_phi=False, n_max_key="n_max_images"),
+        SetupKind("fixed_camera", "fixed camera, moving light", images=True, fov="fixed", shared="camera",
+                  axes=("θcam", "θlight", "φlight"), wrap_phi=True, n_max_key="n_max_images"),
+        SetupKind("fixed_light", "fixed light, moving camera", images=True, fov="fixed", shared="light",
+                  axes=("θlight", "θcam", "φcam"), wrap_phi=True, n_max_key="n_max_images"),
+    )
+}
+#: The set-ups' names (the schema's ``acquisition.setups`` enum).
+SETUP_NAMES: tuple[str, ...] = tuple(SETUPS)
+#: The image set-ups (the schema's ``closed_loop.setups`` enum).
+IMAGE_SETUPS: tuple[str, ...] = tuple(n for n, s in SETUPS.items() if s.images)
+#: The set-ups whose images share one direction.
+FIXED_SETUPS: tuple[str, ...] = tuple(n for n, s in SETUPS.items() if s.shared)
+#: The optimiser's criteria: the expected error E(S) (Xu eq. 15) and the condition number κ (eq. 6).
+METRICS: tuple[str, ...] = ("error", "condition")
+
+
+def setup(name: str) -> SetupKind:
+    """The record of set-up ``name``; ValueError naming the known ones otherwise."""
+    try:
+        return SETUPS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown acquisition setup {name!r}; expected one of {', '.join(SETUPS)}") from None
+
+
+def setup_fovs(name: str, fovs: list[float] | tuple[float, ...], fixed_fov: float) -> list[float]:
+    """The fields of view a config optimises set-up ``name`` at (``acquisition.fovs``, ``fixed_fov``)."""
+    where = setup(name).fov
+    if where == "none":
+        return [0]
+    return list(fovs) if where == "fovs" else [fixed_fov]

@@ -1,0 +1,84 @@
+"""The manifold's data spaces, GPLVM optimisers and Soler's latent paths: names and records.
+
+A data space is how a material's table is mapped before the GPLVM sees it
+(Soler §4.1–4.3 and this project's variants).  The maps themselves (NumPy)
+live in :mod:`brdfpipe.manifold.spaces`, registered under the same names;
+the planner, the schema (a test keeps its enums equal to
+:data:`SPACE_NAMES`), the workflow's wildcards and the science modules read
+the records here.
+
+Adding a data space: its :class:`DataSpace` record in :data:`DATA_SPACES`
+here and its maps in ``manifold/spaces.py`` (and its name in the schema's
+two enums, ``manifold.space`` and ``manifold.candidates[].space``).  See
+``docs/design/extending.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = [
+    "DataSpace",
+    "DATA_SPACES",
+    "SPACE_NAMES",
+    "LINEAR_SPACES",
+    "OPTIMISERS",
+    "SOLER_PATHS",
+    "candidate_label",
+]
+
+
+@dataclass(frozen=True)
+class DataSpace:
+    """One data space of the manifold.
+
+    ``linear``: the map scales each raw value by a constant (``z̃ = D z``), so
+    the interpolant Σ wᵢ D zᵢ = D Σ wᵢ zᵢ blends the raw BRDFs, and images
+    rendered from them, with the same weights (Soler §5.2).  A space that is
+    not linear blends mapped values, which the interpolant maps back.
+    ``description``: one line for documentation and tables.
+    """
+
+    name: str
+    linear: bool
+    description: str
+
+
+#: Every data space, in the schema's order.
+DATA_SPACES: dict[str, DataSpace] = {
+    s.name: s
+    for s in (
+        DataSpace("raw", True, "the stored values (Soler et al. 2018)"),
+        DataSpace("cosine", True, "each cell × cos θi · cos θo of its centre"),
+        DataSpace("log", False, "ln((ρw + ε)/(ρ_ref w + ε)), the acquisition track's log-relative map (Xu eq. 1)"),
+        DataSpace("relative", True, "each cell × cos θi · cos θo / max(ρ_ref, 1e-3)"),
+        DataSpace("standardised", True, "each value × √(cos θi · cos θo) / σ, σ over the materials (floored)"),
+    )
+}
+#: The data spaces' names (the schema's ``manifold.space`` enum).
+SPACE_NAMES: tuple[str, ...] = tuple(DATA_SPACES)
+#: The spaces whose interpolant is linear in the raw BRDFs.
+LINEAR_SPACES: tuple[str, ...] = tuple(n for n, s in DATA_SPACES.items() if s.linear)
+#: The GPLVM optimisers (``manifold.method``).
+OPTIMISERS: tuple[str, ...] = ("newton", "hybrid", "hooke-jeeves")
+
+#: The latent paths of Soler et al. 2018, Fig. 9 (used when all six materials exist).
+SOLER_PATHS: tuple[tuple[str, str], ...] = (
+    ("blue-metallic-paint", "dark-blue-paint"),
+    ("teflon", "silver-paint"),
+    ("black-oxidized-steel", "color-changing-paint3"),
+)
+
+
+def candidate_label(space: str, mu: float) -> str:
+    """``"<space>-mu<μ>"``, e.g. ``raw-mu0.0001``: a GPLVM candidate's name in file names and tables.
+
+    ValueError for an unknown space or a μ that is not a finite number ≥ 0.
+    """
+    if space not in DATA_SPACES:
+        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(DATA_SPACES)}")
+    mu_f = float(mu)
+    if not math.isfinite(mu_f) or mu_f < 0:
+        raise ValueError(f"mu must be a finite number >= 0, got {mu!r}")
+    return f"{space}-mu{mu_f:g}"

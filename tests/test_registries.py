@@ -1,0 +1,106 @@
+"""The registries of what people add (brdfpipe.spec) are the one source every stage reads.
+
+Figures: each record's drawing function exists in its track's figures
+module and the track's ``make_*_figures`` calls it; its stem is the file
+name the workflow declares; its caption and paper figure are the report's.
+Set-ups and data spaces: the science modules take their properties from the
+records, so a record's change reaches them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+
+import pytest
+
+from brdfpipe.core import filenames, plan
+from brdfpipe.report import captions, items
+from brdfpipe.spec import acquisition as acq_spec
+from brdfpipe.spec import figures as fig_spec
+from brdfpipe.spec import manifold as man_spec
+
+MAKERS = {
+    "plot_acquisition_figures": ("brdfpipe.acquisition.figures", "make_acquisition_figures"),
+    "plot_manifold_figures": ("brdfpipe.manifold.figures", "make_manifold_figures"),
+    "plot_render_figures": ("brdfpipe.rendering.figures", "make_render_figures"),
+}
+
+
+@pytest.mark.parametrize("fig", fig_spec.FIGURES, ids=lambda f: f.report_key)
+def test_every_registered_figure_is_drawn_by_its_function(fig: fig_spec.Figure) -> None:
+    module = importlib.import_module(f"brdfpipe.{fig.track}.figures")
+    assert callable(getattr(module, fig.draw, None)), f"brdfpipe.{fig.track}.figures has no {fig.draw}"
+    if fig.rule in MAKERS:
+        mod, maker = MAKERS[fig.rule]
+        assert fig.draw in inspect.getsource(getattr(importlib.import_module(mod), maker)), (maker, fig.draw)
+
+
+def test_report_keys_stems_and_draw_functions_are_unique() -> None:
+    for attr in ("report_key", "stem"):
+        values = [getattr(f, attr) for f in fig_spec.FIGURES]
+        assert len(values) == len(set(values)), attr
+    keys = [f.report_key for f in fig_spec.FIGURES] + [e.key for e in fig_spec.REPORT_ENTRIES]
+    assert len(keys) == len(set(keys))
+
+
+def test_file_names_report_and_captions_read_the_registry() -> None:
+    assert filenames.FIGURE_STEMS == {f.key: f.stem for f in fig_spec.track_figures("acquisition", "plot_acquisition_figures")}
+    assert filenames.CLOSEDLOOP_STEM == fig_spec.figure("xu-closedloop").stem
+    for f in fig_spec.FIGURES:
+        assert items.FIGURE_NUMBERS[f.report_key] == f.paper
+        assert captions.DESCRIPTIONS[f.report_key] == f.caption
+
+
+def test_a_registered_figure_reaches_the_plan(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A new record is planned without another edit: the planner and the file names read FIGURES."""
+    extra = fig_spec.Figure("manifold", "fig99", "manifold-fig99-new", "Soler Fig. 99", rule="plot_manifold_figures",
+                            draw="manifold_fig99_new", caption="A new figure.",
+                            when=lambda m: 7 in [int(q) for q in m["latent_dims"]])
+    monkeypatch.setattr(fig_spec, "FIGURES", (*fig_spec.FIGURES, extra))
+    with_q7 = plan.manifold_figures({"latent_dims": [2, 7]})
+    assert with_q7["fig99"] == filenames.figure_files("manifold-fig99-new")
+    assert "fig99" not in plan.manifold_figures({"latent_dims": [2, 5]})
+    assert fig_spec.captions()["soler-fig99"] == "A new figure."
+
+
+def test_the_figures_a_config_produces_follow_the_when_predicates() -> None:
+    acq = {"setups": ["point"], "metrics": ["error"], "training_sizes": [10], "fovs": [25], "fixed_fov": 25}
+    assert list(plan.acquisition_figures(acq)) == ["fig05", "fig06", "fig18", "fig19"]
+    acq["setups"] = ["nearfield", "fixed_light"]
+    assert list(plan.acquisition_figures(acq)) == ["fig05", "fig06", "fig07", "fig08", "fig13", "fig19"]
+    assert list(plan.render_figures(0)) == ["fig01"]
+    assert list(plan.render_figures(3)) == ["fig01", "fig12", "fig13"]
+
+
+def test_setup_records_drive_the_geometry_and_the_optimiser() -> None:
+    from brdfpipe.acquisition import geometry
+
+    assert geometry.SETUP_KINDS == acq_spec.SETUP_NAMES
+    assert geometry.FIXED_KINDS == frozenset(n for n, s in acq_spec.SETUPS.items() if s.shared)
+    for name, rec in acq_spec.SETUPS.items():
+        s = geometry.Setup(name, fov_deg=25.0 if rec.images else 0.0)
+        assert s.is_image == rec.images and s.spec is rec
+    assert acq_spec.setup_fovs("point", [15, 25], 30) == [0]
+    assert acq_spec.setup_fovs("nearfield", [15, 25], 30) == [15, 25]
+    assert acq_spec.setup_fovs("fixed_camera", [15, 25], 30) == [30]
+    with pytest.raises(ValueError, match="unknown acquisition setup 'dome'"):
+        acq_spec.setup("dome")
+
+
+def test_data_space_records_drive_the_manifold() -> None:
+    from brdfpipe.manifold import gplvm
+
+    assert gplvm.SPACES == man_spec.SPACE_NAMES
+    assert gplvm.LINEAR_SPACES == tuple(n for n, s in man_spec.DATA_SPACES.items() if s.linear)
+    assert man_spec.candidate_label("standardised", 1e-6) == "standardised-mu1e-06"
+    with pytest.raises(ValueError, match="unknown data space"):
+        man_spec.candidate_label("lab", 1e-4)
+
+
+def test_every_data_space_has_its_maps() -> None:
+    from brdfpipe.manifold import spaces
+
+    assert list(spaces.MAPS) == list(man_spec.SPACE_NAMES)
+    with pytest.raises(ValueError, match="unknown data space 'lab'"):
+        spaces.space_maps("lab")
