@@ -1387,91 +1387,137 @@ def _newton_stages(
        the result is a local maximum: gradient at rounding level, Hessian
        negative semi-definite up to the rigid motions.
     """
-    lapack = scipy.linalg.lapack
-    n, q = X0.shape
     x = X0.copy()
     scale = max(abs(_loglik_only(x, root, d, ell, mu)), 1.0)
     hist: list[tuple[str, float]] = []
     newton_left = int(newton_iterations)
     restarts_left = int(max_restarts)
     for round_ in range(int(max_escapes) + 1):
-        # 1. restarted, preconditioned L-BFGS
-        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-        counts.hessians += 1
-        while restarts_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
-            restarts_left -= 1
-            B = H * (-1.0 / scale)
-            c, _ = _shifted_cholesky(B, shift * float(np.abs(np.diag(B)).mean()), counts)
-            x_new, h = _lbfgs_run(x, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15, gtol=1e-13,
-                                  chol=c, counts=counts)
-            if not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0):
-                # no progress with this preconditioner: a plain L-BFGS run before giving up
-                x_new, h_p = _lbfgs_run(x_new, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15,
-                                        gtol=1e-13, chol=None, counts=counts)
-                h += h_p
-            hist += [("lbfgs", v) for v in h]
-            x = x_new
-            stop = not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0)
-            L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-            counts.hessians += 1
-            if stop:
-                break
-        # 2. Newton steps; 3. a step out of a saddle point, then stage 1 again
-        lam: float | None = None
-        escaped = checked = False
-        small = 0
-        while newton_left > 0:
-            B = H * (-1.0 / scale)
-            dB = float(np.abs(np.diag(B)).mean())
-            diag = np.diag_indices_from(B)
-            B[diag] += 1e-8 * dB
-            counts.factorisations += 1
-            _, info = lapack.dpotrf(B, lower=1, clean=1)
-            B[diag] -= 1e-8 * dB
-            if info != 0 and not checked:  # one eigenpair (≈ 2n³ flops), at most once per round
-                checked = True
-                w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
-                if w[0] < -1e-6 * dB and round_ < int(max_escapes):
-                    x_esc = _escape_saddle(x, v[:, 0], L, root, d, ell, mu, hist, counts)
-                    if x_esc is not None:
-                        x, escaped = x_esc, True
-                        newton_left -= 1
-                    break
-            if np.abs(g).max() <= gtol * max(abs(L), 1.0):
-                break
-            gf = g.ravel() * (-1.0 / scale)  # gradient of f = −L/scale
-            lam = 1e-8 * dB if lam is None else max(lam, 1e-14 * dB)
-            step = None
-            while lam <= 1e12 * dB:
-                c, lam = _shifted_cholesky(B, lam, counts)
-                p = -lapack.dpotrs(c, gf, lower=1)[0]
-                pred = -(gf @ p + 0.5 * p @ (B @ p))
-                try:
-                    L_new = _loglik_only(x + p.reshape(n, q), root, d, ell, mu)
-                except np.linalg.LinAlgError:
-                    L_new = -np.inf
-                gain = (L_new - L) / scale
-                if pred > 0 and gain > 1e-4 * pred:
-                    step = (p, gain / pred)
-                    break
-                lam *= 4.0
-            if step is None:
-                break
-            p, rho = step
-            L_old = L
-            x = x + p.reshape(n, q)
-            L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-            counts.hessians += 1
-            counts.newton_iterations += 1
-            newton_left -= 1
-            hist.append(("newton", L))
-            lam = lam / 4.0 if rho > 0.75 else (lam * 2.0 if rho < 0.25 else lam)
-            small = small + 1 if L - L_old <= 1e-9 * abs(L) else 0
-            if L - L_old <= 1e-15 * abs(L) or small >= 3:
-                break  # gains at rounding level, or creeping along a flat direction
+        x, L, g, H, restarts_left = _preconditioned_lbfgs(
+            x, root, d, ell, mu, scale=scale, restart_every=restart_every, restarts_left=restarts_left,
+            shift=shift, gtol=gtol, hist=hist, counts=counts,
+        )
+        x, newton_left, escaped = _newton_steps(
+            x, L, g, H, root, d, ell, mu, scale=scale, newton_left=newton_left, gtol=gtol,
+            may_escape=round_ < int(max_escapes), hist=hist, counts=counts,
+        )
         if not escaped:
             break
     return x, hist
+
+
+def _preconditioned_lbfgs(
+    x: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, restart_every: int,
+    restarts_left: int, shift: float, gtol: float, hist: list[tuple[str, float]], counts: _Counts,
+) -> tuple[NDArray[np.float64], float, NDArray[np.float64], NDArray[np.float64], int]:
+    """Stage 1 of :func:`_newton_stages` (restarted, Hessian-preconditioned L-BFGS) from ``x``.
+
+    Appends ``("lbfgs", L)`` per iteration to ``hist``; returns the final X,
+    its L, gradient and Hessian, and the restarts left.
+    """
+    L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+    counts.hessians += 1
+    while restarts_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
+        restarts_left -= 1
+        B = H * (-1.0 / scale)
+        c, _ = _shifted_cholesky(B, shift * float(np.abs(np.diag(B)).mean()), counts)
+        x_new, h = _lbfgs_run(x, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15, gtol=1e-13,
+                              chol=c, counts=counts)
+        if not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0):
+            # no progress with this preconditioner: a plain L-BFGS run before giving up
+            x_new, h_p = _lbfgs_run(x_new, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15,
+                                    gtol=1e-13, chol=None, counts=counts)
+            h += h_p
+        hist += [("lbfgs", v) for v in h]
+        x = x_new
+        stop = not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0)
+        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+        counts.hessians += 1
+        if stop:
+            break
+    return x, L, g, H, restarts_left
+
+
+def _newton_steps(
+    x: NDArray[np.float64], L: float, g: NDArray[np.float64], H: NDArray[np.float64], root: _GramRoot, d: float,
+    ell: float, mu: float, *, scale: float, newton_left: int, gtol: float, may_escape: bool,
+    hist: list[tuple[str, float]], counts: _Counts,
+) -> tuple[NDArray[np.float64], int, bool]:
+    """Stages 2 and 3 of :func:`_newton_stages` from ``x`` (with its L, gradient and Hessian).
+
+    Newton steps, or (``may_escape``) one step out of a saddle point.
+    Appends ``("newton", L)`` per step to ``hist``; returns the final X, the
+    Newton steps left and whether it left a saddle point (stage 1 is due).
+    """
+    lapack = scipy.linalg.lapack
+    n, q = x.shape
+    lam: float | None = None
+    escaped = checked = False
+    small = 0
+    while newton_left > 0:
+        B = H * (-1.0 / scale)
+        dB = float(np.abs(np.diag(B)).mean())
+        diag = np.diag_indices_from(B)
+        B[diag] += 1e-8 * dB
+        counts.factorisations += 1
+        _, info = lapack.dpotrf(B, lower=1, clean=1)
+        B[diag] -= 1e-8 * dB
+        if info != 0 and not checked:  # one eigenpair (≈ 2n³ flops), at most once per round
+            checked = True
+            w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
+            if w[0] < -1e-6 * dB and may_escape:
+                x_esc = _escape_saddle(x, v[:, 0], L, root, d, ell, mu, hist, counts)
+                if x_esc is not None:
+                    x, escaped = x_esc, True
+                    newton_left -= 1
+                break
+        if np.abs(g).max() <= gtol * max(abs(L), 1.0):
+            break
+        gf = g.ravel() * (-1.0 / scale)  # gradient of f = −L/scale
+        lam = 1e-8 * dB if lam is None else max(lam, 1e-14 * dB)
+        step, lam = _trust_region_step(x, L, B, gf, lam, dB, root, d, ell, mu, scale=scale, counts=counts)
+        if step is None:
+            break
+        p, rho = step
+        L_old = L
+        x = x + p.reshape(n, q)
+        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+        counts.hessians += 1
+        counts.newton_iterations += 1
+        newton_left -= 1
+        hist.append(("newton", L))
+        lam = lam / 4.0 if rho > 0.75 else (lam * 2.0 if rho < 0.25 else lam)
+        small = small + 1 if L - L_old <= 1e-9 * abs(L) else 0
+        if L - L_old <= 1e-15 * abs(L) or small >= 3:
+            break  # gains at rounding level, or creeping along a flat direction
+    return x, newton_left, escaped
+
+
+def _trust_region_step(
+    x: NDArray[np.float64], L: float, B: NDArray[np.float64], gf: NDArray[np.float64], lam: float, dB: float,
+    root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, counts: _Counts,
+) -> tuple[tuple[NDArray[np.float64], float] | None, float]:
+    """One Levenberg–Marquardt step ``p = −(B + λI)⁻¹ gf`` of :func:`_newton_stages` (stage 2).
+
+    ``λ`` ×4 until L gains at least 1e-4 of the quadratic model's prediction
+    (giving up past 1e12·``dB``); returns ``(p, gain / prediction)`` or None,
+    and the last ``λ``.
+    """
+    lapack = scipy.linalg.lapack
+    n, q = x.shape
+    while lam <= 1e12 * dB:
+        c, lam = _shifted_cholesky(B, lam, counts)
+        p = -lapack.dpotrs(c, gf, lower=1)[0]
+        pred = -(gf @ p + 0.5 * p @ (B @ p))
+        try:
+            L_new = _loglik_only(x + p.reshape(n, q), root, d, ell, mu)
+        except np.linalg.LinAlgError:
+            L_new = -np.inf
+        gain = (L_new - L) / scale
+        if pred > 0 and gain > 1e-4 * pred:
+            return (p, gain / pred), lam
+        lam *= 4.0
+    return None, lam
 
 
 def _escape_saddle(
