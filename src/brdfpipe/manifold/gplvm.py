@@ -1580,13 +1580,8 @@ def _fit_newton(
     counts = _Counts()
     if isinstance(init_scale, str) and init_scale == "best":
         rules: list[tuple[str, float]] = [(r, _scale_factor(Y, r, ell)) for r in NEWTON_TRIAL_SCALES]
-    elif isinstance(init_scale, str):
-        rules = [(init_scale, _scale_factor(Y, init_scale, ell))]
     else:
-        factor = float(init_scale)
-        if not np.isfinite(factor) or factor <= 0:
-            raise ValueError(f"init_scale factor must be > 0, got {init_scale!r}")
-        rules = [("factor", factor)]
+        rules = [_start_rule(Y, init_scale, ell)]
     trials: dict[str, float] = {}
     best: tuple[float, str, float, NDArray[np.float64], list[float], float] | None = None
     for label, factor in rules:
