@@ -1358,91 +1358,137 @@ def _newton_stages(
        the result is a local maximum: gradient at rounding level, Hessian
        negative semi-definite up to the rigid motions.
     """
-    lapack = scipy.linalg.lapack
-    n, q = X0.shape
     x = X0.copy()
     scale = max(abs(_loglik_only(x, root, d, ell, mu)), 1.0)
     hist: list[tuple[str, float]] = []
     newton_left = int(newton_iterations)
     restarts_left = int(max_restarts)
     for round_ in range(int(max_escapes) + 1):
-        # 1. restarted, preconditioned L-BFGS
-        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-        counts.hessians += 1
-        while restarts_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
-            restarts_left -= 1
-            B = H * (-1.0 / scale)
-            c, _ = _shifted_cholesky(B, shift * float(np.abs(np.diag(B)).mean()), counts)
-            x_new, h = _lbfgs_run(x, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15, gtol=1e-13,
-                                  chol=c, counts=counts)
-            if not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0):
-                # no progress with this preconditioner: a plain L-BFGS run before giving up
-                x_new, h_p = _lbfgs_run(x_new, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15,
-                                        gtol=1e-13, chol=None, counts=counts)
-                h += h_p
-            hist += [("lbfgs", v) for v in h]
-            x = x_new
-            stop = not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0)
-            L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-            counts.hessians += 1
-            if stop:
-                break
-        # 2. Newton steps; 3. a step out of a saddle point, then stage 1 again
-        lam: float | None = None
-        escaped = checked = False
-        small = 0
-        while newton_left > 0:
-            B = H * (-1.0 / scale)
-            dB = float(np.abs(np.diag(B)).mean())
-            diag = np.diag_indices_from(B)
-            B[diag] += 1e-8 * dB
-            counts.factorisations += 1
-            _, info = lapack.dpotrf(B, lower=1, clean=1)
-            B[diag] -= 1e-8 * dB
-            if info != 0 and not checked:  # one eigenpair (≈ 2n³ flops), at most once per round
-                checked = True
-                w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
-                if w[0] < -1e-6 * dB and round_ < int(max_escapes):
-                    x_esc = _escape_saddle(x, v[:, 0], L, root, d, ell, mu, hist, counts)
-                    if x_esc is not None:
-                        x, escaped = x_esc, True
-                        newton_left -= 1
-                    break
-            if np.abs(g).max() <= gtol * max(abs(L), 1.0):
-                break
-            gf = g.ravel() * (-1.0 / scale)  # gradient of f = −L/scale
-            lam = 1e-8 * dB if lam is None else max(lam, 1e-14 * dB)
-            step = None
-            while lam <= 1e12 * dB:
-                c, lam = _shifted_cholesky(B, lam, counts)
-                p = -lapack.dpotrs(c, gf, lower=1)[0]
-                pred = -(gf @ p + 0.5 * p @ (B @ p))
-                try:
-                    L_new = _loglik_only(x + p.reshape(n, q), root, d, ell, mu)
-                except np.linalg.LinAlgError:
-                    L_new = -np.inf
-                gain = (L_new - L) / scale
-                if pred > 0 and gain > 1e-4 * pred:
-                    step = (p, gain / pred)
-                    break
-                lam *= 4.0
-            if step is None:
-                break
-            p, rho = step
-            L_old = L
-            x = x + p.reshape(n, q)
-            L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-            counts.hessians += 1
-            counts.newton_iterations += 1
-            newton_left -= 1
-            hist.append(("newton", L))
-            lam = lam / 4.0 if rho > 0.75 else (lam * 2.0 if rho < 0.25 else lam)
-            small = small + 1 if L - L_old <= 1e-9 * abs(L) else 0
-            if L - L_old <= 1e-15 * abs(L) or small >= 3:
-                break  # gains at rounding level, or creeping along a flat direction
+        x, L, g, H, restarts_left = _preconditioned_lbfgs(
+            x, root, d, ell, mu, scale=scale, restart_every=restart_every, restarts_left=restarts_left,
+            shift=shift, gtol=gtol, hist=hist, counts=counts,
+        )
+        x, newton_left, escaped = _newton_steps(
+            x, L, g, H, root, d, ell, mu, scale=scale, newton_left=newton_left, gtol=gtol,
+            may_escape=round_ < int(max_escapes), hist=hist, counts=counts,
+        )
         if not escaped:
             break
     return x, hist
+
+
+def _preconditioned_lbfgs(
+    x: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, restart_every: int,
+    restarts_left: int, shift: float, gtol: float, hist: list[tuple[str, float]], counts: _Counts,
+) -> tuple[NDArray[np.float64], float, NDArray[np.float64], NDArray[np.float64], int]:
+    """Stage 1 of :func:`_newton_stages` (restarted, Hessian-preconditioned L-BFGS) from ``x``.
+
+    Appends ``("lbfgs", L)`` per iteration to ``hist``; returns the final X,
+    its L, gradient and Hessian, and the restarts left.
+    """
+    L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+    counts.hessians += 1
+    while restarts_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
+        restarts_left -= 1
+        B = H * (-1.0 / scale)
+        c, _ = _shifted_cholesky(B, shift * float(np.abs(np.diag(B)).mean()), counts)
+        x_new, h = _lbfgs_run(x, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15, gtol=1e-13,
+                              chol=c, counts=counts)
+        if not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0):
+            # no progress with this preconditioner: a plain L-BFGS run before giving up
+            x_new, h_p = _lbfgs_run(x_new, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15,
+                                    gtol=1e-13, chol=None, counts=counts)
+            h += h_p
+        hist += [("lbfgs", v) for v in h]
+        x = x_new
+        stop = not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0)
+        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+        counts.hessians += 1
+        if stop:
+            break
+    return x, L, g, H, restarts_left
+
+
+def _newton_steps(
+    x: NDArray[np.float64], L: float, g: NDArray[np.float64], H: NDArray[np.float64], root: _GramRoot, d: float,
+    ell: float, mu: float, *, scale: float, newton_left: int, gtol: float, may_escape: bool,
+    hist: list[tuple[str, float]], counts: _Counts,
+) -> tuple[NDArray[np.float64], int, bool]:
+    """Stages 2 and 3 of :func:`_newton_stages` from ``x`` (with its L, gradient and Hessian).
+
+    Newton steps, or (``may_escape``) one step out of a saddle point.
+    Appends ``("newton", L)`` per step to ``hist``; returns the final X, the
+    Newton steps left and whether it left a saddle point (stage 1 is due).
+    """
+    lapack = scipy.linalg.lapack
+    n, q = x.shape
+    lam: float | None = None
+    escaped = checked = False
+    small = 0
+    while newton_left > 0:
+        B = H * (-1.0 / scale)
+        dB = float(np.abs(np.diag(B)).mean())
+        diag = np.diag_indices_from(B)
+        B[diag] += 1e-8 * dB
+        counts.factorisations += 1
+        _, info = lapack.dpotrf(B, lower=1, clean=1)
+        B[diag] -= 1e-8 * dB
+        if info != 0 and not checked:  # one eigenpair (≈ 2n³ flops), at most once per round
+            checked = True
+            w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
+            if w[0] < -1e-6 * dB and may_escape:
+                x_esc = _escape_saddle(x, v[:, 0], L, root, d, ell, mu, hist, counts)
+                if x_esc is not None:
+                    x, escaped = x_esc, True
+                    newton_left -= 1
+                break
+        if np.abs(g).max() <= gtol * max(abs(L), 1.0):
+            break
+        gf = g.ravel() * (-1.0 / scale)  # gradient of f = −L/scale
+        lam = 1e-8 * dB if lam is None else max(lam, 1e-14 * dB)
+        step, lam = _trust_region_step(x, L, B, gf, lam, dB, root, d, ell, mu, scale=scale, counts=counts)
+        if step is None:
+            break
+        p, rho = step
+        L_old = L
+        x = x + p.reshape(n, q)
+        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+        counts.hessians += 1
+        counts.newton_iterations += 1
+        newton_left -= 1
+        hist.append(("newton", L))
+        lam = lam / 4.0 if rho > 0.75 else (lam * 2.0 if rho < 0.25 else lam)
+        small = small + 1 if L - L_old <= 1e-9 * abs(L) else 0
+        if L - L_old <= 1e-15 * abs(L) or small >= 3:
+            break  # gains at rounding level, or creeping along a flat direction
+    return x, newton_left, escaped
+
+
+def _trust_region_step(
+    x: NDArray[np.float64], L: float, B: NDArray[np.float64], gf: NDArray[np.float64], lam: float, dB: float,
+    root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, counts: _Counts,
+) -> tuple[tuple[NDArray[np.float64], float] | None, float]:
+    """One Levenberg–Marquardt step ``p = −(B + λI)⁻¹ gf`` of :func:`_newton_stages` (stage 2).
+
+    ``λ`` ×4 until L gains at least 1e-4 of the quadratic model's prediction
+    (giving up past 1e12·``dB``); returns ``(p, gain / prediction)`` or None,
+    and the last ``λ``.
+    """
+    lapack = scipy.linalg.lapack
+    n, q = x.shape
+    while lam <= 1e12 * dB:
+        c, lam = _shifted_cholesky(B, lam, counts)
+        p = -lapack.dpotrs(c, gf, lower=1)[0]
+        pred = -(gf @ p + 0.5 * p @ (B @ p))
+        try:
+            L_new = _loglik_only(x + p.reshape(n, q), root, d, ell, mu)
+        except np.linalg.LinAlgError:
+            L_new = -np.inf
+        gain = (L_new - L) / scale
+        if pred > 0 and gain > 1e-4 * pred:
+            return (p, gain / pred), lam
+        lam *= 4.0
+    return None, lam
 
 
 def _escape_saddle(
@@ -1485,6 +1531,16 @@ def _escape_saddle(
     return best[1]
 
 
+def _start_rule(Y: NDArray[np.float64], init_scale: str | float, ell: float) -> tuple[str, float]:
+    """The label and factor of one start scale ``init_scale`` (a rule of :data:`INIT_SCALES` or a factor > 0)."""
+    if isinstance(init_scale, str):
+        return init_scale, _scale_factor(Y, init_scale, ell)
+    factor = float(init_scale)
+    if not np.isfinite(factor) or factor <= 0:
+        raise ValueError(f"init_scale factor must be > 0, got {init_scale!r}")
+    return "factor", factor
+
+
 def _fit_newton(
     g: NDArray[np.float64], d: float, Y: NDArray[np.float64], *, ell: float, mu: float, init_scale: str | float,
     trial_iterations: int, restart_every: int, max_restarts: int, shift: float, newton_iterations: int, gtol: float,
@@ -1495,13 +1551,8 @@ def _fit_newton(
     counts = _Counts()
     if isinstance(init_scale, str) and init_scale == "best":
         rules: list[tuple[str, float]] = [(r, _scale_factor(Y, r, ell)) for r in NEWTON_TRIAL_SCALES]
-    elif isinstance(init_scale, str):
-        rules = [(init_scale, _scale_factor(Y, init_scale, ell))]
     else:
-        factor = float(init_scale)
-        if not np.isfinite(factor) or factor <= 0:
-            raise ValueError(f"init_scale factor must be > 0, got {init_scale!r}")
-        rules = [("factor", factor)]
+        rules = [_start_rule(Y, init_scale, ell)]
     trials: dict[str, float] = {}
     best: tuple[float, str, float, NDArray[np.float64], list[float], float] | None = None
     for label, factor in rules:
@@ -1539,6 +1590,193 @@ def _fit_newton(
     res.gradient_evaluations = counts.gradients
     res.hessian_evaluations = counts.hessians
     return res
+
+
+@dataclass(frozen=True, eq=False)
+class _HJSettings:
+    """The data and fixed settings of :func:`fit`'s Hooke–Jeeves runs (methods ``hybrid``, ``hooke-jeeves``)."""
+
+    gram: NDArray[np.float64]
+    d: float
+    ell: float
+    mu: float
+    seed: int
+    step: float
+    min_step: float
+    refactor_every: int
+    tol: float
+    ftol: float
+
+
+def _hj_run(
+    s: _HJSettings, X0: NDArray[np.float64], sweeps: int, sweep0: int = 0
+) -> tuple[_State, list[tuple[int, float]], tuple[int, int, float, float, int]]:
+    """At most ``sweeps`` Hooke–Jeeves sweeps from X₀, seeded by ``(seed, sweep0)`` and numbered from ``sweep0``.
+
+    Returns the final state, the ``(sweep, L)`` trace and ``(accepted
+    moves, evaluations, final step, max drift, sweeps)``.
+    """
+    st = _full_state(X0, s.gram, s.ell, s.mu)
+    rng = np.random.default_rng([s.seed, sweep0])
+    trace, acc, ev, stp, drift, nsw = _hooke_jeeves(
+        st, s.gram, s.d, s.ell, s.mu, rng=rng, max_sweeps=sweeps, step=s.step, min_step=s.min_step,
+        refactor_every=s.refactor_every, tol=s.tol, ftol=s.ftol,
+    )
+    return st, [(k + sweep0, v) for k, v in trace], (acc, ev, stp, drift, nsw)
+
+
+@dataclass
+class _HJStart:
+    """Where :func:`fit`'s Hooke–Jeeves search starts: the scale rule and, after trials of every rule, their work."""
+
+    label: str
+    factor: float
+    X: NDArray[np.float64]
+    sweep0: int
+    remaining: int
+    #: L at the start (None: not computed yet).
+    L_init: float | None
+    #: The chosen trial's ``(sweep, L)`` trace (empty without trials).
+    trace: list[tuple[int, float]] = field(default_factory=list)
+    trials: dict[str, float] = field(default_factory=dict)
+    accepted: int = 0
+    evaluations: int = 0
+    drift: float = 0.0
+
+
+def _hj_start(
+    s: _HJSettings, Y: NDArray[np.float64], init_scale: str | float, trial_sweeps: int, max_sweeps: int
+) -> _HJStart:
+    """The search's start: one rule, or (``init_scale="best"``) the best of :data:`INIT_SCALES` after trial sweeps."""
+    if not (isinstance(init_scale, str) and init_scale == "best"):
+        label, factor = _start_rule(Y, init_scale, s.ell)
+        return _HJStart(label, factor, Y * factor, 0, int(max_sweeps), None)
+    trials: dict[str, float] = {}
+    acc = ev = 0
+    drift = 0.0
+    best: tuple[float, str, float, _State, list[tuple[int, float]]] | None = None
+    n_trial = min(int(trial_sweeps), int(max_sweeps))
+    for rule in INIT_SCALES:
+        factor = _scale_factor(Y, rule, s.ell)
+        st_t, tr_t, (a_t, e_t, _, dr_t, _) = _hj_run(s, Y * factor, n_trial)
+        acc, ev, drift = acc + a_t, ev + e_t, max(drift, dr_t)
+        L_t = tr_t[-1][1]
+        trials[rule] = L_t
+        if best is None or L_t > best[0]:
+            best = (L_t, rule, factor, st_t, tr_t)
+    assert best is not None
+    _, label, factor, st_b, trace = best
+    sweep0 = trace[-1][0]
+    return _HJStart(label, factor, st_b.X, sweep0, int(max_sweeps) - sweep0, trace[0][1], trace, trials, acc, ev,
+                    drift)
+
+
+@dataclass
+class _HJEnd:
+    """The outcome of :func:`fit`'s stages after the start (methods ``hybrid``, ``hooke-jeeves``)."""
+
+    X: NDArray[np.float64]
+    trace: list[tuple[int, float]]
+    stages: list[str]
+    L_init: float
+    #: L when the Hooke–Jeeves stage ended.
+    L_hj: float
+    #: L-BFGS iterations.
+    nit: int
+    #: Accepted moves, evaluations, final step and max drift of the search after the start.
+    accepted: int
+    evaluations: int
+    step: float
+    drift: float
+
+
+def _hooke_jeeves_stage(s: _HJSettings, start: _HJStart) -> _HJEnd:
+    """Method ``hooke-jeeves``: the search continues from the start for the sweeps left."""
+    st, tr2, (a2, e2, stp, dr2, _) = _hj_run(s, start.X, max(start.remaining, 0), start.sweep0)
+    trace = start.trace + (tr2[1:] if start.trace else tr2)
+    L_init = trace[0][1] if start.L_init is None else start.L_init
+    stages = ["hooke-jeeves"] * len(trace)
+    return _HJEnd(st.X, trace, stages, L_init, trace[-1][1], 0, a2, e2, stp, dr2)
+
+
+def _hybrid_stages(
+    s: _HJSettings, start: _HJStart, Y: NDArray[np.float64], *, max_iter: int, ftol: float, gtol: float
+) -> _HJEnd:
+    """Method ``hybrid``: L-BFGS from the chosen start, Hooke–Jeeves from its optimum, L-BFGS again if that moved.
+
+    (The search's finite steps can leave a stationary point.)
+    """
+    g, d_f, ell, mu = s.gram, s.d, s.ell, s.mu
+    X_start = Y * start.factor
+    L_init = log_likelihood(X_start, g, d_f, ell, mu)
+    X1, hist1, nit = _lbfgs_polish(X_start, g, d_f, ell, mu, max_iter=max_iter, ftol=ftol, gtol=gtol)
+    trace = [(0, L_init)] + [(k + 1, v) for k, v in enumerate(hist1)]
+    stages = ["start"] + ["lbfgs"] * len(hist1)
+    st, tr2, (a2, e2, stp, dr2, _) = _hj_run(s, X1, max(start.remaining, 0), len(trace) - 1)
+    trace[-1] = (trace[-1][0], tr2[0][1])
+    trace += tr2[1:]
+    stages += ["hooke-jeeves"] * (len(tr2) - 1)
+    X_fin, L_hj = st.X, trace[-1][1]
+    if a2 > 0:
+        X_fin, hist3, nit3 = _lbfgs_polish(st.X, g, d_f, ell, mu, max_iter=max_iter, ftol=ftol, gtol=gtol)
+        last = trace[-1][0]
+        trace += [(last + k + 1, v) for k, v in enumerate(hist3)]
+        stages += ["lbfgs"] * len(hist3)
+        nit += nit3
+    trace[-1] = (trace[-1][0], log_likelihood(X_fin, g, d_f, ell, mu))
+    return _HJEnd(X_fin, trace, stages, L_init, L_hj, nit, a2, e2, stp, dr2)
+
+
+def _hj_result(s: _HJSettings, start: _HJStart, end: _HJEnd, method: str) -> FitResult:
+    """The :class:`FitResult` of a ``hybrid`` / ``hooke-jeeves`` fit (``seconds`` left at 0)."""
+    res = FitResult(
+        end.X, end.trace[-1][1], end.trace, s.ell, s.mu, s.d, start.label, start.factor, end.L_init,
+        sum(st_ == "hooke-jeeves" for st_ in end.stages), start.accepted + end.accepted,
+        start.evaluations + end.evaluations, end.step, max(start.drift, end.drift), 0.0,
+    )
+    res.scale_trials = start.trials
+    res.method, res.stages, res.hj_log_likelihood, res.polish_iterations = method, end.stages, end.L_hj, end.nit
+    return res
+
+
+def _fit_hooke_jeeves(
+    s: _HJSettings, Y: NDArray[np.float64], method: str, *, init_scale: str | float, trial_sweeps: int,
+    max_sweeps: int, polish_iterations: int, polish_ftol: float, polish_gtol: float,
+) -> FitResult:
+    """:func:`fit` with ``method="hybrid"`` or ``"hooke-jeeves"``: the start, the stages, the result."""
+    start = _hj_start(s, Y, init_scale, trial_sweeps, max_sweeps)
+    if method == "hooke-jeeves":
+        end = _hooke_jeeves_stage(s, start)
+    else:
+        end = _hybrid_stages(s, start, Y, max_iter=polish_iterations, ftol=polish_ftol, gtol=polish_gtol)
+    return _hj_result(s, start, end, method)
+
+
+def _check_fit_options(
+    *, method: str, max_sweeps: int, refactor_every: int, step: float | None, min_step: float | None, ell: float,
+    trial_iterations: int, restart_every: int, max_restarts: int, newton_iterations: int, max_escapes: int,
+    hessian_shift: float, newton_gtol: float,
+) -> tuple[float, float]:
+    """Check :func:`fit`'s options (ValueError naming the first bad one); returns the search's step and min_step."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
+    if isinstance(max_sweeps, bool) or int(max_sweeps) < 0:
+        raise ValueError(f"max_sweeps must be >= 0, got {max_sweeps!r}")
+    if int(refactor_every) < 1:
+        raise ValueError(f"refactor_every must be >= 1, got {refactor_every!r}")
+    step0 = ell / 4.0 if step is None else float(step)
+    min_step_f = ell * 1e-3 if min_step is None else float(min_step)
+    if not step0 > 0 or not min_step_f > 0:
+        raise ValueError("step and min_step must be > 0")
+    for name, value, low in (("trial_iterations", trial_iterations, 0), ("restart_every", restart_every, 1),
+                             ("max_restarts", max_restarts, 0), ("newton_iterations", newton_iterations, 0),
+                             ("max_escapes", max_escapes, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) < low:
+            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    for name, fvalue in (("hessian_shift", hessian_shift), ("newton_gtol", newton_gtol)):
+        if not np.isfinite(float(fvalue)) or not float(fvalue) > 0:
+            raise ValueError(f"{name} must be a finite number > 0, got {fvalue!r}")
+    return step0, min_step_f
 
 
 def fit(
@@ -1604,24 +1842,12 @@ def fit(
     q = _check_q(q)
     ell, mu = _check_hyper(ell, mu)
     g, d_f = _check_gram(gram, d)
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
-    if isinstance(max_sweeps, bool) or int(max_sweeps) < 0:
-        raise ValueError(f"max_sweeps must be >= 0, got {max_sweeps!r}")
-    if int(refactor_every) < 1:
-        raise ValueError(f"refactor_every must be >= 1, got {refactor_every!r}")
-    step0 = ell / 4.0 if step is None else float(step)
-    min_step_f = ell * 1e-3 if min_step is None else float(min_step)
-    if not step0 > 0 or not min_step_f > 0:
-        raise ValueError("step and min_step must be > 0")
-    for name, value, low in (("trial_iterations", trial_iterations, 0), ("restart_every", restart_every, 1),
-                             ("max_restarts", max_restarts, 0), ("newton_iterations", newton_iterations, 0),
-                             ("max_escapes", max_escapes, 0)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) < low:
-            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    for name, fvalue in (("hessian_shift", hessian_shift), ("newton_gtol", newton_gtol)):
-        if not np.isfinite(float(fvalue)) or not float(fvalue) > 0:
-            raise ValueError(f"{name} must be a finite number > 0, got {fvalue!r}")
+    step0, min_step_f = _check_fit_options(
+        method=method, max_sweeps=max_sweeps, refactor_every=refactor_every, step=step, min_step=min_step, ell=ell,
+        trial_iterations=trial_iterations, restart_every=restart_every, max_restarts=max_restarts,
+        newton_iterations=newton_iterations, max_escapes=max_escapes, hessian_shift=hessian_shift,
+        newton_gtol=newton_gtol,
+    )
     t0 = time.perf_counter()
     Y = pca_init(g, q)
     if method == "newton":
@@ -1640,85 +1866,17 @@ def fit(
         )
         return res
 
-    def run(X0: NDArray[np.float64], sweeps: int, sweep0: int = 0) -> tuple[_State, list[tuple[int, float]], tuple[int, int, float, float, int]]:
-        st = _full_state(X0, g, ell, mu)
-        rng = np.random.default_rng([seed, sweep0])
-        trace, acc, ev, stp, drift, nsw = _hooke_jeeves(
-            st, g, d_f, ell, mu, rng=rng, max_sweeps=sweeps, step=step0, min_step=min_step_f,
-            refactor_every=int(refactor_every), tol=tol, ftol=ftol,
-        )
-        return st, [(s + sweep0, v) for s, v in trace], (acc, ev, stp, drift, nsw)
-
-    trials: dict[str, float] = {}
-    trace: list[tuple[int, float]] = []
-    acc = ev = 0
-    drift = 0.0
-    if isinstance(init_scale, str) and init_scale == "best":
-        best: tuple[float, str, float, _State, list[tuple[int, float]]] | None = None
-        n_trial = min(int(trial_sweeps), int(max_sweeps))
-        for rule in INIT_SCALES:
-            factor = _scale_factor(Y, rule, ell)
-            st_t, tr_t, (a_t, e_t, _, dr_t, _) = run(Y * factor, n_trial)
-            acc, ev, drift = acc + a_t, ev + e_t, max(drift, dr_t)
-            L_t = tr_t[-1][1]
-            trials[rule] = L_t
-            if best is None or L_t > best[0]:
-                best = (L_t, rule, factor, st_t, tr_t)
-        assert best is not None
-        _, label, factor, st_b, trace = best
-        X0, sweep0 = st_b.X, trace[-1][0]
-        L_init = trace[0][1]
-        remaining = int(max_sweeps) - sweep0
-    else:
-        if isinstance(init_scale, str):
-            label, factor = init_scale, _scale_factor(Y, init_scale, ell)
-        else:
-            factor = float(init_scale)
-            if not np.isfinite(factor) or factor <= 0:
-                raise ValueError(f"init_scale factor must be > 0, got {init_scale!r}")
-            label = "factor"
-        X0, sweep0, remaining, L_init = Y * factor, 0, int(max_sweeps), None
-    if method == "hooke-jeeves":
-        st, tr2, (a2, e2, stp, dr2, _) = run(X0, max(remaining, 0), sweep0)
-        trace = trace + (tr2[1:] if trace else tr2)
-        if L_init is None:
-            L_init = trace[0][1]
-        stages = ["hooke-jeeves"] * len(trace)
-        X_fin, L_hj, nit = st.X, trace[-1][1], 0
-    else:
-        # hybrid: quasi-Newton from the chosen start, then Hooke–Jeeves from its optimum
-        # (finite steps can leave a stationary point), then a polish if the search moved
-        X_start = Y * factor
-        L_init = log_likelihood(X_start, g, d_f, ell, mu)
-        X1, hist1, nit = _lbfgs_polish(X_start, g, d_f, ell, mu, max_iter=polish_iterations,
-                                       ftol=polish_ftol, gtol=polish_gtol)
-        trace = [(0, L_init)] + [(k + 1, v) for k, v in enumerate(hist1)]
-        stages = ["start"] + ["lbfgs"] * len(hist1)
-        st, tr2, (a2, e2, stp, dr2, _) = run(X1, max(remaining, 0), len(trace) - 1)
-        trace[-1] = (trace[-1][0], tr2[0][1])
-        trace += tr2[1:]
-        stages += ["hooke-jeeves"] * (len(tr2) - 1)
-        X_fin, L_hj = st.X, trace[-1][1]
-        if a2 > 0:
-            X_fin, hist3, nit3 = _lbfgs_polish(st.X, g, d_f, ell, mu, max_iter=polish_iterations,
-                                               ftol=polish_ftol, gtol=polish_gtol)
-            last = trace[-1][0]
-            trace += [(last + k + 1, v) for k, v in enumerate(hist3)]
-            stages += ["lbfgs"] * len(hist3)
-            nit += nit3
-        trace[-1] = (trace[-1][0], log_likelihood(X_fin, g, d_f, ell, mu))
-    res = FitResult(
-        X_fin, trace[-1][1], trace, ell, mu, d_f, label, factor, L_init,
-        sum(st_ == "hooke-jeeves" for st_ in stages), acc + a2, ev + e2, stp, max(drift, dr2), 0.0,
+    res = _fit_hooke_jeeves(
+        _HJSettings(g, d_f, ell, mu, seed, step0, min_step_f, int(refactor_every), tol, ftol), Y, method,
+        init_scale=init_scale, trial_sweeps=trial_sweeps, max_sweeps=max_sweeps,
+        polish_iterations=polish_iterations, polish_ftol=polish_ftol, polish_gtol=polish_gtol,
     )
-    res.scale_trials = trials
-    res.method, res.stages, res.hj_log_likelihood, res.polish_iterations = method, stages, L_hj, nit
     res.seconds = time.perf_counter() - t0
     logger.info(
         "GPLVM fit N=%d q=%d (%s): L %.6g -> %.6g after %d Hooke-Jeeves sweeps (%d moves, %d evaluations, "
         "init %s x%.3g) -> %.6g after %d L-BFGS iterations, %.2f s",
-        g.shape[0], q, method, res.initial_log_likelihood, L_hj, res.sweeps, res.accepted_moves,
-        res.evaluations, label, factor, res.log_likelihood, nit, res.seconds,
+        g.shape[0], q, method, res.initial_log_likelihood, res.hj_log_likelihood, res.sweeps, res.accepted_moves,
+        res.evaluations, res.init_scale, res.init_factor, res.log_likelihood, res.polish_iterations, res.seconds,
     )
     return res
 
