@@ -1131,6 +1131,34 @@ def expected_error_literal(
     Z = np.asarray(U_or_Y)
     if Z.ndim != 2 or Z.shape[0] == 0:
         raise ValueError(f"U_or_Y must be a non-empty 2-D array, got shape {Z.shape}")
+    kind = _literal_kind(Z, p, k, kind, mean is not None)
+    mu: F64 | None = None
+    if mean is not None:
+        mu = np.asarray(mean, dtype=np.float64)
+        if mu.shape != (p,):
+            raise ValueError(f"mean must have shape ({p},), got {mu.shape}")
+    idx = _as_selection(S_rows, p)
+    Zc = np.asarray(Z, dtype=np.float64) if kind == "coefficients" else None
+
+    # 1. Q⁺ = (QᵀQ)⁺ Qᵀ.
+    qtq_pinv = _literal_qtq_pinv(Qa, block)
+    # 2. (SQ)⁺_η.
+    Qt = np.asarray(Qa[idx], dtype=np.float64).reshape(idx.size, k)
+    reg_inv = np.linalg.solve(Qt.T @ Qt + eta * np.eye(k), Qt.T)  # (k, n)
+    # 3. coefficients Q⁺ y_i (a p-space product) and (SQ)⁺_η S y_i, per material.
+    diff = _literal_coefficient_gap(Qa, Z, Zc, mu, idx, Qt, qtq_pinv, reg_inv, block)
+    noise_c = reg_inv @ np.ones(idx.size)
+    # 4. p-space error vectors and their norms.
+    recon, noise = _literal_norms(Qa, diff, noise_c, block)
+    if return_terms:
+        return recon, noise
+    return recon + beta * noise
+
+
+def _literal_kind(
+    Z: NDArray[np.generic], p: int, k: int, kind: str, has_mean: bool
+) -> Literal["coefficients", "residuals"]:
+    """How :func:`expected_error_literal` reads ``U_or_Y`` (resolving ``"auto"``), its width checked."""
     if kind == "auto":
         if p == k:
             raise ValueError("U_or_Y is ambiguous when p == k: pass kind='coefficients' or 'residuals'")
@@ -1143,44 +1171,55 @@ def expected_error_literal(
     if kind == "coefficients":
         if Z.shape[1] != k:
             raise ValueError(f"coefficients must have shape (m, {k}), got {Z.shape}")
-        if mean is not None:
+        if has_mean:
             raise ValueError("mean applies to (m, p) rows, not to coefficients")
-    elif kind == "residuals":
+        return "coefficients"
+    if kind == "residuals":
         if Z.shape[1] != p:
             raise ValueError(f"residuals must have shape (m, {p}), got {Z.shape}")
-    else:
-        raise ValueError(f"kind must be 'auto', 'coefficients' or 'residuals', got {kind!r}")
-    mu: F64 | None = None
-    if mean is not None:
-        mu = np.asarray(mean, dtype=np.float64)
-        if mu.shape != (p,):
-            raise ValueError(f"mean must have shape ({p},), got {mu.shape}")
-    idx = _as_selection(S_rows, p)
-    m = Z.shape[0]
-    Zc = np.asarray(Z, dtype=np.float64) if kind == "coefficients" else None
+        return "residuals"
+    raise ValueError(f"kind must be 'auto', 'coefficients' or 'residuals', got {kind!r}")
 
-    def y_block(a: int, b: int) -> F64:
-        """Residuals y_i over rows a:b of Q, as an (m, b − a) array."""
-        if Zc is not None:
-            return Zc @ np.asarray(Qa[a:b], dtype=np.float64).T
-        yb = np.asarray(Z[:, a:b], dtype=np.float64)
-        return yb - mu[a:b] if mu is not None else yb
 
-    # 1. Q⁺ = (QᵀQ)⁺ Qᵀ.
+def _literal_y_block(
+    Qa: NDArray[np.floating], Z: NDArray[np.generic], Zc: F64 | None, mu: F64 | None, a: int, b: int
+) -> F64:
+    """Residuals y_i over rows a:b of Q, as an (m, b − a) array (from coefficients ``Zc`` or rows ``Z``)."""
+    if Zc is not None:
+        return Zc @ np.asarray(Qa[a:b], dtype=np.float64).T
+    yb = np.asarray(Z[:, a:b], dtype=np.float64)
+    return yb - mu[a:b] if mu is not None else yb
+
+
+def _literal_qtq_pinv(Qa: NDArray[np.floating], block: int) -> F64:
+    """Step 1 of :func:`expected_error_literal`: ``(QᵀQ)⁺``, ``QᵀQ`` accumulated ``block`` rows at a time."""
+    p, k = Qa.shape
     qtq = np.zeros((k, k))
     for a in _blocks(p, block):
         Qb = np.asarray(Qa[a : a + block], dtype=np.float64)
         qtq += Qb.T @ Qb
-    qtq_pinv = np.linalg.pinv(qtq, hermitian=True)
-    # 2. (SQ)⁺_η.
-    Qt = np.asarray(Qa[idx], dtype=np.float64).reshape(idx.size, k)
-    reg_inv = np.linalg.solve(Qt.T @ Qt + eta * np.eye(k), Qt.T)  # (k, n)
-    # 3. coefficients Q⁺ y_i (a p-space product) and (SQ)⁺_η S y_i, per material.
+    return np.linalg.pinv(qtq, hermitian=True)
+
+
+def _literal_coefficient_gap(
+    Qa: NDArray[np.floating],
+    Z: NDArray[np.generic],
+    Zc: F64 | None,
+    mu: F64 | None,
+    idx: NDArray[np.intp],
+    Qt: F64,
+    qtq_pinv: F64,
+    reg_inv: F64,
+    block: int,
+) -> F64:
+    """Step 3 of :func:`expected_error_literal`: ``Q⁺ y_i − (SQ)⁺_η S y_i`` for every material, as (k, m)."""
+    p, k = Qa.shape
+    m = Z.shape[0]
     c_full = np.zeros((k, m))
     for a in _blocks(p, block):
         b = min(a + block, p)
         q_pinv_block = qtq_pinv @ np.asarray(Qa[a:b], dtype=np.float64).T  # columns a:b of Q⁺
-        c_full += q_pinv_block @ y_block(a, b).T
+        c_full += q_pinv_block @ _literal_y_block(Qa, Z, Zc, mu, a, b).T
     if Zc is not None:
         s_y = Zc @ Qt.T  # (m, n): y_i at the selected rows
     else:
@@ -1188,10 +1227,13 @@ def expected_error_literal(
         if mu is not None:
             s_y = s_y - mu[idx]
     c_bar = reg_inv @ s_y.T
-    diff = c_full - c_bar
-    noise_c = reg_inv @ np.ones(idx.size)
-    # 4. p-space error vectors and their norms.
-    sq = np.zeros(m)
+    return c_full - c_bar
+
+
+def _literal_norms(Qa: NDArray[np.floating], diff: F64, noise_c: F64, block: int) -> tuple[float, float]:
+    """Step 4 of :func:`expected_error_literal`: ``mean_i ‖Q diff_i‖`` and ``‖Q noise_c‖``, block by block."""
+    p = Qa.shape[0]
+    sq = np.zeros(diff.shape[1])
     noise_sq = 0.0
     for a in _blocks(p, block):
         Qb = np.asarray(Qa[a : a + block], dtype=np.float64)
@@ -1199,10 +1241,7 @@ def expected_error_literal(
         sq += np.einsum("ij,ij->j", r, r)
         v = Qb @ noise_c
         noise_sq += float(v @ v)
-    recon, noise = float(np.mean(np.sqrt(sq))), float(np.sqrt(noise_sq))
-    if return_terms:
-        return recon, noise
-    return recon + beta * noise
+    return float(np.mean(np.sqrt(sq))), float(np.sqrt(noise_sq))
 
 
 def direct_training_error(

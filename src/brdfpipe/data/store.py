@@ -664,6 +664,27 @@ def assemble_store(
     if not row_paths:
         raise StoreError(f"{out}: no row stores to assemble")
     infos = [_open_row(p) for p in row_paths]
+    _check_row_set(infos, database)
+    names = [info.name for info in infos]
+    n = len(infos)
+    logger.info("assembling %d rows into %s", n, out)
+    with atomic_dir(out, replaceable=is_store) as tmp:
+        group = zarr.open_group(tmp, mode="w-", zarr_format=3)
+        _create_brdf_array(group, n)
+        valid_arr = _create_mask_array(group, "valid")
+        digests, missing, missing_count = _place_rows(infos, tmp, link=link, threads=threads)
+        valid = missing_count == 0
+        _warn_removals(infos, missing, missing_count)
+        valid_arr[:] = valid
+        group.attrs.update(_store_attributes(tmp, infos, database, digests))
+        _validate_store(tmp, names=names, sources={i.name: i.sha256 for i in infos}, valid=valid)
+        group.attrs[COMPLETE_ATTR] = _marker(n)  # last
+        _load_store(tmp)
+    logger.info("assembled %s: %d materials, %d valid cells", out, n, int(valid.sum()))
+
+
+def _check_row_set(infos: Sequence[_RowInfo], database: str) -> None:
+    """Refuse duplicate material names, then any row whose source file is not labelled ``database``."""
     seen: dict[str, int] = {}
     for k, info in enumerate(infos):
         if info.name in seen:
@@ -679,76 +700,83 @@ def assemble_store(
                 f"{info.database!r} (its provenance mark), but the store is assembled as the {database!r} database; "
                 "one kind per store: re-plan the run or replace the file"
             )
-    names = [info.name for info in infos]
+
+
+def _place_shard(info: _RowInfo, dst: Path, link: bool) -> bytes:
+    """Link (``link``; else, or across file systems, copy) a row's shard file to ``dst``; its checked bytes."""
+    src = info.path / "brdf" / _shard_key(0)
+    os.mkdir(dst.parent)
+    linked = False
+    if link:
+        try:
+            os.link(src, dst)
+            linked = True
+        except FileNotFoundError:
+            raise StoreError(f"{info.path}: shard file of row {info.name!r} is missing") from None
+        except OSError:
+            pass  # another file system, or no hard links there: copy
+    try:
+        data = _read_file(dst if linked else src)
+    except FileNotFoundError:
+        raise StoreError(f"{info.path}: shard file of row {info.name!r} is missing") from None
+    if len(data) != info.shard_nbytes or google_crc32c.value(data) != info.shard_crc32c:
+        raise StoreError(
+            f"{info.path}: shard of row {info.name!r} does not match the digest recorded at "
+            "ingest (row store damaged); re-run its ingest"
+        )
+    if not linked:
+        _write_file(dst, [data])
+    return data
+
+
+def _place_rows(
+    infos: Sequence[_RowInfo], tmp: Path, *, link: bool, threads: int
+) -> tuple[list[int], list[NDArray[np.uint8]], NDArray[np.unsignedinteger[Any]]]:
+    """Place every row's shard in the store being built at ``tmp`` (on ``threads`` threads).
+
+    Returns the rows' store digests (:func:`shard_digest`), their packed "not
+    measured" masks and, per cell, the number of rows that do not measure it.
+    """
     n = len(infos)
-    logger.info("assembling %d rows into %s", n, out)
-    with atomic_dir(out, replaceable=is_store) as tmp:
-        group = zarr.open_group(tmp, mode="w-", zarr_format=3)
-        _create_brdf_array(group, n)
-        valid_arr = _create_mask_array(group, "valid")
-        digests = [0] * n
-        missing = [np.empty(0, dtype=np.uint8)] * n  # packed "not measured" masks, one per row
-        missing_count = np.zeros(N_CELLS, dtype=np.uint16 if n < 65_535 else np.uint32)
-        lock = threading.Lock()
+    digests = [0] * n
+    missing = [np.empty(0, dtype=np.uint8)] * n  # packed "not measured" masks, one per row
+    missing_count = np.zeros(N_CELLS, dtype=np.uint16 if n < 65_535 else np.uint32)
+    lock = threading.Lock()
 
-        def place_row(i: int) -> None:
-            info = infos[i]
-            src = info.path / "brdf" / _shard_key(0)
-            dst = tmp / "brdf" / _shard_key(i)
-            os.mkdir(dst.parent)
-            linked = False
-            if link:
-                try:
-                    os.link(src, dst)
-                    linked = True
-                except FileNotFoundError:
-                    raise StoreError(f"{info.path}: shard file of row {info.name!r} is missing") from None
-                except OSError:
-                    pass  # another file system, or no hard links there: copy
-            try:
-                data = _read_file(dst if linked else src)
-            except FileNotFoundError:
-                raise StoreError(f"{info.path}: shard file of row {info.name!r} is missing") from None
-            if len(data) != info.shard_nbytes or google_crc32c.value(data) != info.shard_crc32c:
-                raise StoreError(
-                    f"{info.path}: shard of row {info.name!r} does not match the digest recorded at "
-                    "ingest (row store damaged); re-run its ingest"
-                )
-            if not linked:
-                _write_file(dst, [data])
-            digests[i] = shard_digest(info.name, data)
-            miss = ~_read_measured(info)
-            missing[i] = np.packbits(miss)
-            with lock:
-                missing_count[miss] += 1
+    def place_row(i: int) -> None:
+        info = infos[i]
+        data = _place_shard(info, tmp / "brdf" / _shard_key(i), link)
+        digests[i] = shard_digest(info.name, data)
+        miss = ~_read_measured(info)
+        missing[i] = np.packbits(miss)
+        with lock:
+            missing_count[miss] += 1
 
-        os.makedirs(tmp / "brdf" / "c")
-        _run_threads(place_row, range(n), threads)
-        valid = missing_count == 0
-        _warn_removals(infos, missing, missing_count)
-        valid_arr[:] = valid
-        attrs: dict[str, Any] = {
-            "format": STORE_FORMAT,
-            "materials": names,
-            "database": database,
-            "sources": {info.name: info.sha256 for info in infos},
-            "source_files": {info.name: info.source_file for info in infos},
-            "channel_scales": [float(s) for s in SCALES],
-            "layout": LAYOUT,
-            "brdfpipe_version": full_version(),
-        }
-        attrs["digests"] = {
-            "algorithm": DIGEST_ALGORITHM,
-            "shards": digests,
-            "shard_nbytes": [info.shard_nbytes for info in infos],
-            "valid": google_crc32c.value(_read_file(tmp / "valid" / "c" / "0")),
-            "attributes": attributes_digest(attrs),
-        }
-        group.attrs.update(attrs)
-        _validate_store(tmp, names=names, sources={i.name: i.sha256 for i in infos}, valid=valid)
-        group.attrs[COMPLETE_ATTR] = _marker(n)  # last
-        _load_store(tmp)
-    logger.info("assembled %s: %d materials, %d valid cells", out, n, int(valid.sum()))
+    os.makedirs(tmp / "brdf" / "c")
+    _run_threads(place_row, range(n), threads)
+    return digests, missing, missing_count
+
+
+def _store_attributes(tmp: Path, infos: Sequence[_RowInfo], database: str, digests: list[int]) -> dict[str, Any]:
+    """The finished store's attributes, its digests included (the ``valid`` chunk read back from ``tmp``)."""
+    attrs: dict[str, Any] = {
+        "format": STORE_FORMAT,
+        "materials": [info.name for info in infos],
+        "database": database,
+        "sources": {info.name: info.sha256 for info in infos},
+        "source_files": {info.name: info.source_file for info in infos},
+        "channel_scales": [float(s) for s in SCALES],
+        "layout": LAYOUT,
+        "brdfpipe_version": full_version(),
+    }
+    attrs["digests"] = {
+        "algorithm": DIGEST_ALGORITHM,
+        "shards": digests,
+        "shard_nbytes": [info.shard_nbytes for info in infos],
+        "valid": google_crc32c.value(_read_file(tmp / "valid" / "c" / "0")),
+        "attributes": attributes_digest(attrs),
+    }
+    return attrs
 
 
 def _warn_removals(

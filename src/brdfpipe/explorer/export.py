@@ -81,6 +81,7 @@ import math
 import os
 import shutil
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -492,6 +493,33 @@ def write_explorer(
     if int(upsample) < 1 or int(max_rank) < 1:
         raise ExplorerError(f"upsample and max_rank must be >= 1, got {upsample}, {max_rank}")
     atomic.check_replaceable(out, replaceable=_is_explorer)
+    loaded, names, qs = _load_models(models)
+    _check_prerenders(prerenders, names)
+    albedos = _read_albedos(Path(albedo), names)
+    images = _read_images([Path(prerenders[n]) for n in names], names, int(upsample))
+    n, hh, ww, _ = images.shape
+    half = _to_half(images, names, "pre-render of")
+    summary_path = None if summary is None else Path(summary)
+    points, refs = _path_points(path_points, names, summary_path, images.shape[1:], int(upsample))
+    for pt in points:
+        if pt["q"] not in qs:
+            raise ExplorerError(f"path {pt['path']}: its weights come from a q = {pt['q']} model, not exported")
+    red = _reduced_mode(images, loaded, summary_path, blend_samples=int(blend_samples), seed=seed,
+                        max_rank=int(max_rank))
+    tiles_exact = blend_tiles(half)
+    manifest = _manifest(loaded, qs, names, images.shape, red, points, tiles_exact, database=database,
+                         upsample=int(upsample), max_rank=int(max_rank))
+    files = _data_files(manifest, loaded, albedos, points, refs, half, tiles_exact, red)
+    _write_folder(out, files, manifest)
+    logger.info("explorer: %d materials, %d x %d, models q = %s, basis k = %d (errors %.3g / %.3g, target %.3g) -> %s",
+                n, ww, hh, qs, red.k, red.err_pre.max(), red.err_blend.max(), red.target, out)
+    return manifest
+
+
+def _load_models(
+    models: Sequence[str | os.PathLike[str]],
+) -> tuple[list[tuple[Path, gplvm.GplvmModel]], list[str], list[int]]:
+    """Read the GPLVM model files: ``(path, model)`` pairs, their common materials and their latent dimensions."""
     loaded = []
     for p in models:
         try:
@@ -506,45 +534,71 @@ def write_explorer(
     qs = [int(m.X.shape[1]) for _, m in loaded]
     if len(set(qs)) != len(qs):
         raise ExplorerError(f"two models with the same latent dimension: q = {qs}")
+    return loaded, names, qs
+
+
+def _check_prerenders(prerenders: Mapping[str, str | os.PathLike[str]], names: Sequence[str]) -> None:
+    """Refuse pre-renders that are not exactly one per model material."""
     extra, lacking = sorted(set(prerenders) - set(names)), [n for n in names if n not in prerenders]
     if extra or lacking:
         raise ExplorerError("pre-renders and model materials differ"
                             + (f"; no pre-render for {', '.join(lacking[:5])}" if lacking else "")
                             + (f"; not in the model: {', '.join(extra[:5])}" if extra else ""))
-    albedos = _read_albedos(Path(albedo), names)
-    images = _read_images([Path(prerenders[n]) for n in names], names, int(upsample))
-    n, hh, ww, _ = images.shape
-    half = _to_half(images, names, "pre-render of")
-    summary_path = None if summary is None else Path(summary)
-    points, refs = _path_points(path_points, names, summary_path, images.shape[1:], int(upsample))
-    for pt in points:
-        if pt["q"] not in qs:
-            raise ExplorerError(f"path {pt['path']}: its weights come from a q = {pt['q']} model, not exported")
 
-    # the reduced basis: rank chosen on blends at uniform hull points of every model
+
+@dataclass(frozen=True)
+class _Reduced:
+    """The reduced mode: its basis (half-rounded) and coefficients, rank, target and measured errors."""
+
+    k: int
+    target: float
+    floor: float | None
+    floor_source: str
+    basis_half: NDArray[np.float16]  # (k + 1, H, W, 3): the mean, then the components
+    coef: NDArray[np.float64]  # (N, k + 1): Cᵀw = coefficients of [mean, B_1..B_k]
+    tiles: NDArray[np.uint32]
+    err_pre: NDArray[np.float64]
+    err_blend: NDArray[np.float64]
+    n_blends: int
+
+
+def _reduced_mode(
+    images: NDArray[np.float32], loaded: Sequence[tuple[Path, gplvm.GplvmModel]], summary: Path | None, *,
+    blend_samples: int, seed: int, max_rank: int,
+) -> _Reduced:
+    """The reduced basis: rank chosen on blends at uniform hull points of every model, errors measured at that rank."""
+    n, hh, ww, _ = images.shape
     mean, basis, cu = reduced_basis(images)
     rng = np.random.default_rng(seed)
     W = [np.eye(n)]
     for _, m in loaded:
-        pts = latent.sample_in_hull(m.X, int(blend_samples), rng)
+        pts = latent.sample_in_hull(m.X, blend_samples, rng)
         W.append(np.array([gplvm.blend_weights(gplvm.weights(m, x)) for x in pts]).reshape(-1, n))
     Wall = np.concatenate(W)
-    floor, floor_source = noise_floor(summary_path)
+    floor, floor_source = noise_floor(summary)
     target = FALLBACK_TARGET if floor is None else floor
-    k = _choose_rank(images, Wall, basis, cu, target, int(max_rank))
+    k = _choose_rank(images, Wall, basis, cu, target, max_rank)
     basis_half = _to_half(np.concatenate([mean[None], basis[:k]]).reshape(k + 1, hh, ww, 3),
                           ["mean", *(f"component {j + 1}" for j in range(k))], "basis image")
     bh = basis_half.reshape(k + 1, -1).astype(np.float64)
     err_pre = truncation_errors(images, np.eye(n), bh[0], bh[1:], cu, k)
     err_blend = truncation_errors(images, Wall[n:], bh[0], bh[1:], cu, k) if Wall.shape[0] > n else np.zeros(1)
     coef = np.concatenate([np.ones((n, 1)), cu[:, :k]], axis=1)  # Cᵀw = coefficients of [mean, B_1..B_k]
-    tiles_exact = blend_tiles(half)
-    tiles_basis = blend_tiles(basis_half, zero_after_first=True)
-    n_tiles = (-(-hh // TILE)) * (-(-ww // TILE))
+    return _Reduced(k=k, target=target, floor=floor, floor_source=floor_source, basis_half=basis_half, coef=coef,
+                    tiles=blend_tiles(basis_half, zero_after_first=True), err_pre=err_pre, err_blend=err_blend,
+                    n_blends=int(Wall.shape[0] - n))
 
+
+def _manifest(
+    loaded: Sequence[tuple[Path, gplvm.GplvmModel]], qs: Sequence[int], names: list[str], shape: tuple[int, ...],
+    red: _Reduced, points: Sequence[Mapping[str, Any]], tiles_exact: NDArray[np.uint32], *,
+    database: str, upsample: int, max_rank: int,
+) -> dict[str, Any]:
+    """The explorer's manifest (without the data files' sizes, which :func:`_data_files` adds)."""
+    n, hh, ww, _ = shape
     default_q = 2 if 2 in qs else min(qs)
     m0 = loaded[0][1]
-    manifest: dict[str, Any] = {
+    return {
         "format": FORMAT,
         "brdfpipe_version": full_version(),
         "database": database,
@@ -556,30 +610,39 @@ def write_explorer(
         "n": n,
         "width": ww,
         "height": hh,
-        "upsample": int(upsample),
+        "upsample": upsample,
         "models": [{"q": q, "file": p.name} for q, (p, _) in zip(qs, loaded)],
         "default_q": default_q,
         "basis": {
-            "k": k,
-            "max_rank": int(max_rank),
-            "target": target,
-            "floor": floor,
-            "floor_source": floor_source,
-            "error_prerenders_max": float(err_pre.max()),
-            "error_blends_max": float(err_blend.max()),
-            "error_blends_median": float(np.median(err_blend)),
-            "blend_samples": int(Wall.shape[0] - n),
-            "below_floor": bool(max(err_pre.max(), err_blend.max()) <= target),
+            "k": red.k,
+            "max_rank": max_rank,
+            "target": red.target,
+            "floor": red.floor,
+            "floor_source": red.floor_source,
+            "error_prerenders_max": float(red.err_pre.max()),
+            "error_blends_max": float(red.err_blend.max()),
+            "error_blends_median": float(np.median(red.err_blend)),
+            "blend_samples": red.n_blends,
+            "below_floor": bool(max(red.err_pre.max(), red.err_blend.max()) <= red.target),
             "metric": "RMSE over pixels and channels / mean of the exact blend (brdfpipe.rendering.blend.relative_rmse)",
         },
         "paths": [{key: v for key, v in pt.items() if key != "weights"} for pt in points],
         "tiles": {
             "size": TILE,
-            "total": n_tiles,
+            "total": (-(-hh // TILE)) * (-(-ww // TILE)),
             "exact_blended": int(tiles_exact.size),
-            "reduced_blended": int(tiles_basis.size),
+            "reduced_blended": int(red.tiles.size),
         },
     }
+
+
+def _data_files(
+    manifest: dict[str, Any], loaded: Sequence[tuple[Path, gplvm.GplvmModel]], albedos: NDArray[np.float64],
+    points: Sequence[Mapping[str, Any]], refs: Sequence[NDArray[np.float32]], half: NDArray[np.float16],
+    tiles_exact: NDArray[np.uint32], red: _Reduced,
+) -> dict[str, str]:
+    """The ``data/*.js`` scripts by name; records their sizes and the folder's total in ``manifest`` (and model.js)."""
+    n, k = len(half), red.k
     model_doc = {
         "manifest": manifest,
         "models": [_model_doc(m, p) for p, m in loaded],
@@ -592,14 +655,19 @@ def write_explorer(
         "data/layers.js": _script("layers", {"n": n, "layers": 3 * (-(-n // PER_TEXEL)), "data": _b64(pack_halves(half)),
                                               "tile": TILE, "tiles": _b64(tiles_exact.astype("<u4"))}),
         "data/basis.js": _script("basis", {"n": k + 1, "layers": 3 * (-(-(k + 1) // PER_TEXEL)),
-                                            "data": _b64(pack_halves(basis_half)),
-                                            "coef": _b64(coef.astype("<f8")),
-                                            "tile": TILE, "tiles": _b64(tiles_basis.astype("<u4"))}),
+                                            "data": _b64(pack_halves(red.basis_half)),
+                                            "coef": _b64(red.coef.astype("<f8")),
+                                            "tile": TILE, "tiles": _b64(red.tiles.astype("<u4"))}),
         "data/refs.js": _script("refs", {"n": len(refs), "data": "" if ref_half is None else _b64(ref_half.view("<u2"))}),
     }
     manifest["files"] = {name: len(text) for name, text in sorted(files.items())}
     manifest["bytes_total"] = sum(manifest["files"].values()) + sum((STATIC_DIR / a).stat().st_size for a in ASSETS)
     files["data/model.js"] = _script("model", model_doc)  # with the sizes (model.js's own: before this line)
+    return files
+
+
+def _write_folder(out: Path, files: Mapping[str, str], manifest: Mapping[str, Any]) -> None:
+    """Write the explorer folder atomically: the static assets, the data files, then the manifest."""
     with atomic.atomic_dir(out, replaceable=_is_explorer) as tmp:
         (tmp / "data").mkdir()
         for asset in ASSETS:
@@ -607,6 +675,3 @@ def write_explorer(
         for name, text in files.items():
             (tmp / name).write_text(text, encoding="ascii")
         (tmp / "manifest.json").write_text(integrity.dumps_json(manifest, indent=1, sort_keys=True), encoding="utf-8")
-    logger.info("explorer: %d materials, %d x %d, models q = %s, basis k = %d (errors %.3g / %.3g, target %.3g) -> %s",
-                n, ww, hh, qs, k, err_pre.max(), err_blend.max(), target, out)
-    return manifest
