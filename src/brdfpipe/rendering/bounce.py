@@ -116,17 +116,153 @@ def _mis_weight(dr: Any, pdf_a: Any, pdf_b: Any) -> Any:
     return dr.detach(dr.select(dr.isfinite(w), w, 0.0))
 
 
+def _settings(props: Any) -> tuple[int, int, bool, str]:
+    """``max_depth``, ``rr_depth``, ``hide_emitters``, ``material_id`` of the integrator's properties.
+
+    ``max_depth`` −1 (unbounded) comes back as ``0xFFFFFFFF``, as path.cpp
+    (an unsigned comparison); RenderError for a depth out of range.
+    """
+    from brdfpipe.rendering.render import RenderError
+
+    max_depth = int(props.get("max_depth", -1))
+    if max_depth < 0 and max_depth != -1:
+        raise RenderError(f"bouncesplit: max_depth must be >= 0 or -1, got {max_depth}")
+    rr_depth = int(props.get("rr_depth", 5))
+    if rr_depth <= 0:
+        raise RenderError(f"bouncesplit: rr_depth must be > 0, got {rr_depth}")
+    return (0xFFFFFFFF if max_depth == -1 else max_depth, rr_depth,
+            bool(props.get("hide_emitters", False)), str(props.get("material_id", MATERIAL_ID)))
+
+
+def _find_material(scene: Any, material_id: str) -> Any:
+    """The BSDF with id ``material_id`` of a shape of ``scene`` (RenderError naming the id if none has it)."""
+    from brdfpipe.rendering.render import RenderError
+
+    ids = set()
+    for shape in scene.shapes():
+        bsdf = shape.bsdf()
+        if bsdf is None:
+            continue
+        if bsdf.id() == material_id:
+            return bsdf
+        ids.add(bsdf.id())
+    raise RenderError(
+        f"bouncesplit: no shape of the scene has a bsdf with id {material_id!r} "
+        f"(bsdf ids: {', '.join(sorted(ids)) or 'none'})"
+    )
+
+
+def _sample_split(self: Any, scene: Any, sampler: Any, ray: Any, medium: Any = None,
+                  active: Any = True) -> tuple[Any, Any, list[Any]]:
+    """``BounceSplitIntegrator.sample``: one path per ray, its total and its I¹⁻ part (module docstring).
+
+    Not called as it is: :func:`_bounce_class` makes it the method through
+    ``drjit.syntax``, which rewrites the ``while`` loop into a symbolic loop.
+    """
+    # dr.syntax recompiles this function from its source in this module's globals: import here
+    import drjit as dr
+    import mitsuba as mi
+
+    material = mi.BSDFPtr(self._material(scene))
+    bsdf_ctx = mi.BSDFContext()
+
+    ray = mi.Ray3f(ray)
+    depth = mi.UInt32(0)
+    n_mat = mi.UInt32(0)  # scatterings on the material so far
+    result = mi.Spectrum(0.0)
+    one = mi.Spectrum(0.0)  # contributions with ≤ 1 scattering on the material
+    throughput = mi.Spectrum(1.0)
+    eta = mi.Float(1.0)
+    active = mi.Bool(active)
+    valid_ray = mi.Bool((not self.hide_emitters) and scene.environment() is not None)
+
+    obj = mi.Float(0.0)  # first hit on the material (object mask)
+    prev_si = dr.zeros(mi.Interaction3f)
+    prev_bsdf_pdf = mi.Float(1.0)
+    prev_bsdf_delta = mi.Bool(True)
+
+    while dr.hint(active, label="bouncesplit"):
+        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0),
+                                 active=active)
+
+        # ---------------------- Direct emission ----------------------
+        hit_em = active
+        if dr.hint(self.hide_emitters, mode="scalar"):
+            hit_em &= ~((depth == 0) & ~si.is_valid())
+        ds = mi.DirectionSample3f(scene, si, prev_si)
+        em_pdf = scene.pdf_emitter_direction(prev_si, ds, hit_em & ~prev_bsdf_delta)
+        em_pdf = dr.select(prev_bsdf_delta, 0.0, em_pdf)
+        mis_bsdf = _mis_weight(dr, prev_bsdf_pdf, em_pdf)
+        emitter = si.emitter(scene, hit_em)
+        le = throughput * emitter.eval(si, hit_em & (prev_bsdf_pdf > 0.0)) * mis_bsdf
+        le = dr.select(hit_em, le, 0.0)
+        result += le
+        one += dr.select(n_mat <= 1, le, 0.0)
+
+        active_next = active & (depth + 1 < self.max_depth) & si.is_valid()
+
+        bsdf = si.bsdf(ray)
+        hit_mat = active & si.is_valid() & (bsdf == material)
+        obj = dr.select((depth == 0) & hit_mat, 1.0, obj)
+        on_mat = active_next & hit_mat
+        n_here = n_mat + dr.select(on_mat, 1, 0)
+
+        # ---------------------- Emitter sampling ----------------------
+        active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+        ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(), True, active_em)
+        active_em &= ds.pdf != 0.0
+        wo = si.to_local(ds.d)
+
+        # ------------------ BSDF evaluation and sampling ------------------
+        sample_1 = sampler.next_1d()
+        sample_2 = sampler.next_2d()
+        bsdf_val, bsdf_pdf, bsdf_sample, bsdf_weight = bsdf.eval_pdf_sample(
+            bsdf_ctx, si, wo, sample_1, sample_2, active_next)
+
+        mis_em = dr.select(ds.delta, 1.0, _mis_weight(dr, ds.pdf, bsdf_pdf))
+        lr = dr.select(active_em, throughput * bsdf_val * em_weight * mis_em, 0.0)
+        result += lr
+        one += dr.select(n_here <= 1, lr, 0.0)
+
+        # ---------------------- Update the path ----------------------
+        ray = si.spawn_ray(si.to_world(bsdf_sample.wo))
+        throughput *= bsdf_weight
+        eta *= bsdf_sample.eta
+        valid_ray |= active & si.is_valid() & ~mi.has_flag(bsdf_sample.sampled_type,
+                                                           mi.BSDFFlags.Null)
+        prev_si = mi.Interaction3f(si)
+        prev_bsdf_pdf = bsdf_sample.pdf
+        prev_bsdf_delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
+        n_mat = dr.select(active_next, n_here, n_mat)
+
+        # ---------------------- Stopping criterion ----------------------
+        depth[si.is_valid()] += 1
+        throughput_max = dr.max(mi.unpolarized_spectrum(throughput))
+        rr_prob = dr.minimum(throughput_max * dr.square(eta), 0.95)
+        rr_active = depth >= self.rr_depth
+        rr_continue = sampler.next_1d() < rr_prob
+        throughput[rr_active] *= dr.rcp(dr.detach(rr_prob))
+        active = active_next & (~rr_active | rr_continue) & (throughput_max != 0.0)
+
+    return (dr.select(valid_ray, result, 0.0), valid_ray,
+            [one[0], one[1], one[2], obj])
+
+
 @lru_cache(maxsize=None)
 def _bounce_class(variant: str) -> type:
-    """The ``BounceSplitIntegrator`` class for ``variant`` (which must be the current one)."""
+    """The ``BounceSplitIntegrator`` class for ``variant`` (which must be the current one).
+
+    The class only wires the module's functions into Mitsuba's interface:
+    :func:`_settings` (properties), :func:`_find_material` and
+    :func:`_sample_split` (the path tracer).
+    """
     import drjit as dr
     import mitsuba as mi
 
     from brdfpipe.rendering import render
 
-    RenderError = render.RenderError
     if mi.variant() != variant:
-        raise RenderError(f"variant {variant!r} is not the current Mitsuba variant ({mi.variant()!r})")
+        raise render.RenderError(f"variant {variant!r} is not the current Mitsuba variant ({mi.variant()!r})")
 
     class BounceSplitIntegrator(mi.SamplingIntegrator):
         """Mitsuba integrator ``bouncesplit``: ``path`` plus the I¹⁻ image as AOVs.
@@ -139,126 +275,16 @@ def _bounce_class(variant: str) -> type:
 
         def __init__(self, props: Any) -> None:
             super().__init__(props)
-            max_depth = int(props.get("max_depth", -1))
-            if max_depth < 0 and max_depth != -1:
-                raise RenderError(f"bouncesplit: max_depth must be >= 0 or -1, got {max_depth}")
-            rr_depth = int(props.get("rr_depth", 5))
-            if rr_depth <= 0:
-                raise RenderError(f"bouncesplit: rr_depth must be > 0, got {rr_depth}")
-            # -1 → unbounded, as path.cpp (an unsigned comparison)
-            self.max_depth = 0xFFFFFFFF if max_depth == -1 else max_depth
-            self.rr_depth = rr_depth
-            self.hide_emitters = bool(props.get("hide_emitters", False))
-            self.material_id = str(props.get("material_id", MATERIAL_ID))
+            self.max_depth, self.rr_depth, self.hide_emitters, self.material_id = _settings(props)
 
         def aov_names(self) -> list[str]:
             return list(AOV_NAMES)
 
         def _material(self, scene: Any) -> Any:
             """The edited material's BSDF (RenderError naming the id if no shape uses it)."""
-            ids = set()
-            for shape in scene.shapes():
-                bsdf = shape.bsdf()
-                if bsdf is None:
-                    continue
-                if bsdf.id() == self.material_id:
-                    return bsdf
-                ids.add(bsdf.id())
-            raise RenderError(
-                f"bouncesplit: no shape of the scene has a bsdf with id {self.material_id!r} "
-                f"(bsdf ids: {', '.join(sorted(ids)) or 'none'})"
-            )
+            return _find_material(scene, self.material_id)
 
-        @dr.syntax
-        def sample(self, scene: Any, sampler: Any, ray: Any, medium: Any = None,
-                   active: Any = True) -> tuple[Any, Any, list[Any]]:
-            # dr.syntax recompiles this function without its closure: import here
-            import drjit as dr
-            import mitsuba as mi
-
-            material = mi.BSDFPtr(self._material(scene))
-            bsdf_ctx = mi.BSDFContext()
-
-            ray = mi.Ray3f(ray)
-            depth = mi.UInt32(0)
-            n_mat = mi.UInt32(0)  # scatterings on the material so far
-            result = mi.Spectrum(0.0)
-            one = mi.Spectrum(0.0)  # contributions with ≤ 1 scattering on the material
-            throughput = mi.Spectrum(1.0)
-            eta = mi.Float(1.0)
-            active = mi.Bool(active)
-            valid_ray = mi.Bool((not self.hide_emitters) and scene.environment() is not None)
-
-            obj = mi.Float(0.0)  # first hit on the material (object mask)
-            prev_si = dr.zeros(mi.Interaction3f)
-            prev_bsdf_pdf = mi.Float(1.0)
-            prev_bsdf_delta = mi.Bool(True)
-
-            while dr.hint(active, label="bouncesplit"):
-                si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0),
-                                         active=active)
-
-                # ---------------------- Direct emission ----------------------
-                hit_em = active
-                if dr.hint(self.hide_emitters, mode="scalar"):
-                    hit_em &= ~((depth == 0) & ~si.is_valid())
-                ds = mi.DirectionSample3f(scene, si, prev_si)
-                em_pdf = scene.pdf_emitter_direction(prev_si, ds, hit_em & ~prev_bsdf_delta)
-                em_pdf = dr.select(prev_bsdf_delta, 0.0, em_pdf)
-                mis_bsdf = _mis_weight(dr, prev_bsdf_pdf, em_pdf)
-                emitter = si.emitter(scene, hit_em)
-                le = throughput * emitter.eval(si, hit_em & (prev_bsdf_pdf > 0.0)) * mis_bsdf
-                le = dr.select(hit_em, le, 0.0)
-                result += le
-                one += dr.select(n_mat <= 1, le, 0.0)
-
-                active_next = active & (depth + 1 < self.max_depth) & si.is_valid()
-
-                bsdf = si.bsdf(ray)
-                hit_mat = active & si.is_valid() & (bsdf == material)
-                obj = dr.select((depth == 0) & hit_mat, 1.0, obj)
-                on_mat = active_next & hit_mat
-                n_here = n_mat + dr.select(on_mat, 1, 0)
-
-                # ---------------------- Emitter sampling ----------------------
-                active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-                ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(), True, active_em)
-                active_em &= ds.pdf != 0.0
-                wo = si.to_local(ds.d)
-
-                # ------------------ BSDF evaluation and sampling ------------------
-                sample_1 = sampler.next_1d()
-                sample_2 = sampler.next_2d()
-                bsdf_val, bsdf_pdf, bsdf_sample, bsdf_weight = bsdf.eval_pdf_sample(
-                    bsdf_ctx, si, wo, sample_1, sample_2, active_next)
-
-                mis_em = dr.select(ds.delta, 1.0, _mis_weight(dr, ds.pdf, bsdf_pdf))
-                lr = dr.select(active_em, throughput * bsdf_val * em_weight * mis_em, 0.0)
-                result += lr
-                one += dr.select(n_here <= 1, lr, 0.0)
-
-                # ---------------------- Update the path ----------------------
-                ray = si.spawn_ray(si.to_world(bsdf_sample.wo))
-                throughput *= bsdf_weight
-                eta *= bsdf_sample.eta
-                valid_ray |= active & si.is_valid() & ~mi.has_flag(bsdf_sample.sampled_type,
-                                                                   mi.BSDFFlags.Null)
-                prev_si = mi.Interaction3f(si)
-                prev_bsdf_pdf = bsdf_sample.pdf
-                prev_bsdf_delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
-                n_mat = dr.select(active_next, n_here, n_mat)
-
-                # ---------------------- Stopping criterion ----------------------
-                depth[si.is_valid()] += 1
-                throughput_max = dr.max(mi.unpolarized_spectrum(throughput))
-                rr_prob = dr.minimum(throughput_max * dr.square(eta), 0.95)
-                rr_active = depth >= self.rr_depth
-                rr_continue = sampler.next_1d() < rr_prob
-                throughput[rr_active] *= dr.rcp(dr.detach(rr_prob))
-                active = active_next & (~rr_active | rr_continue) & (throughput_max != 0.0)
-
-            return (dr.select(valid_ray, result, 0.0), valid_ray,
-                    [one[0], one[1], one[2], obj])
+        sample = dr.syntax(_sample_split)
 
         def to_string(self) -> str:
             return (f"BounceSplitIntegrator[max_depth={self.max_depth}, rr_depth={self.rr_depth}, "

@@ -553,6 +553,19 @@ def _device_layout(table: NDArray[np.floating]) -> NDArray[np.float32]:
     return np.ascontiguousarray(np.maximum(flat, 0.0).T, dtype=np.float32).ravel()
 
 
+def _fit_of_device_table(values: Any) -> SamplingFit:
+    """The sampling fit of a device table (the flat cell-major ``Float`` of :func:`_device_layout`).
+
+    RenderError unless it holds 3 · N_CELLS values (a ``table`` parameter set through ``traverse``).
+    """
+    table = np.asarray(values.numpy(), dtype=np.float64)
+    if table.size != 3 * merl.N_CELLS:
+        raise RenderError(
+            f"merl: parameter 'table' must hold {3 * merl.N_CELLS} values, got {table.size}"
+        )
+    return fit_sampling(table.reshape(merl.N_CELLS, 3).T.reshape(merl.SHAPE))
+
+
 _table_cache: OrderedDict[tuple[str, int, int], tuple[NDArray[np.float32], SamplingFit]] = OrderedDict()
 
 
@@ -625,9 +638,105 @@ def _cell_index_jit(mi: Any, dr: Any, wi: Any, wo: Any) -> Any:
     return (ih * merl.N_THETA_D + idd) * merl.N_PHI_D + ip
 
 
+@dataclass(frozen=True)
+class _DeviceMixture:
+    """A :class:`SamplingFit` as the traced code of the plugin reads it (:func:`_device_mixture`).
+
+    ``has_lobe`` and ``two_lobes`` are traced (Python-level) branches:
+    pure-cosine and one-lobe tables skip the unused code.  The weights and αs
+    are opaque ``Float`` (one compiled kernel serves every material of one
+    lobe count); lobe 1 is chosen when ``sample1 < w_cos + w_1``.
+    """
+
+    has_lobe: bool
+    two_lobes: bool
+    w_cos: Any
+    w_1: Any
+    w_2: Any
+    alpha_1: Any
+    alpha_2: Any
+
+
+def _device_mixture(dr: Any, mi: Any, fit: SamplingFit) -> _DeviceMixture:
+    """``fit`` on the device: a missing second lobe gets weight 0, αs are at least 1e-4."""
+    has_lobe = fit.w_cos < 1.0
+    two_lobes = has_lobe and len(fit.alphas) == 2 and fit.weights[1] > 0.0
+    weights = tuple(fit.weights) + (0.0,) * (2 - len(fit.weights))
+    alphas = tuple(fit.alphas) + (fit.alphas[0],) * (2 - len(fit.alphas))
+    return _DeviceMixture(
+        has_lobe=has_lobe,
+        two_lobes=two_lobes,
+        w_cos=dr.opaque(mi.Float, fit.w_cos),
+        w_1=dr.opaque(mi.Float, weights[0]),
+        w_2=dr.opaque(mi.Float, weights[1]),
+        alpha_1=dr.opaque(mi.Float, max(alphas[0], 1e-4)),
+        alpha_2=dr.opaque(mi.Float, max(alphas[1], 1e-4)),
+    )
+
+
+def _mixture_pdf(dr: Any, mi: Any, mix: _DeviceMixture, wi: Any, wo: Any, active: Any) -> Any:
+    """The sampling density ``p(wo)`` of the mixture (module docstring), 0 where not ``active``."""
+    p_cos = mix.w_cos * mi.Frame3f.cos_theta(wo) * dr.inv_pi
+    if not mix.has_lobe:
+        return dr.select(active, p_cos, 0.0)
+    h = dr.normalize(wi + wo)
+    d1 = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, mix.alpha_1, True)
+    p_ggx = mix.w_1 * d1.pdf(wi, h)
+    if mix.two_lobes:
+        d2 = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, mix.alpha_2, True)
+        p_ggx += mix.w_2 * d2.pdf(wi, h)
+    p = dr.fma(p_ggx, dr.rcp(4.0 * dr.dot(wo, h)), p_cos)
+    return dr.select(active, p, 0.0)
+
+
+def _table_value(dr: Any, mi: Any, table: Any, wi: Any, wo: Any, active: Any) -> Any:
+    """``f(wi, wo) · cos θo`` looked up in the device ``table`` (nearest cell), 0 where not ``active``."""
+    idx = _cell_index_jit(mi, dr, wi, wo)
+    f = dr.gather(mi.Color3f, table, idx, active)
+    return dr.select(active, f * mi.Frame3f.cos_theta(wo), 0.0)
+
+
+def _sample_direction(dr: Any, mi: Any, mix: _DeviceMixture, wi: Any, sample1: Any, sample2: Any) -> Any:
+    """A direction ``wo`` from the mixture: ``sample1`` picks the component, ``sample2`` the direction."""
+    wo = mi.warp.square_to_cosine_hemisphere(sample2)
+    if mix.has_lobe:
+        alpha = mix.alpha_1
+        if mix.two_lobes:
+            alpha = dr.select(sample1 < mix.w_cos + mix.w_1, mix.alpha_1, mix.alpha_2)
+        distr = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, alpha, True)
+        m, _ = distr.sample(wi, sample2)
+        wo = dr.select(sample1 < mix.w_cos, wo, mi.reflect(wi, m))
+    return wo
+
+
+def _sample_mixture(dr: Any, mi: Any, mix: _DeviceMixture, table: Any, si: Any, sample1: Any,
+                    sample2: Any, active: Any) -> tuple[Any, Any]:
+    """``MerlBSDF.sample`` (component enabled): the ``BSDFSample3f`` and the weight ``f cos θo / p``."""
+    bs = dr.zeros(mi.BSDFSample3f)
+    active = mi.Bool(active) & (mi.Frame3f.cos_theta(si.wi) > 0.0)
+    wo = _sample_direction(dr, mi, mix, si.wi, sample1, sample2)
+    active &= mi.Frame3f.cos_theta(wo) > 0.0
+    pdf = _mixture_pdf(dr, mi, mix, si.wi, wo, active)
+    active &= pdf > 0.0
+    value = _table_value(dr, mi, table, si.wi, wo, active)
+    bs.wo = wo
+    bs.pdf = dr.select(active, pdf, 0.0)
+    bs.eta = 1.0
+    bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
+    bs.sampled_component = mi.UInt32(0)
+    weight = dr.select(active, value / dr.select(active, pdf, 1.0), 0.0)
+    return bs, weight
+
+
 @lru_cache(maxsize=None)
 def _merl_class(variant: str) -> type:
-    """The ``MerlBSDF`` class for ``variant`` (the variant must be the current one)."""
+    """The ``MerlBSDF`` class for ``variant`` (the variant must be the current one).
+
+    The class only wires the module's functions into Mitsuba's interface:
+    :func:`_device_mixture` (the sampling fit on the device), :func:`_table_value`
+    (the lookup), :func:`_mixture_pdf` and :func:`_sample_mixture` (sampling),
+    :func:`_fit_of_device_table` (a changed ``table`` parameter).
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -654,38 +763,15 @@ def _merl_class(variant: str) -> type:
             self.m_components = [flags]
             self.m_flags = flags
 
-        # -- sampling mixture ------------------------------------------------
         def _set_fit(self, fit: SamplingFit) -> None:
             self.fit = fit
-            # traced (Python-level) branches: pure-cosine and one-lobe tables skip the unused code
-            self.m_has_lobe = fit.w_cos < 1.0
-            self.m_two_lobes = self.m_has_lobe and len(fit.alphas) == 2 and fit.weights[1] > 0.0
-            weights = tuple(fit.weights) + (0.0,) * (2 - len(fit.weights))
-            alphas = tuple(fit.alphas) + (fit.alphas[0],) * (2 - len(fit.alphas))
-            # opaque: one compiled kernel serves every material (of one lobe count)
-            self.m_w_cos = dr.opaque(mi.Float, fit.w_cos)
-            self.m_w_1 = dr.opaque(mi.Float, weights[0])  # lobe 1 is chosen when s1 < w_cos + w_1
-            self.m_w_2 = dr.opaque(mi.Float, weights[1])
-            self.m_alpha_1 = dr.opaque(mi.Float, max(alphas[0], 1e-4))
-            self.m_alpha_2 = dr.opaque(mi.Float, max(alphas[1], 1e-4))
+            self.m_mix = _device_mixture(dr, mi, fit)
 
         def _pdf(self, wi: Any, wo: Any, active: Any) -> Any:
-            p_cos = self.m_w_cos * mi.Frame3f.cos_theta(wo) * dr.inv_pi
-            if not self.m_has_lobe:
-                return dr.select(active, p_cos, 0.0)
-            h = dr.normalize(wi + wo)
-            d1 = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, self.m_alpha_1, True)
-            p_ggx = self.m_w_1 * d1.pdf(wi, h)
-            if self.m_two_lobes:
-                d2 = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, self.m_alpha_2, True)
-                p_ggx += self.m_w_2 * d2.pdf(wi, h)
-            p = dr.fma(p_ggx, dr.rcp(4.0 * dr.dot(wo, h)), p_cos)
-            return dr.select(active, p, 0.0)
+            return _mixture_pdf(dr, mi, self.m_mix, wi, wo, active)
 
         def _value(self, wi: Any, wo: Any, active: Any) -> Any:
-            idx = _cell_index_jit(mi, dr, wi, wo)
-            f = dr.gather(mi.Color3f, self.m_table, idx, active)
-            return dr.select(active, f * mi.Frame3f.cos_theta(wo), 0.0)
+            return _table_value(dr, mi, self.m_table, wi, wo, active)
 
         @staticmethod
         def _front(si: Any, wo: Any, active: Any) -> Any:
@@ -693,29 +779,9 @@ def _merl_class(variant: str) -> type:
 
         # -- BSDF interface ----------------------------------------------------
         def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
-            bs = dr.zeros(mi.BSDFSample3f)
             if not ctx.is_enabled(mi.BSDFFlags.GlossyReflection):
-                return bs, mi.Color3f(0.0)
-            active = mi.Bool(active) & (mi.Frame3f.cos_theta(si.wi) > 0.0)
-            wo = mi.warp.square_to_cosine_hemisphere(sample2)
-            if self.m_has_lobe:
-                alpha = self.m_alpha_1
-                if self.m_two_lobes:
-                    alpha = dr.select(sample1 < self.m_w_cos + self.m_w_1, self.m_alpha_1, self.m_alpha_2)
-                distr = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, alpha, True)
-                m, _ = distr.sample(si.wi, sample2)
-                wo = dr.select(sample1 < self.m_w_cos, wo, mi.reflect(si.wi, m))
-            active &= mi.Frame3f.cos_theta(wo) > 0.0
-            pdf = self._pdf(si.wi, wo, active)
-            active &= pdf > 0.0
-            value = self._value(si.wi, wo, active)
-            bs.wo = wo
-            bs.pdf = dr.select(active, pdf, 0.0)
-            bs.eta = 1.0
-            bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
-            bs.sampled_component = mi.UInt32(0)
-            weight = dr.select(active, value / dr.select(active, pdf, 1.0), 0.0)
-            return bs, weight
+                return dr.zeros(mi.BSDFSample3f), mi.Color3f(0.0)
+            return _sample_mixture(dr, mi, self.m_mix, self.m_table, si, sample1, sample2, active)
 
         def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             if not ctx.is_enabled(mi.BSDFFlags.GlossyReflection):
@@ -738,12 +804,7 @@ def _merl_class(variant: str) -> type:
 
         def parameters_changed(self, keys: Any) -> None:
             if not keys or "table" in keys:
-                table = np.asarray(self.m_table.numpy(), dtype=np.float64)
-                if table.size != 3 * merl.N_CELLS:
-                    raise RenderError(
-                        f"merl: parameter 'table' must hold {3 * merl.N_CELLS} values, got {table.size}"
-                    )
-                self._set_fit(fit_sampling(table.reshape(merl.N_CELLS, 3).T.reshape(merl.SHAPE)))
+                self._set_fit(_fit_of_device_table(self.m_table))
 
         def to_string(self) -> str:
             return f"MerlBSDF[filename={self.filename!r}, sampling: {self.fit.describe()}]"
