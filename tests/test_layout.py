@@ -290,3 +290,32 @@ def test_the_spec_check_catches_a_third_party_import(tmp_path: Path, monkeypatch
     monkeypatch.setattr(sys.modules[__name__], "PACKAGE", tmp_path)
     with pytest.raises(AssertionError, match="numpy"):
         test_spec_modules_import_only_the_standard_library()
+
+
+#: The longest a library function may be (lines from ``def`` to its last line, docstring and nested code included).
+MAX_FUNCTION_LINES = 120
+
+
+def long_functions(sources: dict[str, str], limit: int = MAX_FUNCTION_LINES) -> list[str]:
+    """``module.function (N lines)`` for every function of ``sources`` longer than ``limit`` lines."""
+    found = []
+    for name, source in sources.items():
+        for node in ast.walk(_parse(source)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = (node.end_lineno or node.lineno) - node.lineno + 1
+                if n > limit:
+                    found.append(f"{name}.{node.name} ({n} lines, line {node.lineno})")
+    return found
+
+
+def test_no_library_function_is_over_120_lines() -> None:
+    """Wide functions are cut along their seams (issue 24): none over :data:`MAX_FUNCTION_LINES`."""
+    assert long_functions(module_sources()) == []
+
+
+def test_the_length_check_catches_a_long_function() -> None:
+    sources = module_sources()
+    body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES))
+    sources["brdfpipe.core.atomic"] += f"\n\ndef too_long():\n{body}\n"
+    assert long_functions(sources) == [f"brdfpipe.core.atomic.too_long ({MAX_FUNCTION_LINES + 1} lines, "
+                                       f"line {sources['brdfpipe.core.atomic'].count(chr(10)) - MAX_FUNCTION_LINES})"]
