@@ -104,3 +104,30 @@ def test_every_data_space_has_its_maps() -> None:
     assert list(spaces.MAPS) == list(man_spec.SPACE_NAMES)
     with pytest.raises(ValueError, match="unknown data space 'lab'"):
         spaces.space_maps("lab")
+
+
+def test_each_shared_table_has_one_column_declaration() -> None:
+    """The writers and readers of the tables in brdfpipe.spec.tables use its tuples, not copies."""
+    from brdfpipe.acquisition import figures as acq_figures
+    from brdfpipe.acquisition import reconstruct
+    from brdfpipe.acquisition import unseen as acq_unseen
+    from brdfpipe.manifold import figures as man_figures
+    from brdfpipe.manifold import unseen as man_unseen
+    from brdfpipe.report import claims
+    from brdfpipe.spec import tables
+
+    assert reconstruct.ERROR_COLUMNS is tables.ERRORS and acq_figures.ERRORS_COLUMNS is tables.ERRORS
+    assert reconstruct.TRAINING_SIZE_COLUMNS is tables.TRAINING_SIZE and acq_figures.TRAINING_COLUMNS is tables.TRAINING_SIZE
+    assert acq_unseen.UNSEEN_COLUMNS is tables.UNSEEN_ERRORS and acq_figures.UNSEEN_COLUMNS is tables.UNSEEN_ERRORS
+    assert man_unseen.UNSEEN_COLUMNS is tables.MANIFOLD_UNSEEN and man_figures.UNSEEN_COLUMNS is tables.MANIFOLD_UNSEEN
+    source = inspect.getsource(claims)
+    for literal in ('"n_train", "order_seed"', '"metric", "n", "material"'):
+        assert literal not in source, f"report.claims declares {literal} again"
+
+
+def test_the_directions_format_has_one_tag() -> None:
+    from brdfpipe.acquisition import optimize
+    from brdfpipe.rendering import capture
+
+    assert optimize.DIRECTIONS_FORMAT == acq_spec.DIRECTIONS_FORMAT
+    assert "brdfpipe.directions" not in inspect.getsource(capture)

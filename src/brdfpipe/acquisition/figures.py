@@ -68,6 +68,7 @@ from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.filenames import FIGURE_STEMS
 from brdfpipe.data.databases import title as database_label
 from brdfpipe.spec import acquisition as acquisition_spec
+from brdfpipe.spec import tables
 from brdfpipe.core.plot import (
     COLOURS,
     FigureInputError,
@@ -109,11 +110,9 @@ __all__ = [
 logger = logging.getLogger("brdfpipe.acquisition.figures")
 
 #: Required columns of ``errors.csv`` (extra columns are ignored).
-ERRORS_COLUMNS: tuple[str, ...] = (
-    "database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value",
-)
+ERRORS_COLUMNS: tuple[str, ...] = tables.ERRORS
 #: Required columns of ``training_size.csv``.
-TRAINING_COLUMNS: tuple[str, ...] = ("database", "n_train", "order_seed", "material", "channel", "kind", "value")
+TRAINING_COLUMNS: tuple[str, ...] = tables.TRAINING_SIZE
 
 _FOV_COLOURS = ("#1f77b4", "#2ca02c", "#9467bd", "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22")
 _IMAGE_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
@@ -953,7 +952,7 @@ def plot_closedloop(closedloop_csv: str | os.PathLike[str], files: Sequence[str 
 # ---------------------------------------------------------------------------
 
 #: Required columns of ``unseen.csv`` (those of errors.csv and the model's database).
-UNSEEN_COLUMNS: tuple[str, ...] = ("database", "model_database", *ERRORS_COLUMNS[1:])
+UNSEEN_COLUMNS: tuple[str, ...] = tables.UNSEEN_ERRORS
 _UNSEEN_COLOURS = ("#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
 
 

@@ -129,7 +129,7 @@ F64 = NDArray[np.float64]
 logger = logging.getLogger("brdfpipe.acquisition.optimize")
 
 #: Format tag of the directions JSON file.
-DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
+DIRECTIONS_FORMAT: str = acquisition_spec.DIRECTIONS_FORMAT
 _METRICS = acquisition_spec.METRICS
 _REL_IMPROVE: float = 1e-12
 _CELL_CACHE_MAX: int = 10_000 * 1024  # observed cells cached over all configurations (int32: ≤ ~40 MB at any grid)

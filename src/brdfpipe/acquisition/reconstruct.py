@@ -143,6 +143,7 @@ from brdfpipe.data.logmap import Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
 from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
+from brdfpipe.spec import tables
 
 __all__ = [
     "CHANNELS",
@@ -176,11 +177,11 @@ F64 = NDArray[np.float64]
 #: Channel names of the rows 3·i + c.
 CHANNELS: Final = ("R", "G", "B")
 #: Columns of ``errors.csv``.
-ERROR_COLUMNS: Final = ("database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value")
+ERROR_COLUMNS: Final = tables.ERRORS
 #: Columns of ``consistency.csv``.
 CONSISTENCY_COLUMNS: Final = ("setup", "fov", "metric", "n", "predicted", "direct", "rel_diff")
 #: Columns of ``training_size.csv``.
-TRAINING_SIZE_COLUMNS: Final = ("database", "n_train", "order_seed", "material", "channel", "kind", "value")
+TRAINING_SIZE_COLUMNS: Final = tables.TRAINING_SIZE
 #: Default training-set sizes of the training-size curve (capped at the number of training materials).
 DEFAULT_SIZES: Final = (10, 20, 30, 40, 50, 60, 70, 80, 90)
 #: Largest accepted relative difference between recorded and recomputed E(S).

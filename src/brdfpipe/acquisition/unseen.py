@@ -62,6 +62,7 @@ from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import open_store
+from brdfpipe.spec import tables
 
 __all__ = [
     "UNSEEN_COLUMNS",
@@ -77,7 +78,7 @@ logger = logging.getLogger("brdfpipe.acquisition.unseen")
 F64 = NDArray[np.float64]
 
 #: Columns of ``unseen.csv``: those of ``errors.csv`` with ``model_database`` after ``database``.
-UNSEEN_COLUMNS: Final = (ERROR_COLUMNS[0], "model_database", *ERROR_COLUMNS[1:])
+UNSEEN_COLUMNS: Final = tables.UNSEEN_ERRORS
 #: Format of the capture's many-material observation file (written by brdfpipe.rendering.capture, which
 #: this layer may not import: the value is the same string there).
 MANY_FORMAT: Final = "brdfpipe.capture.observations-many/1"

@@ -32,6 +32,7 @@ from matplotlib.ticker import MaxNLocator
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.data.databases import title as database_label
+from brdfpipe.spec import tables
 from brdfpipe.core.plot import (
     COLOURS,
     RC_PARAMS,
@@ -1432,8 +1433,7 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
 # ---------------------------------------------------------------------------
 
 #: Columns of the manifold's ``unseen.csv`` (:mod:`brdfpipe.manifold.unseen`).
-UNSEEN_COLUMNS: tuple[str, ...] = ("database", "model_database", "space", "material", "method", "k",
-                                   "relative_error", "log_likelihood", "nearest", "latent")
+UNSEEN_COLUMNS: tuple[str, ...] = tables.MANIFOLD_UNSEEN
 _UNSEEN_COLOURS = ("#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
 
 

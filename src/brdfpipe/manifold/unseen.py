@@ -68,6 +68,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data.store import open_store
 from brdfpipe.manifold import gplvm
+from brdfpipe.spec import tables
 
 __all__ = [
     "UNSEEN_COLUMNS",
@@ -86,8 +87,7 @@ logger = logging.getLogger("brdfpipe.manifold.unseen")
 F64 = NDArray[np.float64]
 
 #: Columns of the manifold's ``unseen.csv``.
-UNSEEN_COLUMNS: Final = ("database", "model_database", "space", "material", "method", "k", "relative_error",
-                         "log_likelihood", "nearest", "latent")
+UNSEEN_COLUMNS: Final = tables.MANIFOLD_UNSEEN
 #: How x* is found: the GP likelihood of the material, or least squares of the interpolant against it.
 METHODS: Final = ("likelihood", "least-squares")
 #: Training points the local searches start from (those where the objective is best).

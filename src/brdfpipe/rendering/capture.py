@@ -94,7 +94,6 @@ F64 = NDArray[np.float64]
 OBSERVATION_KEYS: Final = ("wi", "wo", "rgb", "image", "row", "col")
 _SAMPLE_HALF_SIZE: Final = 2.0  # the rectangle's half-size, in units of ν
 _FOOTPRINT_SUB: Final = 8  # sub × sub rays per pixel average the irradiance over its footprint
-_DIRECTIONS_FORMAT_PREFIX: Final = "brdfpipe.directions"
 
 
 @dataclass(frozen=True)
@@ -414,7 +413,7 @@ def read_configurations(path: str | os.PathLike[str]) -> dict[str, Any]:
     path = Path(path)
     doc = integrity.read_json(path, kind="directions file")  # its digest checked, as by the optimizer's reader
     try:
-        if not str(doc.get("format", "")).startswith(_DIRECTIONS_FORMAT_PREFIX):
+        if doc.get("format") != acquisition_spec.DIRECTIONS_FORMAT:
             raise ValueError(f"format {doc.get('format')!r}")
         sets = {
             int(s["n"]): [(_unit(c["light"], "light"), _unit(c["camera"], "camera")) for c in s["configurations"]]

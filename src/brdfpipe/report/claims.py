@@ -29,6 +29,7 @@ from pathlib import Path
 
 from brdfpipe.core import atomic, integrity
 from brdfpipe.report import rst
+from brdfpipe.spec import tables
 
 __all__ = [
     "ClaimsInputError",
@@ -238,7 +239,7 @@ def read_errors(path: str | os.PathLike[str]) -> _Errors:
     Rows of the ``train`` split: direction sets optimised on the training
     materials, evaluated on the held-out ones (Xu §6).
     """
-    p, rows = _rows(path, ("database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value"))
+    p, rows = _rows(path, tables.ERRORS)
     database = _database(p, rows)
     values: dict[tuple[str, float, str, int], float] = {}
     for r in rows:
@@ -389,7 +390,7 @@ def training_size_decreasing(path: str | os.PathLike[str]) -> Claim:
     key, where, figs = "xu-training-size", "§6, Fig. 7", ("xu-fig07",)
     claim = "mean error of the training-size curve does not grow with the number of training materials"
     paper_value = "\"a steady decrease\" of the error with more training materials"
-    p, rows = _rows(path, ("database", "n_train", "order_seed", "material", "channel", "kind", "value"))
+    p, rows = _rows(path, tables.TRAINING_SIZE)
     database = _database(p, rows)
     by_n: dict[int, list[float]] = {}
     orders = set()
@@ -645,7 +646,7 @@ def closed_loop_vs_table(path: str | os.PathLike[str]) -> Claim:
     paper_value = 'real two-shot captures reconstruct BRDFs whose renders "match well" the photographs'
     figs = ("xu-closedloop", "xu-closedloop-table")
     kinds = ("rms_log", "closedloop_noiseless_rms_log", "closedloop_rms_log")
-    p, rows = _rows(path, ("database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value"))
+    p, rows = _rows(path, tables.ERRORS)
     means: dict[tuple[str, float, str, int], dict[str, float]] = {}
     for r in rows:
         if r["material"] == "mean" and r["channel"] == "all" and r["kind"] in kinds:
@@ -689,8 +690,7 @@ def unseen_vs_heldout(errors: _Errors, path: str | os.PathLike[str]) -> list[Cla
     holds when at most :data:`UNSEEN_FACTOR` × (value: the ratio).  1 image,
     the largest point set and the closed loop (sensor) are reported next to it.
     """
-    p, rows = _rows(path, ("database", "model_database", "split", "setup", "fov", "metric", "n", "material",
-                           "channel", "kind", "value"))
+    p, rows = _rows(path, tables.UNSEEN_ERRORS)
     means: dict[str, dict[tuple[str, float, int, str], float]] = {}
     models = sorted({r["model_database"] for r in rows})
     if len(models) > 1:

@@ -27,6 +27,7 @@ __all__ = [
     "IMAGE_SETUPS",
     "FIXED_SETUPS",
     "METRICS",
+    "DIRECTIONS_FORMAT",
     "setup",
     "setup_fovs",
 ]
@@ -86,6 +87,9 @@ IMAGE_SETUPS: tuple[str, ...] = tuple(n for n, s in SETUPS.items() if s.images)
 FIXED_SETUPS: tuple[str, ...] = tuple(n for n, s in SETUPS.items() if s.shared)
 #: The optimiser's criteria: the expected error E(S) (Xu eq. 15) and the condition number κ (eq. 6).
 METRICS: tuple[str, ...] = ("error", "condition")
+#: Format tag of a directions file (written by :func:`brdfpipe.acquisition.optimize.write_directions`, read by
+#: the optimiser's reader and by the capture, :func:`brdfpipe.rendering.capture.read_configurations`).
+DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
 
 
 def setup(name: str) -> SetupKind:
