@@ -39,7 +39,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
-IMPORTS = "brdfpipe.data.database, brdfpipe.core.plan, brdfpipe.core.filenames, brdfpipe.core.stamps, brdfpipe.core.version"
+IMPORTS = "brdfpipe.data.database, brdfpipe.plan, brdfpipe.core.filenames, brdfpipe.core.stamps, brdfpipe.core.version"
 
 
 def wall(cmd: list[str], cwd: Path) -> float:

@@ -57,13 +57,14 @@ sys.path.insert(0, str(ROOT / "tests"))
 def run_inputs(results: Path, scene: str) -> dict | None:
     """write_explorer's inputs from a finished run (None without one)."""
     from brdfpipe.core import filenames as fn
-    from brdfpipe.core import plan
+    from brdfpipe import plan
+    from brdfpipe.spec import manifold as manifold_spec
 
     manifest = results / "explorer" / "manifest.json"
     if not manifest.is_file():
         return None
     man = json.loads(manifest.read_text())
-    cand = plan.candidate_label(man["space"], man["mu"])
+    cand = manifold_spec.candidate_label(man["space"], man["mu"])
     rel = lambda p: str(results.parent / p)  # noqa: E731 (file names are relative to the run's folder)
     summary = rel(fn.errormap_summary(scene))
     return {

@@ -3,7 +3,7 @@
 Reads the Snakemake benchmark files of a finished run (``benchmarks/<rule>/…tsv``,
 column ``max_rss`` in MB) and the number of materials of its store, and prints
 per rule: jobs measured, the largest peak RSS, the ``mem_mb`` that
-:func:`brdfpipe.core.plan.mem_mb` declares for that number of materials (first
+:func:`brdfpipe.plan.memory.mem_mb` declares for that number of materials (first
 attempt), and their ratio.  The target of the cluster issue: every ratio in
 [1, 2] on the default config (declared ≥ measured, ≤ twice it).  Prints; never
 fails a build.
@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from brdfpipe.core import plan  # noqa: E402
+from brdfpipe import plan  # noqa: E402
 
 
 def peaks(bench_dir: Path) -> dict[str, list[float]]:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.core import integrity
-from brdfpipe.core.plan import ConfigError
+from brdfpipe.spec.errors import ConfigError
 from brdfpipe.data import merl, provenance, store, synth
 from brdfpipe.manifold import albedo, analysis, gplvm
 

@@ -1,4 +1,4 @@
-"""Parse-time planning (brdfpipe.core.plan), the DAG's file names (brdfpipe.core.filenames), code versions (brdfpipe.core.version)."""
+"""Parse-time planning (brdfpipe.plan), the DAG's file names (brdfpipe.core.filenames), code versions (brdfpipe.core.version)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from brdfpipe.core import filenames as fn, plan, version
+from brdfpipe import plan
+from brdfpipe.spec import manifold as manifold_spec
+from brdfpipe.core import filenames as fn, version
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMA_PATH = ROOT / "workflow" / "schemas" / "config.schema.yaml"
@@ -98,7 +100,7 @@ def test_two_paths_whose_file_names_collide_are_refused() -> None:
     names = ["a", "b", "c", "a--b", "b--c"]
     with pytest.raises(plan.ConfigError, match=r"^manifold.paths\[0\] \['a--b', 'c'\] and \[1\] \['a', 'b--c'\] "
                                                "share the file name a--b--c"):
-        plan.check_paths([["a--b", "c"], ["a", "b--c"]], names)
+        manifold_spec.check_paths([["a--b", "c"], ["a", "b--c"]], names)
 
 
 def test_sensor_checks_follow_what_the_capture_uses() -> None:
@@ -114,11 +116,11 @@ def test_sensor_checks_follow_what_the_capture_uses() -> None:
 
 
 def test_default_paths_are_seeded_and_prefer_soler() -> None:
-    p = plan.default_paths(NAMES, seed=4)
-    assert p == plan.default_paths(NAMES, seed=4) and len(p) == 3
+    p = manifold_spec.default_paths(NAMES, seed=4)
+    assert p == manifold_spec.default_paths(NAMES, seed=4) and len(p) == 3
     assert len({m for pair in p for m in pair}) == 6
-    soler = [m for pair in plan.SOLER_PATHS for m in pair] + ["x"]
-    assert plan.default_paths(soler, seed=0) == list(plan.SOLER_PATHS)
+    soler = [m for pair in manifold_spec.SOLER_PATHS for m in pair] + ["x"]
+    assert manifold_spec.default_paths(soler, seed=0) == list(manifold_spec.SOLER_PATHS)
 
 
 def test_direction_files_of_the_default_config() -> None:
@@ -175,9 +177,9 @@ def test_file_names_keep_wildcards_and_format_numbers() -> None:
 #: What the Snakefile and its rule files import at parse time, and which heavy libraries each may pull in:
 #: data.database labels a merl_dir folder by the provenance marks inside its MERL files (NumPy reads them).
 PARSE_TIME_MODULES = {
-    "brdfpipe.core.filenames": (), "brdfpipe.core.plan": (), "brdfpipe.core.stamps": (), "brdfpipe.core.version": (),
+    "brdfpipe.core.filenames": (), "brdfpipe.plan": (), "brdfpipe.core.stamps": (), "brdfpipe.core.version": (),
     "brdfpipe.data.databases": (), "brdfpipe.report.claims": (), "brdfpipe.report.sidebyside": (),
-    "brdfpipe.report.items": (), "brdfpipe.explorer": (), "brdfpipe.data.database": ("numpy",),
+    "brdfpipe.plan.report": (), "brdfpipe.explorer": (), "brdfpipe.data.database": ("numpy",),
     "brdfpipe.spec.acquisition": (), "brdfpipe.spec.manifold": (), "brdfpipe.spec.figures": (),
     "brdfpipe.spec.nearfield": (),
 }

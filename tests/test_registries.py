@@ -14,8 +14,10 @@ import inspect
 
 import pytest
 
-from brdfpipe.core import filenames, plan
-from brdfpipe.report import captions, items
+from brdfpipe import plan
+from brdfpipe.core import filenames
+from brdfpipe.plan import report as items
+from brdfpipe.report import captions
 from brdfpipe.spec import acquisition as acq_spec
 from brdfpipe.spec import figures as fig_spec
 from brdfpipe.spec import manifold as man_spec

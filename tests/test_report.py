@@ -21,8 +21,10 @@ from pathlib import Path
 
 import pytest
 
-from brdfpipe.core import filenames, integrity, plan
-from brdfpipe.report import captions, claims, items, runinfo, sidebyside
+from brdfpipe import plan
+from brdfpipe.core import filenames, integrity
+from brdfpipe.plan import report as items
+from brdfpipe.report import captions, claims, runinfo, sidebyside
 
 
 def write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, object]]) -> Path:

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe.core import filenames, integrity, plan
+from brdfpipe import plan
+from brdfpipe.core import filenames, integrity
 from brdfpipe.data import database, databases, merl, nbrdf, store
 from brdfpipe.manifold import gplvm, unseen
 

@@ -297,8 +297,8 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
 
 
 def declared_outputs(configfile: Path) -> set[str]:
-    """The files rule all asks for under ``configfile``, from brdfpipe.core.plan (as the Snakefile does)."""
-    from brdfpipe.core import plan
+    """The files rule all asks for under ``configfile``, from brdfpipe.plan (as the Snakefile does)."""
+    from brdfpipe import plan
 
     cfg = yaml.safe_load(configfile.read_text())
     files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
@@ -320,7 +320,7 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
     session's shared one (built with this checkout's library, checked here with a private copy
     of it: the code digests depend on the code, not on where it lives).
     """
-    from brdfpipe.core import plan
+    from brdfpipe import plan
 
     config = ROOT / "tests" / "config" / f"{shape}.yaml"
     cfg = yaml.safe_load(config.read_text())

@@ -67,7 +67,7 @@ SAMPLES_FORMAT = "brdfpipe.samples/1"
 #: ``format`` of the ``capture.json`` that ``brdfpipe capture`` writes (recognises its --out).
 CAPTURE_FORMAT = "brdfpipe.capture/1"
 #: Peak memory of one worker process of ``synth`` / ``ingest`` (a 35 MB material in float64 and its
-#: generation or checks; the workflow's memory model, brdfpipe.core.plan.MEMORY_MB, measured 306 MB for
+#: generation or checks; the workflow's memory model, brdfpipe.plan.memory.MEMORY_MB, measured 306 MB for
 #: synthesize_material), rounded up: ``--jobs`` is bounded by the machine's memory / this.
 WORKER_BYTES = 350_000_000
 #: ``sample --max-tries`` at most max(this, 100 × --count): a candidate costs up to ~1 ms (a batch of

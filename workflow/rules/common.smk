@@ -13,7 +13,7 @@ from snakemake.io import apply_wildcards, is_flagged
 from brdfpipe.data import database as brdf_db
 from brdfpipe.data import databases as brdf_dbs
 from brdfpipe.core import filenames as fn
-from brdfpipe.core import plan
+from brdfpipe import plan
 from brdfpipe.core import stamps as job_stamps
 from brdfpipe.core.version import script_digest
 from brdfpipe.report import claims as report_claims
@@ -195,7 +195,7 @@ UNSEEN_FIGURES = plan.unseen_figures(unseen=bool(UNSEEN), evaluated=UNSEEN_EVALU
 UNSEEN_MAP_Q = plan.unseen_map_q(MAN)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
-DEFAULT_CANDIDATE = plan.candidate_label(MAN["space"], MAN["mu"])
+DEFAULT_CANDIDATE = manifold_specs.candidate_label(MAN["space"], MAN["mu"])
 CANDIDATE_SPACES = sorted({space for space, _ in CANDIDATES.values()} | {"raw"})
 
 
@@ -252,7 +252,7 @@ JOB_SIZES = {
     for scene, (res, _) in RENDER_SETTINGS.items()
 }
 # No job may need more memory than one job may have: sizes and materials are
-# checked against the memory model here, naming the key (brdfpipe.core.plan).
+# checked against the memory model here, naming the key (brdfpipe.plan.memory).
 if config["materials"] is not None:
     MATERIALS_KEY = "materials"
 else:
@@ -286,7 +286,7 @@ except plan.ConfigError as err:
 
 
 def mem(rule, outputs=1, scenes=None):
-    """A rule's mem_mb: modelled peak for this many materials, outputs and sizes, growing by half per retry (brdfpipe.core.plan).
+    """A rule's mem_mb: modelled peak for this many materials, outputs and sizes, growing by half per retry (brdfpipe.plan.memory).
 
     ``scenes``: the scene folders a job without a {scene} wildcard renders in
     (a pre-render batch's), one after another: the largest need of them.

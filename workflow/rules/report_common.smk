@@ -1,9 +1,9 @@
 # What the report (snakemake --report results/report.zip; make report) holds:
-# every figure, table and error map (brdfpipe.report.items), with category,
+# every figure, table and error map (brdfpipe.plan.report), with category,
 # labels and a generated caption. The rules that write them wrap those outputs
 # in reported(); rules/report.smk writes the captions and the front page.
 
-from brdfpipe.report import items as report_plan
+from brdfpipe.plan import report as report_plan
 
 REPORT_ITEMS = report_plan.report_items(
     database=DATABASE.kind,

@@ -15,6 +15,7 @@ import math
 import re
 
 from brdfpipe.spec import figures as figure_specs
+from brdfpipe.spec.manifold import path_name  # the paths' names are Soler's paths' spec
 
 __all__ = [
     "RESULTS",
@@ -135,11 +136,6 @@ def format_t(t: float | str) -> str:
     if not math.isfinite(t):
         raise ValueError(f"t must be finite, got {t}")
     return f"{t + 0.0:g}"  # + 0.0 turns -0.0 into 0.0
-
-
-def path_name(a: str, b: str) -> str:
-    """File-name-safe name of the latent path from material ``a`` to ``b``: ``a--b``."""
-    return f"{a}--{b}"
 
 
 # -- data stage -------------------------------------------------------------
@@ -284,7 +280,7 @@ def gram(space: str) -> str:
 
 
 def gplvm_model(candidate: str, q: int | str) -> str:
-    """A GPLVM fit of one candidate (``<space>-mu<μ>``, :func:`brdfpipe.core.plan.candidate_label`)."""
+    """A GPLVM fit of one candidate (``<space>-mu<μ>``, :func:`brdfpipe.spec.manifold.candidate_label`)."""
     return f"{RESULTS}/gplvm/{candidate}/q{q}.npz"
 
 

@@ -61,8 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import path_name
-from brdfpipe.core.plan import check_paths, default_paths
-from brdfpipe.spec.manifold import SOLER_PATHS
+from brdfpipe.spec.manifold import SOLER_PATHS, check_paths, default_paths
 from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, open_store
 from brdfpipe.manifold import blendpass, derivation, gplvm, latent

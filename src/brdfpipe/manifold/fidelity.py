@@ -411,7 +411,7 @@ def measure_candidate(
     points of every q, the latent paths' points) is blended and measured in
     one pass over the store (:func:`_shared_blends`).
     """
-    from brdfpipe.core.plan import check_paths, default_paths
+    from brdfpipe.spec.manifold import check_paths, default_paths
     from brdfpipe.data.store import open_store
 
     if "raw" not in grams:

@@ -16,8 +16,8 @@ packs.  The alternative, a static caption that computes numbers in Jinja2,
 cannot read files (Snakemake passes only the job's input, output, params,
 wildcards and config), and a number typed into a caption would go stale.
 
-Modules: :mod:`brdfpipe.report.items` (which files the report holds: parse
-time, standard library only), :mod:`brdfpipe.report.claims`,
+Modules (which files the report holds is the planner's,
+:mod:`brdfpipe.plan.report`): :mod:`brdfpipe.report.claims`,
 :mod:`brdfpipe.report.captions`, :mod:`brdfpipe.report.runinfo` (job time),
 :mod:`brdfpipe.report.rst` (the one escaping of run-supplied text into
 reStructuredText and Jinja2: every name reaches the page as text),

@@ -20,7 +20,6 @@ from pathlib import Path
 from brdfpipe.core import atomic
 from brdfpipe.report import rst
 from brdfpipe.report.claims import Claim, rst_cell
-from brdfpipe.report.items import FIGURE_NUMBERS
 from brdfpipe.spec import figures as figure_specs
 
 __all__ = ["DESCRIPTIONS", "caption_rst", "write_captions"]
@@ -49,7 +48,7 @@ def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequ
     if key not in DESCRIPTIONS:
         raise KeyError(f"no caption description for {key!r}")
     mine = [c for c in claims if key in c.figures]
-    lines = [f"**{FIGURE_NUMBERS[key]}** analogue — database: **{rst.text(database)}**", "",
+    lines = [f"**{figure_specs.paper_figures()[key]}** analogue — database: **{rst.text(database)}**", "",
              _bars(DESCRIPTIONS[key]), ""]
     if mine:
         lines += ["Claims (paper value vs this run):", ""] + [_claim_item(c) for c in mine] + [""]

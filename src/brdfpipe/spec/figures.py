@@ -7,8 +7,8 @@ analogue of, its caption (the report's description, before the claims
 that carry this run's numbers), the rule that draws it, the function that
 draws it (in the track's ``figures`` module: ``brdfpipe.<track>.figures``)
 and whether a configuration produces it.  The file names
-(:mod:`brdfpipe.core.filenames`), the planner (:mod:`brdfpipe.core.plan`),
-the report's entries and captions (:mod:`brdfpipe.report.items`,
+(:mod:`brdfpipe.core.filenames`), the planner (:mod:`brdfpipe.plan`),
+the report's entries and captions (:mod:`brdfpipe.plan.report`,
 :mod:`brdfpipe.report.captions`) and the tracks' figure functions all read
 this registry.  :class:`ReportEntry`: the report's other entries (tables,
 error maps, the claims), with their caption.

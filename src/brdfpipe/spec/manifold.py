@@ -7,6 +7,11 @@ the planner, the schema (a test keeps its enums equal to
 :data:`SPACE_NAMES`), the workflow's wildcards and the science modules read
 the records here.
 
+The latent paths: :data:`SOLER_PATHS`, their names in files
+(:func:`path_name`), the seeded default (:func:`default_paths`) and the
+check of a configured list (:func:`check_paths`, :class:`ConfigError` naming
+the entry).
+
 Adding a data space: its :class:`DataSpace` record in :data:`DATA_SPACES`
 here and its maps in ``manifold/spaces.py`` (and its name in the schema's
 two enums, ``manifold.space`` and ``manifold.candidates[].space``).  See
@@ -16,7 +21,10 @@ two enums, ``manifold.space`` and ``manifold.candidates[].space``).  See
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+
+from brdfpipe.spec.errors import ConfigError
 
 __all__ = [
     "DataSpace",
@@ -26,6 +34,9 @@ __all__ = [
     "OPTIMISERS",
     "SOLER_PATHS",
     "candidate_label",
+    "path_name",
+    "default_paths",
+    "check_paths",
 ]
 
 
@@ -82,3 +93,50 @@ def candidate_label(space: str, mu: float) -> str:
     if not math.isfinite(mu_f) or mu_f < 0:
         raise ValueError(f"mu must be a finite number >= 0, got {mu!r}")
     return f"{space}-mu{mu_f:g}"
+
+
+def path_name(a: str, b: str) -> str:
+    """File-name-safe name of the latent path from material ``a`` to ``b``: ``a--b``."""
+    return f"{a}--{b}"
+
+
+def default_paths(materials: Sequence[str], seed: int, count: int = 3) -> list[tuple[str, str]]:
+    """Soler Fig. 9's pairs when all of them are in ``materials``; else ``count`` seeded disjoint pairs."""
+    names = sorted(materials)
+    if all(m in names for pair in SOLER_PATHS for m in pair):
+        return [tuple(p) for p in SOLER_PATHS]  # type: ignore[misc]
+    if len(names) < 2:
+        raise ConfigError("a latent path needs at least two materials")
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    k = min(count, len(names) // 2)
+    pick = rng.choice(len(names), size=2 * k, replace=False)
+    return [(names[pick[2 * i]], names[pick[2 * i + 1]]) for i in range(k)]
+
+
+def check_paths(
+    paths: Sequence[Sequence[str]], materials: Sequence[str], what: str = "manifold.paths"
+) -> list[tuple[str, str]]:
+    """Validate ``[[A, B], …]`` against the material list; :class:`ConfigError` naming the bad entry."""
+    known = set(materials)
+    out: list[tuple[str, str]] = []
+    for k, pair in enumerate(paths):
+        if isinstance(pair, str) or len(pair) != 2:
+            raise ConfigError(f"{what}[{k}] must be a pair of material names, got {pair!r}")
+        a, b = (str(m) for m in pair)
+        for m in (a, b):
+            if m not in known:
+                raise ConfigError(f"{what}[{k}]: unknown material {m!r} (not in the database)")
+        if a == b:
+            raise ConfigError(f"{what}[{k}]: a path needs two different materials, got {a!r} twice")
+        out.append((a, b))
+    names = [path_name(a, b) for a, b in out]
+    for k, name in enumerate(names):
+        j = names.index(name)
+        if j < k:
+            if out[j] == out[k]:
+                raise ConfigError(f"{what}: listed more than once: {name}")
+            raise ConfigError(f"{what}[{j}] {list(out[j])} and [{k}] {list(out[k])} share the file name {name}; "
+                              "rename a material or drop one path")
+    return out

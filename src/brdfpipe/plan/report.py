@@ -81,7 +81,7 @@ def report_items(
 ) -> list[Item]:
     """Every report entry of a configuration, in report order.
 
-    Figures: the PNG of each figure of ``*_figures`` (``brdfpipe.core.plan``; the
+    Figures: the PNG of each figure of ``*_figures`` (:mod:`brdfpipe.plan.outputs`; the
     PDF next to it is the same figure); Xu Fig. 8's CSV table;
     ``errormaps``: ``(path, t, error.png)`` per rendered path point (the EXR
     maps are data: browsers cannot show them, the captions name them);
