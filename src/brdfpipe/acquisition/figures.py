@@ -602,11 +602,7 @@ def fig07_training_size(training_csv: str | os.PathLike[str], stem: str | os.Pat
 # ---------------------------------------------------------------------------
 
 #: Columns of the Fig. 8 table (CSV and Markdown).
-FIG08_COLUMNS: tuple[str, ...] = (
-    "fov_deg", "n_images", "image", "theta_h_deg", "theta_d_deg", "phi_d_deg",
-    "light_theta_deg", "light_phi_deg", "camera_theta_deg", "camera_phi_deg",
-    "expected_error", "split", "database",
-)
+FIG08_COLUMNS: tuple[str, ...] = tables.FIG08
 
 
 def _spherical_deg(v: Sequence[float]) -> tuple[float, float]:

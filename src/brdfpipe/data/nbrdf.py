@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 from brdfpipe.core import atomic, integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import databases, merl, provenance
+from brdfpipe.spec import tables
 
 __all__ = [
     "NbrdfError",
@@ -487,7 +488,7 @@ def evaluate_to_files(
 
 
 #: Columns of an unseen database's albedo CSV (:func:`evaluate_to_store`).
-ALBEDO_COLUMNS: Final = ("database", "material", "theta_i_deg", "r", "g", "b", "luminance")
+ALBEDO_COLUMNS: Final = tables.FIT_ALBEDO
 _LUMA: Final = (0.2126, 0.7152, 0.0722)
 
 

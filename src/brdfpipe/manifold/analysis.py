@@ -62,6 +62,7 @@ from numpy.typing import ArrayLike, NDArray
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import path_name
 from brdfpipe.spec.manifold import SOLER_PATHS, check_paths, default_paths
+from brdfpipe.spec import tables
 from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, open_store
 from brdfpipe.manifold import blendpass, derivation, gplvm, latent
@@ -91,12 +92,9 @@ __all__ = [
 logger = logging.getLogger("brdfpipe.manifold.analysis")
 
 #: Soler Fig. 9's three pairs (used by default when the database has them: the real MERL).
-PATH_COLUMNS: Final = (
-    "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
-    "perceptual_a", "perceptual_b", "perceptual_ab", "nearest", "deviation", "bound",
-)
-REPRODUCTION_COLUMNS: Final = ("database", "space", "material", "method", "k", "relative_error")
-ALBEDO_COLUMNS: Final = ("database", "material", "r", "g", "b", "luminance")
+PATH_COLUMNS: Final = tables.LATENT_PATHS
+REPRODUCTION_COLUMNS: Final = tables.REPRODUCTION
+ALBEDO_COLUMNS: Final = tables.MATERIAL_ALBEDO
 _LUMA: Final = np.array([0.2126, 0.7152, 0.0722])
 
 

@@ -64,6 +64,7 @@ from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, blendpass, gplvm, latent
 from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
 from brdfpipe.spec.manifold import candidate_label
+from brdfpipe.spec import tables
 
 __all__ = [
     "EPSILONS",
@@ -91,16 +92,8 @@ EPSILONS: Final = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
 LOG_ALBEDO_POINTS: Final = 16
 #: Hull points drawn per model for the albedo and weight statistics.
 HULL_POINTS: Final = 20000
-SPACE_COLUMNS: Final = (
-    "database", "candidate", "space", "mu", "q", "default", "log_likelihood", "kappa",
-    "albedo_bad_hull", "albedo_bad_map", "hull_points",
-    "sum_abs_w_hull_median", "sum_abs_w_hull_max", "sum_abs_w_path_median", "sum_abs_w_path_max",
-    "stability_raw_median_1e-6", "stability_raw_p90_1e-6", "stability_space_median_1e-6",
-    "stability_space_p90_1e-6",
-    "nn_median", "nn_min", "pairs_within_sqrt2mu", "pairs_within_1e-5",
-    "perceptual_max_deviation", "perceptual_decreasing_steps",
-)
-STABILITY_COLUMNS: Final = ("database", "candidate", "space", "mu", "q", "norm", "epsilon", "median", "p90", "max")
+SPACE_COLUMNS: Final = tables.SPACES
+STABILITY_COLUMNS: Final = tables.STABILITY
 
 
 @dataclass(frozen=True)

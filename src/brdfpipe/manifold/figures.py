@@ -108,18 +108,15 @@ logger = logging.getLogger("brdfpipe.manifold.figures")
 # PNG + PDF, atomically and deterministically like the acquisition figures.
 
 #: Columns of a GPLVM trace CSV (gplvm.write_trace).
-TRACE_COLUMNS: tuple[str, ...] = ("step", "stage", "log_likelihood")
+TRACE_COLUMNS: tuple[str, ...] = tables.GPLVM_TRACE
 #: Trace stages: the start point, Hooke–Jeeves sweeps, L-BFGS iterations, Newton steps (in any order).
 TRACE_STAGES: tuple[str, ...] = ("start", "hooke-jeeves", "lbfgs", "newton")
 #: Columns of ``albedo.csv``.
-ALBEDO_COLUMNS: tuple[str, ...] = ("database", "material", "r", "g", "b", "luminance")
+ALBEDO_COLUMNS: tuple[str, ...] = tables.MATERIAL_ALBEDO
 #: Columns of ``paths.csv``.
-PATHS_COLUMNS: tuple[str, ...] = (
-    "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
-    "perceptual_a", "perceptual_b", "perceptual_ab", "nearest", "deviation", "bound",
-)
+PATHS_COLUMNS: tuple[str, ...] = tables.LATENT_PATHS
 #: Columns of ``reproduction.csv``.
-REPRODUCTION_COLUMNS: tuple[str, ...] = ("database", "space", "material", "method", "k", "relative_error")
+REPRODUCTION_COLUMNS: tuple[str, ...] = tables.REPRODUCTION
 #: Arrays of an albedo map npz.
 ALBEDO_MAP_KEYS: tuple[str, ...] = (
     "x", "y", "dims", "albedo", "luminance", "fixed", "q", "database", "inside_hull", "bad_inside", "bad_outside",
@@ -451,11 +448,13 @@ def _read_model(path: str | os.PathLike[str], q: int) -> Any:
     return model
 
 
-SPACES_FIGURE_COLUMNS: tuple[str, ...] = (
-    "database", "candidate", "space", "mu", "q", "default", "kappa", "albedo_bad_hull", "albedo_bad_map",
+#: The columns of ``spaces.csv`` and ``stability.csv`` (:data:`brdfpipe.spec.tables.SPACES`, ``STABILITY``) the figure reads.
+SPACES_FIGURE_COLUMNS: tuple[str, ...] = tables.columns(
+    tables.SPACES, "database", "candidate", "space", "mu", "q", "default", "kappa", "albedo_bad_hull", "albedo_bad_map",
     "sum_abs_w_hull_median", "sum_abs_w_path_max", "nn_median",
 )
-STABILITY_FIGURE_COLUMNS: tuple[str, ...] = ("database", "candidate", "q", "norm", "epsilon", "median", "p90")
+STABILITY_FIGURE_COLUMNS: tuple[str, ...] = tables.columns(
+    tables.STABILITY, "database", "candidate", "q", "norm", "epsilon", "median", "p90")
 
 
 @dataclass(frozen=True)

@@ -224,6 +224,7 @@ from brdfpipe.data.store import (
 )
 from brdfpipe.manifold import derivation, spaces
 from brdfpipe.spec import manifold as manifold_spec
+from brdfpipe.spec import tables
 
 __all__ = [
     "SPACES",
@@ -2240,7 +2241,7 @@ def fit_to_files(
 def write_trace(path: str | os.PathLike[str], result: FitResult) -> None:
     """The log-likelihood trace of a fit as CSV ``step,stage,log_likelihood`` (atomic, with its digest line)."""
     path = Path(path)
-    lines = ["step,stage,log_likelihood"]
+    lines = [",".join(tables.GPLVM_TRACE)]
     stages = result.stages or ["hooke-jeeves"] * len(result.trace)
     for (step, value), stage in zip(result.trace, stages):
         lines.append(f"{int(step)},{stage},{float(value)!r}")

@@ -45,6 +45,7 @@ from brdfpipe.core.atomic import atomic_write as _atomic_write, check_not_input
 from brdfpipe.core.exr import ExrError, read_exr, write_exr
 from brdfpipe.core.filenames import format_t
 from brdfpipe.core.version import full_version
+from brdfpipe.spec import tables
 
 __all__ = [
     "SUMMARY_COLUMNS",
@@ -79,10 +80,7 @@ SUMMARY_COLUMNS: Final = (
 #: The I¹⁻ columns of :data:`SUMMARY_COLUMNS`.
 SUMMARY_ONE_COLUMNS: Final = SUMMARY_COLUMNS[9:15] + ("ratio_one_seed2_se",)
 #: Columns of the I²⁺ share CSV written by :func:`bounce_shares`, in order.
-SHARE_COLUMNS: Final = (
-    "database", "material", "mean_image", "mean_one", "share_image", "mean_image_object", "mean_one_object",
-    "share_object", "object_pixels",
-)
+SHARE_COLUMNS: Final = tables.BOUNCE_SHARES
 
 #: Characters allowed in a path name (it becomes part of file names).
 _NAME_RE: Final = re.compile(r"^[A-Za-z0-9_.+-]+$")

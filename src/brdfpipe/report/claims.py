@@ -24,7 +24,7 @@ import math
 import os
 import statistics
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from brdfpipe.core import atomic, integrity
@@ -420,7 +420,8 @@ def one_shot_optimum(path: str | os.PathLike[str]) -> Claim:
     claim = (f"the optimal single near-field image has θh within {o['theta_h_tol']:g}° of {o['theta_h']:g}° and light "
              f"incidence within {o['incidence_tol']:g}° of {o['incidence']:g}°, at every FOV")
     paper_value = "θh = 3° at an angle of incidence of about 50°"
-    p, rows = _rows(path, ("fov_deg", "n_images", "image", "theta_h_deg", "light_theta_deg", "split", "database"))
+    p, rows = _rows(path, tables.columns(tables.FIG08, "fov_deg", "n_images", "image", "theta_h_deg", "light_theta_deg",
+                                             "split", "database"))
     splits = {r["split"] for r in rows}
     split = "all" if "all" in splits else sorted(splits)[0] if splits else ""
     ones = [r for r in rows if r["split"] == split and r["n_images"] == "1"]
@@ -447,7 +448,7 @@ def reproduction_vs_pca(path: str | os.PathLike[str]) -> Claim:
     key, where, figs = "soler-reproduction-vs-pca", "§4.2, Fig. 8", ("soler-fig08",)
     claim = "largest GPLVM reproduction error (any q, any material) below the median PCA-k error for every k"
     paper_value = "GPLVM \"always perfectly reproduces\" the materials at any q; PCA with 20 and 40 components does not"
-    p, rows = _rows(path, ("database", "material", "method", "k", "relative_error"))
+    p, rows = _rows(path, tables.columns(tables.REPRODUCTION, "database", "material", "method", "k", "relative_error"))
     database = _database(p, rows)
     gp: dict[int, list[float]] = {}
     pca: dict[int, list[float]] = {}
@@ -469,7 +470,8 @@ def albedo_in_unit_interval(path: str | os.PathLike[str]) -> Claim:
     key, where, figs = "soler-albedo", "§4.2, Fig. 7", ("soler-fig07", "soler-spaces", "soler-spaces-table")
     claim = "albedo of interpolated BRDFs in [0, 1] at every sampled point of the latent hull (default data space)"
     paper_value = "\"observed to be limited to [0, 1]\" (q = 2, whole MERL)"
-    p, rows = _rows(path, ("database", "candidate", "q", "default", "albedo_bad_hull", "albedo_bad_map"))
+    p, rows = _rows(path, tables.columns(tables.SPACES, "database", "candidate", "q", "default", "albedo_bad_hull",
+                                             "albedo_bad_map"))
     mine = [r for r in rows if _true(r["default"])]
     if not mine:
         return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no default candidate", str(p), figs)
@@ -485,7 +487,8 @@ def albedo_in_unit_interval(path: str | os.PathLike[str]) -> Claim:
 
 
 def _paths(path: str | os.PathLike[str]) -> tuple[Path, str, dict[str, list[dict[str, float]]]]:
-    p, rows = _rows(path, ("database", "path", "t", "perceptual_a", "perceptual_b", "perceptual_ab", "deviation", "bound"))
+    p, rows = _rows(path, tables.columns(tables.LATENT_PATHS, "database", "path", "t", "perceptual_a", "perceptual_b",
+                                             "perceptual_ab", "deviation", "bound"))
     database = _database(p, rows)
     out: dict[str, list[dict[str, float]]] = {}
     for r in rows:
@@ -547,7 +550,7 @@ def likelihood_increases(traces: Mapping[int, str | os.PathLike[str]], database:
         return _not_measured(key, _SOLER, where, claim, paper_value, "no GPLVM trace", "", figs)
     parts, ok, gains, srcs = [], True, [], []
     for q, path in sorted(traces.items()):
-        p, rows = _rows(path, ("step", "stage", "log_likelihood"))
+        p, rows = _rows(path, tables.GPLVM_TRACE)
         if not rows:
             raise ClaimsInputError(f"{p}: no data rows")
         first, last = _num(p, rows[0], "log_likelihood"), _num(p, rows[-1], "log_likelihood")
@@ -568,7 +571,7 @@ def second_bounce_share(path: str | os.PathLike[str]) -> Claim:
     key, where, figs = "soler-second-bounce", "§5.2", ("render-fig01",)
     claim = f"I²⁺ share of every pre-render over the object at most {SECOND_BOUNCE_MAX:.0%} (our reading of \"≪\")"
     paper_value = "\"we expect L2+ ≪ L1−\" (not measured in the paper)"
-    p, rows = _rows(path, ("database", "material", "share_object"))
+    p, rows = _rows(path, tables.columns(tables.BOUNCE_SHARES, "database", "material", "share_object"))
     if not rows:
         return _not_measured(key, _SOLER, where, claim, paper_value, f"{p.name} has no rows", str(p), figs)
     database = _database(p, rows)
@@ -758,7 +761,7 @@ def spectralon_albedo(paths: Sequence[str | os.PathLike[str]]) -> Claim:
     paper = "Dupuy & Jakob 2018"
     found = []
     for path in paths:
-        p, rows = _rows(path, ("database", "material", "theta_i_deg", "r", "g", "b", "luminance"))
+        p, rows = _rows(path, tables.FIT_ALBEDO)
         found += [(p, r) for r in rows if r["database"] == sp["database"] and r["material"] == sp["material"]
                   and _num(p, r, "theta_i_deg") == 0.0]
     if not found:

@@ -13,12 +13,36 @@ table                                  writer                                   
 ``results/evaluation/training_size.csv``  :func:`brdfpipe.acquisition.reconstruct.training_size_curve`  figures, claims
 ``results/evaluation/unseen.csv``      :mod:`brdfpipe.acquisition.unseen`                figures, claims
 ``results/manifold/unseen.csv``        :mod:`brdfpipe.manifold.unseen`                   figures
+Xu Fig. 8's table (``fig08-*.csv``)    :mod:`brdfpipe.acquisition.figures`               claims
+a GPLVM fit's ``trace.csv``            :func:`brdfpipe.manifold.gplvm.write_trace`       figures, claims
+``results/manifold/albedo.csv``        :mod:`brdfpipe.manifold.analysis`                 figures
+``results/manifold/paths.csv``         :mod:`brdfpipe.manifold.analysis`                 figures, claims
+``results/manifold/reproduction.csv``  :mod:`brdfpipe.manifold.analysis`                 figures, claims
+``results/manifold/spaces.csv``        :mod:`brdfpipe.manifold.fidelity`                 figures, claims
+``results/manifold/stability.csv``     :mod:`brdfpipe.manifold.fidelity`                 figures
+``results/unseen/<db>-albedo.csv``     :mod:`brdfpipe.data.nbrdf`                        claims
+``renders/<scene>/bounce-shares.csv``  :func:`brdfpipe.rendering.blend.bounce_shares`    claims
 =====================================  =================================================  =====================
 """
 
 from __future__ import annotations
 
-__all__ = ["ERRORS", "TRAINING_SIZE", "UNSEEN_ERRORS", "MANIFOLD_UNSEEN"]
+__all__ = [
+    "ERRORS",
+    "TRAINING_SIZE",
+    "UNSEEN_ERRORS",
+    "MANIFOLD_UNSEEN",
+    "FIG08",
+    "GPLVM_TRACE",
+    "MATERIAL_ALBEDO",
+    "LATENT_PATHS",
+    "REPRODUCTION",
+    "SPACES",
+    "STABILITY",
+    "FIT_ALBEDO",
+    "BOUNCE_SHARES",
+    "columns",
+]
 
 #: ``errors.csv``: one value per (split, setup, fov, metric, n, material, channel, kind) of a database.
 ERRORS: tuple[str, ...] = ("database", "split", "setup", "fov", "metric", "n", "material", "channel", "kind", "value")
@@ -29,3 +53,51 @@ UNSEEN_ERRORS: tuple[str, ...] = (ERRORS[0], "model_database", *ERRORS[1:])
 #: The manifold's ``unseen.csv``: one row per unseen material and method of finding its latent position.
 MANIFOLD_UNSEEN: tuple[str, ...] = ("database", "model_database", "space", "material", "method", "k",
                                     "relative_error", "log_likelihood", "nearest", "latent")
+#: Xu Fig. 8's table: per FOV and set size, each image's angles, light and camera directions and E(S).
+FIG08: tuple[str, ...] = (
+    "fov_deg", "n_images", "image", "theta_h_deg", "theta_d_deg", "phi_d_deg",
+    "light_theta_deg", "light_phi_deg", "camera_theta_deg", "camera_phi_deg",
+    "expected_error", "split", "database",
+)
+#: A GPLVM fit's log-likelihood trace.
+GPLVM_TRACE: tuple[str, ...] = ("step", "stage", "log_likelihood")
+#: The training materials' albedo (``albedo.csv``).
+MATERIAL_ALBEDO: tuple[str, ...] = ("database", "material", "r", "g", "b", "luminance")
+#: One row per point of each latent path (``paths.csv``).
+LATENT_PATHS: tuple[str, ...] = (
+    "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
+    "perceptual_a", "perceptual_b", "perceptual_ab", "nearest", "deviation", "bound",
+)
+#: Each material's reproduction error by the GPLVM and by PCA (``reproduction.csv``).
+REPRODUCTION: tuple[str, ...] = ("database", "space", "material", "method", "k", "relative_error")
+#: One row per GPLVM candidate and latent dimension (``spaces.csv``).
+SPACES: tuple[str, ...] = (
+    "database", "candidate", "space", "mu", "q", "default", "log_likelihood", "kappa",
+    "albedo_bad_hull", "albedo_bad_map", "hull_points",
+    "sum_abs_w_hull_median", "sum_abs_w_hull_max", "sum_abs_w_path_median", "sum_abs_w_path_max",
+    "stability_raw_median_1e-6", "stability_raw_p90_1e-6", "stability_space_median_1e-6",
+    "stability_space_p90_1e-6",
+    "nn_median", "nn_min", "pairs_within_sqrt2mu", "pairs_within_1e-5",
+    "perceptual_max_deviation", "perceptual_decreasing_steps",
+)
+#: The interpolant's stability under perturbations, per candidate, norm and ε (``stability.csv``).
+STABILITY: tuple[str, ...] = ("database", "candidate", "space", "mu", "q", "norm", "epsilon", "median", "p90", "max")
+#: Directional albedo of a database of fits' tables (``<database>-albedo.csv``).
+FIT_ALBEDO: tuple[str, ...] = ("database", "material", "theta_i_deg", "r", "g", "b", "luminance")
+#: The I²⁺ share of each pre-render (``bounce-shares.csv``).
+BOUNCE_SHARES: tuple[str, ...] = (
+    "database", "material", "mean_image", "mean_one", "share_image", "mean_image_object", "mean_one_object",
+    "share_object", "object_pixels",
+)
+
+
+def columns(table: tuple[str, ...], *names: str) -> tuple[str, ...]:
+    """``names``, the columns of ``table`` a reader needs (a reader may need fewer than the writer writes).
+
+    ValueError naming the column if one is not the table's: a reader's
+    columns are checked against their owner where the reader names them.
+    """
+    unknown = [n for n in names if n not in table]
+    if unknown:
+        raise ValueError(f"column(s) {', '.join(unknown)} not in the table ({', '.join(table)})")
+    return names
