@@ -15,11 +15,13 @@ import math
 import re
 
 from brdfpipe.spec import figures as figure_specs
+from brdfpipe.spec import layouts
 from brdfpipe.spec.manifold import path_name  # the paths' names are Soler's paths' spec
 
 __all__ = [
     "RESULTS",
     "FIGURES",
+    "SYNTHETIC",
     "FIGURE_STEMS",
     "MANIFOLD_FIGURE_STEMS",
     "RENDER_FIGURE_STEMS",
@@ -140,22 +142,25 @@ def format_t(t: float | str) -> str:
 
 # -- data stage -------------------------------------------------------------
 
+#: Folder of the generated synthetic database (its layout: :mod:`brdfpipe.spec.layouts`).
+SYNTHETIC = f"{RESULTS}/synthetic"
+
 
 def synthetic_binary(material: str) -> str:
-    return f"{RESULTS}/synthetic/{material}.binary"
+    return f"{SYNTHETIC}/{layouts.merl_file(material)}"
 
 
 def synthetic_record(material: str) -> str:
-    return f"{RESULTS}/synthetic/records/{material}.json"
+    return f"{SYNTHETIC}/{layouts.record_file(material)}"
 
 
 def manifest() -> str:
-    return f"{RESULTS}/synthetic/manifest.json"
+    return f"{SYNTHETIC}/{layouts.SYNTHETIC_MANIFEST}"
 
 
 def fit_binary(database: str, material: str) -> str:
     """A table evaluated from an NBRDF fit of a database of fits (rule evaluate_fits)."""
-    return f"{RESULTS}/nbrdf/{database}/{material}.binary"
+    return f"{RESULTS}/nbrdf/{database}/{layouts.merl_file(material)}"
 
 
 def ingest_row(material: str) -> str:
@@ -244,7 +249,7 @@ def unseen_tables(database: str) -> str:
 
 def unseen_binary(database: str, material: str) -> str:
     """One fit-made MERL file of an unseen database (inside :func:`unseen_tables`)."""
-    return f"{unseen_tables(database)}/{material}.binary"
+    return f"{unseen_tables(database)}/{layouts.merl_file(material)}"
 
 
 def unseen_store(database: str) -> str:

@@ -30,6 +30,7 @@ from brdfpipe.data.databases import EXTRA_TEST_MATERIAL, MERL_TEST_MATERIALS, XU
 from brdfpipe.core.version import full_version
 from brdfpipe.data import provenance, synth
 from brdfpipe.data.synth import default_test_count
+from brdfpipe.spec import layouts
 
 __all__ = [
     "XU2016_TEST_MATERIALS",
@@ -56,7 +57,7 @@ __all__ = [
     "write_splits",
 ]
 
-MERL_SUFFIX = ".binary"
+MERL_SUFFIX = layouts.MERL_SUFFIX
 #: Longest material name: ``.NAME.zarr.tmp-PID-RANDOM`` siblings must fit in 255 bytes.
 MAX_NAME_LENGTH = 100
 _NAME_CHARS = re.compile(r"[A-Za-z0-9._+-]*")
@@ -229,7 +230,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
         raise DatabaseError(f"{key} {path}: mixes {kinds}; keep one kind per folder")
     (label,) = by_label
     sources = {f.name[: -len(MERL_SUFFIX)]: f.resolve() for f in files}
-    manifest_path = path / "manifest.json"
+    manifest_path = path / layouts.SYNTHETIC_MANIFEST
     manifest = _read_manifest(manifest_path)
     says_synthetic = manifest is not None and manifest.get("kind") == "synthetic"
     if label != "synthetic":
@@ -283,7 +284,7 @@ def folder_database(folder: str | os.PathLike[str], *, key: str = "folder") -> D
 def synthetic_database(out_dir: str | os.PathLike[str], count: int, seed: int) -> Database:
     """The synthetic database that :mod:`brdfpipe.data.synth` generates into ``out_dir``."""
     specs = synth.plan_database(count, seed)
-    sources = {s.name: Path(out_dir) / f"{s.name}{MERL_SUFFIX}" for s in specs}
+    sources = {s.name: Path(out_dir) / layouts.merl_file(s.name) for s in specs}
     default = tuple(synth.default_test_materials(specs, n=default_test_count(count)))
     return Database("synthetic", sources, default)
 
@@ -328,7 +329,7 @@ def fits_database(name: str, archive: str | os.PathLike[str], out_dir: str | os.
             raise DatabaseError(f"{key} {archive}: fits {fits[material]!r} and {fit!r} would both be material "
                                 f"{material!r}; rename one")
         fits[material] = fit
-    sources = {m: Path(out_dir) / f"{m}{MERL_SUFFIX}" for m in fits}
+    sources = {m: Path(out_dir) / layouts.merl_file(m) for m in fits}
     spec = databases.DATABASES.get(name)
     listed = spec.default_test if spec is not None and spec.default_test is not None else None
     default = tuple(m for m in listed if m in fits) if listed is not None else spread_test_materials(list(fits))

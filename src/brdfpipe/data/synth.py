@@ -163,6 +163,7 @@ from brdfpipe.core import atomic
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl, provenance
 from brdfpipe.data.provenance import WATERMARK_CELLS, WATERMARK_MAGIC, WATERMARK_RAW
+from brdfpipe.spec import layouts
 
 __all__ = [
     "FAMILIES",
@@ -1216,10 +1217,10 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
     entries = sorted(e for e in out.iterdir() if not e.name.startswith("."))
     if not entries:
         return
-    planned = {f"{s.name}.binary" for s in specs}
+    planned = {layouts.merl_file(s.name) for s in specs}
     interrupted = all(e.name in planned and e.is_file() and not e.is_symlink() and is_synthetic_file(e)
                       for e in entries)  # an earlier run of this plan stopped before its manifest
-    if not interrupted and not _is_synthetic_manifest(out / "manifest.json"):
+    if not interrupted and not _is_synthetic_manifest(out / layouts.SYNTHETIC_MANIFEST):
         raise atomic.OutputError(
             f"--out {out}: folder is not empty and holds no synthetic manifest.json (not written by "
             "`brdfpipe synth`); refusing to write into it: choose a new or empty folder"
@@ -1227,7 +1228,7 @@ def check_output_folder(out: str | os.PathLike[str], specs: Sequence[MaterialSpe
     foreign: list[str] = []
     other_plan: list[str] = []
     for e in entries:
-        if not e.name.lower().endswith(".binary"):
+        if not e.name.lower().endswith(layouts.MERL_SUFFIX):
             continue
         if e.name not in planned:
             other_plan.append(e.name)
@@ -1279,7 +1280,7 @@ def synthesize(
     specs = plan_database(count, seed)
     check_output_folder(out, specs)
     out.mkdir(parents=True, exist_ok=True)
-    tasks = [(s, str(out / f"{s.name}{'.binary'}"), noise, (count, seed)) for s in specs]
+    tasks = [(s, str(out / layouts.merl_file(s.name)), noise, (count, seed)) for s in specs]
     level = logging.INFO if progress else logging.DEBUG
     records: dict[str, dict[str, float]] = {}
     t_start = time.perf_counter()
@@ -1299,7 +1300,7 @@ def synthesize(
             for i, (task, result) in enumerate(zip(tasks, pool.map(_synth_one, tasks))):
                 done(i, task[0], *result)
     test = default_test_materials(specs, default_test_count(count))
-    manifest = out / "manifest.json"
+    manifest = out / layouts.SYNTHETIC_MANIFEST
     write_manifest(specs, manifest, seed=seed, noise=noise, test_materials=test, records=records)
     log.log(level, "%d materials in %.1f s -> %s", count, time.perf_counter() - t_start, manifest)
     return manifest
