@@ -6,14 +6,14 @@ written and read through :func:`brdfpipe.core.integrity.write_csv` /
 :func:`~brdfpipe.core.integrity.read_csv_text` (a digest line first, checked by
 every reader).  Standard library only: the report reads them too.
 
-=====================================  =================================================  =====================
-table                                  writer                                             readers
-=====================================  =================================================  =====================
-``results/evaluation/errors.csv``      :func:`brdfpipe.acquisition.reconstruct.write_errors`  figures, claims
-``results/evaluation/training_size.csv``  :func:`brdfpipe.acquisition.reconstruct.training_size_curve`  figures, claims
-``results/evaluation/unseen.csv``      :mod:`brdfpipe.acquisition.unseen`                figures, claims
-``results/manifold/unseen.csv``        :mod:`brdfpipe.manifold.unseen`                   figures
-=====================================  =================================================  =====================
+========================================  ===========================================================  ===============
+table                                     writer                                                       readers
+========================================  ===========================================================  ===============
+``results/evaluation/errors.csv``         :func:`brdfpipe.acquisition.evaluation.write_errors`         figures, claims
+``results/evaluation/training_size.csv``  :func:`brdfpipe.acquisition.evaluation.training_size_curve`  figures, claims
+``results/evaluation/unseen.csv``         :mod:`brdfpipe.acquisition.unseen`                           figures, claims
+``results/manifold/unseen.csv``           :mod:`brdfpipe.manifold.unseen`                              figures
+========================================  ===========================================================  ===============
 """
 
 from __future__ import annotations
