@@ -30,7 +30,7 @@ intermediate           consuming stage (rule)
 =====================  ===========================================================
 log-map X              ``svd.gram_partial`` over all columns (``accumulate_gram``)
 Gram partials          ``svd.write_model`` (``decompose_svd``; partials made first)
-PCA model, directions  ``reconstruct.write_evaluation`` (``evaluate_directions``)
+PCA model, directions  ``evaluation.write_evaluation`` (``evaluate_directions``)
 GPLVM Gram file        ``gplvm.fit_to_files`` q = 2 (``fit_gplvm``)
 GPLVM models           ``analysis.path_points_to_files`` (``interpolate_path_points``)
 pre-renders, refs      ``blend.error_maps_from_files`` (``error_maps``)
@@ -244,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
 
     logging.getLogger("brdfpipe").setLevel(logging.ERROR)  # the stages' own warnings are not the point here
 
-    from brdfpipe.acquisition import closedloop, reconstruct, svd
+    from brdfpipe.acquisition import closedloop, evaluation, svd
     from brdfpipe.core import integrity
     from brdfpipe.data import store
     from brdfpipe.manifold import analysis, gplvm
@@ -295,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
         dirs = sorted((results / "directions" / "train").glob("*.json"))
         if model.is_dir() and dirs:
             v, size = _group_cost(model, args.rounds)
-            evaluate = lambda: reconstruct.write_evaluation(  # noqa: E731
+            evaluate = lambda: evaluation.write_evaluation(  # noqa: E731
                 results / "merl.zarr", model, dirs, work / "errors.csv", test_materials=splits["test"])
             measure("PCA model train.zarr", "evaluate_directions", v, evaluate, f"{size / 1e6:.0f} MB")
             measure(f"directions ({len(dirs)} JSON)", "evaluate_directions", _json_cost(dirs, args.rounds), evaluate)

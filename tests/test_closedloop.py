@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe.acquisition import closedloop, geometry, optimize, reconstruct, svd
+from brdfpipe.acquisition import closedloop, evaluation, geometry, optimize, svd
 from brdfpipe.acquisition.geometry import Setup
 from brdfpipe.core import exr, filenames, integrity
 from brdfpipe.data import logmap, merl, store, synth
@@ -226,7 +226,7 @@ def test_closed_loop_matches_the_table_lookup(loop: Loop) -> None:
     """High spp and no sensor noise: the closed-loop error is within 10 % of the table lookup's."""
     got = loop.run("clean", NO_NOISE, spp=256)
     # The table-lookup rows are the leave-out evaluation's (same store, model, sets).
-    ref = reconstruct.evaluate(loop.store, loop.model, [loop.directions], test_materials=loop.test)
+    ref = evaluation.evaluate(loop.store, loop.model, [loop.directions], test_materials=loop.test)
     for r in ref:
         if r["kind"] in ("rms_log", "relrms_linear") and r["material"] == "mean":
             assert math.isclose(got[("mean", r["kind"], int(r["n"]))], r["value"], rel_tol=1e-6)

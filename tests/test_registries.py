@@ -111,16 +111,16 @@ def test_every_data_space_has_its_maps() -> None:
 
 def test_each_shared_table_has_one_column_declaration() -> None:
     """The writers and readers of the tables in brdfpipe.spec.tables use its tuples, not copies."""
+    from brdfpipe.acquisition import evaluation
     from brdfpipe.acquisition import figures as acq_figures
-    from brdfpipe.acquisition import reconstruct
     from brdfpipe.acquisition import unseen as acq_unseen
     from brdfpipe.manifold import figures as man_figures
     from brdfpipe.manifold import unseen as man_unseen
     from brdfpipe.report import claims
     from brdfpipe.spec import tables
 
-    assert reconstruct.ERROR_COLUMNS is tables.ERRORS and acq_figures.ERRORS_COLUMNS is tables.ERRORS
-    assert reconstruct.TRAINING_SIZE_COLUMNS is tables.TRAINING_SIZE and acq_figures.TRAINING_COLUMNS is tables.TRAINING_SIZE
+    assert evaluation.ERROR_COLUMNS is tables.ERRORS and acq_figures.ERRORS_COLUMNS is tables.ERRORS
+    assert evaluation.TRAINING_SIZE_COLUMNS is tables.TRAINING_SIZE and acq_figures.TRAINING_COLUMNS is tables.TRAINING_SIZE
     assert acq_unseen.UNSEEN_COLUMNS is tables.UNSEEN_ERRORS and acq_figures.UNSEEN_COLUMNS is tables.UNSEEN_ERRORS
     assert man_unseen.UNSEEN_COLUMNS is tables.MANIFOLD_UNSEEN and man_figures.UNSEEN_COLUMNS is tables.MANIFOLD_UNSEEN
     from brdfpipe.data import nbrdf

@@ -392,13 +392,13 @@ def _by_key(rows: list[dict], material: str) -> dict[tuple, float]:
 
 
 def test_unseen_csv_columns_labels_and_the_held_out_identity(acq: Acq, tmp_path: Path) -> None:
-    from brdfpipe.acquisition import reconstruct
+    from brdfpipe.acquisition import evaluation
     from brdfpipe.acquisition import unseen as acq_unseen
 
     out = acq_unseen.write_unseen(tmp_path / "unseen.csv", stores={"rgl-nbrdf": acq.unseen}, model=acq.model,
                                   directions=acq.dirs)
     header, rows = integrity.read_csv_rows(out, required=acq_unseen.UNSEEN_COLUMNS)
-    assert tuple(header) == acq_unseen.UNSEEN_COLUMNS == ("database", "model_database", *reconstruct.ERROR_COLUMNS[1:])
+    assert tuple(header) == acq_unseen.UNSEEN_COLUMNS == ("database", "model_database", *evaluation.ERROR_COLUMNS[1:])
     assert {r["database"] for r in rows} == {"rgl-nbrdf"}  # the material's own database, never merl
     assert {r["model_database"] for r in rows} == {"merl-nbrdf"} and {r["split"] for r in rows} == {"train"}
     assert {r["material"] for r in rows} == {"paper-red-rgb", "spectralon-rgb", "copy-gold-paint", "copy-teflon",
@@ -408,7 +408,7 @@ def test_unseen_csv_columns_labels_and_the_held_out_identity(acq: Acq, tmp_path:
     assert sets == {("point", "1"), ("point", "2"), ("point", "3"), ("nearfield", "1"), ("nearfield", "2")}
     # the held-out material, copied into another database's store, gets exactly its leave-out evaluation
     rows_d = [{**r, "value": float(r["value"])} for r in rows]
-    held = reconstruct.evaluate(acq.store, acq.model, acq.dirs, test_materials=["teflon"])
+    held = evaluation.evaluate(acq.store, acq.model, acq.dirs, test_materials=["teflon"])
     want, got = _by_key(held, "teflon"), _by_key(rows_d, "copy-teflon")
     assert set(want) == set(got) and len(got) == (5 + 1) * 4  # (5 sets + the floor) × (R, G, B, all)
     for k, v in want.items():

@@ -1,10 +1,10 @@
 """Leave-out evaluation of every training-split direction set (rule evaluate_directions)."""
 
-from brdfpipe.acquisition import reconstruct
+from brdfpipe.acquisition import evaluation
 from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
-    reconstruct.write_evaluation(
+    evaluation.write_evaluation(
         snakemake.input.store,
         snakemake.input.model,
         list(snakemake.input.directions),

@@ -1,10 +1,10 @@
 """Error vs number of training materials, Xu Fig. 7 (rule evaluate_training_size)."""
 
-from brdfpipe.acquisition import reconstruct
+from brdfpipe.acquisition import evaluation
 from brdfpipe.core.logutil import log_to
 
 with log_to(snakemake.log[0]):
-    reconstruct.write_training_size(
+    evaluation.write_training_size(
         snakemake.input.store,
         snakemake.input.logmap,
         snakemake.input.directions,

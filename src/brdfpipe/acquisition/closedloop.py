@@ -1,6 +1,6 @@
 """Closed-loop evaluation: reconstruct held-out materials from captured images, next to the table lookup.
 
-The leave-out evaluation (:mod:`brdfpipe.acquisition.reconstruct`) observes a
+The leave-out evaluation (:mod:`brdfpipe.acquisition.evaluation`) observes a
 held-out material by looking its table up at the cells the acquisition
 geometry predicts.  The closed loop observes it through images instead:
 :mod:`brdfpipe.rendering.capture` renders each configuration of a direction
@@ -9,7 +9,7 @@ writes the observation table read off the pixels (NPZ: ``wi``, ``wo``,
 ``rgb`` per kept pixel).  Here, for every (material, directions file, n):
 
 * ``rms_log``, ``relrms_linear`` — the table lookup, exactly as
-  :func:`brdfpipe.acquisition.reconstruct.evaluate` (observations = the
+  :func:`brdfpipe.acquisition.evaluation.evaluate` (observations = the
   store's values at :func:`brdfpipe.acquisition.geometry.observation_cells`
   of the set's configurations, dropped where not a model column);
 * ``closedloop_noiseless_rms_log``, ``closedloop_noiseless_relrms_linear`` —
@@ -49,9 +49,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.acquisition import geometry
+from brdfpipe.acquisition.evaluation import CHANNELS, ERROR_COLUMNS, write_errors
 from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import read_directions
-from brdfpipe.acquisition.reconstruct import CHANNELS, ERROR_COLUMNS, write_errors
 from brdfpipe.acquisition.svd import Model, open_model
 from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl

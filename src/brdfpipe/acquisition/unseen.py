@@ -1,6 +1,6 @@
 """Acquisition of materials outside the training database: what the optimised set-ups are for.
 
-The leave-out evaluation (:mod:`brdfpipe.acquisition.reconstruct`) measures
+The leave-out evaluation (:mod:`brdfpipe.acquisition.evaluation`) measures
 held-out materials of the run's own database.  Here the model trained on the
 run's database (its ``train`` split: ρ_ref, w, μ, Q) and the direction sets
 optimised with it reconstruct materials of *other* databases (config
@@ -12,7 +12,7 @@ the run is on MERL's), which no model of the run has seen:
   material's values at :func:`brdfpipe.acquisition.geometry.observation_cells`
   of the set's configurations (cells that are not model columns dropped,
   repeats repeated), c̄ by eq. 4 and ``rms_log`` = ‖x − μ − Qc̄‖/√p, exactly
-  as :func:`~brdfpipe.acquisition.reconstruct.evaluate` does for the
+  as :func:`~brdfpipe.acquisition.evaluation.evaluate` does for the
   held-out materials; plus the ``deviation`` floor (every cell observed);
 * **closed loop** — the observation tables read off the rendered
   photographs of the unseen materials
@@ -25,7 +25,7 @@ the run is on MERL's), which no model of the run has seen:
 
 All errors are in log-mapped space, by the Gram identity from one streamed
 pass over Q and the unseen rows per database
-(:func:`brdfpipe.acquisition.reconstruct.row_statistics`): ≈ the cost of
+(:func:`brdfpipe.acquisition.evaluation.row_statistics`): ≈ the cost of
 pass 1 of the held-out evaluation.  ``relrms_linear`` (a second pass whose
 cost grows with sets × rows: ~60 CPU-s for the default 59 materials and 28
 sets) is not computed here.
@@ -53,9 +53,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.acquisition import geometry
+from brdfpipe.acquisition.evaluation import CHANNELS, row_statistics, write_errors
 from brdfpipe.acquisition.metrics import DEFAULT_ETA, check_eta, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import read_directions
-from brdfpipe.acquisition.reconstruct import CHANNELS, ERROR_COLUMNS, row_statistics, write_errors
 from brdfpipe.acquisition.svd import Model, open_model
 from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads

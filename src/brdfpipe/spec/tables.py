@@ -6,23 +6,23 @@ written and read through :func:`brdfpipe.core.integrity.write_csv` /
 :func:`~brdfpipe.core.integrity.read_csv_text` (a digest line first, checked by
 every reader).  Standard library only: the report reads them too.
 
-=====================================  =================================================  =====================
-table                                  writer                                             readers
-=====================================  =================================================  =====================
-``results/evaluation/errors.csv``      :func:`brdfpipe.acquisition.reconstruct.write_errors`  figures, claims
-``results/evaluation/training_size.csv``  :func:`brdfpipe.acquisition.reconstruct.training_size_curve`  figures, claims
-``results/evaluation/unseen.csv``      :mod:`brdfpipe.acquisition.unseen`                figures, claims
-``results/manifold/unseen.csv``        :mod:`brdfpipe.manifold.unseen`                   figures
-Xu Fig. 8's table (``fig08-*.csv``)    :mod:`brdfpipe.acquisition.figures`               claims
-a GPLVM fit's ``trace.csv``            :func:`brdfpipe.manifold.gplvm.write_trace`       figures, claims
-``results/manifold/albedo.csv``        :mod:`brdfpipe.manifold.analysis`                 figures
-``results/manifold/paths.csv``         :mod:`brdfpipe.manifold.analysis`                 figures, claims
-``results/manifold/reproduction.csv``  :mod:`brdfpipe.manifold.analysis`                 figures, claims
-``results/manifold/spaces.csv``        :mod:`brdfpipe.manifold.fidelity`                 figures, claims
-``results/manifold/stability.csv``     :mod:`brdfpipe.manifold.fidelity`                 figures
-``results/unseen/<db>-albedo.csv``     :mod:`brdfpipe.data.nbrdf`                        claims
-``renders/<scene>/bounce-shares.csv``  :func:`brdfpipe.rendering.blend.bounce_shares`    claims
-=====================================  =================================================  =====================
+========================================  ===========================================================  ===============
+table                                     writer                                                       readers
+========================================  ===========================================================  ===============
+``results/evaluation/errors.csv``         :func:`brdfpipe.acquisition.evaluation.write_errors`         figures, claims
+``results/evaluation/training_size.csv``  :func:`brdfpipe.acquisition.evaluation.training_size_curve`  figures, claims
+``results/evaluation/unseen.csv``         :mod:`brdfpipe.acquisition.unseen`                           figures, claims
+``results/manifold/unseen.csv``           :mod:`brdfpipe.manifold.unseen`                              figures
+Xu Fig. 8's table (``fig08-*.csv``)       :mod:`brdfpipe.acquisition.figures`                          claims
+a GPLVM fit's ``trace.csv``               :func:`brdfpipe.manifold.gplvm.write_trace`                  figures, claims
+``results/manifold/albedo.csv``           :mod:`brdfpipe.manifold.analysis`                            figures
+``results/manifold/paths.csv``            :mod:`brdfpipe.manifold.analysis`                            figures, claims
+``results/manifold/reproduction.csv``     :mod:`brdfpipe.manifold.analysis`                            figures, claims
+``results/manifold/spaces.csv``           :mod:`brdfpipe.manifold.fidelity`                            figures, claims
+``results/manifold/stability.csv``        :mod:`brdfpipe.manifold.fidelity`                            figures
+``results/unseen/<db>-albedo.csv``        :mod:`brdfpipe.data.nbrdf`                                   claims
+``renders/<scene>/bounce-shares.csv``     :func:`brdfpipe.rendering.blend.bounce_shares`               claims
+========================================  ===========================================================  ===============
 """
 
 from __future__ import annotations

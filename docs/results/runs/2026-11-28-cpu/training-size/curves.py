@@ -8,17 +8,17 @@ import json
 import sys
 from pathlib import Path
 
-from brdfpipe.acquisition import reconstruct
+from brdfpipe.acquisition import evaluation
 from brdfpipe.core import integrity
 
 SIZES = [10, 20, 30, 40, 50, 60, 70, 80, 90]
 
 
 def curve(base: Path, test: list[str], *, n_images: int, order_seed: int) -> dict[int, float]:
-    rows = reconstruct.training_size_curve(base / "merl.zarr", base / "logmap" / "train.zarr",
-                                           base / "directions" / "train" / "nearfield-fov25-error.json",
-                                           test_materials=test, sizes=SIZES, order_seed=order_seed,
-                                           n_images=n_images, eta=40)
+    rows = evaluation.training_size_curve(base / "merl.zarr", base / "logmap" / "train.zarr",
+                                          base / "directions" / "train" / "nearfield-fov25-error.json",
+                                          test_materials=test, sizes=SIZES, order_seed=order_seed,
+                                          n_images=n_images, eta=40)
     return {int(r["n_train"]): float(r["value"]) for r in rows if r["material"] == "mean" and r["channel"] == "all"}
 
 
