@@ -3,7 +3,7 @@
 One :class:`SpaceMaps` per data space of :data:`brdfpipe.spec.manifold.DATA_SPACES`
 (the records: name, linear or not), registered under the same name in
 :data:`MAPS`.  A space maps in two steps, so the Gram matrix
-(:func:`brdfpipe.manifold.gplvm.gram_matrix`) streams the store once:
+(:func:`brdfpipe.manifold.gram.gram_matrix`) streams the store once:
 
 * ``cell_maps(store, names, cells)`` → ``(a, b)``: per-cell arrays computed
   once over the materials used (``None`` where the space needs none);
