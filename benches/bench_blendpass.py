@@ -73,8 +73,9 @@ def _store(args: argparse.Namespace) -> Path:
 
 def _fits(st_path: Path, work: Path, space: str) -> dict[int, object]:
     from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold.gram import gram_matrix
 
-    G, d, info = gplvm.gram_matrix(st_path, space=space)
+    G, d, info = gram_matrix(st_path, space=space)
     fits = {}
     for q in (2, 5):
         path = work / f"{st_path.stem}-{space}-q{q}.npz"

@@ -11,7 +11,7 @@ import scipy.spatial
 from brdfpipe.core import integrity
 from brdfpipe.data import merl, store, synth
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.manifold import albedo, analysis, fidelity, gplvm, latent
+from brdfpipe.manifold import albedo, analysis, fidelity, gplvm, gram, latent
 
 N = 8
 
@@ -26,7 +26,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
     st = store.open_store(st_path)
     grams, models = {}, {}
     for space in ("raw", "standardised"):
-        G, d, info = gplvm.gram_matrix(st_path, space=space)
+        G, d, info = gram.gram_matrix(st_path, space=space)
         grams[space] = tmp / f"gram-{space}.npz"
         gplvm.save_gram(grams[space], G, d, info)
     for q in (2, 3):
@@ -108,7 +108,7 @@ def test_stability_equals_direct_table_differences(setup: dict) -> None:
 
 def test_nearest_neighbour_spread_against_a_kd_tree() -> None:
     X = np.array([[0.0, 0.0], [0.0, 1e-6], [1.0, 0.0], [3.0, 0.0]])
-    m = gplvm.GplvmModel(tuple("abcd"), X, 0.5, 1e-4, "raw", gplvm.MEAN_HANDLING,
+    m = gplvm.GplvmModel(tuple("abcd"), X, 0.5, 1e-4, "raw", gram.MEAN_HANDLING,
                          np.linalg.cholesky(gplvm.kernel_matrix(X, 0.5, 1e-4)), 0.0, 10.0, np.zeros((0, 2)))
     got = fidelity.nearest_neighbour_spread(m)
     dist, _ = scipy.spatial.cKDTree(X / 0.5).query(X / 0.5, k=2)
@@ -198,7 +198,7 @@ def test_log_candidate_measures_every_blend_of_its_fits_in_one_pass(setup: dict,
     from brdfpipe.manifold import blendpass, perceptual
 
     tmp = setup["tmp"]
-    G, d, info = gplvm.gram_matrix(setup["store"], space="log")
+    G, d, info = gram.gram_matrix(setup["store"], space="log")
     grams = {"raw": setup["grams"]["raw"], "log": tmp / "gram-log.npz"}
     gplvm.save_gram(grams["log"], G, d, info)
     models = {}

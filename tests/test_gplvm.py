@@ -1,4 +1,4 @@
-"""brdfpipe.manifold.gplvm: Gram matrix, rank-2 bookkeeping, Hooke–Jeeves fit, interpolation weights, saving."""
+"""brdfpipe.manifold.gplvm: Gram scale and file, rank-2 bookkeeping, Hooke–Jeeves fit, interpolation weights, saving."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import scipy.linalg
 from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.manifold import gplvm
+from brdfpipe.manifold import gplvm, gram
 
 
 # --------------------------------------------------------------------------
@@ -47,70 +47,6 @@ def _random_gram(n: int, seed: int, d: float) -> np.ndarray:
     F = np.concatenate([np.sin(lat @ rng.normal(size=(3, 200))), 0.1 * rng.normal(size=(n, 300))], axis=1)
     F -= F.mean(axis=0)
     return F @ F.T * (d / F.shape[1])
-
-
-# --------------------------------------------------------------------------
-# Gram matrix
-# --------------------------------------------------------------------------
-
-
-@pytest.mark.parametrize("space", gplvm.SPACES)
-def test_gram_matrix_equals_dense_computation(small_store: Path, dense: dict, space: str) -> None:
-    G, d, info = gplvm.gram_matrix(small_store, space=space)
-    data = dense["data"].astype(np.float64)
-    cells = dense["cells"]
-    wi, wo = merl.cell_directions(cells)
-    cos = wi[:, 2] * wo[:, 2]
-    if space == "cosine":
-        data = data * cos
-    elif space == "relative":  # cos θi cos θo over the per-cell median of every channel of every material
-        ref = np.median(dense["data"].transpose(1, 0, 2).reshape(-1, cells.size).astype(np.float64), axis=0)
-        data = data * cos / np.maximum(ref, 1e-3)
-    elif space == "standardised":  # each (channel, cell) over its standard deviation across the materials
-        sd = data.std(axis=0)
-        data = data * np.sqrt(np.maximum(cos, 0.0)) / np.maximum(sd, 1e-6)
-    elif space == "log":
-        ref = np.median(dense["data"].reshape(-1, cells.size).astype(np.float64), axis=0)
-        data = logmap.forward(data, ref, logmap.cell_weights(cells, "product"))
-    Z = data.reshape(data.shape[0], -1)
-    Zc = Z - Z.mean(axis=0)
-    expected = Zc @ Zc.T
-    assert d == Z.shape[1] == 3 * cells.size
-    assert info.space == space and len(info.materials) == 6
-    assert np.allclose(G, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
-    assert np.allclose(info.row_sums, Z.sum(axis=1), rtol=1e-9)
-    assert np.allclose(G, G.T)
-
-
-@pytest.mark.parametrize("space", gplvm.LINEAR_SPACES)
-def test_linear_spaces_blend_the_raw_tables(small_store: Path, dense: dict, space: str) -> None:
-    """In every linear space the interpolated table is W Z of the stored values, whatever the per-value scaling."""
-    W = np.array([[0.7, 0.5, -0.2, 0.0, 0.0, 0.0], [0.1, 0.1, 0.1, 0.2, 0.2, 0.3]])
-    tables, _ = gplvm.interpolate_tables(small_store, W, space=space)
-    raw = dense["brdf"].reshape(6, 3 * N_CELLS).astype(np.float64)
-    expect = np.clip(W @ raw, 0.0, None)
-    keep = np.tile(dense["valid"], 3)
-    assert np.allclose(tables.reshape(2, -1)[:, keep], expect[:, keep], rtol=1e-6, atol=1e-9)
-    assert (tables.reshape(2, -1)[:, ~keep] == -1.0).all()
-
-
-def test_gram_material_subset_order_and_save_load(small_store: Path, tmp_path: Path) -> None:
-    st = store.open_store(small_store)
-    names = [st.materials[4], st.materials[1], st.materials[2]]
-    G, d, info = gplvm.gram_matrix(small_store, materials=names)
-    Gall, _, info_all = gplvm.gram_matrix(small_store)
-    idx = [4, 1, 2]
-    raw = info_all.raw_gram[np.ix_(idx, idx)]
-    assert info.materials == tuple(names)
-    assert np.allclose(info.raw_gram, raw, rtol=1e-12)
-    assert np.allclose(G, gplvm.centre_gram(raw), rtol=0, atol=1e-9 * np.abs(G).max())
-    path = tmp_path / "g" / "gram.npz"
-    gplvm.save_gram(path, G, d, info)
-    G2, d2, info2 = gplvm.load_gram(path)
-    assert np.array_equal(G2, G) and d2 == d and info2.materials == info.materials
-    assert [p.name for p in path.parent.iterdir()] == ["gram.npz"]  # no temporary left
-    with pytest.raises(ValueError, match="unknown data space"):
-        gplvm.gram_matrix(small_store, space="sqrt")
 
 
 # --------------------------------------------------------------------------
@@ -351,7 +287,7 @@ def test_fit_to_files_normalises_and_records_stages(tmp_path: Path) -> None:
     d = 4e6
     G = _random_gram(20, 6, d) * 1e7  # raw units: far above the kernel's amplitude
     names = tuple(f"m{i}" for i in range(20))
-    info = gplvm.GramInfo(names, "raw", np.zeros(20), G)
+    info = gram.GramInfo(names, "raw", np.zeros(20), G)
     gplvm.save_gram(tmp_path / "g.npz", G, int(d), info)
     r = gplvm.fit_to_files(tmp_path / "g.npz", tmp_path / "m.npz", tmp_path / "t.csv", q=2, seed=0, max_sweeps=30)
     m = gplvm.load_model(tmp_path / "m.npz")
@@ -389,7 +325,7 @@ def test_fit_to_files_same_bytes_twice(tmp_path: Path) -> None:
     """The workflow's fit (default method): the same Gram file gives the same bytes of model and trace."""
     d = 4e6
     G = _random_gram(20, 9, d) * 1e3
-    info = gplvm.GramInfo(tuple(f"m{i}" for i in range(20)), "raw", np.zeros(20), G)
+    info = gram.GramInfo(tuple(f"m{i}" for i in range(20)), "raw", np.zeros(20), G)
     gplvm.save_gram(tmp_path / "g.npz", G, int(d), info)
     for k in (1, 2):
         gplvm.fit_to_files(tmp_path / "g.npz", tmp_path / f"m{k}.npz", tmp_path / f"t{k}.csv", q=2, seed=k)
@@ -492,8 +428,20 @@ def test_weights_bad_x_star(fitted: gplvm.FitResult) -> None:
         gplvm.weights(fitted.X, np.zeros((3, 1)))
 
 
+@pytest.mark.parametrize("space", gram.LINEAR_SPACES)
+def test_linear_spaces_blend_the_raw_tables(small_store: Path, dense: dict, space: str) -> None:
+    """In every linear space the interpolated table is W Z of the stored values, whatever the per-value scaling."""
+    W = np.array([[0.7, 0.5, -0.2, 0.0, 0.0, 0.0], [0.1, 0.1, 0.1, 0.2, 0.2, 0.3]])
+    tables, _ = gplvm.interpolate_tables(small_store, W, space=space)
+    raw = dense["brdf"].reshape(6, 3 * N_CELLS).astype(np.float64)
+    expect = np.clip(W @ raw, 0.0, None)
+    keep = np.tile(dense["valid"], 3)
+    assert np.allclose(tables.reshape(2, -1)[:, keep], expect[:, keep], rtol=1e-6, atol=1e-9)
+    assert (tables.reshape(2, -1)[:, ~keep] == -1.0).all()
+
+
 def test_interpolate_table_reproduces_materials_and_tends_to_mean(small_store: Path, dense: dict) -> None:
-    G, d, info = gplvm.gram_matrix(small_store)
+    G, d, info = gram.gram_matrix(small_store)
     r = gplvm.fit(G, d, q=2, seed=0, max_sweeps=20)
     n = G.shape[0]
     valid = np.tile(dense["valid"], 3)
@@ -584,7 +532,7 @@ def test_pca_init_is_kernel_pca() -> None:
 def test_a_model_or_gram_file_of_the_retired_format_is_refused(tmp_path: Path) -> None:
     """Format /1 files record no digests of the store rows they came from: refused, saying what to do."""
     G = _random_gram(6, 3, 100.0)
-    info = gplvm.GramInfo(tuple(f"m{i}" for i in range(6)), "raw", np.zeros(6), G)
+    info = gram.GramInfo(tuple(f"m{i}" for i in range(6)), "raw", np.zeros(6), G)
     gplvm.save_gram(tmp_path / "g.npz", G, 100, info)
     z = integrity.load_npz(tmp_path / "g.npz")
     z["format"] = np.array("brdfpipe.manifold.gplvm.gram/1")

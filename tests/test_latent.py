@@ -15,7 +15,7 @@ import scipy.stats
 
 from brdfpipe import cli
 from brdfpipe.data import merl, provenance, store, synth
-from brdfpipe.manifold import albedo, analysis, gplvm, latent
+from brdfpipe.manifold import albedo, analysis, gplvm, gram, latent
 
 # --------------------------------------------------------------------------
 # hull_contains
@@ -159,7 +159,7 @@ def _model(X: np.ndarray, names: Sequence[str], ell: float = 1.0, mu: float = 1e
     X = np.asarray(X, dtype=np.float64)
     chol = np.linalg.cholesky(gplvm.kernel_matrix(X, ell, mu))
     digests = gplvm.store_digests(store, names) if store is not None else ()
-    return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gplvm.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)),
+    return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gram.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)),
                             data_digests=digests)
 
 

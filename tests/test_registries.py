@@ -92,10 +92,10 @@ def test_setup_records_drive_the_geometry_and_the_optimiser() -> None:
 
 
 def test_data_space_records_drive_the_manifold() -> None:
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gram
 
-    assert gplvm.SPACES == man_spec.SPACE_NAMES
-    assert gplvm.LINEAR_SPACES == tuple(n for n, s in man_spec.DATA_SPACES.items() if s.linear)
+    assert gram.SPACES == man_spec.SPACE_NAMES
+    assert gram.LINEAR_SPACES == tuple(n for n, s in man_spec.DATA_SPACES.items() if s.linear)
     assert man_spec.candidate_label("standardised", 1e-6) == "standardised-mu1e-06"
     with pytest.raises(ValueError, match="unknown data space"):
         man_spec.candidate_label("lab", 1e-4)

@@ -28,7 +28,7 @@ from brdfpipe.core.version import full_version
 from brdfpipe.data import merl, store
 from brdfpipe.data.merl import MerlFormatError, N_CELLS
 from brdfpipe.data.store import N_COLS, StoreError
-from brdfpipe.manifold import gplvm
+from brdfpipe.manifold import gplvm, gram
 
 N_MATERIALS = 3
 
@@ -542,7 +542,7 @@ def test_damaged_shard_stops_the_gram_job(damage: str, built: Path, tmp_path: Pa
     assert "\n" not in str(err.value)
     assert not out.exists() and _leftovers(tmp_path) == []
     with pytest.raises(StoreError, match="'mat-2'"):
-        gplvm.gram_matrix(bad)
+        gram.gram_matrix(bad)
 
 
 def test_swapped_names_fail_verification(built: Path, tmp_path: Path) -> None:

@@ -3,7 +3,7 @@
 Library-level checks of: which unseen materials a config names
 (:func:`brdfpipe.data.database.unseen_databases`), their stores and albedos
 (:func:`brdfpipe.data.nbrdf.evaluate_to_store`), their latent positions on a
-fitted GPLVM (:mod:`brdfpipe.manifold.unseen`, :func:`brdfpipe.manifold.gplvm.cross_gram`),
+fitted GPLVM (:mod:`brdfpipe.manifold.unseen`, :func:`brdfpipe.manifold.gram.cross_gram`),
 their table-lookup reconstruction (:mod:`brdfpipe.acquisition.unseen`, on a
 model of six MERL fits), the spectralon claim and the plan; then one shared
 run of ``tests/config/tiny-nbrdf.yaml`` end to end.  The many-material
@@ -22,6 +22,7 @@ from brdfpipe import plan
 from brdfpipe.core import filenames, integrity
 from brdfpipe.data import database, databases, merl, nbrdf, store
 from brdfpipe.manifold import gplvm, unseen
+from brdfpipe.manifold.gram import MEAN_HANDLING, STANDARDISED_FLOOR, cross_gram, gram_matrix
 
 RESULTS = "results"
 
@@ -172,7 +173,7 @@ class Toy:
         scale = gplvm.gram_scale(self.G, 60)
         res = gplvm.fit(self.G / scale, 60, q=q, mu=mu, method="newton")
         names = [f"m{i:02d}" for i in range(12)]
-        self.model = gplvm.GplvmModel(tuple(names), res.X, res.ell, res.mu, "raw", gplvm.MEAN_HANDLING,
+        self.model = gplvm.GplvmModel(tuple(names), res.X, res.ell, res.mu, "raw", MEAN_HANDLING,
                                       np.linalg.cholesky(gplvm.kernel_matrix(res.X, res.ell, res.mu)),
                                       res.log_likelihood, 60.0, np.zeros((0, 2)), scale, res.method)
 
@@ -262,16 +263,16 @@ def test_cross_gram_equals_a_dense_computation(stores: dict[str, Path]) -> None:
                          for i in range(st.n_materials)])
 
     Zt, Zo = rows(train), rows(other)
-    scale = root_cos / np.maximum(Zt.std(axis=0), gplvm.STANDARDISED_FLOOR)
+    scale = root_cos / np.maximum(Zt.std(axis=0), STANDARDISED_FLOOR)
     T, O = (Zt * scale).reshape(len(Zt), -1), (Zo * scale).reshape(len(Zo), -1)
     mean = T.mean(axis=0)
-    got = gplvm.cross_gram(train, [other], space="standardised")
+    got = cross_gram(train, [other], space="standardised")
     assert got.others == (("rgl-nbrdf", "paper-red-rgb"), ("rgl-nbrdf", "spectralon-rgb"))
     np.testing.assert_allclose(got.gram, (T - mean) @ (T - mean).T, rtol=1e-9, atol=1e-9 * np.abs(got.gram).max())
     np.testing.assert_allclose(got.cross, (T - mean) @ (O - mean).T, rtol=1e-9, atol=1e-9 * np.abs(got.cross).max())
     np.testing.assert_allclose(got.norms2, np.sum((O - mean) ** 2, axis=1), rtol=1e-9)
     np.testing.assert_allclose(got.raw_norms2, np.sum(O ** 2, axis=1), rtol=1e-9)
-    gram, d, _ = gplvm.gram_matrix(train, space="standardised")
+    gram, d, _ = gram_matrix(train, space="standardised")
     assert d == got.d and np.abs(gram - got.gram).max() <= 1e-12 * np.abs(gram).max()
 
 
@@ -304,7 +305,7 @@ def test_unseen_csv_of_the_manifold(stores: dict[str, Path], tmp_path: Path) -> 
     # a Gram matrix of another space: the materials would be mapped to the wrong space
     gplvm.write_gram(stores["merl-nbrdf"], tmp_path / "gram-raw.npz", space="raw")
     G_raw, _, _ = gplvm.load_gram(tmp_path / "gram-raw.npz")
-    cross = gplvm.cross_gram(stores["merl-nbrdf"], [stores["rgl-nbrdf"]], space="standardised")
+    cross = cross_gram(stores["merl-nbrdf"], [stores["rgl-nbrdf"]], space="standardised")
     with pytest.raises(ValueError, match="differs from the models'"):
         unseen.unseen_rows(cross, {2: gplvm.load_model(models[2])}, gram=G_raw, model_database="merl-nbrdf")
 
@@ -319,7 +320,7 @@ def test_a_store_not_measured_where_the_model_is_is_refused(stores: dict[str, Pa
         database="rgl-nbrdf", name="holey", fit="spectralon_rgb", archive="x.zip", fit_sha256="0" * 64, clamped=0))
     store.ingest({"holey": tmp_path / "holey.binary"}, tmp_path / "holey.zarr", database="rgl-nbrdf")
     with pytest.raises(ValueError, match="holey.zarr: .* cell.s. valid in every material"):
-        gplvm.cross_gram(stores["merl-nbrdf"], [tmp_path / "holey.zarr"], space="raw")
+        cross_gram(stores["merl-nbrdf"], [tmp_path / "holey.zarr"], space="raw")
 
 
 # -- the plan -------------------------------------------------------------------

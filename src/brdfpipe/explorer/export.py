@@ -91,6 +91,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic, exr, integrity
 from brdfpipe.manifold import gplvm, latent
+from brdfpipe.manifold.gram import LINEAR_SPACES
 from brdfpipe.explorer import ASSETS, STATIC_DIR
 from brdfpipe.core.version import full_version
 
@@ -340,7 +341,7 @@ def _model_doc(model: gplvm.GplvmModel, path: Path) -> dict[str, Any]:
     return {
         "q": int(X.shape[1]), "file": path.name, "ell": model.ell, "mu": model.mu, "space": model.space,
         "X": _b64(X), "chol": _b64(np.ascontiguousarray(model.chol, dtype="<f8")),
-        "hull": hull_data(X), "linear": model.space in gplvm.LINEAR_SPACES,
+        "hull": hull_data(X), "linear": model.space in LINEAR_SPACES,
     }
 
 
@@ -605,7 +606,7 @@ def _manifest(
         "space": m0.space,
         "mu": m0.mu,
         "ell": m0.ell,
-        "linear": m0.space in gplvm.LINEAR_SPACES,
+        "linear": m0.space in LINEAR_SPACES,
         "materials": names,
         "n": n,
         "width": ww,

@@ -5,6 +5,7 @@ faithful it is per data space, and the track's figures.  Imports
 :mod:`brdfpipe.data`, :mod:`brdfpipe.core` and :mod:`brdfpipe.spec`.
 
 * :mod:`brdfpipe.manifold.spaces`     – the data spaces' maps (forward map of a block, per-cell maps);
+* :mod:`brdfpipe.manifold.gram`       – the Gram matrices of the materials in a data space, streamed from the store;
 * :mod:`brdfpipe.manifold.gplvm`      – the GPLVM over measured materials (§2.1–§3);
 * :mod:`brdfpipe.manifold.latent`     – the latent space: hull, neighbours, extrapolation, sampling;
 * :mod:`brdfpipe.manifold.perceptual` – perceptual BRDF distance (Pereira & Rusinkiewicz 2012);

@@ -1,7 +1,7 @@
 """Analyses of a fitted GPLVM material manifold (Soler et al. 2018 §4, Figs. 7–10).
 
 Everything here starts from the store, the centred Gram matrix of
-:func:`brdfpipe.manifold.gplvm.gram_matrix` and the saved fits; the figures are drawn
+:func:`brdfpipe.manifold.gram.gram_matrix` and the saved fits; the figures are drawn
 by :mod:`brdfpipe.manifold.figures` from the files written by :func:`analyze_manifold`.
 
 Albedo (§4.2, Fig. 7)

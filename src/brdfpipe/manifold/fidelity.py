@@ -2,7 +2,7 @@
 
 A fitted model (:class:`brdfpipe.manifold.gplvm.GplvmModel`) is judged here on what a
 user of the manifold relies on, with the same numbers for every candidate data
-space (:data:`brdfpipe.manifold.gplvm.SPACES` × μ), so the default can be chosen by
+space (:data:`brdfpipe.manifold.gram.SPACES` × μ), so the default can be chosen by
 measurement (rule ``compare_spaces``, CSV :data:`SPACE_COLUMNS`):
 
 Weights
@@ -62,6 +62,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, blendpass, gplvm, latent
+from brdfpipe.manifold.gram import LINEAR_SPACES
 from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
 from brdfpipe.spec.manifold import candidate_label
 from brdfpipe.spec import tables
@@ -142,7 +143,7 @@ def albedo_outside(
     all points in one pass over it, :func:`brdfpipe.manifold.blendpass.measure_blends`).
     """
     W = smooth_weights(model, points)
-    if model.space in gplvm.LINEAR_SPACES:
+    if model.space in LINEAR_SPACES:
         return _outside(W @ np.asarray(albedos, dtype=np.float64))
     if store is None:
         raise ValueError(f"albedo in the {model.space!r} space needs the store (the blend is not linear)")
@@ -264,7 +265,7 @@ def measure_model(
     row: dict[str, Any] = {"q": q, "log_likelihood": model.log_likelihood}
     K = model.chol @ model.chol.T
     row["kappa"] = float(np.linalg.cond(K))
-    linear = model.space in gplvm.LINEAR_SPACES
+    linear = model.space in LINEAR_SPACES
 
     H = hull_sample(model, hull_points, rng) if hull is None else np.asarray(hull, dtype=np.float64)
     row["hull_points"] = int(H.shape[0])
@@ -334,7 +335,7 @@ def _shared_blends(
     blocks: list[NDArray[np.float64]] = []
     hull_rows: dict[int, slice] = {}
     at = 0
-    if first.space not in gplvm.LINEAR_SPACES:
+    if first.space not in LINEAR_SPACES:
         for q, model in fits.items():
             W = smooth_weights(model, hulls[q][:LOG_ALBEDO_POINTS])
             hull_rows[q] = slice(at, at + W.shape[0])

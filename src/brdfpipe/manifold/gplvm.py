@@ -2,31 +2,14 @@
 
 Data
 ----
-``Z`` has one row per material: the concatenated R, G, B values of the cells
-valid (measured) in every material of the store, so ``d = 3 × valid cells``
-(:func:`gram_matrix`).  The mean BRDF (column mean over the materials) is
-subtracted (Soler §3), so far from the data the interpolant tends to the mean.
-The optimisation needs only the N × N Gram matrix ``(Z − 1μ̄ᵀ)(Z − 1μ̄ᵀ)ᵀ``,
-streamed from the store by blocks of cells and accumulated in float64 (the
-N × d matrix is never held in float64).  Data spaces:
-
-* ``raw``: the stored values (the paper);
-* ``cosine``: each cell × cos θi · cos θo of its centre (``merl.cell_directions``);
-* ``log``: ``ln((ρw + ε)/(ρ_ref w + ε))`` like the acquisition track
-  (:func:`brdfpipe.data.logmap.forward`, ``w`` = :func:`brdfpipe.data.logmap.cell_weights`
-  "product", ρ_ref = per-cell median over all channels of the materials used);
-* ``relative``: each cell × ``cos θi · cos θo / max(ρ_ref, 1e-3)`` (ρ_ref as
-  for ``log``): a per-cell weighted inner product on the raw values;
-* ``standardised``: each value × ``√(cos θi · cos θo) / σ`` with σ the
-  standard deviation of that channel of that cell over the materials used
-  (floored at 1e-6 sr⁻¹): every cell carries the same variance, weighted by
-  the cosines.
-
-Every space but ``log`` is a fixed per-value scaling ``z̃ = D z`` of the raw
-values (:data:`LINEAR_SPACES`): the fit sees ``D z``, but the interpolant
-``Σ wᵢ D zᵢ = D Σ wᵢ zᵢ``, so the blend weights apply to the raw BRDFs — and
-to images rendered from them (Soler §5.2) — unchanged.  ``log`` is not
-linear in the BRDF: its interpolant is a blend of log-mapped values.
+``Z`` has one row per material (``d`` columns: the R, G, B values of the
+cells valid in every material of the store, mapped to a data space).  The
+mean BRDF (column mean over the materials) is subtracted (Soler §3), so far
+from the data the interpolant tends to the mean.  The optimisation needs
+only the N × N Gram matrix ``(Z − 1μ̄ᵀ)(Z − 1μ̄ᵀ)ᵀ``: how it is streamed from
+the store, the data spaces, and why the blend weights of every space but
+``log`` apply to the raw BRDFs are in :mod:`brdfpipe.manifold.gram`
+(:func:`~brdfpipe.manifold.gram.gram_matrix`).
 
 Model
 -----
@@ -217,29 +200,21 @@ from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import (
     DIGEST_ALGORITHM as STORE_DIGEST_ALGORITHM,
     BrdfStore,
-    iter_cell_blocks,
     iter_column_blocks,
     material_indices,
     open_store,
 )
-from brdfpipe.manifold import derivation, spaces
-from brdfpipe.spec import manifold as manifold_spec
+from brdfpipe.manifold import derivation
+from brdfpipe.manifold.gram import MEAN_HANDLING, GramInfo, check_space, gram_matrix, select_materials
 from brdfpipe.spec import tables
 
 __all__ = [
-    "SPACES",
-    "LINEAR_SPACES",
     "INIT_SCALES",
     "NEWTON_TRIAL_SCALES",
-    "MEAN_HANDLING",
     "GplvmFileError",
     "DataMismatchError",
-    "GramInfo",
     "FitResult",
     "GplvmModel",
-    "gram_matrix",
-    "CrossGram",
-    "cross_gram",
     "save_gram",
     "load_gram",
     "kernel_matrix",
@@ -269,18 +244,10 @@ __all__ = [
 
 logger = logging.getLogger("brdfpipe.manifold.gplvm")
 
-#: Data spaces of :func:`gram_matrix` (see the module docstring; records: :data:`brdfpipe.spec.manifold.DATA_SPACES`).
-SPACES: Final = manifold_spec.SPACE_NAMES
-#: Spaces that scale each raw value by a constant: their interpolant is linear in the raw BRDFs.
-LINEAR_SPACES: Final = manifold_spec.LINEAR_SPACES
-#: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space (:mod:`brdfpipe.manifold.spaces`).
-RELATIVE_FLOOR: Final = spaces.RELATIVE_FLOOR
-STANDARDISED_FLOOR: Final = spaces.STANDARDISED_FLOOR
 #: Initial-scale rules of :func:`fit` (plus ``"best"``: try all, keep the best L).
 INIT_SCALES: Final = ("nn", "rms", "unit")
 #: The rules ``init_scale="best"`` tries with ``method="newton"`` (module docstring, "Optimisation").
 NEWTON_TRIAL_SCALES: Final = ("rms", "unit")
-MEAN_HANDLING: Final = "mean subtracted"
 #: Optimisers of :func:`fit` (see the module docstring, "Optimisation").
 METHODS: Final = ("newton", "hybrid", "hooke-jeeves")
 #: /2: the digests of the store rows the model was fitted on (``data_digests``) and the file's digest.
@@ -293,7 +260,6 @@ RETIRED_FORMATS: Final = {
     "brdfpipe.manifold.gplvm.gram/1": ("it records no digests of the store rows it was computed from",
                                        "compute it again"),
 }
-_SUB_COLS: Final = 16384
 
 
 class GplvmFileError(ValueError):
@@ -345,208 +311,9 @@ def _check_X(X: ArrayLike, what: str = "X") -> NDArray[np.float64]:
     return x
 
 
-def _check_space(space: str) -> str:
-    if space not in SPACES:
-        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(SPACES)}")
-    return space
-
-
 # --------------------------------------------------------------------------
-# The Gram matrix
+# The Gram matrix's scale and file (the matrix itself: brdfpipe.manifold.gram)
 # --------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class GramInfo:
-    """What :func:`gram_matrix` computed besides the centred Gram matrix."""
-
-    materials: tuple[str, ...]
-    space: str
-    #: Row sums of the (mapped, un-centred) data, ``Z 1`` (N,): the row means are ``row_sums / d``.
-    row_sums: NDArray[np.float64] = field(repr=False)
-    #: The un-centred Gram matrix ``Z Zᵀ``.
-    raw_gram: NDArray[np.float64] = field(repr=False)
-    mean_handling: str = MEAN_HANDLING
-    #: Digest of each material's store row (:func:`brdfpipe.data.store.shard_digest`, in ``materials`` order);
-    #: empty when not computed from a store.
-    digests: tuple[int, ...] = field(default=(), repr=False)
-
-
-def _select(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
-    if materials is None:
-        return np.arange(st.n_materials, dtype=np.intp)
-    return material_indices(st, materials, "materials")
-
-
-def _space_maps(
-    st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64], space: str
-) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
-    """Per-cell maps of a space over ``cells`` (:mod:`brdfpipe.manifold.spaces`)."""
-    return spaces.space_maps(space).cell_maps(st, names, cells)
-
-
-def _map_block(
-    data: NDArray[np.float32], space: str, a: NDArray[np.float64] | None, b: NDArray[np.float64] | None
-) -> NDArray[np.float64]:
-    """Map a float32 ``(n, 3, cols)`` block to float64 in ``space`` (a, b: the block's per-cell maps)."""
-    x = data.astype(np.float64)
-    return spaces.space_maps(space).forward(x, a, b, x)
-
-
-def gram_matrix(
-    store_path: str | os.PathLike[str] | BrdfStore,
-    *,
-    space: str = "raw",
-    materials: Sequence[str] | None = None,
-) -> tuple[NDArray[np.float64], int, GramInfo]:
-    """Centred Gram matrix ``(Z − 1μ̄ᵀ)(Z − 1μ̄ᵀ)ᵀ`` (N × N float64), ``d`` and a :class:`GramInfo`.
-
-    ``Z``: one row per material (``materials`` in the order given, default all
-    of the store), the R, G, B values of the cells valid in every material of
-    the store, mapped to ``space`` (``raw``, ``cosine`` or ``log``, see the
-    module docstring); ``d`` = 3 × valid cells.  Streamed by blocks of 145,800
-    cells, each mapped to float64 in sub-blocks of 16,384 cells and
-    accumulated as ``G += B Bᵀ`` and ``s += B 1``; then centred with
-    ``C = I − 11ᵀ/N``: ``Gc = C G C`` equals the Gram matrix of the
-    mean-subtracted rows exactly (in exact arithmetic).  ValueError for an
-    unknown space or bad material names.
-    """
-    _check_space(space)
-    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
-    idx = _select(st, materials)
-    names = [st.materials[i] for i in idx]
-    order = np.argsort(idx, kind="stable")
-    rows = idx[order]  # ascending store rows
-    cells = np.flatnonzero(np.asarray(st.valid[:], dtype=bool)).astype(np.int64)
-    if cells.size == 0:
-        raise ValueError(f"{st.path}: no cell is valid in every material")
-    a_all, b_all = _space_maps(st, names, cells, space)
-    n = rows.size
-    G = np.zeros((n, n), dtype=np.float64)
-    s = np.zeros(n, dtype=np.float64)
-    for j0, j1, data in iter_cell_blocks(st, rows, cells):
-        for a0 in range(0, j1 - j0, _SUB_COLS):
-            a1 = min(a0 + _SUB_COLS, j1 - j0)
-            sa = None if a_all is None else a_all[j0 + a0 : j0 + a1]
-            sb = None if b_all is None else b_all[j0 + a0 : j0 + a1]
-            B = _map_block(data[:, :, a0:a1], space, sa, sb).reshape(n, -1)
-            G += B @ B.T
-            s += B.sum(axis=1)
-    inv = np.empty_like(order)
-    inv[order] = np.arange(n)
-    G = G[np.ix_(inv, inv)]
-    s = s[inv]
-    d = 3 * int(cells.size)
-    Gc = centre_gram(G)
-    return Gc, d, GramInfo(tuple(names), space, s, G, digests=tuple(int(st.digests[i]) for i in idx))
-
-
-@dataclass(frozen=True)
-class CrossGram:
-    """Materials outside a store in its data space: their products with the store's materials (:func:`cross_gram`).
-
-    ``materials``: the store's materials (rows of ``gram``), ``others``:
-    ``(database, material)`` of each outside material (columns of
-    ``cross``).  With ``Z`` the store's mapped rows, ``μ̄`` their column
-    mean and ``o_j`` an outside material mapped the same way: ``gram`` =
-    ``(Z − 1μ̄ᵀ)(Z − 1μ̄ᵀ)ᵀ`` (as :func:`gram_matrix`), ``cross[:, j]`` =
-    ``(Z − 1μ̄ᵀ)(o_j − μ̄)``, ``norms2[j]`` = ``‖o_j − μ̄‖²`` and
-    ``raw_norms2[j]`` = ``‖o_j‖²``; ``d`` = 3 × cells.
-    """
-
-    materials: tuple[str, ...]
-    others: tuple[tuple[str, str], ...]
-    space: str
-    gram: NDArray[np.float64] = field(repr=False)
-    cross: NDArray[np.float64] = field(repr=False)
-    norms2: NDArray[np.float64] = field(repr=False)
-    raw_norms2: NDArray[np.float64] = field(repr=False)
-    d: int
-
-
-def cross_gram(
-    store_path: str | os.PathLike[str] | BrdfStore,
-    others: Sequence[str | os.PathLike[str] | BrdfStore],
-    *,
-    space: str = "raw",
-    materials: Sequence[str] | None = None,
-) -> CrossGram:
-    """The store's centred Gram matrix and its products with every material of ``others`` (:class:`CrossGram`).
-
-    One streamed pass over the store's rows (``materials``, default all, in
-    that order) and the rows of every store of ``others`` (all of theirs),
-    cell block by cell block.  Each outside material is mapped to ``space``
-    with the *store's* maps — ρ_ref (median of ``materials``) for ``log`` and
-    ``relative``, σ of each cell and channel over ``materials`` for
-    ``standardised`` — and centred by the store's mean, so that it lies in
-    the data space the GPLVM of those materials was fitted in; the Gram
-    matrix is computed exactly as :func:`gram_matrix` does (the caller can
-    compare it with the one a model was fitted to).  ValueError for a cell
-    valid in every material of the store that is not measured in an outside
-    material (naming that store), or bad material names.
-    """
-    _check_space(space)
-    st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
-    outs = [o if isinstance(o, BrdfStore) else open_store(o) for o in others]
-    idx = _select(st, materials)
-    names = [st.materials[i] for i in idx]
-    order = np.argsort(idx, kind="stable")
-    rows = idx[order]
-    cells = np.flatnonzero(np.asarray(st.valid[:], dtype=bool)).astype(np.int64)
-    if cells.size == 0:
-        raise ValueError(f"{st.path}: no cell is valid in every material")
-    for o in outs:
-        missing = int((~np.asarray(o.valid[:], dtype=bool)[cells]).sum())
-        if missing:
-            raise ValueError(f"{o.path}: {missing} cell(s) valid in every material of {st.path} are not measured in "
-                             f"every material of {o.path}; its materials cannot be mapped to that data space")
-    a_all, b_all = _space_maps(st, names, cells, space)
-    n = rows.size
-    m_each = [o.n_materials for o in outs]
-    m = sum(m_each)
-    G = np.zeros((n, n))
-    C = np.zeros((n, m))
-    norms2 = np.zeros(m)
-    raw2 = np.zeros(m)
-    blocks = [iter_cell_blocks(o, np.arange(o.n_materials, dtype=np.intp), cells) for o in outs]
-    for j0, j1, data in iter_cell_blocks(st, rows, cells):
-        other = []
-        for o, it in zip(outs, blocks):
-            k0, k1, od = next(it)
-            if (k0, k1) != (j0, j1):
-                raise AssertionError(f"{o.path}: cell blocks out of step")
-            other.append(od)
-        od_all = np.concatenate(other, axis=0) if other else np.zeros((0, 3, j1 - j0), dtype=np.float32)
-        for a0 in range(0, j1 - j0, _SUB_COLS):
-            a1 = min(a0 + _SUB_COLS, j1 - j0)
-            sa = None if a_all is None else a_all[j0 + a0 : j0 + a1]
-            sb = None if b_all is None else b_all[j0 + a0 : j0 + a1]
-            train = data[:, :, a0:a1]
-            B = _map_block(train, space, sa, sb)
-            O = spaces.space_maps(space).forward(od_all[:, :, a0:a1].astype(np.float64), sa, sb, train)
-            B = B.reshape(n, -1)
-            O = O.reshape(m, -1)
-            G += B @ B.T
-            mean = B.mean(axis=0)
-            Oc = O - mean
-            C += (B - mean) @ Oc.T
-            norms2 += np.einsum("ij,ij->i", Oc, Oc)
-            raw2 += np.einsum("ij,ij->i", O, O)
-    inv = np.empty_like(order)
-    inv[order] = np.arange(n)
-    G = G[np.ix_(inv, inv)]
-    C = C[inv]
-    others_names = tuple((o.database, name) for o in outs for name in o.materials)
-    return CrossGram(tuple(names), others_names, space, centre_gram(G), C, norms2, raw2, 3 * int(cells.size))
-
-
-def centre_gram(G: ArrayLike) -> NDArray[np.float64]:
-    """``C G C`` with ``C = I − 11ᵀ/N`` (double centring), symmetrised."""
-    g = np.asarray(G, dtype=np.float64)
-    r = g.mean(axis=1, keepdims=True)
-    c = g.mean(axis=0, keepdims=True)
-    out = g - r - c + g.mean()
-    return 0.5 * (out + out.T)
 
 
 def gram_scale(gram: ArrayLike, d: float) -> float:
@@ -1991,17 +1758,17 @@ def interpolate_tables(
 
     ``weights`` is ``(P, N)``: one row of blend weights per output table,
     over ``materials`` (in that order; default all of the store).  In the
-    :data:`LINEAR_SPACES` the blend is of the stored values (their factor is
+    :data:`~brdfpipe.manifold.gram.LINEAR_SPACES` the blend is of the stored values (their factor is
     per value, so blending before or after it is the same).
     In the ``log`` space the blend is taken of the log-mapped values, with the
-    same ρ_ref (median of ``materials``) and weights as :func:`gram_matrix`,
+    same ρ_ref (median of ``materials``) and weights as :func:`~brdfpipe.manifold.gram.gram_matrix`,
     and mapped back with :func:`brdfpipe.data.logmap.inverse`.  Cells not valid in
     every material of the store are written as −1 (unmeasured, like MERL);
     values that come out negative in valid cells are clamped to 0 and
     counted (logged as a warning).  Streamed by column blocks of the store;
     the P output tables (8·4.37M bytes each) are the memory cost.
     """
-    _check_space(space)
+    check_space(space)
     st = store_path if isinstance(store_path, BrdfStore) else open_store(store_path)
     if model is not None:
         check_store(model, st)
@@ -2009,7 +1776,7 @@ def interpolate_tables(
         if list(materials) != list(model.names) or space != model.space:
             raise ValueError(f"{model.path or 'the model'}: interpolate over its materials in its space "
                              f"({model.space!r}), got {len(list(materials))} materials in space {space!r}")
-    idx = _select(st, materials)
+    idx = select_materials(st, materials)
     W = np.asarray(weights, dtype=np.float64)
     if W.ndim != 2 or W.shape[1] != idx.size:
         raise ValueError(f"weights must have shape (P, {idx.size}) (one per material), got {W.shape}")
@@ -2066,11 +1833,11 @@ def save_model(
     Arrays: names, X, ℓ, μ, space, mean handling, chol(K) (the factor that
     interpolation needs: ``b = K⁻¹k``), L, d, trace, gram scale, method and
     ``data_digests``: the digests of the store rows the materials were fitted
-    on (from the Gram file, :attr:`GramInfo.digests`; empty for a fit that
+    on (from the Gram file, :attr:`brdfpipe.manifold.gram.GramInfo.digests`; empty for a fit that
     did not come from a store), which every use with a store checks
     (:func:`check_store`).
     """
-    _check_space(space)
+    check_space(space)
     names = [str(n) for n in names]
     if len(names) != result.X.shape[0]:
         raise ValueError(f"{len(names)} names for {result.X.shape[0]} latent points")

@@ -81,6 +81,7 @@ from numpy.typing import ArrayLike, NDArray
 from brdfpipe.data.store import BrdfStore
 from brdfpipe.data import merl
 from brdfpipe.manifold import derivation, gplvm
+from brdfpipe.manifold.gram import LINEAR_SPACES
 from brdfpipe.manifold.albedo import material_albedo, material_albedos
 
 __all__ = [
@@ -333,7 +334,7 @@ def sample_in_hull(
 
 def _is_linear(space: str) -> bool:
     """Whether the interpolated table is the plain blend Σ wᵢ zᵢ of the stored values (albedo = w·A)."""
-    return space in gplvm.LINEAR_SPACES
+    return space in LINEAR_SPACES
 
 
 def _point(model: gplvm.GplvmModel, x: ArrayLike | str, what: str) -> NDArray[np.float64]:

@@ -3,7 +3,7 @@
 One :class:`SpaceMaps` per data space of :data:`brdfpipe.spec.manifold.DATA_SPACES`
 (the records: name, linear or not), registered under the same name in
 :data:`MAPS`.  A space maps in two steps, so the Gram matrix
-(:func:`brdfpipe.manifold.gplvm.gram_matrix`) streams the store once:
+(:func:`brdfpipe.manifold.gram.gram_matrix`) streams the store once:
 
 * ``cell_maps(store, names, cells)`` → ``(a, b)``: per-cell arrays computed
   once over the materials used (``None`` where the space needs none);
@@ -16,7 +16,7 @@ Every map but ``log`` multiplies each value by a constant (the spec's
 ``linear``): the interpolant of such a space blends the raw BRDFs with the
 same weights.  A space that is not linear also needs its inverse where the
 interpolant and the blend pass map the blend back
-(:func:`brdfpipe.manifold.gplvm.interpolate`, :mod:`brdfpipe.manifold.blendpass`).
+(:func:`brdfpipe.manifold.gplvm.interpolate_tables`, :mod:`brdfpipe.manifold.blendpass`).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ fitted to at latent points X; a material outside that set (config
 ``unseen``: e.g. RGL or Nielsen materials when the model is of MERL's) has
 no latent point.  Two ways to give it one, both in the model's data space
 (the new material ``o`` mapped with the training materials' maps and
-centred by their mean, ``y = o − μ̄``; :func:`brdfpipe.manifold.gplvm.cross_gram`):
+centred by their mean, ``y = o − μ̄``; :func:`brdfpipe.manifold.gram.cross_gram`):
 
 * **least squares** — the x* whose interpolant ``ẑ(x) = μ̄ + Σ bᵢ(x)(zᵢ − μ̄)``
   (``b = K⁻¹k(x)``, Soler eq. 4) is closest to the material:
@@ -68,6 +68,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data.store import open_store
 from brdfpipe.manifold import gplvm
+from brdfpipe.manifold.gram import CrossGram, cross_gram
 from brdfpipe.spec import tables
 
 __all__ = [
@@ -240,7 +241,7 @@ def pca_residuals(gram: ArrayLike, cross: ArrayLike, yy: ArrayLike, ks: Sequence
 
 
 def unseen_rows(
-    cross: gplvm.CrossGram,
+    cross: CrossGram,
     models: Mapping[int, gplvm.GplvmModel],
     *,
     gram: ArrayLike,
@@ -309,7 +310,7 @@ def write_unseen(
     ``store``, ``gram``, ``models`` (q → file): the training store, the Gram
     matrix the models were fitted to and the fits (all of one data space);
     one streamed pass over the store and the unseen stores
-    (:func:`brdfpipe.manifold.gplvm.cross_gram`), then :func:`unseen_rows`.
+    (:func:`brdfpipe.manifold.gram.cross_gram`), then :func:`unseen_rows`.
     ``threads``: BLAS threads (the searches' small products are slowed
     several-fold by idle BLAS threads spinning on a loaded machine).
     """
@@ -320,7 +321,7 @@ def write_unseen(
     for fit in fits.values():
         gplvm.check_store(fit, st)  # fitted on these very rows (their digests), not on a store of the same names
     with blas_threads(threads):
-        cross = gplvm.cross_gram(st, list(unseen_stores), space=info.space, materials=list(info.materials))
+        cross = cross_gram(st, list(unseen_stores), space=info.space, materials=list(info.materials))
         if cross.d != d:
             raise ValueError(f"{gram}: {d} columns, the store {store} has {cross.d} valid ones")
         rows = unseen_rows(cross, fits, gram=G, model_database=st.database, pca_ks=pca_ks)
