@@ -121,3 +121,13 @@ def test_measure_table_and_json_round_trip(tmp_path) -> None:
     text = realism.comparison_table([r, back])
     assert text.splitlines()[0] == "| statistic | tiny | tiny |"
     assert all(line.count("|") == 4 for line in text.splitlines())
+
+
+def test_the_largest_value_is_each_materials_maximum() -> None:
+    """``peak`` is the largest measured value of each table; unmeasured (negative) cells never count."""
+    a = np.full(merl.SHAPE, 0.1)
+    a[1, 3, 4, 5] = 7.5
+    b = np.full(merl.SHAPE, 0.2)
+    b[0, 0, 0, :] = -1.0  # unmeasured
+    rows = realism.rows_from_tables(["a", "b"], [a, b])
+    assert rows.peak.tolist() == [7.5, 0.2]

@@ -47,6 +47,11 @@ every database:
   matte diffuser): its width is NaN, counted apart and left out of the
   quantiles.  For a lobe exp(−tan²θh/α²) over a constant floor it is
   atan(α·√ln 2).
+* **Largest value** – each material's largest measured value (sr⁻¹, over
+  every measured cell and channel): quantiles 10 / 50 / 90 % and the
+  largest of all.  The dynamic range the store, the Gram matrices and a
+  renderer see: a narrow analytic lobe times 1/(cos θi · cos θo) peaks far
+  higher at grazing angles than a measured (or fitted) material does.
 
 Memory: the rows are held once, float32, only the valid cells
 (3 × 100 materials × ≈ 1.1 M cells: 1.3 GB for 100 materials; a table is
@@ -206,7 +211,8 @@ class Rows:
     ``data`` is float32 ``(3·n, p)``, row ``3·i + c`` = channel c of
     material i (physical units), columns = ``cells`` (the cells measured in
     every material, increasing); ``albedo`` ``(n, 3)`` at normal incidence,
-    ``width`` ``(n,)`` degrees (NaN: no specular peak).
+    ``width`` ``(n,)`` degrees (NaN: no specular peak), ``peak`` ``(n,)`` the
+    largest measured value of each material (sr⁻¹).
     """
 
     names: tuple[str, ...]
@@ -214,6 +220,7 @@ class Rows:
     data: NDArray[np.float32]
     albedo: F64
     width: F64
+    peak: F64
 
 
 def rows_from_tables(names: Sequence[str], tables: Iterable[ArrayLike]) -> Rows:
@@ -231,6 +238,7 @@ def rows_from_tables(names: Sequence[str], tables: Iterable[ArrayLike]) -> Rows:
     valid = np.ones(merl.N_CELLS, dtype=bool)
     albedo = np.empty((n, 3))
     width = np.empty(n)
+    peak = np.empty(n)
     count = 0
     for i, table in enumerate(tables):
         if i >= n:
@@ -241,6 +249,7 @@ def rows_from_tables(names: Sequence[str], tables: Iterable[ArrayLike]) -> Rows:
         data[3 * i: 3 * i + 3] = flat
         albedo[i] = normal_albedo(t)
         width[i] = specular_width(t)
+        peak[i] = float(flat.max())  # unmeasured cells are negative
         count += 1
     if count != n:
         raise ValueError(f"{count} tables for {n} names")
@@ -250,7 +259,7 @@ def rows_from_tables(names: Sequence[str], tables: Iterable[ArrayLike]) -> Rows:
     p = cells.size
     for r in range(3 * n):  # compact each row to the valid cells, in place
         data[r, :p] = data[r, cells]
-    return Rows(names, cells, data[:, :p], albedo, width)
+    return Rows(names, cells, data[:, :p], albedo, width, peak)
 
 
 def read_database(folder: str | os.PathLike[str], materials: Sequence[str] | None = None) -> Rows:
@@ -466,6 +475,8 @@ class Realism:
     albedo_quantiles: tuple[float, ...]
     width_quantiles: tuple[float, ...]
     no_peak: int
+    peak_quantiles: tuple[float, ...]
+    peak_max: float
     quantile_levels: tuple[float, ...] = QUANTILES
 
     def to_json(self) -> dict[str, Any]:
@@ -478,20 +489,21 @@ class Realism:
             Spectrum(*(tuple(v) if isinstance(v, list) else v for v in doc["spectrum"].values())),
             Holdout(*(tuple(v) if isinstance(v, list) else v for v in doc["holdout"].values())),
             tuple(doc["albedo_quantiles"]), tuple(doc["width_quantiles"]), int(doc["no_peak"]),
-            tuple(doc["quantile_levels"]),
+            tuple(doc["peak_quantiles"]), float(doc["peak_max"]), tuple(doc["quantile_levels"]),
         )
 
 
 def measure(
     rows: Rows, label: str, *, weighting: str = "product", folds: int = DEFAULT_FOLDS, seed: int = DEFAULT_SEED
 ) -> Realism:
-    """Every statistic of a database (spectrum, held-out error, albedo and width quantiles)."""
+    """Every statistic of a database (spectrum, held-out error, albedo, width and largest-value quantiles)."""
     albedo = rows.albedo.mean(axis=1)
     return Realism(
         label, len(rows.names), int(rows.cells.size), weighting,
         pca_spectrum(rows, KS, weighting),
         holdout_errors(rows, HOLDOUT_KS, folds, seed, weighting),
         quantiles(albedo), quantiles(rows.width), int(np.isnan(rows.width).sum()),
+        quantiles(rows.peak), float(rows.peak.max()),
     )
 
 
@@ -529,6 +541,8 @@ def comparison_table(results: Sequence[Realism]) -> str:
         (" / ".join(_fmt(x) for x in r.width_quantiles) for r in results))
     row(f"materials without a specular peak (peak < {PEAK_CONTRAST} × floor)",
         (str(r.no_peak) for r in results))
+    row(f"largest value (sr⁻¹), quantiles {levels} % / largest",
+        (" / ".join(_fmt(x) for x in (*r.peak_quantiles, r.peak_max)) for r in results))
     return "\n".join(lines) + "\n"
 
 
