@@ -14,5 +14,7 @@ Imports :mod:`brdfpipe.data` and :mod:`brdfpipe.core`.
 * :mod:`brdfpipe.acquisition.evaluation`  – leave-out evaluation (errors.csv), consistency check, training-size curve;
 * :mod:`brdfpipe.acquisition.closedloop`  – reconstruction from captured images next to the table lookup (issue 13);
 * :mod:`brdfpipe.acquisition.unseen`      – materials of other databases reconstructed with the run's model (issue 22);
-* :mod:`brdfpipe.acquisition.figures`     – the Xu et al. 2016 figure analogues.
+* :mod:`brdfpipe.acquisition.figures`     – the Xu et al. 2016 figure analogues;
+* :mod:`brdfpipe.acquisition.realism`     – how a database compares with another: PCA spectrum, held-out
+  PCA-k error, albedo and specular-width distributions (issue 22: synthetic against merl-nbrdf).
 """
