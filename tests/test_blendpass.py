@@ -37,7 +37,7 @@ def holed(tmp_path_factory: pytest.TempPathFactory) -> dict:
     assert (domain & ~valid).sum() >= 50_000  # the region is unmeasured in every blend
     names = list(st.materials)
     rng = np.random.default_rng(0)
-    W = rng.normal(1.0 / N, 0.5, (5, N))
+    W = rng.normal(1.0 / N, 1.0, (5, N))  # spread enough for negative blends in every space (clamped)
     W[0] = np.eye(N)[1]  # a material itself
     W /= W.sum(axis=1, keepdims=True)
     return {"store": out, "names": names[::-1], "W": W}  # materials in another order than the store's
