@@ -27,13 +27,16 @@ from brdfpipe.core import atomic
 from brdfpipe.report import claims as claims_mod
 from brdfpipe.report.claims import RunClaims, read_run
 
-__all__ = ["RunClaims", "read_run", "RECORDED", "recorded_runs", "side_by_side_markdown", "main"]
+__all__ = ["RunClaims", "read_run", "RECORDED_RUN", "RECORDED", "recorded_runs", "side_by_side_markdown", "main"]
 
-#: The runs recorded with brdfpipe (the default workflow on a 16-core H200 host, 2026-11-26, commit
-#: 3ed34f7; docs/results/runs/2026-11-26-h200/ has their configs): each one's claims.csv, shipped in
-#: the package so that a copied workflow or an installed library finds them.
+#: The recorded runs' tag (date and machine): the default workflow on each database on the 2-core
+#: development machine, 2026-11-28 (docs/results/runs/2026-11-28-cpu/ has their configs and critical
+#: paths; docs/results/claims.md their claims side by side).
+RECORDED_RUN: str = "2026-11-28-cpu"
+#: The runs recorded with brdfpipe: each one's claims.csv, shipped in the package so that a copied
+#: workflow or an installed library finds them.
 RECORDED: dict[str, Path] = {
-    db: Path(__file__).resolve().parent / "recorded" / f"2026-11-26-h200-{db}.csv" for db in ("merl-nbrdf", "synthetic")
+    db: Path(__file__).resolve().parent / "recorded" / f"{RECORDED_RUN}-{db}.csv" for db in ("merl-nbrdf", "synthetic")
 }
 
 _MARK = {"yes": "yes", "no": "**NO**", "not measured": "not measured"}
@@ -51,7 +54,7 @@ def recorded_runs(entries: Sequence[str] | None, *, root: Path, exclude: str) ->
     :class:`~brdfpipe.report.claims.ClaimsInputError` naming the key.
     """
     if entries is None:
-        shipped = [read_run(path, f"brdfpipe's recorded run 2026-11-26-h200 ({db})") for db, path in RECORDED.items()]
+        shipped = [read_run(path, f"brdfpipe's recorded run {RECORDED_RUN} ({db})") for db, path in RECORDED.items()]
         return [run for run in shipped if run.database != exclude]
     runs: list[RunClaims] = []
     seen: dict[str, int] = {}
