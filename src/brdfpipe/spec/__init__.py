@@ -1,7 +1,7 @@
 """Specs: the names and records of what people add, light enough for parse time.
 
-The bottom layer: the standard library only, imports no other part of
-brdfpipe.  The planner (:mod:`brdfpipe.plan`), the workflow's wildcard
+The bottom layer: the standard library and other specs only, no other part
+of brdfpipe.  The planner (:mod:`brdfpipe.plan`), the workflow's wildcard
 constraints, the config schema's enums (a test keeps them equal) and the
 science modules all read the same records here, so a name is written once.
 
