@@ -9,9 +9,10 @@ import pytest
 import scipy.linalg
 
 from brdfpipe.core import integrity
-from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.data import logmap, merl, store
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.manifold import gplvm, gram
+from gram_fixture import dense, small_store  # noqa: F401 (pytest fixtures)
 
 
 # --------------------------------------------------------------------------
@@ -19,25 +20,7 @@ from brdfpipe.manifold import gplvm, gram
 # --------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def small_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    tmp = tmp_path_factory.mktemp("gplvm")
-    db = tmp / "db"
-    synth.synthesize(db, count=6, seed=1, jobs=1, progress=False)
-    out = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=1)
-    return out
-
-
-@pytest.fixture(scope="module")
-def dense(small_store: Path) -> dict[str, np.ndarray]:
-    """The store's data as dense float64 arrays (6 materials: small enough)."""
-    st = store.open_store(small_store)
-    brdf = np.asarray(st.brdf[:], dtype=np.float32)
-    valid = np.asarray(st.valid[:], dtype=bool)
-    cells = np.flatnonzero(valid)
-    data = brdf.reshape(st.n_materials, 3, N_CELLS)[:, :, cells]  # float32 (n, 3, p)
-    return {"brdf": brdf, "valid": valid, "cells": cells, "data": data}
+# small_store, dense: tests/gram_fixture.py
 
 
 def _random_gram(n: int, seed: int, d: float) -> np.ndarray:

@@ -17,110 +17,17 @@ below it imports it.
 
 from __future__ import annotations
 
-from brdfpipe.plan.config import (
-    ConfigError,
-    MITSUBA_MAX_SAMPLES,
-    config_key,
-    describe_schema_error,
-    schema_problem,
-    check_finite,
-    path_q,
-    manifold_candidates,
-    training_sizes,
-    check_config,
-    latent_paths,
-    check_closed_loop,
-    sensor_max_snr,
-)
-from brdfpipe.plan.outputs import (
-    direction_files,
-    closedloop_directions,
-    unseen_directions,
-    unseen_figures,
-    unseen_map_q,
-    curve_fov,
-    curve_directions,
-    albedo_map_dims,
-    acquisition_figures,
-    manifold_figures,
-    render_figures,
-    floor_check_candidates,
-)
-from brdfpipe.plan.memory import (
-    UNSEEN_RULES,
-    planned_rules,
-    MEMORY_MB,
-    PER_OUTPUT_MB,
-    MEMORY_HEADROOM,
-    MEMORY_RETRY_GROWTH,
-    JOB_MEMORY_LIMIT_MB,
-    MEASURED_SIZES,
-    PATH_CHUNK,
-    SIZE_MEMORY_MB,
-    SIZE_KEYS,
-    FLOOR_RULES,
-    job_sizes,
-    model_mb,
-    mem_mb,
-    check_memory,
-)
-from brdfpipe.plan.report import (
-    ACQUISITION,
-    MANIFOLD,
-    RENDERING,
-    CLAIMS,
-    FIGURE_NUMBERS,
-    Item,
-    report_items,
-)
+from brdfpipe.plan import config, memory, outputs, report
 
-__all__ = [
-    "ConfigError",
-    "MITSUBA_MAX_SAMPLES",
-    "config_key",
-    "describe_schema_error",
-    "schema_problem",
-    "check_finite",
-    "path_q",
-    "manifold_candidates",
-    "training_sizes",
-    "check_config",
-    "latent_paths",
-    "check_closed_loop",
-    "sensor_max_snr",
-    "direction_files",
-    "closedloop_directions",
-    "unseen_directions",
-    "unseen_figures",
-    "unseen_map_q",
-    "curve_fov",
-    "curve_directions",
-    "albedo_map_dims",
-    "acquisition_figures",
-    "manifold_figures",
-    "render_figures",
-    "floor_check_candidates",
-    "UNSEEN_RULES",
-    "planned_rules",
-    "MEMORY_MB",
-    "PER_OUTPUT_MB",
-    "MEMORY_HEADROOM",
-    "MEMORY_RETRY_GROWTH",
-    "JOB_MEMORY_LIMIT_MB",
-    "MEASURED_SIZES",
-    "PATH_CHUNK",
-    "SIZE_MEMORY_MB",
-    "SIZE_KEYS",
-    "FLOOR_RULES",
-    "job_sizes",
-    "model_mb",
-    "mem_mb",
-    "check_memory",
-    "ACQUISITION",
-    "MANIFOLD",
-    "RENDERING",
-    "CLAIMS",
-    "FIGURE_NUMBERS",
-    "Item",
-    "report_items",
-]
+_MODULES = (config, outputs, memory, report)
+
+#: Every public name of the four modules (each defined, and listed in ``__all__``, once: in its module).
+__all__ = [name for module in _MODULES for name in module.__all__]
+
+
+def __getattr__(name: str) -> object:
+    """``plan.<name>``: the public name of whichever of the four modules defines it."""
+    for module in _MODULES:
+        if name in module.__all__:
+            return getattr(module, name)
+    raise AttributeError(f"module 'brdfpipe.plan' has no attribute {name!r}")
