@@ -156,3 +156,16 @@ def test_the_directions_format_has_one_tag() -> None:
 
     assert optimize.DIRECTIONS_FORMAT == acq_spec.DIRECTIONS_FORMAT
     assert "brdfpipe.directions" not in inspect.getsource(capture)
+
+
+def test_a_space_that_is_not_linear_needs_its_inverse_before_blending(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A new non-linear space is refused where blends become tables, never blended as raw values."""
+    from brdfpipe.manifold import spaces
+
+    for name in man_spec.SPACE_NAMES:
+        assert spaces.check_blendable(name) == name
+    monkeypatch.setitem(man_spec.DATA_SPACES, "sqrt", man_spec.DataSpace("sqrt", False, "√ρ"))
+    with pytest.raises(ValueError, match="'sqrt' is not linear and its blends have no inverse"):
+        spaces.check_blendable("sqrt")
+    with pytest.raises(ValueError, match="unknown data space 'lab'"):
+        spaces.check_blendable("lab")

@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, material_indices, open_store
-from brdfpipe.manifold import gplvm
+from brdfpipe.manifold import gplvm, spaces
 from brdfpipe.manifold.albedo import ALBEDO_NODES
 from brdfpipe.manifold.gram import SPACES
 from brdfpipe.manifold.perceptual import StreamedDistances
@@ -107,6 +107,7 @@ def measure_blends(
     space = "raw" if space is None else space
     if space not in SPACES:
         raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(SPACES)}")
+    spaces.check_blendable(space)
     idx = (np.arange(st.n_materials, dtype=np.intp) if materials is None
            else material_indices(st, materials, "materials"))
     W = np.asarray(weights, dtype=np.float64)

@@ -204,7 +204,7 @@ from brdfpipe.data.store import (
     material_indices,
     open_store,
 )
-from brdfpipe.manifold import derivation
+from brdfpipe.manifold import derivation, spaces
 from brdfpipe.manifold.gram import MEAN_HANDLING, GramInfo, check_space, gram_matrix, select_materials
 from brdfpipe.spec import tables
 
@@ -1776,6 +1776,7 @@ def interpolate_tables(
         if list(materials) != list(model.names) or space != model.space:
             raise ValueError(f"{model.path or 'the model'}: interpolate over its materials in its space "
                              f"({model.space!r}), got {len(list(materials))} materials in space {space!r}")
+    spaces.check_blendable(space)
     idx = select_materials(st, materials)
     W = np.asarray(weights, dtype=np.float64)
     if W.ndim != 2 or W.shape[1] != idx.size:

@@ -30,8 +30,18 @@ from numpy.typing import NDArray
 
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.store import BrdfStore
+from brdfpipe.spec import manifold as manifold_spec
 
-__all__ = ["RELATIVE_FLOOR", "STANDARDISED_FLOOR", "CellMaps", "SpaceMaps", "MAPS", "space_maps"]
+__all__ = [
+    "RELATIVE_FLOOR",
+    "STANDARDISED_FLOOR",
+    "CellMaps",
+    "SpaceMaps",
+    "MAPS",
+    "INVERTED",
+    "space_maps",
+    "check_blendable",
+]
 
 #: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space.
 RELATIVE_FLOOR: Final = 1e-3
@@ -116,3 +126,24 @@ def space_maps(space: str) -> SpaceMaps:
         return MAPS[space]
     except (KeyError, TypeError):
         raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(MAPS)}") from None
+
+
+#: The spaces that are not linear whose blends the interpolant and the blend pass map back
+#: (:func:`brdfpipe.manifold.gplvm.interpolate_tables`, :mod:`brdfpipe.manifold.blendpass`).
+INVERTED: Final = ("log",)
+
+
+def check_blendable(space: str) -> str:
+    """``space``, if its blends can be turned into tables: linear, or with its inverse implemented.
+
+    ValueError otherwise (a new space that is not linear, before its inverse
+    is added where blends are mapped back): never a blend of mapped values
+    read as raw values.
+    """
+    spec = manifold_spec.DATA_SPACES.get(space)
+    if spec is None:
+        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(manifold_spec.DATA_SPACES)}")
+    if not spec.linear and space not in INVERTED:
+        raise ValueError(f"data space {space!r} is not linear and its blends have no inverse yet "
+                         f"(brdfpipe.manifold.gplvm.interpolate_tables, brdfpipe.manifold.blendpass)")
+    return space
