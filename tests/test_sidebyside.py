@@ -83,6 +83,9 @@ def test_the_report_table_shows_recorded_runs_beside_this_run(tmp_path: Path) ->
     rows = table.split("   * - ")[2:]
     assert rows[0].rstrip().splitlines()[-1] == f"     - {claims.rst_cell('θh 11.7°')} (**NO**)"  # text, not markup
     assert rows[1].split("\n\n")[0].splitlines()[-1] == "     - (not in that run)"  # the recorded run has no albedo claim
+    # a claim only the recorded run makes gets its own row, marked in this run's column
+    assert len(rows) == 3 and "     - (not in this run)" in rows[2].splitlines()
+    assert rows[2].split("\n\n")[0].splitlines()[-1] == f"     - {claims.rst_cell('10.5 % | pipe')} (**yes**)"
     assert f"- synthetic: {rst.literal('rec/claims.csv')}" in lines
     # only this run's claims go to its CSV; the table holds the recorded column
     out = tmp_path / "out"

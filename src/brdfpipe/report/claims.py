@@ -900,7 +900,9 @@ def claims_table_rst(claims: Sequence[Claim], recorded: Sequence[RunClaims] = ()
 
     Each run of ``recorded`` (another database's run, read back with
     :func:`read_run`) adds a column: its measurement and verdict for the same
-    claim, headed by the database its CSV names; the runs' files are listed
+    claim, headed by the database its CSV names; a claim only a recorded run
+    makes (this run has no unseen materials, say) gets a row of its own,
+    "(not in this run)" in this run's column; the runs' files are listed
     under the table.
     """
     widths = " ".join(["8 10 26 20 26 6 8", *["26"] * len(recorded)])
@@ -913,6 +915,19 @@ def claims_table_rst(claims: Sequence[Claim], recorded: Sequence[RunClaims] = ()
                  _MARK[c.holds], rst_cell(c.database)]
         for r in recorded:
             row = r.rows.get(c.key)
+            cells.append("(not in that run)" if row is None
+                         else f"{rst_cell(row['measured'])} ({_MARK.get(row['holds'], rst_cell(row['holds']))})")
+        lines.append(f"   * - {cells[0]}")
+        lines += [f"     - {x}" for x in cells[1:]]
+    # the recorded runs' claims this run does not make (e.g. about unseen materials): their rows too
+    own = {c.key for c in claims}
+    extra = list(dict.fromkeys(k for r in recorded for k in r.order if k not in own))
+    for key in extra:
+        first = next(r.rows[key] for r in recorded if key in r.rows)
+        cells = [rst_cell(first[f]) for f in ("paper", "where", "claim", "paper_value")]
+        cells += ["(not in this run)", "", ""]
+        for r in recorded:
+            row = r.rows.get(key)
             cells.append("(not in that run)" if row is None
                          else f"{rst_cell(row['measured'])} ({_MARK.get(row['holds'], rst_cell(row['holds']))})")
         lines.append(f"   * - {cells[0]}")
