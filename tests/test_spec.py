@@ -1,4 +1,4 @@
-"""The registries of what people add (brdfpipe.spec) are the one source every stage reads.
+"""The specs (brdfpipe.spec): the registries of what people add are the one source every stage reads.
 
 Figures: each record's drawing function exists in its track's figures
 module and the track's ``make_*_figures`` calls it; its stem is the file
