@@ -524,3 +524,20 @@ def test_a_model_or_gram_file_of_the_retired_format_is_refused(tmp_path: Path) -
                                                    r"gram/1' is no longer supported: it records no digests of the "
                                                    r"store rows it was computed from; compute it again \(write it"):
         gplvm.load_gram(tmp_path / "old.npz")
+
+
+def test_a_space_that_is_not_linear_is_not_blended_as_raw_values(
+    small_store: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A registered non-linear space without its inverse is refused where blends become tables (both routes)."""
+    from brdfpipe.manifold import blendpass
+    from brdfpipe.spec import manifold as manifold_spec
+
+    monkeypatch.setitem(manifold_spec.DATA_SPACES, "sqrt", manifold_spec.DataSpace("sqrt", False, "√ρ"))
+    monkeypatch.setattr(gram, "SPACES", (*gram.SPACES, "sqrt"))
+    monkeypatch.setattr(blendpass, "SPACES", (*blendpass.SPACES, "sqrt"))
+    W = np.full((1, 6), 1.0 / 6)
+    with pytest.raises(ValueError, match="'sqrt' is not linear and its blends have no inverse"):
+        gplvm.interpolate_tables(small_store, W, space="sqrt")
+    with pytest.raises(ValueError, match="'sqrt' is not linear and its blends have no inverse"):
+        blendpass.measure_blends(small_store, W, space="sqrt", pairs=[])

@@ -388,3 +388,18 @@ def test_an_unsealed_group_is_refused(tmp_path: Path) -> None:
     g.attrs.update({"format": "test/1", "brdfpipe_complete": {"rows": 3}})
     with pytest.raises(IntegrityError, match="old.zarr: group carries no brdfpipe digest .*older brdfpipe"):
         _open(tmp_path / "old.zarr")
+
+
+def test_both_readers_of_a_directions_file_require_its_exact_format(tmp_path: Path) -> None:
+    """A directions file of another format version is refused by the capture as by the optimiser (one tag)."""
+    from brdfpipe.acquisition.optimize import read_directions
+    from brdfpipe.rendering.capture import read_configurations
+    from brdfpipe.spec.acquisition import DIRECTIONS_FORMAT
+
+    p = tmp_path / "d.json"
+    doc = {"format": DIRECTIONS_FORMAT.rsplit("/", 1)[0] + "/2", "setup": "nearfield", "fov": 25.0, "grid": 8,
+           "metric": "error", "split": "train", "sets": []}
+    integrity.write_json(p, doc)
+    for reader in (read_directions, read_configurations):
+        with pytest.raises(ValueError, match=re.escape(str(p))):
+            reader(p)
