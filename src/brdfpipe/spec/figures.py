@@ -25,6 +25,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from brdfpipe.spec.acquisition import FIXED_SETUPS
+
 __all__ = [
     "TRACK_PREFIX",
     "Figure",
@@ -56,7 +58,7 @@ def _has_nearfield(acquisition: Mapping[str, Any]) -> bool:
 
 
 def _has_fixed(acquisition: Mapping[str, Any]) -> bool:
-    return bool(set(acquisition["setups"]) & {"fixed_camera", "fixed_light"})
+    return bool(set(acquisition["setups"]) & set(FIXED_SETUPS))
 
 
 def _has_point(acquisition: Mapping[str, Any]) -> bool:
