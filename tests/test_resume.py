@@ -23,7 +23,16 @@ after the resumed run (an orphan).
 Run-dependent outputs, excluded from the comparison (two clean runs of one
 config differ there and nowhere else under ``results/``):
 ``results/report/stage-times.csv`` and ``.rst``, the wall times per stage
-summed from ``benchmarks/``.
+summed from ``benchmarks/``.  The job stamps under ``results/.stamps`` are
+the run's bookkeeping, not results: they record how the outputs came about
+(a job retried after an interruption has a ``retry`` line there), and are
+left out too.
+
+Jobs killed as they start (:func:`run_killing_jobs`), Snakemake going on:
+Snakemake records the failed job's input checksums, stamp included, then
+removes its outputs, which nothing downstream asks for any more; before a
+stamp counted only once its job succeeded, the resumed run left the
+closed-loop table and the claims of the old seed in place.
 """
 
 from __future__ import annotations
@@ -138,9 +147,58 @@ def run_and_kill(work: Path, config: Path, env: dict[str, str], *, sig: int, rul
     return killed.is_set(), "".join(lines)
 
 
+def _job_processes(session: int, rule: str) -> list[int]:
+    """PIDs of the running jobs of ``rule`` in the process group ``session`` (Snakemake runs a script as
+    ``python .snakemake/scripts/tmpXXXX.<rule>.py``)."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            if os.getpgid(int(proc.name)) != session:
+                continue
+            argv = (proc / "cmdline").read_bytes().split(b"\0")
+        except (OSError, ProcessLookupError):
+            continue
+        if any(a.decode(errors="replace").endswith(f".{rule}.py") for a in argv):
+            found.append(int(proc.name))
+    return found
+
+
+def run_killing_jobs(work: Path, config: Path, env: dict[str, str], *args: str, rule: str,
+                     count: int | None = None) -> tuple[int, str]:
+    """Run Snakemake and SIGKILL each job of ``rule`` as it starts (the first ``count``; all if None).
+
+    Snakemake itself goes on: it sees the jobs fail, records them, removes
+    their outputs and stops.  Returns how many jobs were killed and the
+    run's output.
+    """
+    with open(work / "killed-run.log", "w+") as out:
+        proc = subprocess.Popen(snakemake_cmd(work, config, *args), cwd=work, env=env, stdout=out,
+                                stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                                preexec_fn=_default_sigint)
+        killed: set[int] = set()
+        end = time.monotonic() + 900
+        try:
+            while proc.poll() is None and time.monotonic() < end:
+                for pid in _job_processes(proc.pid, rule):
+                    if pid not in killed and (count is None or len(killed) < count):
+                        with contextlib.suppress(ProcessLookupError):
+                            os.kill(pid, signal.SIGKILL)
+                        killed.add(pid)
+                time.sleep(0.02)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=60)
+        out.seek(0)
+        return len(killed), out.read()
+
+
 def results_files(work: Path) -> set[str]:
     results = work / "results"
-    return {p.relative_to(results).as_posix() for p in results.rglob("*") if p.is_file()} - RUN_DEPENDENT
+    files = {p.relative_to(results).as_posix() for p in results.rglob("*") if p.is_file()}
+    return {f for f in files if not f.startswith(".stamps/")} - RUN_DEPENDENT
 
 
 def differences(work: Path, ref: Path) -> list[str]:
@@ -392,3 +450,48 @@ def test_a_change_snakemake_cannot_see_replans_its_jobs(tmp_path: Path,
                if len(line.split()) == 2 and line.split()[1].isdigit()}
     assert planned.get("optimize_directions") == 9, out[-3000:]
     assert {"evaluate_directions", "capture_closedloop", "evaluate_closedloop"} <= set(planned), out[-3000:]
+
+
+def check_killed_jobs_resume(tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, *, config: Path,
+                             ref: Path, rule: str, args: tuple[str, ...] = (), count: int | None = None,
+                             at_least: int = 1) -> None:
+    """Kill the jobs of ``rule`` as they start in a run of ``config`` with ``args``; resume plainly; compare."""
+    base = shared_run(tmp_path_factory, TINY)
+    before = run_state(base)
+    work = copy_run(base, tmp_path / "resumed")
+    env = workflow_env()
+    killed, out = run_killing_jobs(work, config, env, *args, rule=rule, count=count)
+    assert killed >= at_least, f"{killed} jobs of {rule} were killed:\n{out[-3000:]}"
+    assert "Error in rule" in out or "error" in out.lower(), out[-3000:]
+    resumed = run(work, config, env)
+    check_same(work, ref, config=config, env=env,
+               log=f"--- run with {killed} {rule} jobs killed:\n{out[-3000:]}\n--- resumed run:\n{resumed[-3000:]}")
+    assert run_state(base) == before, "a copy wrote into the shared run through a hard link"
+
+
+def test_closed_loop_config_change_with_its_captures_killed_as_they_start(
+        tmp_path: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """closed_loop.seed and .spp swapped; with --keep-going every capture job starts and is killed; resumed.
+
+    Before: the resumed run ran write_claims alone, ``results/closedloop/``
+    stayed empty and the closed-loop table and claims were the old seed's.
+    """
+    config, ref = swap_reference(tmp_path_factory)
+    check_killed_jobs_resume(tmp_path, tmp_path_factory, config=config, ref=ref, rule="capture_closedloop",
+                             args=("--keep-going",), at_least=3)
+
+
+def test_forced_captures_killed_as_they_start_are_made_again(tmp_path: Path,
+                                                           tmp_path_factory: pytest.TempPathFactory) -> None:
+    """-R capture_closedloop with two of its three jobs killed; a plain run after it makes their files again."""
+    base = shared_run(tmp_path_factory, TINY)
+    check_killed_jobs_resume(tmp_path, tmp_path_factory, config=TINY, ref=base, rule="capture_closedloop",
+                             args=("-R", "capture_closedloop"), count=2, at_least=2)
+
+
+def test_forced_candidates_killed_before_compare_spaces_are_made_again(
+        tmp_path: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """-R measure_gplvm_candidate --until compare_spaces, its jobs killed as they start; then a plain run."""
+    base = shared_run(tmp_path_factory, TINY)
+    check_killed_jobs_resume(tmp_path, tmp_path_factory, config=TINY, ref=base, rule="measure_gplvm_candidate",
+                             args=("-R", "measure_gplvm_candidate", "--until", "compare_spaces"))

@@ -72,20 +72,63 @@ def test_job_keys_are_file_names_and_tell_jobs_apart(tmp_path: Path) -> None:
         (tmp_path / k).touch()  # a valid file name
 
 
-def test_a_run_rewrites_a_stamp_only_when_the_record_changed(tmp_path: Path,
-                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_run_rewrites_a_stamp_when_the_record_changed_or_its_job_has_not_succeeded(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     path = filenames.stamp("capture_closedloop", "material=m")
     a, b = (stamps.job_record("capture_closedloop", {"material": "m"}, {"seed": s}, []) for s in (1, 2))
     assert stamps.stamp_input(path, a, "run") == path and Path(path).read_text() == a + "\n"
+    stamps.mark_done(path, a + "\n")  # the job succeeded
     os.utime(path, (1, 1))  # outputs made since are newer
     assert stamps.stamp_input(path, a, "run") == path and Path(path).stat().st_mtime == 1  # same record: untouched
     assert stamps.stamp_input(path, b, "run") == path and Path(path).read_text() == b + "\n"
     assert Path(path).stat().st_mtime > 1  # newer than the outputs: Snakemake reruns the job
     os.utime(path, (1, 1))
+    stamps.mark_done(path, b + "\n")
     stamps.stamp_input(path, b, "run", outputs_missing=True)  # same record, an output gone: rerun too
-    assert Path(path).stat().st_mtime > 1 and Path(path).read_text() == b + "\n"
-    assert sorted(p.name for p in Path(path).parent.iterdir()) == ["material=m"]  # no temporary left
+    assert Path(path).stat().st_mtime > 1
+    assert sorted(p.name for p in Path(path).parent.iterdir()) == ["material=m", "material=m.done"]  # no temporary
+
+
+def test_a_stamp_counts_only_once_its_job_succeeded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A job killed after its stamp was written: the next run's stamp differs in text, not only in time.
+
+    Snakemake records a failed job's input checksums (persistence.finished
+    runs before the outputs are removed): a stamp rewritten with the same
+    text would match them, and Snakemake would judge the job's input
+    unchanged.  Each retry's text differs from the one before.
+    """
+    monkeypatch.chdir(tmp_path)
+    path = filenames.stamp("capture_closedloop", "material=m")
+    a, b = (stamps.job_record("capture_closedloop", {"material": "m"}, {"seed": s}, []) for s in (1, 2))
+    stamps.stamp_input(path, a, "run")
+    stamps.mark_done(path, a + "\n")
+    stamps.stamp_input(path, b, "run")  # the config changed; the job is started and killed: no done mark
+    texts = [Path(path).read_text()]
+    for _ in range(3):  # resumed, killed again, ...
+        assert stamps.stamp_input(path, b, "plan") == stamps.PLAN_FILE  # a dry run plans the job
+        assert stamps.stamp_input(path, b, "run") == path
+        texts.append(Path(path).read_text())
+        assert texts[-1].split("\n")[0] == b and texts[-1] != texts[-2]
+    stamps.mark_done(path, texts[-1])  # the job succeeded at last
+    assert stamps.stamp_input(path, b, "plan") == path and stamps.stamp_input(path, b, "run") == path
+    assert Path(path).read_text() == texts[-1]
+    # a done mark of another definition (the job of record a succeeded, not of b) does not count
+    stamps.mark_done(path, a + "\n")
+    assert stamps.stamp_input(path, b, "plan") == stamps.PLAN_FILE
+
+
+def test_log_to_marks_the_stamp_done_only_when_the_job_succeeds(tmp_path: Path) -> None:
+    from brdfpipe.core.logutil import log_to
+
+    stamp = tmp_path / "stamp"
+    stamp.write_text("record\n")
+    with pytest.raises(RuntimeError), log_to(tmp_path / "failed.log", stamp=stamp):
+        raise RuntimeError("killed")
+    assert not stamps.done_path(stamp).exists()
+    with log_to(tmp_path / "job.log", stamp=stamp):
+        stamp.write_text("record\nretry 0\n")  # a newer run rewrote it meanwhile: the job made the old one's
+    assert stamps.done_path(stamp).read_text() == "record\n"
 
 
 def test_a_dry_run_plans_with_a_fresh_copy_and_leaves_results_alone(tmp_path: Path,
@@ -97,6 +140,7 @@ def test_a_dry_run_plans_with_a_fresh_copy_and_leaves_results_alone(tmp_path: Pa
     assert planned == stamps.PLAN_FILE and Path(planned).is_file() and planned.startswith(".snakemake/")
     assert not Path("results").exists()
     stamps.stamp_input(path, a, "run")
+    stamps.mark_done(path, a + "\n")
     assert stamps.stamp_input(path, a, "plan") == path  # up to date
     planned_b = stamps.stamp_input(path, b, "plan")
     assert planned_b != path and Path(path).read_text() == a + "\n"

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.manifold import analysis
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     analysis.analyze_manifold(
         store=snakemake.input.store,
         gram=snakemake.input.gram,

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.rendering import blend
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     blend.bounce_shares(
         images=dict(zip(snakemake.params.materials, snakemake.input.images)),
         ones=dict(zip(snakemake.params.materials, snakemake.input.ones)),

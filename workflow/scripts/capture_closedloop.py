@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.rendering import capture
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     capture.capture_to_files(
         material=snakemake.input.binary,
         directions=list(snakemake.input.directions),

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.manifold import fidelity
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     fidelity.combine_candidates(
         spaces=snakemake.input.spaces,
         stability=snakemake.input.stability,

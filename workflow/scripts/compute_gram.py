@@ -3,5 +3,5 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.manifold import gplvm
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     gplvm.write_gram(snakemake.input.store, snakemake.output.gram, space=snakemake.wildcards.space)

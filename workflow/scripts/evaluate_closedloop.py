@@ -3,7 +3,7 @@
 from brdfpipe.acquisition import closedloop
 from brdfpipe.core.logutil import log_to
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     closedloop.write_closedloop(
         snakemake.input.store,
         snakemake.input.model,

@@ -3,7 +3,7 @@
 from brdfpipe.acquisition import evaluation
 from brdfpipe.core.logutil import log_to
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     evaluation.write_evaluation(
         snakemake.input.store,
         snakemake.input.model,

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.data import nbrdf
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     nbrdf.evaluate_to_files(
         archive=snakemake.input.archive,
         fits=snakemake.params.fits,

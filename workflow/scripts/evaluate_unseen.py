@@ -3,7 +3,7 @@
 from brdfpipe.acquisition import unseen
 from brdfpipe.core.logutil import log_to
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     databases = list(snakemake.params.databases)
     unseen.write_unseen(
         snakemake.output.errors,

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.manifold import gplvm
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     gplvm.fit_to_files(
         snakemake.input.gram,
         snakemake.output.model,

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.manifold import unseen
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     unseen.write_unseen(
         snakemake.output.unseen,
         store=snakemake.input.store,

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.rendering import scene
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     scene.make_envmap(
         snakemake.output.envmap,
         width=snakemake.params.width,

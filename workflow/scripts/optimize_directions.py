@@ -3,7 +3,7 @@
 from brdfpipe.acquisition import optimize
 from brdfpipe.core.logutil import log_to
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     optimize.optimize_to_file(
         snakemake.input.model,
         snakemake.output.directions,

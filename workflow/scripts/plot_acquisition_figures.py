@@ -3,7 +3,7 @@
 from brdfpipe.acquisition import figures
 from brdfpipe.core.logutil import log_to
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     figures.make_acquisition_figures(
         errors_csv=snakemake.input.errors,
         training_csv=snakemake.input.training_size or None,

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.manifold import figures
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     q = snakemake.params.latent_dims
     figures.make_manifold_figures(
         models=dict(zip(q, snakemake.input.models)),

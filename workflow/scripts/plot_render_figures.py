@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.rendering import figures
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     figures.make_render_figures(
         prerenders=dict(zip(snakemake.params.materials, snakemake.input.prerenders)),
         weights=list(snakemake.input.weights),

@@ -3,6 +3,6 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.manifold import figures
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     figures.manifold_unseen(snakemake.input.model, snakemake.params.map_q, snakemake.input.unseen,
                             list(snakemake.output.manifold))

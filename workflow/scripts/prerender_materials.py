@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.rendering import scene
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     n = len(snakemake.params.materials)
     settings = snakemake.params.settings  # one (resolution, spp) per scene folder, in output order
     scene.render_materials(

@@ -9,7 +9,7 @@ def _per_candidate(files, candidates, points):
     return {c: files[k * points : (k + 1) * points] for k, c in enumerate(candidates)}
 
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     labels = list(snakemake.params.candidates)
     blend.floor_check_table(
         candidates={c: tuple(v) for c, v in snakemake.params.candidates.items()},

@@ -6,7 +6,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.logutil import log_to
 from brdfpipe.report import captions, claims, runinfo
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     inp = snakemake.input
     found = claims.compute_claims(
         claims.ClaimInputs(

@@ -3,7 +3,7 @@
 from brdfpipe.explorer import export
 from brdfpipe.core.logutil import log_to
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     export.write_explorer(
         out=snakemake.output.explorer,
         models=list(snakemake.input.models),

@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.data import synth
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     synth.write_database_manifest(
         snakemake.output.manifest,
         count=snakemake.params.n_materials,

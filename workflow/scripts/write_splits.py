@@ -3,7 +3,7 @@
 from brdfpipe.core.logutil import log_to
 from brdfpipe.data import database
 
-with log_to(snakemake.log[0]):
+with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     database.write_splits(
         snakemake.output.splits,
         store=snakemake.input.store,

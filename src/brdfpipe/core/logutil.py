@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from brdfpipe.core import atomic
+from brdfpipe.core import atomic, stamps
 
 __all__ = ["QUIET_LOGGERS", "log_to", "quiet_third_party", "setup_console_logging"]
 
@@ -32,8 +32,8 @@ def setup_console_logging(level: int = logging.INFO) -> None:
 
 
 @contextmanager
-def log_to(path: str | Path, level: int = logging.INFO,
-           console_level: int = logging.WARNING) -> Iterator[logging.Logger]:
+def log_to(path: str | Path, level: int = logging.INFO, console_level: int = logging.WARNING, *,
+           stamp: str | Path | None = None) -> Iterator[logging.Logger]:
     """Log to ``path`` (records from ``level`` on) and to stderr (from ``console_level`` on) during a job.
 
     The job log keeps the detail (progress, optimiser steps, per-pass
@@ -47,8 +47,15 @@ def log_to(path: str | Path, level: int = logging.INFO,
     (:func:`brdfpipe.core.atomic.job_lease`): if a newer run starts the same
     job (Snakemake deletes the log first), this process puts no output in
     place any more.
+
+    ``stamp``: the job's stamp (its input ``stamp``, :mod:`brdfpipe.core.stamps`).
+    When the block ends without error, the stamp's text as the job found it
+    is written to its done mark (:func:`brdfpipe.core.stamps.mark_done`,
+    under the lease): the next run takes the job's outputs as made by that
+    definition; a job killed or failed before leaves the stamp out of date.
     """
     path = Path(path)
+    started_with = None if stamp is None else stamps.read_stamp(stamp)
     path.parent.mkdir(parents=True, exist_ok=True)
     root = logging.getLogger()
     file_handler = logging.FileHandler(path, mode="w", encoding="utf-8")
@@ -66,6 +73,8 @@ def log_to(path: str | Path, level: int = logging.INFO,
     try:
         with atomic.job_lease(path, opened):
             yield logger
+            if started_with is not None:
+                stamps.mark_done(stamp, started_with)
     except BaseException:
         logger.exception("job failed")
         raise

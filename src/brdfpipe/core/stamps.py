@@ -33,8 +33,17 @@ downstream) from modification times alone:
 * any change of what defines a job reruns it, with or without Snakemake's
   records; with them, going back to a definition whose outputs are still
   there reruns nothing (Snakemake finds the stamp's checksum as recorded);
-* a run interrupted after the DAG was built and before a job ran leaves the
-  job's stamp newer than its (old) outputs: the next run reruns it;
+* a stamp counts only once its job succeeded: the job's own process writes
+  the stamp's text to its *done mark* (:func:`done_path`,
+  :func:`mark_done`, called by :func:`brdfpipe.core.logutil.log_to` when the
+  job's block ends without error); a stamp whose done mark differs (a job
+  that was killed, failed, or never started after the stamp was written) is
+  out of date, and is rewritten with a ``retry`` line that changes its text:
+  Snakemake records a failed job's input checksums too (its
+  ``persistence.finished`` runs before it removes the outputs), so a stamp
+  rewritten with the same text would look unchanged to it, and a killed
+  job's missing outputs, which nothing downstream asks for any more, would
+  never be made again;
 * a temporary output (``temp()``) may be gone: its job's stamp stays, so a
   change upstream of it is still seen;
 * a job with an output missing (not a temporary one) is out of date too:
@@ -76,6 +85,9 @@ __all__ = [
     "job_record",
     "record_digest",
     "job_key",
+    "done_path",
+    "read_stamp",
+    "mark_done",
     "stamp_input",
 ]
 
@@ -153,17 +165,52 @@ PLAN_FILE = ".snakemake/brdfpipe-stamps/out-of-date"
 _planned: set[str] = set()
 
 
+def done_path(stamp: str | os.PathLike[str]) -> Path:
+    """The done mark of ``stamp``: ``<stamp>.done``, the stamp's text once its job succeeded.
+
+    Job keys (:func:`job_key`) start with ``name=`` or are ``_``, so no
+    stamp's name ends with ``.done`` of another's.
+    """
+    return Path(f"{os.fspath(stamp)}.done")
+
+
+def read_stamp(path: str | os.PathLike[str]) -> str | None:
+    """The text of a stamp or done mark, ``None`` if there is none (or it is not text)."""
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (FileNotFoundError, NotADirectoryError, IsADirectoryError, UnicodeDecodeError):
+        return None
+
+
+def mark_done(stamp: str | os.PathLike[str], text: str) -> None:
+    """Record that the job of ``stamp``, started with the stamp's ``text``, succeeded (atomic).
+
+    Called by the job's own process at the end of its work
+    (:func:`brdfpipe.core.logutil.log_to`); under a job lease
+    (:func:`brdfpipe.core.atomic.job_lease`) a superseded job cannot write it.
+    """
+    atomic.write_text(done_path(stamp), text)
+
+
+def _retry_text(record: str, current: str) -> str:
+    """The stamp's next text for an unchanged record whose job has not succeeded: a ``retry`` line that differs."""
+    return f"{record}\nretry {hashlib.sha256(current.encode('utf-8')).hexdigest()[:DIGEST_CHARS]}\n"
+
+
 def stamp_input(path: str, record: str, mode: str, *, outputs_missing: bool = False) -> str:
     """The file a job takes as its stamp input; ``path``: its stamp, ``record``: its current :func:`job_record`.
 
-    The stamp is out of date when ``path`` does not hold ``record``, or when
-    ``outputs_missing`` (an output of the job that is not temporary is
-    missing: an interrupted run removed it before its job could write it
-    again, and Snakemake does not rebuild a missing file that nothing out of
-    date asks for).  ``mode``:
+    The stamp is up to date when its first line is ``record``, its done mark
+    (:func:`done_path`) holds the stamp's text (the job succeeded since the
+    stamp was written) and not ``outputs_missing`` (an output of the job
+    that is not temporary is missing: an interrupted run removed it, and
+    Snakemake does not rebuild a missing file that nothing out of date asks
+    for).  Otherwise it is out of date: its next text is ``record`` when the
+    record changed, else ``record`` and a ``retry`` line that differs from
+    the current text (:func:`_retry_text`).  ``mode``:
 
     * ``"run"`` (a run's main process): write an out-of-date stamp
-      (atomically: a new modification time); return ``path``;
+      (atomically: a new modification time and a new text); return ``path``;
     * ``"plan"`` (a dry run, a report, a working directory locked by another
       Snakemake): return ``path`` if it is up to date, else
       :data:`PLAN_FILE`, written by this process once (a modification time
@@ -174,14 +221,12 @@ def stamp_input(path: str, record: str, mode: str, *, outputs_missing: bool = Fa
         return path
     if mode not in ("run", "plan"):
         raise ValueError(f"unknown stamp mode {mode!r}")
-    try:
-        current = Path(path).read_text(encoding="utf-8")
-    except (FileNotFoundError, NotADirectoryError, UnicodeDecodeError):
-        current = None
-    if current == record + "\n" and not outputs_missing:
+    current = read_stamp(path)
+    same_record = current is not None and current.split("\n", 1)[0] == record
+    if same_record and not outputs_missing and read_stamp(done_path(path)) == current:
         return path
     if mode == "run":
-        atomic.write_text(path, record + "\n")
+        atomic.write_text(path, _retry_text(record, current) if same_record else record + "\n")
         return path
     here = os.path.abspath(PLAN_FILE)
     if here not in _planned:  # a marker, not a result: no atomic write, no fsync
