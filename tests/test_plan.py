@@ -556,3 +556,15 @@ def test_the_workflow_wildcards_come_from_the_specs() -> None:
     assert 'space="|".join(manifold_specs.SPACE_NAMES)' in text
     for literal in ("nearfield|", "standardised", "error|condition"):
         assert literal not in text.split("wildcard_constraints:")[1].split("\n\n")[0], literal
+
+
+def test_the_gram_blocks_are_bounded_by_the_log_map_chunks() -> None:
+    """--set-scatter gram=N: 0 failed mid-run, 100,000 hung the dry run (200,000 jobs); refused at parse."""
+    from brdfpipe.data import logmap, merl
+
+    assert plan.MAX_GRAM_BLOCKS == -(-merl.N_CELLS // logmap.CHUNK_COLS)  # one block per chunk of the grid
+    for n in (1, 4, plan.MAX_GRAM_BLOCKS):
+        plan.check_gram_blocks(n)
+    for n in (0, -1, plan.MAX_GRAM_BLOCKS + 1, 100_000):
+        with pytest.raises(plan.ConfigError, match=rf"--set-scatter gram={n}: must be between 1 and 40"):
+            plan.check_gram_blocks(n)

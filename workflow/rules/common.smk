@@ -347,6 +347,12 @@ scattergather:
     gram=4,
 
 
+try:
+    plan.check_gram_blocks(len(scatter.gram("{scatteritem}")))
+except plan.ConfigError as err:
+    raise WorkflowError(f"invalid configuration: {err}") from None
+
+
 wildcard_constraints:
     material="|".join(re.escape(m) for m in MATERIALS),
     split="all|train",

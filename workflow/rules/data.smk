@@ -91,7 +91,7 @@ if FITS:
         priority: 30
         conda:
             "../envs/brdfpipe.yaml"
-        threads: min(4, workflow.cores)
+        threads: 4
         resources:
             mem_mb=mem("evaluate_fits"),
             runtime=10,

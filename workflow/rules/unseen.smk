@@ -22,7 +22,7 @@ if UNSEEN:
             "benchmarks/evaluate_unseen_fits/{database}.tsv"
         conda:
             "../envs/brdfpipe.yaml"
-        threads: min(4, workflow.cores)
+        threads: 4
         resources:
             mem_mb=mem("evaluate_unseen_fits"),
             runtime=10,

@@ -34,6 +34,8 @@ __all__ = [
     "latent_paths",
     "check_closed_loop",
     "sensor_max_snr",
+    "MAX_GRAM_BLOCKS",
+    "check_gram_blocks",
 ]
 
 
@@ -293,3 +295,18 @@ def sensor_max_snr(sensor: Mapping[str, Any]) -> float:
     lsb = fw / ((1 << int(sensor["bits"])) - 1)
     k = len(sensor["brackets"])
     return math.sqrt(k) * fw / math.sqrt(fw + rn * rn + lsb * lsb / 12.0)
+
+
+#: At most this many column blocks of the streamed Gram matrix (``--set-scatter gram=N``): one per chunk of
+#: the log-map (:data:`brdfpipe.data.logmap.CHUNK_COLS` = 36,450 columns) of the whole MERL grid (90 × 90 × 180
+#: = 1,458,000 cells); more blocks would decode chunks twice (tests/test_plan.py checks the arithmetic).
+MAX_GRAM_BLOCKS: int = 40
+
+
+def check_gram_blocks(n_blocks: int) -> None:
+    """The number of column blocks of the Gram matrix: 1 … :data:`MAX_GRAM_BLOCKS`; ConfigError naming the option."""
+    if not 1 <= n_blocks <= MAX_GRAM_BLOCKS:
+        raise ConfigError(
+            f"--set-scatter gram={n_blocks}: must be between 1 and {MAX_GRAM_BLOCKS} (the Gram matrix is streamed "
+            "in column blocks, at most one per log-map chunk of 36,450 of the 1,458,000 MERL cells)"
+        )
