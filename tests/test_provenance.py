@@ -290,3 +290,67 @@ def test_synth_rewrites_its_own_output(tmp_path: Path) -> None:
     synth.synthesize(out, count=1, seed=2, progress=False)
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.suffix == ".binary"} == first
     assert db.database_from_folder(out).kind == "synthetic"
+
+
+# -- consumers check identity: the renders and captures read the marks before any work -----------
+
+
+def _fit_table(path: Path, name: str, value: float) -> Path:
+    from brdfpipe.data import provenance
+
+    mark = provenance.fit_mark(database="merl-nbrdf", name=name, fit=name.replace("-", "_"), archive="a.zip",
+                               fit_sha256="0" * 64, clamped=0)
+    merl.write_merl(path, _measured_table(value), mark=mark)
+    return path
+
+
+def test_a_table_renamed_over_another_materials_file_is_refused_by_renders_and_captures(tmp_path: Path) -> None:
+    """A batch rendered a table renamed over another material's file as that material: now it is refused, by name."""
+    from brdfpipe.data import provenance
+    from brdfpipe.rendering import capture, scene
+
+    blue = _fit_table(tmp_path / "blue-fabric.binary", "blue-fabric", 0.1)
+    green = tmp_path / "green-fabric.binary"
+    shutil.copyfile(blue, green)  # blue-fabric's table under green-fabric's name
+    kw = dict(outs=[[tmp_path / "b.exr", tmp_path / "g.exr"]], outs_one=[[tmp_path / "b1.exr", tmp_path / "g1.exr"]],
+              materials=["blue-fabric", "green-fabric"], settings=[((8, 6), 4)], envmap=tmp_path / "none.exr",
+              variant="llvm_ad_rgb", max_depth=2, seed=0)
+    with pytest.raises(provenance.ProvenanceError, match=r"green-fabric.binary: is merl-nbrdf material 'blue-fabric'.*"
+                                                         r"not 'green-fabric'"):
+        scene.render_materials([blue, green], database="merl-nbrdf", **kw)
+    # the right tables, of another database than the run's: refused too
+    _fit_table(green, "green-fabric", 0.2)
+    with pytest.raises(provenance.ProvenanceError, match="belongs to the rgl-nbrdf database"):
+        scene.render_materials([blue, green], database="rgl-nbrdf", **kw)
+    assert not any(tmp_path.glob("*.exr"))
+
+    shutil.copyfile(blue, green)
+    with pytest.raises(provenance.ProvenanceError, match="not 'green-fabric'"):
+        capture.capture_to_files(material=green, name="green-fabric", database="merl-nbrdf", directions=[],
+                                 n_images=[1], renders=[], photographs=[], noiseless=[], observations=[], spp=1,
+                                 seed=0, light_distance=None, min_snr=1, sensor={})
+    with pytest.raises(provenance.ProvenanceError, match="not 'green-fabric'"):
+        capture.capture_materials_to_file(materials={"blue-fabric": blue, "green-fabric": green},
+                                          database="merl-nbrdf", directions=[], n_images=[1],
+                                          out=tmp_path / "obs.npz", spp=1, seed=0, light_distance=None,
+                                          min_snr=1, sensor={})
+    assert not (tmp_path / "obs.npz").exists()
+
+
+def test_a_path_point_renamed_over_another_is_refused_by_its_render(tmp_path: Path) -> None:
+    from brdfpipe.data import provenance
+    from brdfpipe.rendering import scene
+
+    def point(name: str) -> Path:
+        mark = provenance.derived_mark(name=name, operation="path-point", source_database="merl-nbrdf", inputs={})
+        merl.write_merl(tmp_path / f"{name}.binary", _measured_table(0.3), mark=mark)
+        return tmp_path / f"{name}.binary"
+
+    a, b = point("a--b-t0.25"), point("a--b-t0.75")
+    shutil.copyfile(a, b)
+    with pytest.raises(provenance.ProvenanceError, match=r"a--b-t0.75.binary: is derived material 'a--b-t0.25'"):
+        scene.render_points([a, b], outs=[[tmp_path / "x.exr"], [tmp_path / "y.exr"]],
+                            outs_one=[[tmp_path / "x1.exr"], [tmp_path / "y1.exr"]], seeds=[0], labels=["p", "q"],
+                            derived=True, envmap=tmp_path / "none.exr", variant="llvm_ad_rgb", resolution=(8, 6),
+                            spp=4, max_depth=2)
+    assert not any(tmp_path.glob("*.exr"))

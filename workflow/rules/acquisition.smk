@@ -253,6 +253,7 @@ if CLOSEDLOOP_SETS:
             min_snr=CLOSED["min_snr"],
             sensor=CLOSED["sensor"],
             variant=RENDER["variant"],
+            database=DATABASE.kind,
             code=code("capture_closedloop.py"),
         script:
             "../scripts/capture_closedloop.py"

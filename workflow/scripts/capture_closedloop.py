@@ -6,6 +6,8 @@ from brdfpipe.rendering import capture
 with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     capture.capture_to_files(
         material=snakemake.input.binary,
+        name=snakemake.wildcards.material,
+        database=snakemake.params.database,
         directions=list(snakemake.input.directions),
         n_images=snakemake.params.n_images,
         renders=list(snakemake.output.renders),

@@ -17,5 +17,5 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         max_depth=snakemake.params.max_depth,
         threads=snakemake.threads,
         seed=snakemake.params.seed,
-        attrs={"database": snakemake.params.database},
+        database=snakemake.params.database,
     )

@@ -17,5 +17,6 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         spp=snakemake.params.spp,
         max_depth=snakemake.params.max_depth,
         threads=snakemake.threads,
+        derived=True,
         attrs={"database": snakemake.params.database},
     )

@@ -121,6 +121,7 @@ __all__ = [
     "read_mark",
     "file_label",
     "check_source",
+    "check_sources",
     "output_name",
     "file_sha256",
     "store_identity",
@@ -575,6 +576,30 @@ def check_source(
                     "a file of another configuration; regenerate it"
                 )
     return mark
+
+
+def check_sources(tables: Mapping[str, str | os.PathLike[str]] | Sequence[tuple[str, str | os.PathLike[str]]], *,
+                  database: str | None, what: str = "material file") -> None:
+    """Every table of ``tables`` (material → file, or pairs) is that material, checked before any work is done.
+
+    The check a job makes before it reads the tables it renders or
+    captures, as the ingest does (:func:`check_source`): each file exists,
+    its mark names the material it is read as (for the kinds that bind
+    names), and its label is ``database`` (when given).  For the ``derived``
+    files of the workflow (``database="derived"``), the mark's ``name`` must
+    be the file's own (:func:`output_name`): a path point renamed over
+    another is refused.  Raises :class:`FileNotFoundError` or
+    :class:`ProvenanceError`, one line naming the first file that fails.
+    """
+    pairs = list(tables.items()) if isinstance(tables, Mapping) else list(tables)
+    for name, path in pairs:
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"{os.fspath(path)}: {what} not found")
+    for name, path in pairs:
+        expect: dict[str, Any] | None = None if database is None else {"database": database}
+        if database == "derived":
+            expect = {"database": database, "name": output_name(path)}
+        check_source(path, name=name, expect=expect)
 
 
 # --------------------------------------------------------------------------

@@ -66,6 +66,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
+from brdfpipe.data import provenance
 from brdfpipe.spec import acquisition as acquisition_spec
 from brdfpipe.spec import nearfield
 from brdfpipe.core.exr import write_exr
@@ -537,6 +538,8 @@ def capture_to_files(
     sensor: Sensor | Mapping[str, Any],
     variant: str = "llvm_ad_rgb",
     threads: int | None = None,
+    name: str | None = None,
+    database: str | None = None,
 ) -> dict[tuple[int, int], dict[str, int]]:
     """Capture one material under every set of size ``n_images`` of each directions file; write the files.
 
@@ -549,8 +552,11 @@ def capture_to_files(
     noiseless render and off the sensor's photograph.  A configuration
     shared by two sets is rendered once (same seed: same photograph).  Noise
     is seeded from ``seed``, the material and the configuration.
-    ``light_distance`` None (or inf): a distant light.  Returns the counts
-    per (d, n).
+    ``light_distance`` None (or inf): a distant light.  With ``name`` (the
+    workflow's material), the file is first checked to be that material, of
+    ``database`` when given (its provenance mark,
+    :func:`brdfpipe.data.provenance.check_sources`).  Returns the counts per
+    (d, n).
     """
     light_distance = math.inf if light_distance is None else float(light_distance)
     image_keys, table_keys = output_layout(len(directions), n_images)
@@ -560,7 +566,9 @@ def capture_to_files(
     images = {k: (r, p) for k, r, p in zip(image_keys, renders, photographs)}
     tables = {k: (a, b) for k, a, b in zip(table_keys, noiseless, observations)}
     mat = Path(material)
-    if not mat.is_file():
+    if name is not None:
+        provenance.check_sources([(name, mat)], database=database)
+    elif not mat.is_file():
         raise FileNotFoundError(f"{mat}: material file not found")
     sens = sensor if isinstance(sensor, Sensor) else Sensor(**dict(sensor))
     _start_mitsuba(variant, threads)
@@ -607,7 +615,8 @@ def capture_materials_to_file(
     materials outside the training database): Mitsuba starts once, not once
     per material (its start-up costs more than a capture).  ``materials``
     maps each material to its MERL file (``database``: their label, recorded
-    in the file).  Same renders, seeds and observation tables as
+    in the file; each file is checked to be its material of ``database``
+    first, :func:`brdfpipe.data.provenance.check_sources`).  Same renders, seeds and observation tables as
     :func:`capture_to_files` (no EXR is written).  ``out`` (NPZ, written
     atomically) holds ``format`` (:data:`MANY_FORMAT`), ``database``,
     ``index`` (JSON: one entry per table with ``material``, ``directions``
@@ -619,9 +628,7 @@ def capture_materials_to_file(
     light_distance = math.inf if light_distance is None else float(light_distance)
     sens = sensor if isinstance(sensor, Sensor) else Sensor(**dict(sensor))
     paths = {str(m): Path(p) for m, p in materials.items()}
-    missing = [str(p) for p in paths.values() if not p.is_file()]
-    if missing:
-        raise FileNotFoundError(f"{missing[0]}: material file not found")
+    provenance.check_sources(paths, database=database)
     docs = [read_configurations(p) for p in directions]
     metrics = [_directions_metric(p) for p in directions]
     _start_mitsuba(variant, threads)

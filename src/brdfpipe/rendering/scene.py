@@ -72,6 +72,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.core.exr import read_exr, write_exr
+from brdfpipe.data import provenance
 
 __all__ = [
     "VARIANTS",
@@ -689,14 +690,6 @@ def render_material(
     return whole
 
 
-def _check_sources(paths: Sequence[str | os.PathLike[str]], what: str) -> None:
-    """FileNotFoundError naming the first of ``paths`` that is not a file (and how many more), before any render."""
-    missing = [str(p) for p in paths if not Path(p).is_file()]
-    if missing:
-        raise FileNotFoundError(f"{missing[0]}: {what} not found"
-                                + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
-
-
 def render_materials(
     merl_paths: Sequence[str | os.PathLike[str]],
     outs: Sequence[Sequence[str | os.PathLike[str]]],
@@ -704,6 +697,7 @@ def render_materials(
     outs_one: Sequence[Sequence[str | os.PathLike[str]]],
     materials: Sequence[str],
     settings: Sequence[tuple[Sequence[int], int]],
+    database: str | None = None,
     attrs: Mapping[str, str] | None = None,
     progress: Callable[[str], None] | None = None,
     **kwargs: Any,
@@ -719,9 +713,12 @@ def render_materials(
     material's table is loaded and its sampling fitted once for all its
     settings (materials in the outer loop): only the material changes between
     renders (what that saves: ``benches/bench_render_batch.py``).  Each image is exactly
-    the one :func:`render_material` gives alone (same bytes).  Every source
-    is checked to exist before the first render; a source that fails to load
-    stops the batch with the error naming it.
+    the one :func:`render_material` gives alone (same bytes).  Before the
+    first render every source is checked to be the material it is rendered
+    as, of ``database`` when given (recorded in the headers too): its
+    provenance mark (:func:`brdfpipe.data.provenance.check_sources`), so a
+    table renamed over another material's file is refused, naming it; a
+    source that fails to load stops the batch with the error naming it.
     """
     n = len(merl_paths)
     if len(materials) != n:
@@ -735,7 +732,9 @@ def render_materials(
     files = [str(f) for table in (outs, outs_one) for row in table for f in row]
     if len(set(files)) != len(files):
         raise ValueError("render_materials: an output file is named twice")
-    _check_sources(merl_paths, "MERL file")
+    provenance.check_sources(list(zip(materials, merl_paths)), database=database, what="MERL file")
+    if database is not None:
+        attrs = {**(attrs or {}), "database": database}
     say = progress if progress is not None else logger.info
     start = time.perf_counter()
     for k, (src, material) in enumerate(zip(merl_paths, materials)):
@@ -772,6 +771,7 @@ def render_points(
     outs_one: Sequence[Sequence[str | os.PathLike[str]]],
     seeds: list[int],
     labels: Sequence[str],
+    derived: bool = False,
     attrs: Mapping[str, str] | None = None,
     progress: Callable[[str], None] | None = None,
     **kwargs: Any,
@@ -783,7 +783,9 @@ def render_points(
     the headers; the other keywords are :func:`render_material`'s.  One
     Mitsuba start for all points (the points of a path come from one
     interpolation job, so they change together); each image is the one the
-    point gives alone.  Every source is checked to exist before the first render.
+    point gives alone.  Every source is checked to exist before the first
+    render and, with ``derived`` (the workflow's interpolated tables), to be
+    the derived table its file name says (its provenance mark).
     """
     n = len(merl_paths)
     for name, values in (("outs", outs), ("outs_one", outs_one), ("labels", labels)):
@@ -793,7 +795,8 @@ def render_points(
         raise ValueError(f"render_points: every point needs one output per seed ({len(seeds)})")
     if len(set(labels)) != len(labels):
         raise ValueError("render_points: labels repeat an entry")
-    _check_sources(merl_paths, "interpolated MERL file")
+    provenance.check_sources([(provenance.output_name(p), p) for p in merl_paths],
+                             database="derived" if derived else None, what="interpolated MERL file")
     say = progress if progress is not None else logger.info
     start = time.perf_counter()
     for k, (src, label) in enumerate(zip(merl_paths, labels)):
