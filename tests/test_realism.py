@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from brdfpipe.acquisition import realism
-from brdfpipe.data import merl
+from brdfpipe.data import merl, provenance
 
 TH = np.radians(realism.theta_h_centres())  # θh of the bin centres
 UNMEASURED = ~merl.measured_mask()
@@ -110,7 +111,7 @@ def test_quantiles_are_ordered_and_skip_nan() -> None:
 def test_measure_table_and_json_round_trip(tmp_path) -> None:
     rows = grey_database([lobe(a, kd=k) for a, k in [(0.05, 0.1), (0.1, 0.3), (0.2, 0.05), (0.4, 0.5)]]
                          + [np.full(merl.N_THETA_H, 0.2)])
-    r = realism.measure(rows, "tiny", folds=2)
+    r = realism.measure(rows, "synthetic", note="tiny", folds=2)
     assert r.no_peak == 1 and r.materials == 5
     assert list(r.width_quantiles) == sorted(r.width_quantiles)
     assert list(r.albedo_quantiles) == sorted(r.albedo_quantiles)
@@ -119,7 +120,7 @@ def test_measure_table_and_json_round_trip(tmp_path) -> None:
     back = realism.Realism.from_json(json.loads(path.read_text()))
     assert back == r
     text = realism.comparison_table([r, back])
-    assert text.splitlines()[0] == "| statistic | tiny | tiny |"
+    assert text.splitlines()[0] == "| statistic | synthetic, tiny | synthetic, tiny |"
     assert all(line.count("|") == 4 for line in text.splitlines())
 
 
@@ -131,3 +132,87 @@ def test_the_largest_value_is_each_materials_maximum() -> None:
     b[0, 0, 0, :] = -1.0  # unmeasured
     rows = realism.rows_from_tables(["a", "b"], [a, b])
     assert rows.peak.tolist() == [7.5, 0.2]
+
+
+# --------------------------------------------------------------------------
+# The command line: labelled by the files' provenance marks
+# --------------------------------------------------------------------------
+
+
+def write_folder(folder: Path, kinds: list[str]) -> None:
+    """One table per entry of ``kinds``: ``synthetic`` (marked), ``merl-nbrdf`` (marked) or ``merl`` (unmarked)."""
+    for i, kind in enumerate(kinds):
+        name = f"m{i}"
+        mark = {"synthetic": provenance.synthetic_mark(name=name, count=None, seed=None, noise=0.0, family="grey",
+                                                         index=i, material_seed=i),
+                "merl-nbrdf": provenance.fit_mark(database="merl-nbrdf", name=name, fit=name, archive="a.zip",
+                                                  fit_sha256="0" * 64, clamped=0),
+                "merl": None}[kind]
+        colour = (0.5 + 0.1 * i, 1.0, 1.5 - 0.2 * i)  # channels differ: a held-out fold's one material has rank 1
+        merl.write_merl(folder / f"{name}.binary", table(lobe(0.05 * (i + 1), kd=0.1 * (i + 1)), colour), mark=mark)
+
+
+def one_error_line(capsys: pytest.CaptureFixture[str], command: str) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"python -m brdfpipe.acquisition.realism {command}: error: "), err
+    return err[0]
+
+
+def test_measure_labels_the_column_by_the_files_marks(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    synth_dir, merl_dir = tmp_path / "synth", tmp_path / "measured"
+    write_folder(synth_dir, ["synthetic"] * 3)
+    write_folder(merl_dir, ["merl"] * 2)
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    assert realism.main(["measure", str(synth_dir), "--note", "before (c461497)", "--out", str(a)]) == 0
+    assert realism.main(["measure", str(merl_dir), "--out", str(b)]) == 0
+    docs = [json.loads(p.read_text()) for p in (a, b)]
+    assert [(d["database"], d["note"], d["materials"]) for d in docs] == [("synthetic", "before (c461497)", 3),
+                                                                          ("merl", "", 2)]
+    capsys.readouterr()
+    assert realism.main(["table", str(a), str(b)]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == "| statistic | synthetic, before (c461497) | merl |"
+
+
+def test_measure_refuses_a_mixed_folder_and_a_note_naming_another_database(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The issue's case: ``--label MERL`` headed a folder of fit-made and unmarked tables "MERL"."""
+    mixed = tmp_path / "mixed"
+    write_folder(mixed, ["merl-nbrdf", "merl"])
+    out = tmp_path / "s.json"
+    assert realism.main(["measure", str(mixed), "--note", "MERL", "--out", str(out)]) == 1
+    line = one_error_line(capsys, "measure")
+    assert f"folder {mixed}: mixes" in line and "m0.binary" in line and "m1.binary" in line
+    synth_dir = tmp_path / "synth"
+    write_folder(synth_dir, ["synthetic"] * 2)
+    for note in ("MERL", "like merl-nbrdf", "two\nlines"):
+        assert realism.main(["measure", str(synth_dir), "--note", note, "--out", str(out)]) == 1
+        assert f"--note {note!r}" in one_error_line(capsys, "measure")
+    with pytest.raises(SystemExit) as exit_:  # an argument error: argparse exits
+        realism.main(["measure", str(synth_dir), "--label", "MERL", "--out", str(out)])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "error: unrecognized arguments: --label MERL" in err[0], err
+    assert not out.exists()
+    realism.check_label("merl-nbrdf", "MERL (NBRDF fit)")  # parts of its own name
+    realism.check_label("merl", "MERL, measured")
+    with pytest.raises(ValueError, match="names the database 'merl'"):
+        realism.check_label("nbrdf", "MERL materials")
+    with pytest.raises(ValueError, match="not a database label"):
+        realism.measure(grey_database([lobe(0.1), lobe(0.2)]), "MERL", folds=2)
+
+
+def test_table_refuses_statistics_it_cannot_show(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A file of the old format (a free ``label``) or of other ``ks`` is one line naming it."""
+    r = realism.measure(grey_database([lobe(0.05), lobe(0.1), lobe(0.2), lobe(0.4)]), "synthetic", folds=2)
+    doc = r.to_json()
+    old = {**{k: v for k, v in doc.items() if k not in ("database", "note")}, "label": "MERL"}
+    other_ks = {**doc, "spectrum": {**doc["spectrum"], "ks": [1, 2]}}
+    lying = {**doc, "note": "really merl-nbrdf"}
+    for bad, why in ((old, "no 'database'"), (other_ks, "spectrum.ks is [1, 2]"), (lying, "names the database")):
+        path = tmp_path / "s.json"
+        path.write_text(json.dumps(bad))
+        assert realism.main(["table", str(path)]) == 1
+        line = one_error_line(capsys, "table")
+        assert str(path) in line and why in line, line
+    assert capsys.readouterr().out == ""

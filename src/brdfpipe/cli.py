@@ -32,7 +32,8 @@ Sizes are bounded before any work, with the limit and why: ``synth
 --count`` and ``sample --count`` by the free disk (a MERL file is 35 MB),
 ``--jobs`` by memory per worker, ``render --resolution`` by memory per pixel
 and its ``--spp``/``--seed``/``--max-depth`` and ``capture --spp`` by what
-Mitsuba accepts (32-bit unsigned), ``extrapolate`` by the weights its walk
+Mitsuba accepts (32-bit unsigned), ``capture --full-well``/``--brackets`` by
+NumPy's Poisson sampler (the config schema's bounds), ``extrapolate`` by the weights its walk
 holds, ``sample --max-tries`` by time per candidate.  Numbers must be finite
 (``nan``, ``inf`` and values that overflow are refused), and the JSON the
 commands print is strict (no ``NaN``/``Infinity``).  Set
@@ -511,6 +512,24 @@ def _light_distance(text: str) -> float:
     return value
 
 
+def _check_sensor_args(args: argparse.Namespace) -> None:
+    """The sensor's bounds (:class:`brdfpipe.rendering.capture.Sensor`, the config schema's), naming the option."""
+    from brdfpipe.rendering import capture
+
+    why = "a pixel's photon count (full well × bracket) must stay within NumPy's Poisson sampler"
+    if args.full_well > capture.MAX_FULL_WELL:
+        raise ValueError(f"--full-well {args.full_well:g}: at most {capture.MAX_FULL_WELL:g} electrons ({why})")
+    if len(args.brackets) > capture.MAX_BRACKETS:
+        raise ValueError(f"--brackets: at most {capture.MAX_BRACKETS} exposures (each one is one more exposure of "
+                         f"every image), got {len(args.brackets)}")
+    if max(args.brackets) > capture.MAX_BRACKET:
+        raise ValueError(f"--brackets {max(args.brackets):g}: at most {capture.MAX_BRACKET:g} (relative to the "
+                         f"shortest exposure, 1; {why})")
+    if min(args.brackets) != 1.0:
+        raise ValueError(f"--brackets {' '.join(f'{b:g}' for b in args.brackets)}: the shortest must be 1 (the "
+                         "exposure times are relative to it)")
+
+
 def _cmd_capture(args: argparse.Namespace) -> int:
     from brdfpipe.core import atomic
     from brdfpipe.rendering import capture, scene
@@ -518,6 +537,7 @@ def _cmd_capture(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out}: --out must be a folder")
+    _check_sensor_args(args)
     if args.spp > scene.MITSUBA_UINT32_MAX:
         raise ValueError(f"--spp {args.spp}: at most {scene.MITSUBA_UINT32_MAX} (Mitsuba's sample count is a 32-bit "
                          "unsigned integer)")

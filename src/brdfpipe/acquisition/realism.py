@@ -62,22 +62,30 @@ the spectrum and of every fold.
 
 Command line (measure a folder, then tabulate)::
 
-    python -m brdfpipe.acquisition.realism measure FOLDER --label LABEL --out stats.json
+    python -m brdfpipe.acquisition.realism measure FOLDER --out stats.json [--note TEXT]
     python -m brdfpipe.acquisition.realism table a.json b.json ...
 
-``table`` prints one Markdown table, one column per database.  Measured:
+``table`` prints one Markdown table, one column per database.  A column is
+headed by the database's label, which ``measure`` reads from the files'
+provenance marks (:func:`brdfpipe.data.database.database_from_folder`: a
+folder that mixes kinds of files is refused), never by what the caller
+believes it to be; ``--note`` only adds a remark after it (``synthetic,
+before (c461497)``) and may not name another database.  Both commands keep
+the project's error contract (:mod:`brdfpipe.core.command`): one line naming
+the file or option on bad input, an ``--out`` that is one of the inputs
+refused before any work, the output written atomically.  Measured:
 ``docs/results/synthetic-vs-merl-nbrdf.md``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import math
-import os
+import re
 import sys
 import time
+from argparse import ArgumentTypeError, Namespace
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -87,8 +95,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.acquisition.svd import decompose
+from brdfpipe.core import atomic
+from brdfpipe.core.command import OneLineParser, run
+from brdfpipe.core.logutil import setup_console_logging
 from brdfpipe.core.threads import blas_threads
-from brdfpipe.data import logmap, merl
+from brdfpipe.data import logmap, merl, provenance
+from brdfpipe.data.database import Database, database_from_folder
 
 __all__ = [
     "KS",
@@ -113,6 +125,9 @@ __all__ = [
     "quantiles",
     "measure",
     "comparison_table",
+    "read_realism",
+    "check_label",
+    "build_parser",
     "main",
 ]
 
@@ -262,29 +277,20 @@ def rows_from_tables(names: Sequence[str], tables: Iterable[ArrayLike]) -> Rows:
     return Rows(names, cells, data[:, :p], albedo, width, peak)
 
 
-def read_database(folder: str | os.PathLike[str], materials: Sequence[str] | None = None) -> Rows:
-    """:class:`Rows` of the ``<name>.binary`` files of ``folder`` (sorted by name), or of ``materials``.
+def read_database(db: Database) -> Rows:
+    """:class:`Rows` of the materials of ``db`` (sorted by name), as labelled by :func:`database_from_folder`.
 
-    Files are read one at a time (:func:`brdfpipe.data.merl.read_merl`, float64)
-    and kept as float32.  FileNotFoundError for a missing folder or file,
-    ValueError for a folder without MERL files.
+    Files are read one at a time (:func:`brdfpipe.data.merl.read_merl`, float64,
+    :class:`~brdfpipe.data.merl.MerlFormatError` naming a bad file) and kept
+    as float32.
     """
-    root = Path(folder)
-    if not root.is_dir():
-        raise FileNotFoundError(f"{root}: no such folder")
-    if materials is None:
-        paths = sorted(root.glob("*.binary"))
-    else:
-        paths = [root / f"{m}.binary" for m in materials]
-    if not paths:
-        raise ValueError(f"{root}: no .binary files")
-    names = [p.name[: -len(".binary")] for p in paths]
+    names = db.materials
 
     def tables() -> Iterable[F64]:
-        for k, path in enumerate(paths):
-            yield merl.read_merl(path)
+        for k, name in enumerate(names):
+            yield merl.read_merl(db.sources[name])
             if (k + 1) % 20 == 0:
-                logger.info("read %d of %d materials of %s", k + 1, len(paths), root)
+                logger.info("read %d of %d materials", k + 1, len(names))
 
     return rows_from_tables(names, tables())
 
@@ -462,11 +468,36 @@ def quantiles(values: ArrayLike, qs: Sequence[float] = QUANTILES) -> tuple[float
     return tuple(float(x) for x in np.quantile(v, list(qs)))
 
 
+def check_label(database: str, note: str = "") -> None:
+    """ValueError unless ``database`` is a database label and ``note`` may be shown after it.
+
+    ``database``: one of :func:`brdfpipe.data.provenance.database_labels`.
+    ``note``: one line that names no other database label (as a whole word,
+    any case) than ``database`` or a part of it: ``--note MERL`` cannot head
+    a synthetic database's column, but may head ``merl-nbrdf``'s.
+    """
+    if database not in provenance.database_labels():
+        raise ValueError(f"database {database!r}: not a database label ({', '.join(provenance.database_labels())})")
+    if note != " ".join(note.split()):
+        raise ValueError(f"--note {note!r}: one line of text, without leading, trailing or repeated spaces")
+    for label in provenance.database_labels():
+        if label not in (database, *database.split("-")) and re.search(
+                rf"(?<![\w-]){re.escape(label)}(?![\w-])", note, re.IGNORECASE):
+            raise ValueError(f"--note {note!r}: names the database {label!r}, but the files are {database!r} "
+                             "(their provenance marks say so); the column is headed by that label")
+
+
 @dataclass(frozen=True)
 class Realism:
-    """Every statistic of one database (JSON-serialisable with :func:`dataclasses.asdict`)."""
+    """Every statistic of one database (JSON-serialisable with :func:`dataclasses.asdict`).
 
-    label: str
+    ``database`` is the label of its files' provenance marks
+    (:func:`brdfpipe.data.provenance.database_labels`), ``note`` a remark
+    shown after it; both are checked on construction (:func:`check_label`).
+    """
+
+    database: str
+    note: str
     materials: int
     cells: int
     weighting: str
@@ -479,27 +510,82 @@ class Realism:
     peak_max: float
     quantile_levels: tuple[float, ...] = QUANTILES
 
+    def __post_init__(self) -> None:
+        check_label(self.database, self.note)
+
+    @property
+    def label(self) -> str:
+        """The column's heading: the database's label, then the note."""
+        return f"{self.database}, {self.note}" if self.note else self.database
+
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
     @classmethod
-    def from_json(cls, doc: dict[str, Any]) -> Realism:
-        return cls(
-            doc["label"], int(doc["materials"]), int(doc["cells"]), doc["weighting"],
-            Spectrum(*(tuple(v) if isinstance(v, list) else v for v in doc["spectrum"].values())),
-            Holdout(*(tuple(v) if isinstance(v, list) else v for v in doc["holdout"].values())),
-            tuple(doc["albedo_quantiles"]), tuple(doc["width_quantiles"]), int(doc["no_peak"]),
-            tuple(doc["peak_quantiles"]), float(doc["peak_max"]), tuple(doc["quantile_levels"]),
-        )
+    def from_json(cls, doc: Any) -> Realism:
+        """The statistics :meth:`to_json` wrote; ValueError for anything else (missing keys, other ``ks``)."""
+
+        def floats(v: Any) -> tuple[float, ...]:
+            if not isinstance(v, list):
+                raise TypeError(f"expected a list, got {type(v).__name__}")
+            return tuple(float(x) for x in v)
+
+        if not isinstance(doc, dict):
+            raise ValueError(f"not the statistics `realism measure` writes (a JSON {type(doc).__name__}, not an object)")
+        try:
+            s, h = doc["spectrum"], doc["holdout"]
+            r = cls(
+                str(doc["database"]), str(doc["note"]), int(doc["materials"]), int(doc["cells"]), str(doc["weighting"]),
+                Spectrum(tuple(int(k) for k in floats(s["ks"])), floats(s["sigma_ratio"]), floats(s["explained"]),
+                         int(s["components"]), float(s["variance_per_entry"])),
+                Holdout(tuple(int(k) for k in floats(h["ks"])), floats(h["rms_log"]), floats(h["relative"]),
+                        int(h["folds"]), int(h["seed"])),
+                floats(doc["albedo_quantiles"]), floats(doc["width_quantiles"]), int(doc["no_peak"]),
+                floats(doc["peak_quantiles"]), float(doc["peak_max"]), floats(doc["quantile_levels"]),
+            )
+        except (KeyError, TypeError, ValueError, AttributeError) as err:
+            what = f"no {err}" if isinstance(err, KeyError) else str(err)
+            raise ValueError(f"not the statistics `realism measure` writes ({what})") from None
+        shapes = {"spectrum.ks": (r.spectrum.ks, KS, r.spectrum.sigma_ratio, r.spectrum.explained),
+                  "holdout.ks": (r.holdout.ks, HOLDOUT_KS, r.holdout.rms_log, r.holdout.relative),
+                  "quantile_levels": (r.quantile_levels, QUANTILES, r.albedo_quantiles, r.width_quantiles,
+                                      r.peak_quantiles)}
+        for key, (have, want, *values) in shapes.items():
+            if have != tuple(want) or any(len(v) != len(want) for v in values):
+                raise ValueError(f"{key} is {list(have)}, this version measures {list(want)} (with a value each): "
+                                 "measure the database again")
+        return r
+
+
+def read_realism(path: str | Path) -> Realism:
+    """The statistics in a JSON file written by ``measure``; ValueError (or OSError) naming ``path``."""
+    what = "not the statistics `realism measure` writes"
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except UnicodeDecodeError as err:
+        raise ValueError(f"{path}: {what} (not UTF-8 text: {err.reason} at byte {err.start})") from None
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{path}: {what} (not JSON: {err})") from None
+    try:
+        return Realism.from_json(doc)
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
 
 
 def measure(
-    rows: Rows, label: str, *, weighting: str = "product", folds: int = DEFAULT_FOLDS, seed: int = DEFAULT_SEED
+    rows: Rows, database: str, *, note: str = "", weighting: str = "product", folds: int = DEFAULT_FOLDS,
+    seed: int = DEFAULT_SEED,
 ) -> Realism:
-    """Every statistic of a database (spectrum, held-out error, albedo, width and largest-value quantiles)."""
+    """Every statistic of a database (spectrum, held-out error, albedo, width and largest-value quantiles).
+
+    ``database`` is the label of the files the rows come from (the ``kind``
+    of :func:`brdfpipe.data.database.database_from_folder`), ``note`` a
+    remark shown after it (:func:`check_label`, checked first).
+    """
+    check_label(database, note)
     albedo = rows.albedo.mean(axis=1)
     return Realism(
-        label, len(rows.names), int(rows.cells.size), weighting,
+        database, note, len(rows.names), int(rows.cells.size), weighting,
         pca_spectrum(rows, KS, weighting),
         holdout_errors(rows, HOLDOUT_KS, folds, seed, weighting),
         quantiles(albedo), quantiles(rows.width), int(np.isnan(rows.width).sum()),
@@ -551,33 +637,84 @@ def comparison_table(results: Sequence[Realism]) -> str:
 # --------------------------------------------------------------------------
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``measure FOLDER --label L --out JSON`` or ``table JSON ...`` (prints Markdown)."""
-    parser = argparse.ArgumentParser(prog="python -m brdfpipe.acquisition.realism", description=__doc__.split("\n")[0])
+#: The command's name in its messages.
+PROG: Final = "python -m brdfpipe.acquisition.realism"
+
+
+def _at_least(minimum: int) -> Any:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise ArgumentTypeError(f"expected a whole number ≥ {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise ArgumentTypeError(f"expected a whole number ≥ {minimum}, got {text!r}")
+        return value
+
+    return parse
+
+
+def build_parser() -> OneLineParser:
+    """The argument parser of ``python -m brdfpipe.acquisition.realism`` (subcommands ``measure``, ``table``)."""
+    parser = OneLineParser(prog=PROG, description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("measure", help="measure a folder of MERL .binary files")
-    p.add_argument("folder")
-    p.add_argument("--label", required=True, help="the database's name in the table")
+    p.add_argument("folder", help="folder of .binary files of one kind (labelled from their provenance marks)")
     p.add_argument("--out", required=True, help="JSON file of the statistics")
+    p.add_argument("--note", default="", help="a remark shown after the database's label in the table (e.g. the "
+                   "commit measured); it may not name another database")
     p.add_argument("--weighting", default="product", choices=logmap.WEIGHTINGS)
-    p.add_argument("--folds", type=int, default=DEFAULT_FOLDS)
-    p.add_argument("--seed", type=int, default=DEFAULT_SEED)
+    p.add_argument("--folds", type=_at_least(2), default=None,
+                   help=f"held-out groups, 2 to the number of materials (default {DEFAULT_FOLDS}, or fewer if there "
+                   "are fewer materials)")
+    p.add_argument("--seed", type=_at_least(0), default=DEFAULT_SEED, help="seed of the held-out groups")
     t = sub.add_parser("table", help="print the Markdown table of measured databases")
     t.add_argument("stats", nargs="+", help="JSON files written by measure, one column each")
-    args = parser.parse_args(argv)
-    if args.command == "measure":
-        logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-        start = time.perf_counter()
-        rows = read_database(args.folder)
-        logger.info("read %d materials, %d cells: %.1f s", len(rows.names), rows.cells.size,
-                    time.perf_counter() - start)
-        result = measure(rows, args.label, weighting=args.weighting, folds=args.folds, seed=args.seed)
-        Path(args.out).write_text(json.dumps(result.to_json(), indent=1) + "\n", encoding="utf-8")
-        logger.info("measured %s in %.1f s: %s", args.folder, time.perf_counter() - start, args.out)
-        return 0
-    docs = [Realism.from_json(json.loads(Path(f).read_text(encoding="utf-8"))) for f in args.stats]
+    return parser
+
+
+def _measure_command(args: Namespace) -> int:
+    """``measure``: every check before the work (the folder's files and label, --out, --folds, --note)."""
+    db = database_from_folder(args.folder, key="folder")
+    atomic.check_not_input(args.out, [args.folder, *db.sources.values()])
+    if Path(args.out).is_dir():
+        raise atomic.OutputError(f"--out {args.out}: is a folder; give the JSON file to write")
+    atomic.check_writable(args.out)
+    n = len(db.sources)
+    folds = min(DEFAULT_FOLDS, n) if args.folds is None else args.folds
+    if not 2 <= folds <= n:
+        raise ValueError(f"--folds {folds}: must lie in [2, {n}], the number of materials in {args.folder} "
+                         "(each group holds at least one, and one is held out against the others)")
+    check_label(db.kind, args.note)
+    setup_console_logging()
+    start = time.perf_counter()
+    rows = read_database(db)
+    logger.info("read %d materials (%s), %d cells: %.1f s", n, db.kind, rows.cells.size, time.perf_counter() - start)
+    try:
+        result = measure(rows, db.kind, note=args.note, weighting=args.weighting, folds=folds, seed=args.seed)
+    except ValueError as err:
+        raise ValueError(f"folder {args.folder}: {err}") from None
+    atomic.write_text(args.out, json.dumps(result.to_json(), indent=1) + "\n")
+    logger.info("measured %s in %.1f s: %s", args.folder, time.perf_counter() - start, args.out)
+    return 0
+
+
+def _table_command(args: Namespace) -> int:
+    """``table``: every file read and checked before anything is printed."""
+    docs = [read_realism(f) for f in args.stats]
     sys.stdout.write(comparison_table(docs))
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``measure FOLDER --out JSON [--note TEXT]`` or ``table JSON ...`` (prints Markdown); the exit status.
+
+    Errors: one line ``python -m brdfpipe.acquisition.realism CMD: error: ...``
+    naming the file or option (:func:`brdfpipe.core.command.run`).
+    """
+    args = build_parser().parse_args(argv)
+    work = _measure_command if args.command == "measure" else _table_command
+    return run(f"{PROG} {args.command}", lambda: work(args))
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ so this ``__init__`` imports nothing.  What the workflow plans from its
 configuration is the planner's (:mod:`brdfpipe.plan`, on top).
 
 * :mod:`brdfpipe.core.atomic`    – atomic outputs (temporary sibling, then rename), the job lease;
+* :mod:`brdfpipe.core.command`   – the error contract of the ``python -m brdfpipe.…`` command lines;
 * :mod:`brdfpipe.core.exr`       – OpenEXR images that are data (renders, blends, error maps);
 * :mod:`brdfpipe.core.filenames` – every file name of the workflow's DAG (and the rule that writes it);
 * :mod:`brdfpipe.core.integrity` – digests of every intermediate, written by its writer, checked by its readers;

@@ -85,6 +85,9 @@ __all__ = [
     "MANY_FORMAT",
     "output_layout",
     "OBSERVATION_KEYS",
+    "MAX_FULL_WELL",
+    "MAX_BRACKET",
+    "MAX_BRACKETS",
 ]
 
 logger = logging.getLogger("brdfpipe.rendering.capture")
@@ -93,6 +96,13 @@ F64 = NDArray[np.float64]
 
 #: Arrays of an observation table (NPZ) written by :func:`capture_to_files`.
 OBSERVATION_KEYS: Final = ("wi", "wo", "rgb", "image", "row", "col")
+#: Largest full well (electrons) and relative exposure time of a bracket: a pixel's expected photon count,
+#: up to full_well × bracket ≤ 1e15, must stay within NumPy's Poisson sampler (it refuses λ above ~9.2e18,
+#: "lam value too large").  The config schema's closed_loop.sensor maxima are these (a test keeps them equal).
+MAX_FULL_WELL: Final = 1.0e9
+MAX_BRACKET: Final = 1.0e6
+#: Most brackets (each is one more exposure of every image; the schema's maxItems).
+MAX_BRACKETS: Final = 16
 _SAMPLE_HALF_SIZE: Final = 2.0  # the rectangle's half-size, in units of ν
 _FOOTPRINT_SUB: Final = 8  # sub × sub rays per pixel average the irradiance over its footprint
 
@@ -111,11 +121,11 @@ class Sensor:
     def __post_init__(self) -> None:
         object.__setattr__(self, "brackets", tuple(float(b) for b in self.brackets))
         checks = {
-            "full_well": self.full_well > 0,
+            "full_well": 0 < self.full_well <= MAX_FULL_WELL,
             "read_noise": self.read_noise >= 0,
             "bits": 1 <= int(self.bits) <= 32,
             "peak_level": 0 < self.peak_level <= 1,
-            "brackets": bool(self.brackets) and all(math.isfinite(b) and b >= 1.0 for b in self.brackets)
+            "brackets": 1 <= len(self.brackets) <= MAX_BRACKETS and all(1.0 <= b <= MAX_BRACKET for b in self.brackets)
             and min(self.brackets) == 1.0,
         }
         for key, ok in checks.items():

@@ -24,10 +24,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from brdfpipe.core import atomic
+from brdfpipe.core.command import OneLineParser, run
 from brdfpipe.report import claims as claims_mod
 from brdfpipe.report.claims import RunClaims, read_run
 
-__all__ = ["RunClaims", "read_run", "RECORDED_RUN", "RECORDED", "recorded_runs", "side_by_side_markdown", "main"]
+__all__ = ["RunClaims", "read_run", "RECORDED_RUN", "RECORDED", "recorded_runs", "side_by_side_markdown",
+           "build_parser", "main"]
 
 #: The recorded runs' tag (date and machine): the default workflow on each database on the 2-core
 #: development machine, 2026-11-28 (docs/results/runs/2026-11-28-cpu/ has their configs and critical
@@ -107,20 +109,39 @@ def side_by_side_markdown(runs: Sequence[RunClaims], *, title: str = "The papers
     return "\n".join(lines) + "\n"
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``CLAIMS_CSV ... --out PAGE.md``."""
-    parser = argparse.ArgumentParser(prog="python -m brdfpipe.report.sidebyside", description=__doc__.split("\n")[0])
+#: The command's name in its messages.
+PROG = "python -m brdfpipe.report.sidebyside"
+
+
+def build_parser() -> OneLineParser:
+    """The argument parser of ``python -m brdfpipe.report.sidebyside``."""
+    parser = OneLineParser(prog=PROG, description=__doc__.split("\n")[0])
     parser.add_argument("claims", nargs="+", help="a run's results/report/claims.csv, one per column")
     parser.add_argument("--out", required=True, help="the Markdown page to write")
     parser.add_argument("--title", default="The papers' claims, side by side")
-    args = parser.parse_args(argv)
-    try:
-        runs = [read_run(p) for p in args.claims]
-        atomic.write_text(args.out, side_by_side_markdown(runs, title=args.title))
-    except (claims_mod.ClaimsInputError, OSError, ValueError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
+    return parser
+
+
+def _write_page(args: argparse.Namespace) -> int:
+    """Check --out against the inputs and its folder, read every run, then write the page."""
+    atomic.check_not_input(args.out, args.claims)
+    if Path(args.out).is_dir():
+        raise atomic.OutputError(f"--out {args.out}: is a folder; give the Markdown file to write")
+    atomic.check_writable(args.out)
+    runs = [read_run(path) for path in args.claims]  # each digest-checked: ClaimsInputError naming the file
+    atomic.write_text(args.out, side_by_side_markdown(runs, title=args.title))
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line: ``CLAIMS_CSV ... --out PAGE.md``; the exit status.
+
+    Errors: one line ``python -m brdfpipe.report.sidebyside: error: ...``
+    naming the file or option (:func:`brdfpipe.core.command.run`); an
+    ``--out`` that is one of the inputs is refused before anything is read.
+    """
+    args = build_parser().parse_args(argv)
+    return run(PROG, lambda: _write_page(args))
 
 
 if __name__ == "__main__":
