@@ -113,3 +113,56 @@ def test_layout_lists_every_rule_file_and_subpackage() -> None:
         assert f"workflow/rules/{smk.name}" in layout, f"README's Layout does not list workflow/rules/{smk.name}"
     for pkg in sorted(p for p in (ROOT / "src" / "brdfpipe").iterdir() if (p / "__init__.py").is_file()):
         assert f"  {pkg.name}/" in layout, f"README's Layout does not list the subpackage brdfpipe.{pkg.name}"
+
+
+def _layout_entries() -> dict[str, str]:
+    """The README's library layout: subpackage → its text (continuation lines included)."""
+    text = README.read_text(encoding="utf-8")
+    block = text[text.index("src/brdfpipe/\n"):]
+    block = block[: block.index("```")]
+    entries: dict[str, str] = {}
+    current = None
+    for line in block.splitlines()[1:]:
+        m = re.match(r"^  (\w+)(/|\.py)\s+(.*)$", line)
+        if m:
+            current = m.group(1)
+            entries[current] = m.group(3)
+        elif current is not None and line.startswith("    "):
+            entries[current] += " " + line.strip()
+    return entries
+
+
+def test_layout_names_every_module_of_every_subpackage() -> None:
+    """Each subpackage's line of the README's Layout names all its modules (it omitted manifold/blendpass.py)."""
+    entries = _layout_entries()
+    for pkg in sorted(p for p in (ROOT / "src" / "brdfpipe").iterdir() if (p / "__init__.py").is_file()):
+        words = set(re.findall(r"[a-z_]+", entries.get(pkg.name, "")))
+        missing = [m.stem for m in sorted(pkg.glob("*.py")) if not m.stem.startswith("_") and m.stem not in words]
+        assert not missing, f"README's Layout line of {pkg.name}/ does not name {', '.join(missing)}"
+
+
+def _tables_without_header(text: str) -> list[int]:
+    """Line numbers (1-based) of Markdown tables whose first row is not followed by a |---| separator."""
+    lines, bad, fenced = text.split("\n"), [], False
+    for i, line in enumerate(lines):
+        if _FENCE.match(line.strip()):
+            fenced = not fenced
+        starts = line.lstrip().startswith("|") and not (i and lines[i - 1].lstrip().startswith("|"))
+        if fenced or not starts:
+            continue
+        nxt = lines[i + 1] if i + 1 < len(lines) else ""
+        if not re.fullmatch(r"\s*\|(\s*:?-+:?\s*\|)+\s*", nxt):
+            bad.append(i + 1)
+    return bad
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(ROOT)) for p in PAGES])
+def test_every_table_has_a_header(page: Path) -> None:
+    """A table without its header row renders as one paragraph of pipes (docs/outputs.md lost it once)."""
+    assert not _tables_without_header(page.read_text(encoding="utf-8")), (
+        f"{page.relative_to(ROOT)}: tables without a header at lines {_tables_without_header(page.read_text())}")
+
+
+def test_the_header_check_sees_a_headless_table() -> None:
+    assert _tables_without_header("text\n\n| a | b |\n| c | d |\n") == [3]
+    assert _tables_without_header("| a | b |\n|---|:---:|\n| c | d |\n") == []
