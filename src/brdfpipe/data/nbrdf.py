@@ -213,6 +213,10 @@ class Archive:
         """The fits' names (file stems), sorted."""
         return sorted(self._members)
 
+    def member(self, name: str) -> str:
+        """The member (path inside the archive) of fit ``name``."""
+        return self._members[name]
+
     def _read(self, member: str) -> bytes:
         where = f"{self.path}:{member}"
         try:
@@ -401,12 +405,15 @@ def write_fits(
     The folder must be new, empty, or hold only tables written by this
     function (a fit-made mark): anything else is refused before any work
     (:class:`NbrdfError` naming the file), so no foreign file is replaced.
-    Each file is written atomically.  Returns the paths and their tables'
+    Every material name must pass :func:`brdfpipe.data.databases.check_material_name`
+    before anything is written.  Each file is written atomically.  Returns the paths and their tables'
     clamped counts, in the order of ``names``.
     """
     out_dir = Path(out_dir)
     with open_archive(archive_path) as archive:
         chosen = fit_names(archive, names)
+        for n in chosen:
+            databases.check_material_name(material_name(n), f"{archive.path}:{archive.member(n)}")
         targets = {n: out_dir / f"{material_name(n)}{_BINARY}" for n in chosen}
         clash = sorted({material_name(n) for n in chosen if sum(material_name(m) == material_name(n) for m in chosen) > 1})
         if clash:
