@@ -265,15 +265,18 @@ def fits_database(name: str, archive: str | os.PathLike[str], out_dir: str | os.
     table the workflow evaluates to ``out_dir/<material>.binary``.  Default
     held-out materials: the database's published list if it has one
     (:data:`brdfpipe.data.databases.DATABASES`), else
-    :func:`spread_test_materials`.  Reads only the archive's listing.
-    Raises :class:`DatabaseError` naming ``key`` for a missing or unreadable
-    archive, two fits that would share a material name, or an unsafe name.
+    :func:`spread_test_materials`.  Every fit is read and checked
+    (:func:`brdfpipe.data.nbrdf.check_archive`: sidecar, layer shapes, finite
+    weights, and the bound of its output: no all-black channel, no overflow,
+    no impossible albedo), so a bad archive stops the parse, not a job.
+    Raises :class:`DatabaseError` naming ``key``, the archive and the fit for a
+    missing or unreadable archive or fit, a fit that fails the checks, two fits
+    that would share a material name, or an unsafe name.
     """
     from brdfpipe.data import nbrdf
 
     try:
-        with nbrdf.open_archive(archive) as a:
-            fit_names = a.names
+        fit_names = nbrdf.check_archive(archive)
     except nbrdf.NbrdfError as err:
         raise DatabaseError(f"{key}: {err}") from None
     fits: dict[str, str] = {}
