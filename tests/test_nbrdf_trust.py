@@ -272,3 +272,7 @@ def test_nbrdf_with_a_bad_fit_among_good_ones_replaces_nothing(tmp_path: Path, c
     assert sorted(p.name for p in out.iterdir()) == ["cardboard.binary"]
     assert (out / "cardboard.binary").read_bytes() == before
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    # a new --out, and the folders above it that the command made, are gone again
+    new = tmp_path / "new" / "deeper" / "out"
+    assert cli.main(["-q", "nbrdf", str(archive), "--out", str(new), "cardboard", "notebook"]) == 1
+    assert not (tmp_path / "new").exists()

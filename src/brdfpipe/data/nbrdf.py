@@ -572,9 +572,9 @@ def write_fits(
     (:class:`NbrdfError` naming the file), so no foreign file is replaced.
     Every material name must pass :func:`brdfpipe.data.databases.check_material_name`
     and every fit :func:`check_fit` before any evaluation; the tables are written
-    into a temporary sibling folder and moved into ``out_dir`` only when every
-    one passed :func:`check_table`, so a refused fit leaves ``out_dir`` as it
-    was.  Returns the paths and their tables' clamped counts, in the order of
+    into a temporary folder inside ``out_dir`` and moved into place only when
+    every one passed :func:`check_table`, so a refused fit leaves ``out_dir``
+    as it was (or absent, with the folders the call made).  Returns the paths and their tables' clamped counts, in the order of
     ``names``.
     """
     out_dir = Path(out_dir)
@@ -602,14 +602,18 @@ def write_fits(
         fits = [archive.fit(n) for n in chosen]
     for fit in fits:
         check_fit(fit)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    atomic.clean_stale_siblings(out_dir)
-    stage = atomic.tmp_sibling(out_dir)
+    created = next((p for p in (*reversed(out_dir.parents), out_dir) if not p.exists()), None)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic.clean_stale_siblings(out_dir / "tables")
+    stage = atomic.tmp_sibling(out_dir / "tables")  # inside --out: its parent may not be writable
     try:
         done = [(targets[f.name], write_fit(f, stage / targets[f.name].name)) for f in fits]
-        out_dir.mkdir(exist_ok=True)
         for path, _ in done:
             os.replace(stage / path.name, path)
+    except BaseException:
+        if created is not None:
+            atomic.remove_tree(created)  # the folders this call made: nothing else is in them
+        raise
     finally:
         atomic.remove_tree(stage)
     return done
