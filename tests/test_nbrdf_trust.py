@@ -152,6 +152,29 @@ def test_a_bad_user_archive_fails_at_parse_time_naming_the_key(tmp_path: Path, c
     assert not (tmp_path / "results").exists()
 
 
+@pytest.mark.slow
+def test_the_workflow_stops_at_parse_time_on_a_bad_user_archive(tmp_path: Path) -> None:
+    """The Snakefile's database loader: a dry run ends in one line naming the key, the archive and the fit."""
+    import subprocess
+    import sys
+
+    import yaml
+
+    root = Path(__file__).resolve().parents[1]
+    archive = _archive(tmp_path, {WEIGHTS: _h5(_nan_weight)})
+    cfg = yaml.safe_load((root / "tests" / "config" / "tiny.yaml").read_text())
+    cfg.update(database="nbrdf", nbrdf_archive=str(archive))
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(cfg))
+    r = subprocess.run([str(Path(sys.executable).with_name("snakemake")), "-n", "--snakefile",
+                        str(root / "workflow" / "Snakefile"), "--directory", str(tmp_path), "--configfile",
+                        str(tmp_path / "bad.yaml"), "--cores", "1"], capture_output=True, text=True, cwd=tmp_path,
+                       timeout=600)
+    out = r.stdout + r.stderr
+    assert r.returncode != 0
+    assert f"invalid configuration: nbrdf_archive: {archive}:{WEIGHTS}: layer 2 holds NaN or Inf weights" in out, out
+    assert "Traceback" not in out and not (tmp_path / "results").exists()
+
+
 @pytest.mark.parametrize("how,words", [
     ("method", "compression method 9"),
     ("encrypted", "encrypted"),

@@ -273,10 +273,11 @@ class Archive:
             return file.read_bytes()
         except NbrdfError:
             raise
-        except (OSError, KeyError, zipfile.BadZipFile, EOFError, zlib.error, LZMAError, NotImplementedError,
-                RuntimeError) as err:
-            # zlib.error, LZMAError: a damaged compressed stream; RuntimeError, NotImplementedError: what
-            # zipfile raises for encryption or a method this Python lacks, should the checks above miss one
+        except (zlib.error, LZMAError) as err:
+            raise NbrdfError(f"{where}: cannot be read: damaged compressed data ({err})") from None
+        except (OSError, KeyError, zipfile.BadZipFile, EOFError, NotImplementedError, RuntimeError) as err:
+            # RuntimeError, NotImplementedError: what zipfile raises for encryption or a method this Python
+            # lacks, should the checks above miss one
             raise NbrdfError(f"{where}: cannot be read ({type(err).__name__}: {err})") from None
 
     def _exists(self, member: str) -> bool:
