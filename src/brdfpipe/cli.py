@@ -202,7 +202,11 @@ def _cmd_nbrdf(args: argparse.Namespace) -> int:
 
     archive = args.archive
     if archive in databases.DATABASES and databases.DATABASES[archive].archive is not None:
-        archive = str(databases.shipped_archive(archive))  # a shipped archive, by its database's name
+        shipped = databases.shipped_archive(archive)  # a shipped archive, by its database's name
+        if os.path.lexists(archive):
+            raise nbrdf.NbrdfError(f"{archive}: both the shipped database {archive} ({shipped}) and the local path "
+                                   f"./{archive}; give ./{archive} for the local one, or {shipped} for the shipped one")
+        archive = str(shipped)
     check_not_input(args.out, [archive], what="--out")
     check_writable(args.out, inside=True)
     with nbrdf.open_archive(archive) as fits:
@@ -608,7 +612,7 @@ def _add_data_commands(sub: Any) -> None:
 
     p = sub.add_parser("nbrdf", help="MERL files of measured materials from their published neural fits (NBRDF)")
     p.add_argument("archive", help="an archive of NBRDF fits (.zip or folder of NAME.h5 [+ NAME.json]), or the name "
-                   "of a shipped one: merl-nbrdf, rgl-nbrdf, nielsen-nbrdf")
+                   "of a shipped one: merl-nbrdf, rgl-nbrdf, nielsen-nbrdf (a local path of the same name: ./NAME)")
     p.add_argument("--out", required=True, help="folder for <material>.binary (a fit's name with '_' written '-'): "
                    "new, empty, or an earlier output of this command")
     p.add_argument("names", nargs="*", metavar="NAME", help="fits to evaluate (default: all of the archive)")

@@ -11,14 +11,15 @@ A folder's label (``merl``, ``synthetic``, ``derived``: see
 :func:`brdfpipe.data.provenance.database_labels`) is decided in one place,
 :func:`database_from_folder`, from the files' own bytes (their provenance
 marks, :mod:`brdfpipe.data.provenance`), never from a manifest alone; material
-names are checked by :func:`check_material_name`.
+names are checked by :func:`check_material_name` (defined in the registry,
+:mod:`brdfpipe.data.databases`, so that the writers below this module —
+:mod:`brdfpipe.data.synth`, :mod:`brdfpipe.data.nbrdf` — apply the same rule).
 """
 
 from __future__ import annotations
 
 import json
 import os
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +28,7 @@ from typing import Any
 from brdfpipe.core import integrity
 from brdfpipe.data import databases
 from brdfpipe.data.databases import EXTRA_TEST_MATERIAL, MERL_TEST_MATERIALS, XU2016_TEST_MATERIALS
+from brdfpipe.data.databases import MAX_NAME_LENGTH, RESERVED_NAMES, DatabaseError, check_material_name
 from brdfpipe.core.version import full_version
 from brdfpipe.data import provenance, synth
 from brdfpipe.data.synth import default_test_count
@@ -58,23 +60,7 @@ __all__ = [
 ]
 
 MERL_SUFFIX = layouts.MERL_SUFFIX
-#: Longest material name: ``.NAME.zarr.tmp-PID-RANDOM`` siblings must fit in 255 bytes.
-MAX_NAME_LENGTH = 100
-_NAME_CHARS = re.compile(r"[A-Za-z0-9._+-]*")
-_NAME_RULE = (
-    "material names use only ASCII letters, digits, '.', '_', '+' and '-', start with a "
-    f"letter or digit and have at most {MAX_NAME_LENGTH} characters"
-)
 _SHOWN = 8  # files named in one error message
-#: Names the results use for something else: ``mean`` is the material of the mean rows of
-#: ``errors.csv``, ``closedloop.csv`` and ``training_size.csv``.
-RESERVED_NAMES: frozenset[str] = frozenset({"mean"})
-
-
-class DatabaseError(ValueError):
-    """The configured database cannot be used (missing folder, unknown name, …)."""
-
-
 @dataclass(frozen=True)
 class Database:
     """A database of MERL-format materials.
@@ -97,37 +83,6 @@ class Database:
     def materials(self) -> list[str]:
         """Material names in row order of the store (sorted)."""
         return sorted(self.sources)
-
-
-def check_material_name(name: str, source: str) -> str:
-    """Return ``name`` if it is a safe material name, else raise :class:`DatabaseError`.
-
-    A material name becomes file and folder names and Snakemake wildcards:
-    it must consist of ASCII letters, digits, ``.``, ``_``, ``+`` and ``-``,
-    start with a letter or digit and be at most :data:`MAX_NAME_LENGTH`
-    characters long; it must not be one of :data:`RESERVED_NAMES`.  ``source`` says where the name comes from (a file, or a
-    config key such as ``test_materials``) and starts the one-line message,
-    which also names the broken rule.
-    """
-    if not isinstance(name, str):
-        raise DatabaseError(f"{source}: material name {name!r} is not a string; {_NAME_RULE}")
-    if not name:
-        problem = "is empty"
-    elif len(name) > MAX_NAME_LENGTH:
-        problem = f"is too long ({len(name)} characters)"
-    elif not _NAME_CHARS.fullmatch(name):
-        bad = sorted({c for c in name if not _NAME_CHARS.fullmatch(c)})
-        problem = "contains " + ", ".join(repr(c) for c in bad)
-    elif not name[0].isascii() or not name[0].isalnum():
-        problem = f"starts with {name[0]!r}"
-    elif name in RESERVED_NAMES:
-        raise DatabaseError(
-            f"{source}: material name {name!r} is reserved (the results' tables name their mean rows "
-            f"{name!r}); rename the file"
-        )
-    else:
-        return name
-    raise DatabaseError(f"{source}: material name {name!r} {problem}; {_NAME_RULE}")
 
 
 def _listing(paths: Sequence[Path] | Sequence[str]) -> str:
@@ -310,15 +265,18 @@ def fits_database(name: str, archive: str | os.PathLike[str], out_dir: str | os.
     table the workflow evaluates to ``out_dir/<material>.binary``.  Default
     held-out materials: the database's published list if it has one
     (:data:`brdfpipe.data.databases.DATABASES`), else
-    :func:`spread_test_materials`.  Reads only the archive's listing.
-    Raises :class:`DatabaseError` naming ``key`` for a missing or unreadable
-    archive, two fits that would share a material name, or an unsafe name.
+    :func:`spread_test_materials`.  Every fit is read and checked
+    (:func:`brdfpipe.data.nbrdf.check_archive`: sidecar, layer shapes, finite
+    weights, and the bound of its output: no all-black channel, no overflow,
+    no impossible albedo), so a bad archive stops the parse, not a job.
+    Raises :class:`DatabaseError` naming ``key``, the archive and the fit for a
+    missing or unreadable archive or fit, a fit that fails the checks, two fits
+    that would share a material name, or an unsafe name.
     """
     from brdfpipe.data import nbrdf
 
     try:
-        with nbrdf.open_archive(archive) as a:
-            fit_names = a.names
+        fit_names = nbrdf.check_archive(archive)
     except nbrdf.NbrdfError as err:
         raise DatabaseError(f"{key}: {err}") from None
     fits: dict[str, str] = {}

@@ -20,6 +20,9 @@ database of fit-made tables is never labelled ``merl``.
 ``synthetic``       synthetic    the generated synthetic database (``synthetic.*``)
 ==================  ===========  ==============================================================
 
+Material names follow one rule, :func:`check_material_name` (every writer
+and the labeller apply it; :mod:`brdfpipe.data.database` exports it too).
+
 Labels that are not a configurable database: ``derived`` (tables brdfpipe
 derived from others: blends, samples, reconstructions).  Standard library
 only (the Snakefile reads it at parse time).  To add a database of fits,
@@ -30,12 +33,17 @@ follow.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final, Literal
 
 __all__ = [
     "ARCHIVES_DIR",
+    "DatabaseError",
+    "MAX_NAME_LENGTH",
+    "RESERVED_NAMES",
+    "check_material_name",
     "DatabaseSpec",
     "DATABASES",
     "DEFAULT_DATABASE",
@@ -85,7 +93,10 @@ class DatabaseSpec:
     ``generated`` (the synthetic generator); ``measured_by``: the
     measurement's citation; ``default_test``: its held-out materials
     (``None``: chosen by the database's rule, see
-    :func:`brdfpipe.data.database.resolve_test_materials`).
+    :func:`brdfpipe.data.database.resolve_test_materials`); ``archive_sha256``:
+    the digest of the shipped archive whose every fit passes
+    :func:`brdfpipe.data.nbrdf.check_archive` (a test runs the check and
+    compares the digest), so the parse-time check of these bytes is skipped.
     """
 
     name: str
@@ -94,6 +105,7 @@ class DatabaseSpec:
     measured_by: str
     archive: str | None = None
     default_test: tuple[str, ...] | None = None
+    archive_sha256: str | None = None
 
     @property
     def is_fit(self) -> bool:
@@ -106,11 +118,14 @@ DATABASES: Final[dict[str, DatabaseSpec]] = {
     d.name: d
     for d in (
         DatabaseSpec("merl-nbrdf", f"MERL materials, {_SZTRAJMAN}", "archive", "Matusik et al. 2003",
-                     archive="merl_nbrdf.zip", default_test=MERL_TEST_MATERIALS),
+                     archive="merl_nbrdf.zip", default_test=MERL_TEST_MATERIALS,
+                     archive_sha256="d1678c0cc5059f315d3d3284f36f3082787474106d72e3cae41fbad76d8f271a"),
         DatabaseSpec("rgl-nbrdf", f"RGL isotropic materials (Dupuy & Jakob 2018), {_SZTRAJMAN}", "archive",
-                     "Dupuy & Jakob 2018", archive="rgl-isotropic_nbrdf.zip"),
+                     "Dupuy & Jakob 2018", archive="rgl-isotropic_nbrdf.zip",
+                     archive_sha256="401f588f08a66714ebd9d1355298f85e4d2f3782c9a87f370538dc8657cf5389"),
         DatabaseSpec("nielsen-nbrdf", f"Nielsen et al. 2015 materials, {_SZTRAJMAN}", "archive",
-                     "Nielsen et al. 2015", archive="nielsen_nbrdf.zip"),
+                     "Nielsen et al. 2015", archive="nielsen_nbrdf.zip",
+                     archive_sha256="fd034c57b2cbe0e976b088ea4bb7ccbdda3782dad90946243124e07316442166"),
         DatabaseSpec("nbrdf", "materials of a user's archive, NBRDF fits", "user-archive", "the archive's authors"),
         DatabaseSpec("merl", "MERL (Matusik et al. 2003)", "folder", "Matusik et al. 2003",
                      default_test=MERL_TEST_MATERIALS),
@@ -153,3 +168,50 @@ def shipped_archive(name: str) -> Path:
     if spec.archive is None:
         raise KeyError(f"database {name!r} ships no archive")
     return ARCHIVES_DIR / spec.archive
+
+
+#: Longest material name: ``.NAME.zarr.tmp-PID-RANDOM`` siblings must fit in 255 bytes.
+MAX_NAME_LENGTH = 100
+_NAME_CHARS = re.compile(r"[A-Za-z0-9._+-]*")
+_NAME_RULE = (
+    "material names use only ASCII letters, digits, '.', '_', '+' and '-', start with a "
+    f"letter or digit and have at most {MAX_NAME_LENGTH} characters"
+)
+#: Names the results use for something else: ``mean`` is the material of the mean rows of
+#: ``errors.csv``, ``closedloop.csv`` and ``training_size.csv``.
+RESERVED_NAMES: frozenset[str] = frozenset({"mean"})
+
+
+class DatabaseError(ValueError):
+    """The configured database cannot be used (missing folder, unknown name, …)."""
+
+
+def check_material_name(name: str, source: str) -> str:
+    """Return ``name`` if it is a safe material name, else raise :class:`DatabaseError`.
+
+    A material name becomes file and folder names and Snakemake wildcards:
+    it must consist of ASCII letters, digits, ``.``, ``_``, ``+`` and ``-``,
+    start with a letter or digit and be at most :data:`MAX_NAME_LENGTH`
+    characters long; it must not be one of :data:`RESERVED_NAMES`.  ``source`` says where the name comes from (a file, or a
+    config key such as ``test_materials``) and starts the one-line message,
+    which also names the broken rule.
+    """
+    if not isinstance(name, str):
+        raise DatabaseError(f"{source}: material name {name!r} is not a string; {_NAME_RULE}")
+    if not name:
+        problem = "is empty"
+    elif len(name) > MAX_NAME_LENGTH:
+        problem = f"is too long ({len(name)} characters)"
+    elif not _NAME_CHARS.fullmatch(name):
+        bad = sorted({c for c in name if not _NAME_CHARS.fullmatch(c)})
+        problem = "contains " + ", ".join(repr(c) for c in bad)
+    elif not name[0].isascii() or not name[0].isalnum():
+        problem = f"starts with {name[0]!r}"
+    elif name in RESERVED_NAMES:
+        raise DatabaseError(
+            f"{source}: material name {name!r} is reserved (the results' tables name their mean rows "
+            f"{name!r}); rename the file"
+        )
+    else:
+        return name
+    raise DatabaseError(f"{source}: material name {name!r} {problem}; {_NAME_RULE}")

@@ -27,6 +27,16 @@ labelled "MERL (NBRDF fit)", never "MERL").  Conventions of the table:
   counted (:attr:`FitTable.clamped`);
 * raw file value = value / MERL channel scale (:func:`brdfpipe.data.merl.write_merl`).
 
+Trust: a fit is read with every check of its file (:meth:`Archive.fit`: the
+member, the sidecar, the layer shapes, finite weights); :func:`check_fit`
+refuses what an interval bound of the network proves (an all-black channel,
+an impossible albedo) and :func:`check_archive` applies both to every fit of
+an archive (the workflow's parse time).  A table that is not a material
+(:func:`check_table`: too many clamped values, an albedo at normal incidence
+outside (0, :data:`MAX_ALBEDO`]) is refused before it is written.  Every
+error is one :class:`NbrdfError` line naming the archive, the member and the
+problem.
+
 The evaluation runs in float64 (the weights are float32), in blocks of
 :data:`BLOCK_CELLS` cells.
 """
@@ -37,9 +47,12 @@ import hashlib
 import io
 import json
 import logging
+import math
 import os
+import reprlib
 import time
 import zipfile
+import zlib
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -48,6 +61,11 @@ from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+try:
+    from lzma import LZMAError
+except ImportError:  # a Python built without lzma: zipfile then raises RuntimeError for such members
+    LZMAError = zlib.error  # type: ignore[misc,assignment]
 
 from brdfpipe.core import atomic, integrity
 from brdfpipe.core.threads import blas_threads
@@ -63,6 +81,12 @@ __all__ = [
     "Archive",
     "open_archive",
     "material_name",
+    "MAX_CLAMPED_SHARE",
+    "MAX_ALBEDO",
+    "output_bounds",
+    "check_fit",
+    "check_archive",
+    "check_table",
     "evaluate",
     "fit_table",
     "fit_names",
@@ -77,8 +101,6 @@ __all__ = [
 
 #: Layer widths of the published fits: input, hidden, hidden, output.
 ARCHITECTURE: Final = (6, 21, 21, 3)
-#: Activations of the published fits' dense layers (then exp(y) − 1).
-_ACTIVATIONS: Final = ("relu", "relu", "linear")
 #: Cells evaluated per block: the (block, 21) temporaries stay in the cache (2,048–4,096 cells are
 #: 2.3× faster than 131,072 on this project's 2-core AMD EPYC).
 BLOCK_CELLS: Final = 4_096
@@ -87,6 +109,8 @@ logger = logging.getLogger("brdfpipe.data.nbrdf")
 _H5_SUFFIX: Final = ".h5"
 _BINARY: Final = ".binary"
 _MAX_FIT_BYTES: Final = 16 * 1024 * 1024  # a published fit is ~8 kB; refuse absurd members
+#: The zip compression methods Python's zipfile reads (it raises NotImplementedError for others: deflate64, …).
+_ZIP_METHODS: Final = (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA)
 
 
 class NbrdfError(ValueError):
@@ -145,9 +169,8 @@ def _read_h5(data: bytes, where: str) -> tuple[tuple[NDArray[np.float64], NDArra
         raise
     except (OSError, KeyError, ValueError, TypeError) as err:
         raise NbrdfError(f"{where}: not a readable Keras weights file ({type(err).__name__}: {err})") from None
-    widths = [layers[0][0].shape[0]] + [w.shape[1] for w, _ in layers] if layers else []
-    if tuple(widths) != ARCHITECTURE or any(w.ndim != 2 or b.shape != (w.shape[1],) for w, b in layers):
-        shapes = [(tuple(w.shape), tuple(b.shape)) for w, b in layers]
+    shapes = [(w.shape, b.shape) for w, b in layers]
+    if shapes != [((i, o), (o,)) for i, o in zip(ARCHITECTURE, ARCHITECTURE[1:])]:
         raise NbrdfError(
             f"{where}: layers {shapes} are not the published NBRDF network {' → '.join(map(str, ARCHITECTURE))}"
         )
@@ -157,21 +180,31 @@ def _read_h5(data: bytes, where: str) -> tuple[tuple[NDArray[np.float64], NDArra
     return tuple(layers)
 
 
+#: The published architecture as a ``NAME.json`` sidecar lists it: (class_name, units, activation) per layer,
+#: the last the Lambda layer exp(y) − 1.
+_SIDECAR_LAYERS: Final = (("Dense", 21, "relu"), ("Dense", 21, "relu"), ("Dense", 3, "linear"),
+                          ("Lambda", None, None))
+
+
 def _check_architecture(doc_bytes: bytes, where: str) -> None:
-    """Refuse a Keras architecture (``NAME.json``) other than the published one."""
+    """Refuse a Keras architecture (``NAME.json``) other than the published one; any JSON gives one NbrdfError."""
     try:
         doc = json.loads(doc_bytes.decode("utf-8"))
-        layers = doc["config"]["layers"]
-        dense = [lay["config"] for lay in layers if lay.get("class_name") == "Dense"]
-        other = [lay.get("class_name") for lay in layers if lay.get("class_name") not in ("Dense", "Lambda")]
-        acts = tuple(d["activation"] for d in dense)
-        units = tuple(int(d["units"]) for d in dense)
-    except (UnicodeDecodeError, ValueError, KeyError, TypeError) as err:
+    except RecursionError:
+        raise NbrdfError(f"{where}: not a Keras model description (JSON nested too deeply)") from None
+    except (UnicodeDecodeError, ValueError) as err:
         raise NbrdfError(f"{where}: not a Keras model description ({type(err).__name__}: {err})") from None
-    if other or acts != _ACTIVATIONS or units != ARCHITECTURE[1:] or layers[-1].get("class_name") != "Lambda":
+    config = doc.get("config") if isinstance(doc, dict) else None
+    layers = config.get("layers") if isinstance(config, dict) else None
+    if not isinstance(layers, list) or not all(isinstance(x, dict) and isinstance(x.get("config"), dict)
+                                               for x in layers):
+        raise NbrdfError(f"{where}: not a Keras model description (no list of layers, each an object with a "
+                         "'config' object, under 'config' → 'layers')")
+    found = tuple((x.get("class_name"), x["config"].get("units"), x["config"].get("activation")) for x in layers)
+    if found != _SIDECAR_LAYERS:
         raise NbrdfError(
-            f"{where}: architecture {list(zip(units, acts))} (+{other or 'no other layers'}) is not the published "
-            "NBRDF network (Dense 21 relu, Dense 21 relu, Dense 3 linear, Lambda exp(y) − 1)"
+            f"{where}: architecture {reprlib.repr(found)} is not the published NBRDF network "
+            "(Dense 21 relu, Dense 21 relu, Dense 3 linear, Lambda exp(y) − 1)"
         )
 
 
@@ -190,11 +223,15 @@ class Archive:
         self._zip: zipfile.ZipFile | None = None
         members: dict[str, str] = {}
         if self.path.is_dir():
-            files = sorted(p.relative_to(self.path).as_posix() for p in self.path.rglob(f"*{_H5_SUFFIX}") if p.is_file())
+            try:
+                files = sorted(p.relative_to(self.path).as_posix() for p in self.path.rglob(f"*{_H5_SUFFIX}")
+                               if p.is_file())
+            except OSError as err:
+                raise NbrdfError(f"{self.path}: cannot list the folder ({err.strerror or err})") from None
         elif self.path.is_file():
             try:
                 self._zip = zipfile.ZipFile(self.path)
-            except (zipfile.BadZipFile, OSError) as err:
+            except (zipfile.BadZipFile, OSError, EOFError, ValueError) as err:
                 raise NbrdfError(f"{self.path}: not a zip archive or a folder of fits ({err})") from None
             files = sorted(i.filename for i in self._zip.infolist() if i.filename.endswith(_H5_SUFFIX) and not i.is_dir())
         else:
@@ -213,6 +250,10 @@ class Archive:
         """The fits' names (file stems), sorted."""
         return sorted(self._members)
 
+    def member(self, name: str) -> str:
+        """The member (path inside the archive) of fit ``name``."""
+        return self._members[name]
+
     def _read(self, member: str) -> bytes:
         where = f"{self.path}:{member}"
         try:
@@ -220,6 +261,11 @@ class Archive:
                 info = self._zip.getinfo(member)
                 if info.file_size > _MAX_FIT_BYTES:
                     raise NbrdfError(f"{where}: {info.file_size} bytes, too large for a fit")
+                if info.flag_bits & 0x1:
+                    raise NbrdfError(f"{where}: encrypted (password-protected); give an archive without a password")
+                if info.compress_type not in _ZIP_METHODS:
+                    raise NbrdfError(f"{where}: compression method {info.compress_type} is not supported (stored, "
+                                     "deflate, bzip2 or lzma are); recompress the archive")
                 return self._zip.read(member)
             file = self.path / member
             if file.stat().st_size > _MAX_FIT_BYTES:
@@ -227,7 +273,11 @@ class Archive:
             return file.read_bytes()
         except NbrdfError:
             raise
-        except (OSError, KeyError, zipfile.BadZipFile, EOFError) as err:
+        except (zlib.error, LZMAError) as err:
+            raise NbrdfError(f"{where}: cannot be read: damaged compressed data ({err})") from None
+        except (OSError, KeyError, zipfile.BadZipFile, EOFError, NotImplementedError, RuntimeError) as err:
+            # RuntimeError, NotImplementedError: what zipfile raises for encryption or a method this Python
+            # lacks, should the checks above miss one
             raise NbrdfError(f"{where}: cannot be read ({type(err).__name__}: {err})") from None
 
     def _exists(self, member: str) -> bool:
@@ -325,7 +375,8 @@ def fit_table(fit: Fit, *, block: int = BLOCK_CELLS) -> FitTable:
     flat[...] = -merl.SCALES[:, None]
     clamped = 0
     for a in range(0, cells.size, block):
-        rho = _forward(fit, x[a : a + block])
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below, in one line
+            rho = _forward(fit, x[a : a + block])
         neg = rho < 0.0
         clamped += int(neg.sum())
         rho[neg] = 0.0
@@ -333,6 +384,123 @@ def fit_table(fit: Fit, *, block: int = BLOCK_CELLS) -> FitTable:
     if not np.isfinite(flat).all():
         raise NbrdfError(f"{fit.source}: the fit overflows (values beyond float64) on the MERL grid")
     return FitTable(flat.reshape(merl.SHAPE), clamped, int(cells.size))
+
+
+#: Largest share of a table's values (3 channels × measured cells) that may be negative network outputs,
+#: clamped at 0.  The 159 shipped fits: 0 to 20.0 % (MERL black-obsidian; RGL's largest 17.1 %, medians 0,
+#: 0.9 %, 0; docs/results/data.md); more than half of a table black is no material (all-negative: 100 %).
+MAX_CLAMPED_SHARE: Final = 0.5
+#: Largest directional albedo at normal incidence of each channel (the smallest allowed: anything above 0).
+#: The 159 shipped fits: 0.0042 (MERL black-obsidian) to 1.098 (RGL chm_orange_rgb, a fit 10 % above
+#: energy conservation; docs/results/data.md); 2, 1.8× the largest, leaves room for a user's glossier fits
+#: and still refuses a table that reflects twice the light it receives.
+MAX_ALBEDO: Final = 2.0
+#: A network output y below this cannot overflow exp(y) − 1 in float64 (log of the largest float64: 709.78;
+#: 1 of margin covers the rounding of the bound).
+_Y_SAFE: Final = float(np.log(np.finfo(np.float64).max)) - 1.0
+#: The box holding the network's input on the MERL grid (:func:`_features`): sin θh, 0, cos θh,
+#: sin θd cos φd, sin θd sin φd, cos θd with θh, θd ∈ [0, π/2] and φd ∈ [0, π].
+_INPUT_BOX: Final = (np.array([0.0, 0.0, 0.0, -1.0, 0.0, 0.0]), np.array([1.0, 0.0, 1.0, 1.0, 1.0, 1.0]))
+#: A lower bound of the total weight of the measured cells in the directional albedo at normal incidence
+#: (:func:`brdfpipe.data.merl.directional_albedo` of a table of ones: 3.1412, the quadrature of
+#: ∫ cos θo dωo = π; a test checks the bound): a table at least ρ everywhere has an albedo ≥ 3ρ.
+_ALBEDO_WEIGHT_MIN: Final = 3.0
+
+
+def output_bounds(fit: Fit) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Bounds ``(lo, hi)``, each (3,), of the network's output y (before exp(y) − 1) on the whole MERL grid.
+
+    Interval arithmetic over the input box ``[0,1] × {0} × [0,1] × [−1,1] × [0,1] × [0,1]``, which
+    holds the input of every cell centre (:func:`_features`): a dense layer maps ``[lo, hi]`` to
+    ``[lo·W⁺ + hi·W⁻ + b, hi·W⁺ + lo·W⁻ + b]`` (W⁺, W⁻ the positive and negative parts of W) and the
+    ReLU clips both ends at 0, so every y the grid gives lies in ``[lo, hi]`` (up to the rounding of
+    both computations, ~1e-13 relative).  The box ignores that the inputs are parts of unit vectors:
+    the bound is loose (the shipped fits: hi ≤ 103, lo ≥ −37), never wrong.
+    """
+    lo, hi = _INPUT_BOX
+    for k, (w, b) in enumerate(fit.layers):
+        pos, neg = np.maximum(w, 0.0), np.minimum(w, 0.0)
+        lo, hi = lo @ pos + hi @ neg + b, hi @ pos + lo @ neg + b
+        if k < len(fit.layers) - 1:
+            lo, hi = np.maximum(lo, 0.0), np.maximum(hi, 0.0)
+    return lo, hi
+
+
+def check_fit(fit: Fit) -> None:
+    """The parse-time check of a read fit: refuse what :func:`output_bounds` proves the evaluation would refuse.
+
+    Cheap (a few microseconds a fit) except in the one case the bound leaves open.  With ``[lo, hi]``
+    the bound of a channel's output y on the MERL grid:
+
+    * ``hi < 0``: every value of the channel is negative, clamped at 0 — an all-black channel, whose
+      albedo (0) :func:`check_table` refuses;
+    * ``hi ≥ log(float64 max) − 1``: the bound cannot exclude an overflow, so the fit is evaluated on the
+      grid (:func:`fit_table`, :func:`check_table`: about a second; none of the shipped fits, hi ≤ 103);
+    * ``lo > 0``: every value is at least ``expm1(lo)``, so the albedo at normal incidence is at least
+      ``3 expm1(lo)`` (:data:`_ALBEDO_WEIGHT_MIN`); above :data:`MAX_ALBEDO` it is refused.
+
+    Shapes, finite weights and the sidecar are checked when the fit is read (:meth:`Archive.fit`).
+    """
+    lo, hi = output_bounds(fit)
+    if (hi < 0.0).any():
+        c = int(np.argmax(hi < 0.0))
+        raise NbrdfError(f"{fit.source}: channel {'rgb'[c]} is negative everywhere on the MERL grid (its network "
+                         f"output is at most {hi[c]:.3g} < 0): an all-black channel is not a material")
+    if hi.max() >= _Y_SAFE:
+        check_table(fit, fit_table(fit))
+    for c in range(lo.size):
+        least = math.expm1(min(lo[c], _Y_SAFE))  # ≥ e^708 is bright enough to say so
+        if least * _ALBEDO_WEIGHT_MIN > MAX_ALBEDO:
+            raise NbrdfError(f"{fit.source}: channel {'rgb'[c]} is at least {least:.3g} sr⁻¹ everywhere on the MERL "
+                             f"grid, so its directional albedo at normal incidence is at least "
+                             f"{least * _ALBEDO_WEIGHT_MIN:.3g}, beyond the allowed (0, {MAX_ALBEDO:g}]: "
+                             "not a material")
+
+
+def check_table(fit: Fit, result: FitTable) -> NDArray[np.float64]:
+    """Refuse a table that is not a material; returns its directional albedo at normal incidence (r, g, b).
+
+    :class:`NbrdfError` naming the fit, the statistic, its value and the allowed range when more than
+    :data:`MAX_CLAMPED_SHARE` of its values were clamped at 0, or when a channel's directional albedo
+    at normal incidence (:func:`brdfpipe.data.merl.directional_albedo`) is not in (0, :data:`MAX_ALBEDO`].
+    """
+    share = result.clamped / (3 * result.measured_cells)
+    if share > MAX_CLAMPED_SHARE:
+        raise NbrdfError(f"{fit.source}: {share:.1%} of the values are negative (clamped at 0 on the MERL grid); at "
+                         f"most {MAX_CLAMPED_SHARE:.0%} allowed (the shipped fits: at most 20%): not a material")
+    albedo = merl.directional_albedo(result.table, [0.0])[0]
+    if not ((albedo > 0.0) & (albedo <= MAX_ALBEDO)).all():
+        raise NbrdfError(f"{fit.source}: directional albedo at normal incidence (r, g, b) = "
+                         f"({', '.join(f'{a:.3g}' for a in albedo)}), allowed (0, {MAX_ALBEDO:g}] (the shipped fits: "
+                         "0.0042 to 1.1): not a material")
+    return albedo
+
+
+#: sha256 of the zip archives whose every fit passes :func:`check_archive`: the shipped ones (their digests
+#: in the registry, checked by a test) and those that passed in this process.
+_CHECKED: set[str] = {d.archive_sha256 for d in databases.DATABASES.values() if d.archive_sha256}
+
+
+def check_archive(path: str | os.PathLike[str]) -> list[str]:
+    """Read and check every fit of an archive (the workflow's parse time); returns the fits' names.
+
+    Each fit is read (:meth:`Archive.fit`: readable member, sidecar, layer shapes, finite weights)
+    and checked (:func:`check_fit`); the first bad one raises :class:`NbrdfError` naming the archive,
+    the member and the problem.  About 2–3 ms a fit (the 100 of merl-nbrdf: 0.2–0.3 s, h5py's import
+    aside); a zip archive whose sha256 is one that passed (:data:`_CHECKED`: the shipped archives, and
+    those checked earlier in this process) is not read again.
+    """
+    with open_archive(path) as archive:
+        key = None
+        if archive.path.is_file():
+            with open(archive.path, "rb") as fh:
+                key = hashlib.file_digest(fh, "sha256").hexdigest()
+        if key not in _CHECKED:
+            for name in archive.names:
+                check_fit(archive.fit(name))
+            if key is not None:
+                _CHECKED.add(key)
+        return archive.names
 
 
 def fit_names(archive: Archive, requested: Sequence[str] | None = None) -> list[str]:
@@ -372,11 +540,13 @@ def write_fit(fit: Fit, out: str | os.PathLike[str], *, name: str | None = None)
     :func:`material_name` of the fit); the mark binds it, records the fit,
     its archive, the digest of its weights and the clamped count, and is of
     the fit's database (:func:`fit_database`), so the file is never taken for
-    a measurement.
+    a measurement.  A table that is not a material (:func:`check_table`) is refused before anything is
+    written.
     """
     out = Path(out)
     name = material_name(fit.name) if name is None else name
     result = fit_table(fit)
+    check_table(fit, result)
     archive = fit.source.rsplit(":", 1)[0]
     mark = provenance.fit_mark(database=fit_database(fit), name=name, fit=fit.name, archive=Path(archive).name,
                                fit_sha256=fit.sha256, clamped=result.clamped)
@@ -401,12 +571,18 @@ def write_fits(
     The folder must be new, empty, or hold only tables written by this
     function (a fit-made mark): anything else is refused before any work
     (:class:`NbrdfError` naming the file), so no foreign file is replaced.
-    Each file is written atomically.  Returns the paths and their tables'
-    clamped counts, in the order of ``names``.
+    Every material name must pass :func:`brdfpipe.data.databases.check_material_name`
+    and every fit :func:`check_fit` before any evaluation; the tables are written
+    into a temporary folder inside ``out_dir`` and moved into place only when
+    every one passed :func:`check_table`, so a refused fit leaves ``out_dir``
+    as it was (or absent, with the folders the call made).  Returns the paths and their tables' clamped counts, in the order of
+    ``names``.
     """
     out_dir = Path(out_dir)
     with open_archive(archive_path) as archive:
         chosen = fit_names(archive, names)
+        for n in chosen:
+            databases.check_material_name(material_name(n), f"{archive.path}:{archive.member(n)}")
         targets = {n: out_dir / f"{material_name(n)}{_BINARY}" for n in chosen}
         clash = sorted({material_name(n) for n in chosen if sum(material_name(m) == material_name(n) for m in chosen) > 1})
         if clash:
@@ -424,12 +600,24 @@ def write_fits(
                 shown = ", ".join(foreign[:8]) + (f" and {len(foreign) - 8} more" if len(foreign) > 8 else "")
                 raise NbrdfError(f"--out {out_dir}: holds files `brdfpipe nbrdf` did not write ({shown}); refusing "
                                  "to write there: choose a new or empty folder")
-        out_dir.mkdir(parents=True, exist_ok=True)
-        done = []
-        for n in chosen:
-            done.append((targets[n], write_fit(archive.fit(n), targets[n])))
+        fits = [archive.fit(n) for n in chosen]
+    for fit in fits:
+        check_fit(fit)
+    created = next((p for p in (*reversed(out_dir.parents), out_dir) if not p.exists()), None)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic.clean_stale_siblings(out_dir / "tables")
+    stage = atomic.tmp_sibling(out_dir / "tables")  # inside --out: its parent may not be writable
+    try:
+        done = [(targets[f.name], write_fit(f, stage / targets[f.name].name)) for f in fits]
+        for path, _ in done:
+            os.replace(stage / path.name, path)
+    except BaseException:
+        if created is not None:
+            atomic.remove_tree(created)  # the folders this call made: nothing else is in them
+        raise
+    finally:
+        atomic.remove_tree(stage)
     return done
-
 
 
 def evaluate_to_files(

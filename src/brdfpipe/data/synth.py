@@ -175,7 +175,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic
 from brdfpipe.core.version import full_version
-from brdfpipe.data import merl, provenance
+from brdfpipe.data import databases, merl, provenance
 from brdfpipe.data.provenance import WATERMARK_CELLS, WATERMARK_MAGIC, WATERMARK_RAW
 from brdfpipe.spec import layouts
 
@@ -557,8 +557,11 @@ def plan_database(count: int, seed: int) -> list[MaterialSpec]:
     inside a family, named metals and variants go round-robin; every other
     parameter is drawn from the material's own seed, derived from
     ``(seed, index)``.  Names are ``<family>-<descriptor>-<NNN>`` with the
-    index as running number.  Raises :class:`ValueError` for ``count < 1``
-    or ``seed < 0``.
+    index as running number, each checked by the material-name rule
+    (:func:`brdfpipe.data.databases.check_material_name`, whose
+    :class:`~brdfpipe.data.databases.DatabaseError` names the plan) before any
+    caller writes a file.  Raises :class:`ValueError` for ``count < 1`` or
+    ``seed < 0``.
     """
     count = _check_int(count, "count", 1)
     seed = _check_int(seed, "seed", 0)
@@ -572,7 +575,8 @@ def plan_database(count: int, seed: int) -> list[MaterialSpec]:
             descriptor, params = _PLANNERS[family](rng, j)
             params = {"family": family, "variant": params.pop("variant", family), **params}
             params["deviation"] = _plan_deviation(rng)
-            name = f"{family}-{descriptor}-{index:0{width}d}"
+            name = databases.check_material_name(f"{family}-{descriptor}-{index:0{width}d}",
+                                       f"synthetic database (count {count}, seed {seed})")
             specs.append(MaterialSpec(name, family, index, mseed, params))
             index += 1
     return specs
