@@ -115,7 +115,7 @@ def test_interpolate_between_and_at(tmp_path: Path, capsys: pytest.CaptureFixtur
 
     capsys.readouterr()
     assert cli.main([*argv, "--at", "1,2,3"]) == 1
-    assert "length q = 2" in capsys.readouterr().err
+    assert "--at: " in (err := capsys.readouterr().err) and "has q = 2 latent coordinates, got 3" in err
     assert cli.main([*argv, "--between", a, "no-such-material"]) == 1
     assert "unknown material" in capsys.readouterr().err
 

@@ -209,7 +209,11 @@ def test_an_os_error_names_the_output_not_its_temporary_name() -> None:
     assert atomic.output_of(tmp.with_name(tmp.name + ".npz")) == Path("/data/out.binary")
     assert atomic.output_of("/data/.hidden") == Path("/data/.hidden")
     err = OSError(13, "Permission denied", str(tmp))
-    assert cli._os_error_message(err, None) == "/data/out.binary: Permission denied"
+    from brdfpipe.core.command import os_error_message
+
+    assert os_error_message(err) == "/data/out.binary: Permission denied"
+    assert os_error_message(OSError(28, "No space left on device"), "/data/x.binary") == (
+        "no space left on device writing /data/x.binary")
 
 
 # --------------------------------------------------------------------------

@@ -54,7 +54,8 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from brdfpipe.core.atomic import check_not_input, check_writable, is_out_of_space, output_of
+from brdfpipe.core.atomic import check_not_input, check_writable, output_of
+from brdfpipe.core.command import OneLineParser, one_line, os_error_message
 from brdfpipe.core.logutil import setup_console_logging
 from brdfpipe.core.version import full_version
 
@@ -137,18 +138,6 @@ def _bracket(text: str) -> float:
     if not value >= 1.0:
         raise argparse.ArgumentTypeError(f"must be a finite number ≥ 1 (relative to the shortest, 1), got {text}")
     return value
-
-
-def _one_line(text: str) -> str:
-    """``text`` on one line (an error message from a library may hold newlines)."""
-    return " ".join(str(text).split())
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse, with an argument error on one line (``brdfpipe CMD: error: ... (see brdfpipe CMD --help)``)."""
-
-    def error(self, message: str) -> Any:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
 
 
 def _strict_json(value: Any, what: str) -> str:
@@ -285,6 +274,10 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
 
     check_not_input(args.out, [args.model, args.store])
     check_writable(args.out)
+    if args.at is not None:
+        q = gplvm.load_model(args.model).X.shape[1]
+        if len(args.at) != q:
+            raise ValueError(f"--at: {args.model} has q = {q} latent coordinates, got {len(args.at)}")
     gplvm.interpolate_to_file(
         args.model, args.store, args.out,
         at=args.at, between=tuple(args.between) if args.between else None, t=args.t,
@@ -586,7 +579,7 @@ def _cmd_capture(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``brdfpipe`` command."""
-    parser = _Parser(prog="brdfpipe", description=__doc__.split("\n\n")[0])
+    parser = OneLineParser(prog="brdfpipe", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action="version", version=f"brdfpipe {full_version()}")
     parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -737,21 +730,6 @@ def _render_errors() -> tuple[type[Exception], ...]:
     return (RenderError, SceneError)
 
 
-def _os_error_message(err: OSError, out: str | None) -> str:
-    """One line for an OS error: the path involved (the output, not its temporary name) and what went wrong."""
-    first = None if err.filename is None else str(output_of(err.filename))
-    second = None if err.filename2 is None else str(output_of(err.filename2))
-    if is_out_of_space(err):
-        where = first or out
-        return f"no space left on device writing {where}" if where else "no space left on device"
-    what = err.strerror or str(err) or type(err).__name__
-    if first is not None and second is not None:
-        return f"{first} -> {second}: {what}"
-    if first is not None:
-        return f"{first}: {what}"
-    return f"{what} (output {out})" if out else what
-
-
 def _memory_error_message(args: argparse.Namespace) -> str:
     if args.command == "render":
         w, h = args.resolution
@@ -816,7 +794,7 @@ def _read_error_types() -> tuple[type[BaseException], ...]:
 def _unexpected_message(err: BaseException, args: argparse.Namespace) -> str:
     """One line for an exception no library error class covers: the input it came from and what it says."""
     kind = type(err).__name__
-    text = _one_line(str(err)) or kind
+    text = one_line(str(err)) or kind
     where = _input_named_by(err, args)
     if isinstance(err, _read_error_types()):
         what = where or ", ".join(str(getattr(args, a)) for a in _INPUT_ARGS if getattr(args, a, None)) or "an input"
@@ -850,7 +828,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = getattr(args, "out", None) or getattr(args, "out_dir", None)
 
     def fail(message: str, status: int = 1) -> int:
-        print(f"{prefix} {_one_line(message)}", file=sys.stderr)
+        print(f"{prefix} {one_line(message)}", file=sys.stderr)
         return status
 
     try:
@@ -861,7 +839,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except MemoryError:
         return fail(_memory_error_message(args))
     except OSError as err:
-        return fail(_os_error_message(err, out))
+        return fail(os_error_message(err, out))
     except (json.JSONDecodeError, UnicodeDecodeError) as err:  # ValueErrors that do not name the file
         if os.environ.get("BRDFPIPE_TRACEBACK"):
             raise

@@ -3,7 +3,8 @@
 A module with a command line (:mod:`brdfpipe.acquisition.realism`,
 :mod:`brdfpipe.report.sidebyside`) builds its parser with
 :class:`OneLineParser` and runs its work through :func:`run`, so that it
-behaves as the ``brdfpipe`` command does (:mod:`brdfpipe.cli`):
+behaves as the ``brdfpipe`` command does (:mod:`brdfpipe.cli`, which uses
+the same parser and messages):
 
 * an argument error is one line ``PROG: error: ... (see PROG --help)``, exit 2;
 * bad input or a failing environment is one line ``PROG: error: ...`` naming
@@ -45,16 +46,22 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
-def os_error_message(err: OSError) -> str:
-    """One line for an OS error: the path involved (an output's, not its temporary sibling's) and what went wrong."""
+def os_error_message(err: OSError, out: str | None = None) -> str:
+    """One line for an OS error: the path involved (an output's, not its temporary sibling's) and what went wrong.
+
+    ``out``: the command's output, named when the error names no path.
+    """
     first = None if err.filename is None else str(output_of(os.fsdecode(err.filename)))
     second = None if err.filename2 is None else str(output_of(os.fsdecode(err.filename2)))
     if is_out_of_space(err):
-        return f"no space left on device writing {first}" if first else "no space left on device"
+        where = first or out
+        return f"no space left on device writing {where}" if where else "no space left on device"
     what = err.strerror or str(err) or type(err).__name__
     if first is not None and second is not None:
         return f"{first} -> {second}: {what}"
-    return f"{first}: {what}" if first is not None else what
+    if first is not None:
+        return f"{first}: {what}"
+    return f"{what} (output {out})" if out else what
 
 
 def run(prog: str, work: Callable[[], int]) -> int:
