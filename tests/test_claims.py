@@ -19,7 +19,10 @@ import pytest
 
 from brdfpipe.core import integrity
 from brdfpipe.report import claims
-from brdfpipe.report.claims import ours, soler, xu, xu_setups
+from brdfpipe.report import claims_ours as ours
+from brdfpipe.report import claims_setups as xu_setups
+from brdfpipe.report import claims_soler as soler
+from brdfpipe.report import claims_xu as xu
 from brdfpipe.spec import tables
 
 R, W, D, N = claims.REPRODUCES, claims.WITHIN, claims.DIFFERS, claims.NOT_CHECKABLE

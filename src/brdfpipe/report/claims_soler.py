@@ -25,7 +25,7 @@ import statistics
 from collections.abc import Mapping
 from pathlib import Path
 
-from brdfpipe.report.claims.base import (
+from brdfpipe.report.claims_base import (
     DIFFERS,
     REPRODUCES,
     SOLER,

@@ -1,6 +1,6 @@
 """``claims.{csv,json,rst}``: writing a run's claims, reading another run's back, and the report's table.
 
-``claims.csv`` has the columns :data:`~brdfpipe.report.claims.base.CLAIM_COLUMNS`
+``claims.csv`` has the columns :data:`~brdfpipe.report.claims_base.CLAIM_COLUMNS`
 (with its digest line, like every table of the run).  A ``claims.csv`` of the
 schema before issue 32 (columns ``paper_value`` and ``holds``, verdicts
 yes/no/not measured) is *superseded*: its rows checked other statements
@@ -21,7 +21,7 @@ from pathlib import Path
 
 from brdfpipe.core import atomic, integrity
 from brdfpipe.report import rst
-from brdfpipe.report.claims.base import (
+from brdfpipe.report.claims_base import (
     CLAIM_COLUMNS,
     DIFFERS,
     NOT_CHECKABLE,
@@ -33,7 +33,7 @@ from brdfpipe.report.claims.base import (
     ClaimsInputError,
     read_rows,
 )
-from brdfpipe.report.claims.ours import is_unseen_claim
+from brdfpipe.report.claims_ours import is_unseen_claim
 
 __all__ = [
     "SUPERSEDED_COLUMNS",

@@ -4,25 +4,26 @@ Every row quotes the paper's sentence (section, figure), says what is
 compared with what — the paper's own comparison: Xu's images against the
 previous work, Nielsen et al. 2015's κ as released — with the tolerance the
 wording implies and why, gives this run's numbers and a verdict with its
-cause (:mod:`.base`: *reproduces*, *reproduces within the stated
+cause (:mod:`.claims_base`: *reproduces*, *reproduces within the stated
 tolerance*, *differs* with the measurement that shows why, *not checkable
 here*).  Checks of this project's own that the papers do not make are rows
 marked ``ours``, shown apart.  Nothing is typed in: each number is computed
 from the run's CSVs; the database is read from them.
 
-Modules: :mod:`.base` (the claim, its verdicts, the CSV readers), :mod:`.xu`
-(accuracy per number of samples: images, point sets, metrics),
-:mod:`.xu_setups` (fields of view, training size, Fig. 8's directions, the
-fixed camera), :mod:`.soler` (the manifold and its renders), :mod:`.ours`
-(our own checks), :mod:`.io` (``claims.{csv,json,rst}``, other runs read
-back).  :func:`compute_claims` makes every claim of a run, in report order.
+Its modules (one level of subpackages: siblings here): :mod:`.claims_base`
+(the claim, its verdicts, the CSV readers), :mod:`.claims_xu` (accuracy per
+number of samples: images, point sets, metrics), :mod:`.claims_setups`
+(fields of view, training size, Fig. 8's directions, the fixed camera),
+:mod:`.claims_soler` (the manifold and its renders), :mod:`.claims_ours`
+(our own checks), :mod:`.claims_io` (``claims.{csv,json,rst}``, other runs
+read back); this module re-exports what callers use.  :func:`compute_claims` makes every claim of a run, in report order.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from brdfpipe.report.claims.base import (
+from brdfpipe.report.claims_base import (
     CAUSES,
     CLAIM_COLUMNS,
     DIFFERS,
@@ -37,7 +38,7 @@ from brdfpipe.report.claims.base import (
     ClaimInputs,
     ClaimsInputError,
 )
-from brdfpipe.report.claims.io import (
+from brdfpipe.report.claims_io import (
     RunClaims,
     claims_table_rst,
     read_claims,
@@ -46,7 +47,7 @@ from brdfpipe.report.claims.io import (
     verdict_counts,
     write_claims,
 )
-from brdfpipe.report.claims.ours import (
+from brdfpipe.report.claims_ours import (
     UNSEEN_CLAIM_PREFIX,
     closed_loop_vs_table,
     is_unseen_claim,
@@ -54,7 +55,7 @@ from brdfpipe.report.claims.ours import (
     spectralon_albedo,
     unseen_vs_heldout,
 )
-from brdfpipe.report.claims.soler import (
+from brdfpipe.report.claims_soler import (
     NOISE_SIGMAS,
     albedo_in_unit_interval,
     blend_vs_noise_floor,
@@ -64,10 +65,10 @@ from brdfpipe.report.claims.soler import (
     reproduction_vs_pca,
     second_bounce_share,
 )
-from brdfpipe.report.claims.soler import not_checkable_claims as soler_not_checkable
-from brdfpipe.report.claims.xu import ErrorMeans, read_errors, xu_error_claims
-from brdfpipe.report.claims.xu import not_checkable_claims as xu_not_checkable
-from brdfpipe.report.claims.xu_setups import one_shot_optimum, training_size_decreasing, two_shot_first_specular, \
+from brdfpipe.report.claims_soler import not_checkable_claims as soler_not_checkable
+from brdfpipe.report.claims_xu import ErrorMeans, read_errors, xu_error_claims
+from brdfpipe.report.claims_xu import not_checkable_claims as xu_not_checkable
+from brdfpipe.report.claims_setups import one_shot_optimum, training_size_decreasing, two_shot_first_specular, \
     xu_setup_claims
 
 __all__ = [

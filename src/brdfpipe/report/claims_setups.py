@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 import statistics
 
-from brdfpipe.report.claims.base import (
+from brdfpipe.report.claims_base import (
     DIFFERS,
     REPRODUCES,
     WITHIN,
@@ -27,7 +27,7 @@ from brdfpipe.report.claims.base import (
     one_database,
     read_rows,
 )
-from brdfpipe.report.claims.xu import E, SIGNIFICANT, ErrorMeans
+from brdfpipe.report.claims_xu import E, SIGNIFICANT, ErrorMeans
 from brdfpipe.spec import tables
 
 __all__ = [

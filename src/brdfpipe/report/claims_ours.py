@@ -1,4 +1,4 @@
-"""Checks of this project's own (``paper`` :data:`~brdfpipe.report.claims.base.OURS`), shown apart from the papers'.
+"""Checks of this project's own (``paper`` :data:`~brdfpipe.report.claims_base.OURS`), shown apart from the papers'.
 
 Each is next to a sentence of a paper, but checks something the paper does
 not claim: the simulated closed loop (the papers' real captures are not
@@ -13,7 +13,7 @@ import math
 import os
 from collections.abc import Sequence
 
-from brdfpipe.report.claims.base import (
+from brdfpipe.report.claims_base import (
     DIFFERS,
     OURS,
     REPRODUCES,
@@ -28,8 +28,8 @@ from brdfpipe.report.claims.base import (
     pct,
     read_rows,
 )
-from brdfpipe.report.claims.soler import read_paths
-from brdfpipe.report.claims.xu import E, ErrorMeans
+from brdfpipe.report.claims_soler import read_paths
+from brdfpipe.report.claims_xu import E, ErrorMeans
 from brdfpipe.spec import tables
 
 __all__ = [

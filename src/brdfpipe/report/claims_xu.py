@@ -10,7 +10,7 @@ compares nothing but Nielsen's; eq. 6's κ over all k components (metric
 errors over the held-out materials of ``errors.csv`` (split ``train``).
 
 The set-up claims (fields of view, training size, Fig. 8's directions, §8's
-fixed camera) are :mod:`.xu_setups`.
+fixed camera) are :mod:`brdfpipe.report.claims_setups`.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import statistics
 from dataclasses import dataclass
 from pathlib import Path
 
-from brdfpipe.report.claims.base import (
+from brdfpipe.report.claims_base import (
     DIFFERS,
     REPRODUCES,
     WITHIN,
