@@ -14,6 +14,12 @@ Adding a set-up: a record in :data:`SETUPS` here, its physics in
 name in the config schema's two enums (``acquisition.setups``, and
 ``closed_loop.setups`` for an image set-up; a test keeps them equal to this
 registry).  See ``docs/design/extending.md``.
+
+Adding a metric: a record in :data:`METRIC_KINDS` (its legend label and the
+set-ups it applies to), its κ or error in ``acquisition/metrics.py`` and the
+optimiser's choice of it in ``acquisition/optimize.py``, and its name in the
+schema's ``acquisition.metrics`` enum (and ``closed_loop.metric`` for a
+metric of image set-ups).
 """
 
 from __future__ import annotations
