@@ -334,7 +334,8 @@ def test_albedo_in_the_unit_interval_at_q2(t: Tables) -> None:
     check(soler.albedo_in_unit_interval(spaces(t, 0.0)), R, "1 %", "q = 2")  # q = 5 and other candidates do not count
     check(soler.albedo_in_unit_interval(spaces(t, 0.005)), W)
     c = check(soler.albedo_in_unit_interval(spaces(t, 0.0687)), D, "unclamped")
-    assert c.cause.startswith("the method: 6.87 % of the q = 2 hull") and "not the paper's recipe" in c.cause
+    assert c.cause.startswith("the method: 6.87 % of the q = 2 hull and 6.87 % of the map")
+    assert "not the paper's recipe" in c.cause
     # with the clamped table's columns the claim is on them (what a renderer receives)
     c = check(soler.albedo_in_unit_interval(spaces(t, 0.0687, clamped=0.0)), R, "clamped interpolated table")
     c = check(soler.albedo_in_unit_interval(spaces(t, 0.0, clamped=0.03, space="raw", mu=1e-4)), D)
@@ -486,3 +487,22 @@ def test_every_claim_of_a_run_is_one_row_and_a_missing_input_says_so(t: Tables) 
     assert [c.key for c in run.values()] == keys and run["xu-2-images-vs-previous-work-20"].verdict == R
     assert run["xu-training-size"].cause == "not measured by this run: the training-size curve is not produced by " \
                                             "this configuration"
+
+
+def test_unseen_materials_against_the_held_out_ones(t: Tables) -> None:
+    """Ours: another database's materials within 2× the held-out error (2 images at 25°); their database named."""
+    errors = t.errors({(NF, 25.0, E, 2): 0.25, (NF, 25.0, E, 1): 0.35, (P, 0.0, E, 3): 0.4})
+
+    def claim(u2: float) -> list[claims.Claim]:
+        cols = tables.UNSEEN_ERRORS
+        rows = [{"database": "rgl-nbrdf", "model_database": "synthetic", "split": "train", "setup": s, "fov": f,
+                 "metric": E, "n": n, "material": "mean", "channel": "all", "kind": "rms_log", "value": v}
+                for s, f, n, v in ((NF, 25, 2, u2), (NF, 25, 1, 0.5), (P, 0, 3, 0.6))]
+        return ours.unseen_vs_heldout(errors, t(cols, rows))
+
+    (c,) = claim(0.45)
+    check(c, R, "ours:", "2×")
+    assert c.key == "unseen-xu-rgl-nbrdf" and c.database == "rgl-nbrdf" and c.paper == claims.OURS
+    assert "3 points: 0.6 vs 0.4 (×1.50)" in c.measured
+    (c,) = claim(0.6)
+    assert check(c, D).cause.startswith("the data: the rgl-nbrdf materials lie outside the synthetic subspace")

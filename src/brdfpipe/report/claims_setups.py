@@ -100,8 +100,8 @@ def fov25_nearly_best(errors: ErrorMeans) -> Claim:
                 'results (Fig. 6)" (§7)')
     claim = ("2 near-field images (two-shot, the acquisition the sentences are about), min E(S): the error at 25° "
              "against the best FOV evaluated (the paper's 15°–45°). Strictly: 25° is the best. \"nearly best\" read "
-             f"as within {NEARLY_BEST:g}× the best FOV's error (a gap that would not read as \"near-optimal\" on Fig. "
-             "6's log axis is larger)")
+             f"as within {NEARLY_BEST:g}× the best FOV's error: on Fig. 6's log axis a smaller gap reads as the same "
+             "height, what §7 calls \"near-optimal\"")
     vals = {f: v for f in errors.fovs("nearfield", E) if (v := errors.get("nearfield", f, E, 2)) is not None}
     if 25.0 not in vals or len(vals) < 2:
         return not_measured(key, XU, where, sentence, claim, "needs 2-image near-field sets at 25° and another FOV",
@@ -267,8 +267,8 @@ def fixed_vs_point(errors: ErrorMeans) -> Claim:
     worst = min(pts, key=lambda x: x[3] / x[2])
     cause = {REPRODUCES: f"point sampling's error ≥ {min(ratios):.2f}× the fixed set-ups'",
              WITHIN: f"lower, but at {worst[0]}, n = {worst[1]} only by ×{min(ratios):.2f}",
-             DIFFERS: f"a real difference: at {worst[0]}, n = {worst[1]} point sampling is as good ({g(worst[3])} vs "
-                      f"{g(worst[2])})"}[verdict]
+             DIFFERS: f"a real difference: at {worst[0]}, n = {worst[1]} point sampling's error is {g(worst[3])}, the "
+                      f"fixed set-up's {g(worst[2])}"}[verdict]
     return _claim(errors, key, where, _FIXED_SENTENCE, claim, measured, min(ratios), verdict, cause, figs)
 
 

@@ -107,7 +107,7 @@ def reproduction_vs_pca(path: str | os.PathLike[str] | None) -> Claim:
                 'PCA approximations)." (Fig. 8)')
     claim = (f"the largest GPLVM reproduction error (any q, any training material, relative to its norm): strictly "
              f"≤ {PERFECT[0]:g} (exact to rounding); within the tolerance ≤ {pct(PERFECT[1])} (no render of Fig. 8 "
-             "shows it); and the median error of PCA with 20 and 40 components (the ks evaluated) above both")
+             "shows it); and the median error of PCA with 20 and 40 components (else every k evaluated) above both")
     if path is None:
         return absent(key, SOLER, where, sentence, claim, "reproduction.csv", figs)
     p, rows, _ = read_rows(path, tables.columns(tables.REPRODUCTION, "database", "material", "method", "k",
@@ -152,7 +152,7 @@ def albedo_in_unit_interval(path: str | os.PathLike[str] | None) -> Claim:
     clamped = set(CLAMPED_ALBEDO) <= have
     hull_col, map_col = CLAMPED_ALBEDO if clamped else ("albedo_bad_hull", "albedo_bad_map")
     what = ("the clamped interpolated table (negative values set to 0), the one a renderer receives" if clamped else
-            "Σ wᵢ Aᵢ, the albedo of the unclamped interpolated table (the clamped table's is not in the table yet)")
+            "the unclamped interpolated table, Σ wᵢ Aᵢ (the clamped table's albedo is not in spaces.csv yet)")
     claim = (f"the albedo of {what}, default candidate, q = 2 (the paper's): strictly outside [0, 1] nowhere in the "
              "latent hull nor the plotted map. Within the tolerance: on at most 1 % of the hull points — the paper "
              "shows \"a zoomed region\", which a small share elsewhere escapes")
@@ -170,13 +170,13 @@ def albedo_in_unit_interval(path: str | os.PathLike[str] | None) -> Claim:
     worst = max(hull, amap if math.isfinite(amap) else 0.0)
     measured = f"outside [0, 1] ({name}): " + "; ".join(parts)
     verdict = graded(worst == 0.0, hull <= 0.01)
+    share = f"{pct(hull)} of the q = {two['q']} hull" + (f" and {pct(amap)} of the map" if math.isfinite(amap) else "")
     if verdict == DIFFERS:
         why = "the method: " if not clamped or not paper else "a real difference: "
-        cause = (why + f"{pct(hull)} of the q = {two['q']} hull outside [0, 1]" + ("" if clamped else
+        cause = (why + f"{share} outside [0, 1]" + ("" if clamped else
                  " on the unclamped Σ wᵢ Aᵢ (negative lobes a renderer clamps)") + _paper_recipe_note(paper))
     else:
-        cause = (f"{pct(hull)} of the q = {two['q']} hull outside [0, 1]" + ("" if clamped else " (unclamped Σ wᵢ Aᵢ)")
-                 + _paper_recipe_note(paper))
+        cause = (f"{share} outside [0, 1]" + ("" if clamped else " (unclamped Σ wᵢ Aᵢ)") + _paper_recipe_note(paper))
     return Claim(key, SOLER, where, sentence, claim, measured, worst, verdict, cause, database, str(p), figs)
 
 

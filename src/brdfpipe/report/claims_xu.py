@@ -252,7 +252,7 @@ def eq15_below_previous_work(errors: ErrorMeans) -> Claim:
 
 def _largest_rise(curve: list[tuple[int, float]]) -> tuple[float, int | None]:
     """The largest relative rise of a curve from one n to the next, and the n it rises to."""
-    rises = [(v1 / v0 - 1.0, n1) for (_, v0), (n1, v1) in zip(curve, curve[1:]) if v0 > 0]
+    rises = [(v1 / v0 - 1.0, n1) for (_, v0), (n1, v1) in zip(curve, curve[1:]) if v0 > 0 and v1 > v0]
     return max(rises, default=(0.0, None))
 
 
@@ -262,17 +262,17 @@ def smooth_vs_oscillating(errors: ErrorMeans) -> Claim:
     sentence = ('"The result from [Nielsen et al. 2015] oscillates somewhat, since the condition number metric is not '
                 'directly tied to (or always monotonic with) the actual error. By minimizing the actual expected '
                 'reconstruction error, we obtain a smooth graph." (appendix B)')
-    claim = (f"error vs n of point samples: min E(S)'s curve never rises from one n to the next, while {PREVIOUS}'s "
-             f"rises somewhere. \"smooth\" read, within the tolerance, as rising by at most {SMOOTH:.0%} (a step the "
-             "log axis of Fig. 19 does not show)")
+    claim = (f"error vs n of point samples: min E(S)'s curve never rises from one n to the next, while the curve of "
+             f"{PREVIOUS} rises somewhere. \"smooth\" read, within the tolerance, as rising by at most {SMOOTH:.0%} (a "
+             "step the log axis of Fig. 19 does not show)")
     ours, theirs = errors.series("point", 0.0, E), errors.series("point", 0.0, NIELSEN)
     if len(ours) < 2 or len(theirs) < 2:
         return not_measured(key, XU, where, sentence, claim, f"{errors.path.name} lacks point curves of min E(S) and "
                             f"of {LABEL[NIELSEN]} (2 n each)", str(errors.path), figs)
     rise, at = _largest_rise(ours)
     their_rise, their_at = _largest_rise(theirs)
-    measured = (f"min E(S): largest rise {rise:+.1%}" + (f" (to n = {at})" if at and rise > 0 else "") +
-                f"; previous work: largest rise {their_rise:+.1%}" + (f" (to n = {their_at})" if their_at and their_rise > 0 else ""))
+    measured = "; ".join(f"{who}: " + (f"largest rise {r:+.1%} (to n = {n})" if n is not None else "never rises")
+                         for who, r, n in (("min E(S)", rise, at), ("previous work", their_rise, their_at)))
     oscillates = their_rise > 1e-9
     verdict = graded(rise <= 1e-9 and oscillates, rise <= SMOOTH and oscillates)
     if verdict == DIFFERS:
