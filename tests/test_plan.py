@@ -127,7 +127,11 @@ def test_direction_files_of_the_default_config() -> None:
     acq = DEFAULT["acquisition"]
     train = plan.direction_files(acq, "train")
     n_fov = len(acq["fovs"])
-    assert len(train) == len(acq["metrics"]) * (1 + n_fov + 2)
+    # Nielsen's κ (first n components) is a point-sampling metric: optimised for the point set-up only
+    assert acq["metrics"] == ["error", "condition", "condition_nielsen"]
+    assert len(train) == 2 * (1 + n_fov + 2) + 1
+    assert [f for f in train if f.endswith("-condition_nielsen.json")] == [
+        fn.directions("train", "point", 0, "condition_nielsen")]
     assert plan.direction_files(acq, "all") == [fn.directions("all", "nearfield", f, "error") for f in acq["fovs"]]
     assert plan.curve_directions(acq) == fn.directions("train", "nearfield", 25, "error")
     assert fn.directions("train", "nearfield", 25.0, "error") == "results/directions/train/nearfield-fov25-error.json"
@@ -534,7 +538,7 @@ def test_each_schema_enum_equals_its_spec() -> None:
         "acquisition.setups[]": list(acq.SETUP_NAMES),
         "acquisition.metrics[]": list(acq.METRICS),
         "closed_loop.setups[]": list(acq.IMAGE_SETUPS),
-        "closed_loop.metric": list(acq.METRICS),
+        "closed_loop.metric": list(acq.IMAGE_METRICS),
         "manifold.space": list(man.SPACE_NAMES),
         "manifold.candidates[].space": list(man.SPACE_NAMES),
         "manifold.method": list(man.OPTIMISERS),

@@ -70,7 +70,7 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
     out = r.stdout + r.stderr
     for rule, n in [("synthesize_material", 12), ("ingest_material", 12), ("assemble_store", 1),
                     ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
-                    ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
+                    ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 10),
                     ("evaluate_directions", 1), ("evaluate_training_size", 1), ("check_directions", 2),
                     ("plot_acquisition_figures", 1),
                     # the closed loop: one capture per held-out material, one evaluation, one figure

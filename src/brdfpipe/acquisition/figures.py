@@ -10,7 +10,10 @@ space, the papers' measure), ``relrms_linear`` or ``deviation`` (the
 E_deviation floor: rows with setup ``all``, fov 0, metric ``none``, n 0).
 Averages over the held-out materials are the rows with material ``mean`` and
 channel ``all``.  Setups: ``point`` (fov 0), ``nearfield``, ``fixed_camera``,
-``fixed_light``; metrics ``error`` (E(S), eq. 15) and ``condition`` (κ).
+``fixed_light``; metrics ``error`` (E(S), eq. 15), ``condition`` (κ over all
+k components, Xu eq. 6) and ``condition_nielsen`` (κ of the first n
+components, Nielsen 2015's released code: the papers' "previous work", drawn
+red in Figs. 6, 18 and 19).
 
 ``training_size.csv``: ``database, n_train, order_seed, material, channel,
 kind, value`` (+ mean rows).
@@ -348,15 +351,23 @@ def _nearfield_and_point(ax: Any, table: ErrorTable, split: str, kind: str, fovs
         allv.extend(v.tolist())
 
 
+#: The point-sampling curves of Xu Figs. 6, 18 and 19: metric → colour, marker, line style, legend.  Red is the
+#: papers' "previous work" (Nielsen 2015's κ as released); eq. 6's κ over all k components is a curve of its own.
+_POINT_CURVES: dict[str, tuple[str, str, str, str]] = {
+    "error": (COLOURS[1], "^", "-", "point samples, min E(S) (eq. 15)"),
+    "condition_nielsen": (COLOURS[3], "v", "--", "previous work: point samples, "
+                          + acquisition_spec.METRIC_KINDS["condition_nielsen"].label),
+    "condition": (COLOURS[7], "s", ":", "point samples, " + acquisition_spec.METRIC_KINDS["condition"].label),
+}
+
+
 def _point_curves(ax: Any, table: ErrorTable, split: str, kind: str, warn: Warnings, allv: list[float]) -> None:
-    for metric, colour, label in (("error", COLOURS[1], "point samples, min E(S)"),
-                                  ("condition", COLOURS[3], "point samples, min κ (Xu eq. 6)")):
+    for metric, (colour, marker, linestyle, label) in _POINT_CURVES.items():
         n, v = table.series(split, "point", 0.0, metric, kind)
         if n.size == 0:
             warn(f"no mean {kind} rows for point sampling, metric {metric}; curve skipped")
             continue
-        _plot_series(ax, n, v, color=colour, marker="^" if metric == "error" else "v",
-                     linestyle="-" if metric == "error" else "--", label=label)
+        _plot_series(ax, n, v, color=colour, marker=marker, linestyle=linestyle, label=label)
         allv.extend(v.tolist())
 
 
@@ -501,8 +512,7 @@ def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
     table = read_errors(errors_csv)
     warn = Warnings("fig18")
     split = _choose_split(table, split, warn)
-    mats = sorted(set(table.materials(split, "point", 0.0, "error", n, kind))
-                  | set(table.materials(split, "point", 0.0, "condition", n, kind)))
+    mats = sorted({m for metric in _POINT_CURVES for m in table.materials(split, "point", 0.0, metric, n, kind)})
     dev_split = _deviation_split(table, split) if kind == "rms_log" else None
     width = max(7.0, min(16.0, 1.4 + 0.45 * len(mats)))
     with style():
@@ -513,15 +523,15 @@ def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
             no_data(ax, f"no per-material point-sampling rows at n = {n}")
         else:
             x = np.arange(len(mats), dtype=np.float64)
-            bw = 0.38
-            bars = (("error", COLOURS[2], "directions: min E(S)"),
-                    ("condition", COLOURS[0], "directions: min κ (Xu eq. 6)"))
+            bars = [(metric, _POINT_CURVES[metric][0], _POINT_CURVES[metric][3].replace("point samples, ", "directions: "))
+                    for metric in _POINT_CURVES if table.materials(split, "point", 0.0, metric, n, kind)]
+            bw = 0.76 / max(len(bars), 1)
             for j, (metric, colour, label) in enumerate(bars):
                 vals = np.array([table.material_value(split, "point", 0.0, metric, n, kind, m) for m in mats])
                 if not np.isfinite(vals).any():
                     warn(f"no per-material point rows at n = {n} for metric {metric}; bars skipped")
                     continue
-                ax.bar(x + (j - 0.5) * bw, np.where(np.isfinite(vals), vals, 0.0), width=bw, color=colour,
+                ax.bar(x + (j - (len(bars) - 1) / 2) * bw, np.where(np.isfinite(vals), vals, 0.0), width=bw, color=colour,
                        label=label, zorder=2)
             if dev_split is not None:
                 dev = np.array([table.material_value(dev_split, "all", 0.0, "none", 0, "deviation", m) for m in mats])

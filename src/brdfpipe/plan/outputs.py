@@ -16,7 +16,7 @@ from typing import Any
 
 from brdfpipe.core import filenames
 from brdfpipe.spec import figures as figure_specs
-from brdfpipe.spec.acquisition import setup_fovs
+from brdfpipe.spec.acquisition import setup_fovs, setup_metrics
 
 __all__ = [
     "direction_files",
@@ -37,7 +37,8 @@ __all__ = [
 def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
     """Direction sets optimised on a split.
 
-    ``train``: every setup × FOV × metric (they are evaluated); ``all``: only
+    ``train``: every setup × FOV × metric that applies to the setup (they are
+    evaluated; :func:`brdfpipe.spec.acquisition.setup_metrics`); ``all``: only
     the near-field sets of the error metric (the paper's table of optimal
     configurations, Xu Fig. 8).
     """
@@ -46,7 +47,7 @@ def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
         if split == "all" and setup != "nearfield":
             continue
         fovs = setup_fovs(setup, acquisition["fovs"], acquisition["fixed_fov"])
-        metrics = acquisition["metrics"] if split == "train" else ["error"]
+        metrics = setup_metrics(setup, acquisition["metrics"]) if split == "train" else ["error"]
         files += [filenames.directions(split, setup, fov, metric) for fov in fovs for metric in metrics]
     return files
 

@@ -38,9 +38,10 @@ def _bars(text: str) -> str:
 
 
 def _claim_item(c: Claim) -> str:
-    mark = {"yes": "**holds**", "no": "**does not hold**", "not measured": "not measured"}[c.holds]
-    return (f"- {rst_cell(c.paper)}, {rst_cell(c.where)}: {rst_cell(c.claim)}. Paper: {rst_cell(c.paper_value)}. "
-            f"This run: {rst_cell(c.measured)}. {mark}.")
+    who = "Our own check" if c.ours else f"{rst_cell(c.paper)}, {rst_cell(c.where)}"
+    said = "" if c.ours else f" The paper: {rst_cell(c.sentence)}."
+    return (f"- {who}:{said} Checked: {rst_cell(c.claim)}. This run: {rst_cell(c.measured)}. "
+            f"**{rst_cell(c.verdict)}**: {rst_cell(c.cause)}.")
 
 
 def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequence[str] = ()) -> str:
@@ -51,7 +52,7 @@ def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequ
     lines = [f"**{figure_specs.paper_figures()[key]}** analogue — database: **{rst.text(database)}**", "",
              _bars(DESCRIPTIONS[key]), ""]
     if mine:
-        lines += ["Claims (paper value vs this run):", ""] + [_claim_item(c) for c in mine] + [""]
+        lines += ["Claims (the paper's sentence, as checked, this run, the verdict and its cause):", ""] + [_claim_item(c) for c in mine] + [""]
     else:
         lines += ["The paper makes no quantitative claim about this figure; it is shown for comparison.", ""]
     if key == "render-errormap":

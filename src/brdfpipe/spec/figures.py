@@ -127,7 +127,8 @@ FIGURES: tuple[Figure, ...] = (
                     ' eq. 6, over all k components).')),
     Figure('acquisition', 'fig06', 'fig06-fov-vs-point', 'Xu Fig. 6', rule='plot_acquisition_figures', draw='fig06_fov_vs_point',
            caption=('Mean RMS error vs the number of images (near-field, every FOV) or point samples, min E(S); point'
-                    ' samples chosen by min κ dashed.')),
+                    ' samples of the previous work (red: min κ of the first n components, Nielsen 2015 as released)'
+                    ' and of min κ over all k components (Xu eq. 6, dotted).')),
     Figure('acquisition', 'fig07', 'fig07-training-size', 'Xu Fig. 7', rule='plot_acquisition_figures', draw='fig07_training_size', when=_has_training_curve,
            caption=('Mean RMS error of 2-image near-field acquisition vs the number of training materials (materials '
                     'added in seeded random order).')),
@@ -139,10 +140,12 @@ FIGURES: tuple[Figure, ...] = (
                     'fixed camera with moving lights, fixed light with moving cameras; solid min E(S), dashed min κ.')),
     Figure('acquisition', 'fig18', 'fig18-per-material', 'Xu Fig. 18', rule='plot_acquisition_figures', draw='fig18_per_material', when=_has_point,
            caption=('Per held-out material RMS error of point sampling with 5 samples (or fewer when n_max_point is '
-                    'smaller): min E(S) vs min κ, and the deviation floor (all cells observed).')),
+                    'smaller): min E(S) vs the previous work (red: min κ of the first n components, Nielsen 2015 as '
+                    'released) and min κ over all k (Xu eq. 6), and the deviation floor (all cells observed).')),
     Figure('acquisition', 'fig19', 'fig19-error-vs-n', 'Xu Fig. 19', rule='plot_acquisition_figures', draw='fig19_error_vs_n',
-           caption=('Mean RMS error of point sampling vs the number of samples n: min E(S) vs min κ, with the '
-                    'deviation floor.')),
+           caption=('Mean RMS error of point sampling vs the number of samples n: min E(S) vs the previous work '
+                    '(red: min κ of the first n components, Nielsen 2015 as released) and min κ over all k (Xu eq. 6),'
+                    ' with the deviation floor.')),
     Figure('acquisition', 'closedloop', 'closedloop-vs-table', 'Xu §7 (closed loop)', rule='plot_closedloop', draw='plot_closedloop',
            caption=('Closed loop: each held-out material photographed by the optimised set-ups (Mitsuba 3, the '
                     "``merl`` BSDF on a flat sample, a point light, the set-up's camera and resolution, a sensor with"
