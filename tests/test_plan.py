@@ -529,7 +529,7 @@ def _schema_enums(schema: object, path: str = "") -> dict[str, list]:
 
 
 def test_each_schema_enum_equals_its_spec() -> None:
-    """The schema's lists of set-ups, metrics, data spaces and optimisers are the specs' (brdfpipe.spec), in order."""
+    """The schema's lists of set-ups, metrics, data spaces, optimisers and starts are the specs' (brdfpipe.spec), in order."""
     from brdfpipe.spec import acquisition as acq
     from brdfpipe.spec import manifold as man
 
@@ -542,6 +542,9 @@ def test_each_schema_enum_equals_its_spec() -> None:
         "manifold.space": list(man.SPACE_NAMES),
         "manifold.candidates[].space": list(man.SPACE_NAMES),
         "manifold.method": list(man.OPTIMISERS),
+        "manifold.candidates[].method": list(man.OPTIMISERS),
+        "manifold.init": list(man.INITS),
+        "manifold.candidates[].init": list(man.INITS),
     }
     for key, names in expected.items():
         assert enums.get(key) == names, f"schema {key}: {enums.get(key)} != spec {names}"

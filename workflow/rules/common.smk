@@ -169,7 +169,7 @@ try:
     plan.check_config(config, materials=MATERIALS, train=TRAIN_MATERIALS)
     TRAINING_SIZES = plan.training_sizes(ACQ, len(TRAIN_MATERIALS))
     PATH_Q = plan.path_q(MAN)
-    # GPLVM candidates (data space, mu): label -> (space, mu); the default first.
+    # GPLVM candidates: label -> GplvmCandidate (space, mu, normalise, method, init); the default first.
     CANDIDATES = plan.manifold_candidates(MAN)
     # Latent paths (Soler Fig. 9): checked against the database at load.
     MANIFOLD_PATHS = plan.latent_paths(MAN, MATERIALS)
@@ -195,13 +195,13 @@ UNSEEN_FIGURES = plan.unseen_figures(unseen=bool(UNSEEN), evaluated=UNSEEN_EVALU
 UNSEEN_MAP_Q = plan.unseen_map_q(MAN)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
-DEFAULT_CANDIDATE = manifold_specs.candidate_label(MAN["space"], MAN["mu"])
-CANDIDATE_SPACES = sorted({space for space, _ in CANDIDATES.values()} | {"raw"})
+DEFAULT_CANDIDATE = next(iter(CANDIDATES))
+CANDIDATE_SPACES = sorted({c.space for c in CANDIDATES.values()} | {"raw"})
 
 
 def candidate_gram_spaces(candidate):
     """Gram matrices a candidate's measures read: raw (raw-unit stability) and its own space."""
-    return sorted({"raw", CANDIDATES[candidate][0]})
+    return sorted({"raw", CANDIDATES[candidate].space})
 
 
 ALBEDO_MAP_DIMS = plan.albedo_map_dims(MAN)

@@ -1,6 +1,6 @@
 # Manifold track (Soler 2018): the N x N Gram matrix of the mean-subtracted
 # materials in each data space, streamed once from the store, then one GPLVM
-# fit per candidate (data space, mu) and latent dimension q, the comparison of
+# fit per candidate (data space, mu, how it is fitted) and latent dimension q, the comparison of
 # the candidates, the analyses of the default candidate's fits and figures.
 
 
@@ -29,7 +29,7 @@ rule compute_gram:
 
 rule fit_gplvm:
     input:
-        gram=lambda w: fn.gram(CANDIDATES[w.candidate][0]),
+        gram=lambda w: fn.gram(CANDIDATES[w.candidate].space),
         stamp=stamp_of("fit_gplvm"),
     output:
         model=fn.gplvm_model("{candidate}", "{q}"),
@@ -48,11 +48,12 @@ rule fit_gplvm:
         runtime=30,
     params:
         ell=MAN["ell"],
-        mu=lambda w: CANDIDATES[w.candidate][1],
+        mu=lambda w: CANDIDATES[w.candidate].mu,
         seed=MAN["seed"],
         max_sweeps=MAN["max_sweeps"],
-        normalise=MAN["normalise"],
-        method=MAN["method"],
+        normalise=lambda w: CANDIDATES[w.candidate].normalise,
+        method=lambda w: CANDIDATES[w.candidate].method,
+        init=lambda w: CANDIDATES[w.candidate].init,
         code=code("fit_gplvm.py"),
     script:
         "../scripts/fit_gplvm.py"

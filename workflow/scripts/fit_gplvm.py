@@ -15,5 +15,6 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         max_sweeps=snakemake.params.max_sweeps,
         normalise=snakemake.params.normalise,
         method=snakemake.params.method,
+        init=snakemake.params.init,
         threads=snakemake.threads,
     )

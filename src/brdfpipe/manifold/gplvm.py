@@ -107,7 +107,8 @@ scaled by one factor.  Since ``ℓ`` and the scale of ``X`` are interchangeable
 coordinates of BRDF data (units of sr⁻¹·√d) can be anything from 1e-2 to
 1e4 × ℓ: far too small and ``K`` ≈ 11ᵀ + μI is nearly singular, far too large
 and ``K`` ≈ (1 + μ)I carries no structure, and in both cases a local search
-with fixed steps crawls.  Rules tried (:data:`INIT_SCALES`):
+with fixed steps crawls (``init_scale="pca"`` keeps the scores as they are,
+the paper's start).  Rules tried (:data:`INIT_SCALES`):
 
 * ``"nn"``: median nearest-neighbour distance = ℓ;
 * ``"rms"``: RMS pairwise distance = ℓ·√(2q) (unit variance per latent axis
@@ -250,13 +251,14 @@ INIT_SCALES: Final = ("nn", "rms", "unit")
 NEWTON_TRIAL_SCALES: Final = ("rms", "unit")
 #: Optimisers of :func:`fit` (see the module docstring, "Optimisation").
 METHODS: Final = ("newton", "hybrid", "hooke-jeeves")
-#: /2: the digests of the store rows the model was fitted on (``data_digests``) and the file's digest.
-MODEL_FORMAT: Final = "brdfpipe.gplvm/2"
+#: /3: how it was fitted (``normalised``, ``init``) besides the digests of the store rows it was fitted on.
+MODEL_FORMAT: Final = "brdfpipe.gplvm/3"
 #: /2: the digests of the store rows (``row_digests``) and the file's digest.
 GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/2"
 #: Earlier formats: refused with (why, what to do).
 RETIRED_FORMATS: Final = {
     "brdfpipe.gplvm/1": ("it records no digests of the store rows it was fitted on", "refit it"),
+    "brdfpipe.gplvm/2": ("it records neither its normalisation nor its initialisation", "refit it"),
     "brdfpipe.manifold.gplvm.gram/1": ("it records no digests of the store rows it was computed from",
                                        "compute it again"),
 }
@@ -814,6 +816,8 @@ def pca_init(gram: ArrayLike, q: int) -> NDArray[np.float64]:
 def _scale_factor(Y: NDArray[np.float64], rule: str, ell: float) -> float:
     """Factor turning PCA scores ``Y`` into initial latents under ``rule`` (see module docstring)."""
     n, q = Y.shape
+    if rule == "pca":  # the truncated PCA as it is (Soler §3)
+        return 1.0
     if rule == "unit":
         sd = float(Y[:, 0].std())
         return 1.0 / sd if sd > 0 else 1.0
@@ -825,7 +829,7 @@ def _scale_factor(Y: NDArray[np.float64], rule: str, ell: float) -> float:
     if rule == "rms":
         rms = float(np.sqrt((D**2).sum() / (n * (n - 1))))
         return ell * np.sqrt(2.0 * q) / rms if rms > 0 else 1.0
-    raise ValueError(f"unknown init_scale {rule!r}; expected a number or one of best, {', '.join(INIT_SCALES)}")
+    raise ValueError(f"unknown init_scale {rule!r}; expected a number or one of best, pca, {', '.join(INIT_SCALES)}")
 
 
 @dataclass
@@ -1594,8 +1598,8 @@ def fit(
 
     ``method="hybrid"`` / ``"hooke-jeeves"``: ``polish_*`` are L-BFGS-B's
     iteration cap and relative tolerances (hybrid only).  Initialisation: :func:`pca_init` scaled by ``init_scale``
-    (a rule of :data:`INIT_SCALES`, a number = the factor itself, or
-    ``"best"``: every rule is run for ``trial_sweeps`` sweeps and the one with
+    (a rule of :data:`INIT_SCALES`, a number = the factor itself, ``"pca"`` = the
+    scores as they are (factor 1, Soler §3), or ``"best"``: every rule is run for ``trial_sweeps`` sweeps and the one with
     the highest L continues).  Search: a global step (default ``ℓ/4``) for
     every coordinate; each sweep visits the points in a seeded random order,
     tries ±step on each coordinate of the point (first improvement taken),
@@ -1672,6 +1676,10 @@ class GplvmModel:
     #: The Gram matrix was divided by this before fitting (1.0: not normalised); L is of ``G/gram_scale``.
     gram_scale: float = 1.0
     method: str = "hooke-jeeves"
+    #: Whether the Gram matrix was normalised (divided by :func:`gram_scale`) before fitting.
+    normalised: bool = True
+    #: The start asked for (``init_scale`` of :func:`fit`: ``best``, ``pca`` or a scale rule).
+    init: str = "best"
     #: Digest of the store row each material was fitted on (:func:`brdfpipe.data.store.shard_digest`, in
     #: ``names`` order); empty: not tied to a store (it cannot be used with one, see :func:`check_store`).
     data_digests: tuple[int, ...] = field(default=(), repr=False)
@@ -1827,13 +1835,16 @@ def save_model(
     space: str = "raw",
     mean_handling: str = MEAN_HANDLING,
     gram_scale: float = 1.0,
+    normalised: bool = True,
+    init: str = "best",
     data_digests: Sequence[int] = (),
 ) -> None:
     """Write a fit to an npz file atomically, with its digest (:func:`brdfpipe.core.integrity.save_npz`).
 
     Arrays: names, X, ℓ, μ, space, mean handling, chol(K) (the factor that
-    interpolation needs: ``b = K⁻¹k``), L, d, trace, gram scale, method and
-    ``data_digests``: the digests of the store rows the materials were fitted
+    interpolation needs: ``b = K⁻¹k``), L, d, trace, gram scale, method,
+    ``normalised`` (the Gram matrix divided by the gram scale), ``init`` (the
+    start asked for) and ``data_digests``: the digests of the store rows the materials were fitted
     on (from the Gram file, :attr:`brdfpipe.manifold.gram.GramInfo.digests`; empty for a fit that
     did not come from a store), which every use with a store checks
     (:func:`check_store`).
@@ -1858,6 +1869,8 @@ def save_model(
         trace=np.array(result.trace, dtype=np.float64).reshape(-1, 2),
         gram_scale=np.array(float(gram_scale)),
         method=np.array(result.method),
+        normalised=np.array(bool(normalised)),
+        init=np.array(str(init)),
         data_digests=_digest_array(path, data_digests, len(names), "data_digests"),
         digest_algorithm=np.array(STORE_DIGEST_ALGORITHM),
     )
@@ -1880,7 +1893,8 @@ def load_model(path: str | os.PathLike[str]) -> GplvmModel:
         model = GplvmModel(
             names, X, float(z["ell"]), float(z["mu"]), str(z["space"]),
             str(z["mean_handling"]), z["chol"], float(z["log_likelihood"]), float(z["d"]), z["trace"],
-            float(z["gram_scale"]), str(z["method"]), digests, Path(path),
+            float(z["gram_scale"]), str(z["method"]), bool(z["normalised"]), str(z["init"]),
+            data_digests=digests, path=Path(path),
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise GplvmFileError(f"{path}: inconsistent GPLVM model ({type(exc).__name__}: {exc})") from None
@@ -1977,6 +1991,7 @@ def fit_to_files(
     max_sweeps: int = 200,
     normalise: bool = True,
     method: str = "newton",
+    init: str = "best",
     threads: int | None = None,
 ) -> FitResult:
     """Fit a q-dimensional latent space to a saved Gram matrix; write the model and its trace.
@@ -1985,7 +2000,8 @@ def fit_to_files(
     leaves them as they are).
 
     The workflow's ``fit_gplvm`` job.  ``normalise``: fit to ``G/s`` with
-    ``s`` = :func:`gram_scale` (stored in the model).  ``trace_out`` is a CSV
+    ``s`` = :func:`gram_scale` (stored in the model, with ``normalise``);
+    ``init``: the start (``init_scale`` of :func:`fit`, recorded in the model).  ``trace_out`` is a CSV
     ``step,stage,log_likelihood`` (Soler Fig. 5; stage ``hooke-jeeves`` for
     the sweeps, ``lbfgs`` for L-BFGS iterations, ``newton`` for Newton
     steps), written atomically like the model.
@@ -1993,7 +2009,8 @@ def fit_to_files(
     gram, d, info = load_gram(gram_path)
     scale = gram_scale(gram, d) if normalise else 1.0
     with blas_threads(threads):
-        result = fit(gram / scale, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps, method=method)
+        result = fit(gram / scale, d, q=q, ell=ell, mu=mu, seed=seed, max_sweeps=max_sweeps, method=method,
+                     init_scale=init)
     logger.info(
         "q = %d: Gram divided by %.6g; L %.6g -> %.6g in %d sweeps + %d L-BFGS iterations + %d Newton steps, "
         "%.2f s (start scale %s)",
@@ -2001,7 +2018,7 @@ def fit_to_files(
         result.polish_iterations, result.newton_iterations, result.seconds, result.init_scale,
     )
     save_model(model_out, result, info.materials, space=info.space, mean_handling=info.mean_handling,
-               gram_scale=scale, data_digests=info.digests)
+               gram_scale=scale, normalised=normalise, init=init, data_digests=info.digests)
     write_trace(trace_out, result)
     return result
 

@@ -18,7 +18,7 @@ from typing import Any
 
 from brdfpipe.core import filenames
 from brdfpipe.spec.errors import ConfigError
-from brdfpipe.spec.manifold import candidate_label, check_paths, default_paths
+from brdfpipe.spec.manifold import STANDARD_FIT, GplvmCandidate, check_paths, default_paths
 
 __all__ = [
     "ConfigError",
@@ -167,20 +167,32 @@ def path_q(manifold: Mapping[str, Any]) -> int:
     return q
 
 
-def manifold_candidates(manifold: Mapping[str, Any]) -> dict[str, tuple[str, float]]:
-    """Label → (space, μ) of every GPLVM candidate: the default (``space``, ``mu``) first, then ``candidates``.
+def manifold_candidates(manifold: Mapping[str, Any]) -> dict[str, GplvmCandidate]:
+    """Label → :class:`~brdfpipe.spec.manifold.GplvmCandidate` of every GPLVM candidate: the default first.
 
-    :class:`ConfigError` naming ``manifold.candidates`` for two entries with the same label.
+    The default is (``space``, ``mu``) fitted with ``normalise``, ``method``
+    and ``init``; each entry of ``candidates`` is fitted with its own
+    ``normalise`` / ``method`` / ``init`` where it gives them, else with
+    those.  :class:`ConfigError` naming ``manifold.candidates`` for two
+    entries with the same label.
     """
-    out = {candidate_label(manifold["space"], manifold["mu"]): (str(manifold["space"]), float(manifold["mu"]))}
+    fit = {k: manifold.get(k, d) for k, d in zip(("normalise", "method", "init"), STANDARD_FIT)}
+
+    def candidate(c: Mapping[str, Any]) -> GplvmCandidate:
+        return GplvmCandidate(str(c["space"]), float(c["mu"]), bool(c.get("normalise", fit["normalise"])),
+                              str(c.get("method", fit["method"])), str(c.get("init", fit["init"])))
+
+    first = candidate(manifold)
+    out = {first.label: first}
     seen: set[str] = set()
     for k, c in enumerate(manifold.get("candidates") or []):
-        label = candidate_label(c["space"], c["mu"])
+        cand = candidate(c)
+        label = cand.label
         if label in seen:
             raise ConfigError(f"config manifold.candidates[{k}]: {label} is listed twice")
         seen.add(label)
-        have = out.setdefault(label, (str(c["space"]), float(c["mu"])))
-        if have != (str(c["space"]), float(c["mu"])):
+        have = out.setdefault(label, cand)
+        if have != cand:
             raise ConfigError(
                 f"config manifold.candidates[{k}]: mu = {c['mu']!r} differs from manifold.mu = {manifold['mu']!r} only "
                 f"past 6 significant digits, so both would be {label}; use the same value or distinct ones"

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Final, NamedTuple
 
 from brdfpipe.spec.errors import ConfigError
 
@@ -32,8 +33,14 @@ __all__ = [
     "SPACE_NAMES",
     "LINEAR_SPACES",
     "OPTIMISERS",
+    "INITS",
+    "STANDARD_FIT",
+    "PAPER_RECIPE",
+    "GplvmCandidate",
     "SOLER_PATHS",
     "candidate_label",
+    "is_paper_recipe",
+    "describe_fit",
     "path_name",
     "default_paths",
     "check_paths",
@@ -73,6 +80,36 @@ SPACE_NAMES: tuple[str, ...] = tuple(DATA_SPACES)
 LINEAR_SPACES: tuple[str, ...] = tuple(n for n, s in DATA_SPACES.items() if s.linear)
 #: The GPLVM optimisers (``manifold.method``).
 OPTIMISERS: tuple[str, ...] = ("newton", "hybrid", "hooke-jeeves")
+#: The initialisations of a fit (``manifold.init``): the truncated PCA of the data scaled by the best of the
+#: scale rules (``best``), by one rule (``rms``, ``unit``, ``nn``), or as it is (``pca``: the paper's, Soler §3).
+INITS: tuple[str, ...] = ("best", "rms", "unit", "nn", "pca")
+
+
+class GplvmCandidate(NamedTuple):
+    """One GPLVM candidate: data space and μ, and how it is fitted (normalisation, optimiser, initialisation).
+
+    ``normalise``: fit to G / (tr G / (N·d)) (a fixed signal variance equal to
+    the data's) or to the Gram matrix as it is; ``method``: one of
+    :data:`OPTIMISERS`; ``init``: one of :data:`INITS`.
+    """
+
+    space: str
+    mu: float
+    normalise: bool = True
+    method: str = "newton"
+    init: str = "best"
+
+    @property
+    def label(self) -> str:
+        return candidate_label(self.space, self.mu, self.normalise, self.method, self.init)
+
+
+#: How a candidate is fitted when its label names nothing but its space and μ: normalised Gram, the Newton
+#: optimiser, the best-scaled PCA start (this project's fit since issue 23).
+STANDARD_FIT: Final = (True, "newton", "best")
+#: Soler et al. 2018's recipe (§3): raw BRDF values and Gram (no normalisation, no signal variance),
+#: μ = 1e-4, Hooke–Jeeves direct search from the truncated PCA; ℓ = 1 is the workflow's ``manifold.ell``.
+PAPER_RECIPE: Final = GplvmCandidate("raw", 1e-4, False, "hooke-jeeves", "pca")
 
 #: The latent paths of Soler et al. 2018, Fig. 9 (used when all six materials exist).
 SOLER_PATHS: tuple[tuple[str, str], ...] = (
@@ -82,17 +119,45 @@ SOLER_PATHS: tuple[tuple[str, str], ...] = (
 )
 
 
-def candidate_label(space: str, mu: float) -> str:
-    """``"<space>-mu<μ>"``, e.g. ``raw-mu0.0001``: a GPLVM candidate's name in file names and tables.
+def candidate_label(space: str, mu: float, normalise: bool = True, method: str = "newton", init: str = "best") -> str:
+    """A GPLVM candidate's name in file names and tables: ``"<space>-mu<μ>"`` and what its fit does otherwise.
 
-    ValueError for an unknown space or a μ that is not a finite number ≥ 0.
+    ``raw-mu0.0001`` is fitted as :data:`STANDARD_FIT` (normalised Gram,
+    ``newton``, ``best`` start); a fit that differs says how, in this order:
+    ``-unnormalised``, ``-<method>``, ``-init-<init>``; e.g. the paper's recipe
+    (:data:`PAPER_RECIPE`) is ``raw-mu0.0001-unnormalised-hooke-jeeves-init-pca``.
+    ValueError for an unknown space, optimiser or initialisation, or a μ that
+    is not a finite number ≥ 0.
     """
     if space not in DATA_SPACES:
         raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(DATA_SPACES)}")
     mu_f = float(mu)
     if not math.isfinite(mu_f) or mu_f < 0:
         raise ValueError(f"mu must be a finite number >= 0, got {mu!r}")
-    return f"{space}-mu{mu_f:g}"
+    if method not in OPTIMISERS:
+        raise ValueError(f"unknown optimiser {method!r}; expected one of {', '.join(OPTIMISERS)}")
+    if init not in INITS:
+        raise ValueError(f"unknown initialisation {init!r}; expected one of {', '.join(INITS)}")
+    norm, std_method, std_init = STANDARD_FIT
+    return (f"{space}-mu{mu_f:g}" + ("" if bool(normalise) == norm else "-unnormalised")
+            + ("" if method == std_method else f"-{method}") + ("" if init == std_init else f"-init-{init}"))
+
+
+def is_paper_recipe(space: str, mu: float, normalise: bool, method: str, init: str, ell: float = 1.0) -> bool:
+    """Whether a fit is Soler et al. 2018's recipe (:data:`PAPER_RECIPE`, with ℓ = 1)."""
+    p = PAPER_RECIPE
+    return (space == p.space and math.isclose(float(mu), p.mu) and bool(normalise) == p.normalise
+            and method == p.method and init == p.init and math.isclose(float(ell), 1.0))
+
+
+def describe_fit(normalise: bool, method: str, init: str) -> str:
+    """How a candidate is fitted, in words (for tables and claims)."""
+    starts = {"best": "the PCA start scaled by the better of the rms / unit rules", "pca": "the truncated PCA as it is",
+              "rms": "the PCA start scaled by the rms rule", "unit": "the PCA start scaled by the unit rule",
+              "nn": "the PCA start scaled by the nearest-neighbour rule"}
+    gram = ("normalised Gram (a fixed signal variance, tr G / (N·d))" if normalise
+            else "raw Gram (no normalisation, no signal variance)")
+    return f"{gram}, {method} from {starts.get(init, init)}"
 
 
 def path_name(a: str, b: str) -> str:
