@@ -142,7 +142,16 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
         assert r["kappa"] == pytest.approx(np.linalg.cond(gplvm.kernel_matrix(m.X, m.ell, m.mu)), rel=1e-6)
         assert 0.0 <= r["albedo_bad_hull"] <= 1.0 and r["hull_points"] == fidelity.HULL_POINTS
         assert r["sum_abs_w_hull_median"] >= 1.0 - 1e-9
+        assert (r["normalise"], r["method"], r["init"]) == (True, "newton", "best")  # how the fixture was fitted
+        # eq. 6 without the normalisation: the fit's L is that of G/s, another number
+        Gc, d, _ = gplvm.load_gram(setup["grams"]["standardised"])
+        assert r["log_likelihood_eq6"] == pytest.approx(gplvm.log_likelihood(m.X, Gc, d, m.ell, m.mu), rel=1e-12)
+        assert r["log_likelihood"] == m.log_likelihood != pytest.approx(r["log_likelihood_eq6"], rel=1e-3)
+        assert r["albedo_clamped_points"] == fidelity.CLAMPED_HULL_POINTS and 0 <= r["albedo_clamped_bad_hull"] <= 1
+        assert r["jump_nn_median_1e-6"] <= r["jump_nn_p90_1e-6"] <= r["jump_nn_max_1e-6"]
+        assert r["jump_nn_worst"].count(">") == 1 and r["reproduction_max"] < 1e-6
     assert np.isnan(rows[1]["albedo_bad_map"]) and not np.isnan(rows[0]["albedo_bad_map"])
+    assert np.isnan(rows[1]["albedo_clamped_bad_map"]) and not np.isnan(rows[0]["albedo_clamped_bad_map"])
     assert np.isnan(rows[0]["perceptual_max_deviation"]) and rows[1]["perceptual_max_deviation"] >= 0.0
     # the map statistic by another route: the grid of analysis.albedo_map, w·A outside [0, 1]
     m2 = _model(setup, 2)
@@ -192,9 +201,10 @@ def test_albedo_map_hull_statistics(setup: dict) -> None:
     assert float(amap["training_gap_max"]) == pytest.approx(gap.max())
 
 
-def test_log_candidate_measures_every_blend_of_its_fits_in_one_pass(setup: dict, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The log space: the hull points of every q and the path points blended together (issue 23), the
-    measures equal to those of each point's table formed whole (the route before) to 1e-9."""
+def test_log_candidate_measures_its_blends_in_two_passes(setup: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The log space: the clamped tables' hull points of every q in one pass over the albedo's cells, the path
+    points in another (issue 23: not a pass per point); the measures equal to those of each point's table formed
+    whole (the route before) to 1e-9."""
     from brdfpipe.manifold import blendpass, perceptual
 
     tmp = setup["tmp"]
@@ -210,29 +220,34 @@ def test_log_candidate_measures_every_blend_of_its_fits_in_one_pass(setup: dict,
     real_blends, real_measure = blendpass.measure_blends, fidelity.measure_model
 
     def counted(*a, **k):
-        passes.append(1)
+        passes.append(k.get("albedo_only", False))
         return real_blends(*a, **k)
 
     def spied(m, **k):
-        given[m.X.shape[1]] = k["blend_albedo"]  # the albedos the shared pass measured
+        given[m.X.shape[1]] = k["clamped_albedo"]  # the albedos the shared pass measured
         return real_measure(m, **k)
 
     monkeypatch.setattr(blendpass, "measure_blends", counted)
     monkeypatch.setattr(fidelity, "measure_model", spied)
+    monkeypatch.setattr(fidelity, "CLAMPED_HULL_POINTS", 12)
     names = setup["names"]
     paths = [[names[0], names[5]], [names[3], names[1]]]
     rows = fidelity.measure_candidate(
         store=setup["store"], grams=grams, models=models, candidate="log-mu0.0001", default="log-mu0.0001",
-        paths=paths, path_q=3, seed=4, steps=4, spaces_out=tmp / "log.csv", stability_out=tmp / "log-stab.csv")
-    assert len(passes) == 1 and [r["q"] for r in rows] == [2, 3]
+        paths=paths, path_q=3, seed=4, steps=4, albedo_grid=6, spaces_out=tmp / "log.csv",
+        stability_out=tmp / "log-stab.csv")
+    assert passes == [True, False] and [r["q"] for r in rows] == [2, 3]
     for q, row in zip((2, 3), rows):  # the albedo of each hull point's table, formed whole
         m = gplvm.load_model(models[q])
         H = latent.sample_in_hull(m.X, fidelity.HULL_POINTS, np.random.default_rng([4, q, *b"log-mu0.0001"]))
-        tables, clamped = gplvm.interpolate_tables(setup["store"], fidelity.smooth_weights(m, H[:16]), model=m,
+        tables, clamped = gplvm.interpolate_tables(setup["store"], fidelity.smooth_weights(m, H[:12]), model=m,
                                                    space="log")
         want = np.stack([albedo.material_albedo(t) for t in tables])
         np.testing.assert_allclose(given[q], want, rtol=1e-9, atol=0)
-        assert row["albedo_bad_hull"] == ((want < 0) | (want > 1)).any(axis=1).mean()
+        bad = ((want < 0) | (want > 1)).any(axis=1).mean()
+        assert row["albedo_clamped_bad_hull"] == row["albedo_bad_hull"] == bad and row["albedo_clamped_points"] == 12
+        assert np.isnan(row["jump_nn_max_1e-6"]) and row["jump_nn_worst"] == ""  # not a Gram quantity here
+    assert 0.0 <= rows[0]["albedo_clamped_bad_map"] <= 1.0 and np.isnan(rows[1]["albedo_clamped_bad_map"])
     m3 = gplvm.load_model(models[3])
     ref = []
     for a, b in paths:  # each path's tables formed whole
@@ -243,3 +258,79 @@ def test_log_candidate_measures_every_blend_of_its_fits_in_one_pass(setup: dict,
     want = fidelity.path_uniformity(ref)
     assert rows[1]["perceptual_max_deviation"] == pytest.approx(want["perceptual_max_deviation"], rel=1e-9)
     assert rows[1]["perceptual_decreasing_steps"] == want["perceptual_decreasing_steps"]
+
+
+# -- what is rendered: the clamped table and the table next to a material, through `brdfpipe interpolate` --
+
+EPS = float(np.finfo(np.float64).eps)
+
+
+def _interpolate(setup: dict, q: int, out: Path, *args: str) -> np.ndarray:
+    """The table `brdfpipe interpolate` writes (the command line, as a user runs it)."""
+    from brdfpipe import cli
+
+    assert cli.main(["interpolate", "--model", str(setup["models"][q]), "--store", str(setup["store"]), *args,
+                     "--out", str(out)]) == 0
+    return merl.read_merl(out)
+
+
+def test_clamped_albedo_is_that_of_the_table_brdfpipe_interpolate_writes(setup: dict, tmp_path: Path) -> None:
+    """The albedo the fidelity measure gives a latent point equals the white-sky albedo of the MERL file that
+    `brdfpipe interpolate --at` writes, computed here from the file's table (merl.directional_albedo over the
+    same θi nodes), not from w·A — which differs where the blend has negative values."""
+    m = _model(setup, 2)
+    H = latent.sample_in_hull(m.X, 4, np.random.default_rng(1))
+    got = fidelity.clamped_albedos(setup["store"], {2: m}, {2: H})[2]
+    A = albedo.material_albedos(setup["store"], m.names)
+    W = fidelity.smooth_weights(m, H)
+    theta = np.arcsin(np.sqrt((np.arange(albedo.ALBEDO_NODES) + 0.5) / albedo.ALBEDO_NODES))
+    differs = 0
+    for k, x in enumerate(H):
+        table = _interpolate(setup, 2, tmp_path / f"p{k}.binary", "--at=" + ",".join(repr(float(v)) for v in x))
+        want = merl.directional_albedo(table, theta).mean(axis=0)
+        # bound: the weights of one point (gplvm.weights) and of many (smooth_weights) differ by rounding, which
+        # moves the clamped table's albedo by at most Σ|Δwᵢ| Aᵢ (clamping is 1-Lipschitz, the albedo weights are
+        # ≥ 0 and the materials' values too); the sums over ≤ N_CELLS cells in another order and the MERL file's
+        # scale factors (2 roundings a value) add 4 N_CELLS eps of the albedo
+        dw = np.abs(gplvm.blend_weights(gplvm.weights(m, x)) - W[k])
+        tol = dw @ A.max(axis=1) + 4 * N_CELLS * EPS * want
+        assert np.all(np.abs(got[k] - want) <= tol), (got[k], want, tol)
+        differs += bool(np.any(np.abs(W[k] @ A - want) > 100 * tol))  # the unclamped Σ wᵢ Aᵢ: another number
+    assert differs >= 2
+
+
+def _distance_bound(w: np.ndarray, i: int, norms: np.ndarray, n_values: int) -> float:
+    """Bound on |Gram-route − direct| of ‖Σ wⱼ zⱼ − zᵢ‖ / ‖zᵢ‖ from rounding alone.
+
+    The Gram route: each entry of G = Z Zᵀ is a sum of n_values products, off by at most n_values·eps·‖zⱼ‖‖zₖ‖,
+    so vᵀGv (v = w − eᵢ) by n_values·eps·(Σ|vⱼ|‖zⱼ‖)² and its root by the root of that.  The direct route: each
+    value of Σ wⱼ zⱼ − zᵢ is off by at most (N + 1)·eps·Σ|wⱼ||zⱼ| (and its norm by one more eps).
+    """
+    v = w - np.eye(len(w))[i]
+    gram = np.sqrt(n_values * EPS) * float(np.abs(v) @ norms)
+    direct = (len(w) + 2) * EPS * (float(np.abs(w) @ norms) + norms[i])
+    return (gram + direct) / norms[i]
+
+
+def test_jump_next_to_a_material_is_the_table_brdfpipe_interpolate_writes(setup: dict, tmp_path: Path) -> None:
+    """jump_nn: the table `brdfpipe interpolate --between i j --t 1e-6` writes (j the nearest neighbour), against
+    the material's own table; at t = 0 the same command gives the material back (reproduction_max), which a
+    measure at the points alone would report as the interpolant's fidelity."""
+    m = _model(setup, 3)
+    _, _, info = gplvm.load_gram(setup["grams"]["raw"])
+    jump, nn = fidelity.nearest_neighbour_jump(m, info.raw_gram)
+    repro = fidelity.reproduction_at_points(m, info.raw_gram)
+    Z = setup["brdf"][:, setup["valid"]]
+    norms = np.linalg.norm(Z, axis=1)
+    i = int(jump.argmax())
+    a, b = m.names[i], m.names[int(nn[i])]
+    for t, measured in ((1e-6, jump[i]), (0.0, repro[i])):
+        table = _interpolate(setup, 3, tmp_path / f"t{t:g}.binary", "--between", a, b, "--t", f"{t:g}")
+        w = gplvm.blend_weights(gplvm.weights(m, (1.0 - t) * m.X[i] + t * m.X[int(nn[i])]))
+        unclamped = w @ Z
+        direct = np.linalg.norm(unclamped - Z[i]) / norms[i]
+        assert abs(measured - direct) <= _distance_bound(w, i, norms, Z.shape[1]), (t, measured, direct)
+        # the file: the clamped table (clamping, a projection onto tables ≥ 0 that holds zᵢ, brings it no farther)
+        written = np.linalg.norm(table.reshape(-1)[setup["valid"]] - Z[i]) / norms[i]
+        assert written <= direct * (1 + 1e-9) + 1e-12
+    assert jump[i] > 1e3 * max(repro[i], 1e-12)  # next to the material, not at it: the jump the δ term hides

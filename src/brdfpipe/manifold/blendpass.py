@@ -85,6 +85,7 @@ def measure_blends(
     space: str | None = None,
     model: gplvm.GplvmModel | None = None,
     pairs: Sequence[tuple[int, int]] = (),
+    albedo_only: bool = False,
 ) -> BlendMeasures:
     """Albedo of each blend ``weights`` ``(P, N)`` and the PR12 distances of ``pairs``, in one pass over the store.
 
@@ -94,7 +95,10 @@ def measure_blends(
     own; ``space`` None: the model's, or ``raw`` without one).  ``pairs``:
     ``(i, j)`` row indices of ``weights`` whose tables' distance is wanted
     (only the rows in a pair get PR12 features).  Working memory is bounded
-    by :data:`POINT_CELLS`, whatever P.  See the module docstring.
+    by :data:`POINT_CELLS`, whatever P.  ``albedo_only`` (no ``pairs``): blend
+    only the cells the albedo reads (a fifth of the valid ones: the same
+    albedo for a fifth of the work; ``clamped`` then counts those cells).
+    See the module docstring.
     """
     st = store if isinstance(store, BrdfStore) else open_store(store)
     if model is not None:
@@ -119,7 +123,10 @@ def measure_blends(
     rows, W_sorted = idx[order], W[:, order]
     P = W.shape[0]
 
-    cells = np.flatnonzero(np.asarray(st.valid[:], dtype=bool)).astype(np.int64)
+    if albedo_only and pairs:
+        raise ValueError("albedo_only blends the cells the albedo reads: no perceptual distance (pairs) then")
+    use = np.asarray(st.valid[:], dtype=bool) & (albedo_cell_weights() != 0 if albedo_only else True)
+    cells = np.flatnonzero(use).astype(np.int64)
     a_w = albedo_cell_weights()[cells]
     wt = logmap.cell_weights(cells, "product") if space == "log" else None
     paired = sorted({int(k) for pair in pairs for k in pair})

@@ -15,26 +15,54 @@ gives ``w = eᵢ`` (:func:`brdfpipe.manifold.gplvm.weights`).  The gap between t
 
 Measures
 --------
-* ``albedo_bad_hull``: share of latent points, drawn uniformly inside the
-  convex hull of the training points (:func:`brdfpipe.manifold.latent.sample_in_hull`),
-  whose interpolated material has an albedo outside [0, 1] in some channel;
-  ``albedo_bad_map`` the same over the plotted albedo map (q = 2: the grid of
-  :func:`brdfpipe.manifold.analysis.latent_grid`, 15 % past the data).  In the linear
-  spaces the albedo of the blend is ``w·A`` exactly (albedo is linear in the
-  BRDF; the clamping of negative values before rendering is not applied); in
-  the ``log`` space it is computed from the interpolated tables of
-  :data:`LOG_ALBEDO_POINTS` of the points (the map is not computed).
+* ``albedo_clamped_bad_hull``: share of latent points, drawn uniformly inside
+  the convex hull of the training points (:func:`brdfpipe.manifold.latent.sample_in_hull`;
+  the first :data:`CLAMPED_HULL_POINTS` of them, ``albedo_clamped_points``),
+  whose interpolated table *as a renderer receives it* — negative values
+  clamped to 0, exactly the table :func:`brdfpipe.manifold.gplvm.interpolate_tables`
+  and ``brdfpipe interpolate`` write — has a white-sky albedo (Soler §4.2's
+  albedo, :func:`brdfpipe.manifold.albedo.material_albedo`) outside [0, 1] in
+  some channel; ``albedo_clamped_bad_map`` the same over the plotted albedo
+  map (q = 2: every :data:`CLAMPED_MAP_STRIDE`-th row and column of the grid of
+  :func:`brdfpipe.manifold.analysis.latent_grid`, 15 % past the data).  Measured
+  in one pass over the store for every q of a candidate, over the cells the
+  albedo reads (:func:`brdfpipe.manifold.blendpass.measure_blends`).  Clamping
+  only raises a table, so it turns albedos below 0 into albedos ≥ 0 and can
+  push one above 1.
+* ``albedo_bad_hull`` / ``albedo_bad_map``: the same over all
+  :data:`HULL_POINTS` hull points and the whole map for the *unclamped* table
+  ``Σ wᵢ zᵢ``, whose albedo is ``w·A`` exactly in the linear spaces (albedo is
+  linear in the BRDF): a diagnostic of negative lobes, not what is rendered.
+  In the ``log`` space the blend is not linear and every table is clamped:
+  there both columns are the clamped table's (the map is not computed).
 * ``sum_abs_w_*``: ``Σ|wᵢ|`` over the hull points and along the paths
   (median and max): 1 for a convex blend; large values mean cancelling
   weights, noise amplification in image blends and negative BRDF values.
-* ``kappa``: the 2-norm condition number of K.
+* ``kappa``: the 2-norm condition number of K; ``log_likelihood``: L of the
+  fit (of G/s when the fit was normalised); ``log_likelihood_eq6``: Soler's
+  eq. 6 at the fitted points with the space's Gram matrix as it is (no
+  normalisation), so fits of one space compare whatever their normalisation.
+* ``jump_nn_*_1e-6`` (:func:`nearest_neighbour_jump`): next to each material,
+  towards its nearest neighbour in latent space (``x = (1 − t) xᵢ + t xⱼ``,
+  t = :data:`NN_STEP`, the point ``brdfpipe interpolate --between i j --t 1e-6``
+  takes), the distance of the interpolated table from the material's,
+  ``‖z(x) − zᵢ‖ / ‖zᵢ‖`` in raw BRDF units over the valid cells (exactly, from
+  the raw Gram matrix); median, 90th percentile, max and the worst pair.  With
+  the kernel's noise term μ the weights a hair away from a training point are
+  not its own (``μ K⁻¹ eᵢ`` off), so the interpolant jumps there.  It is the
+  unclamped table's distance; clamping is a projection onto the non-negative
+  tables, which contains zᵢ, so the rendered table is no farther.
+* ``reproduction_max``: at the training points themselves (the model's own
+  weights, δ term included), the largest ``‖z(xᵢ) − zᵢ‖ / ‖zᵢ‖`` in raw units:
+  rounding, amplified by κ(K).
 * stability (:func:`stability`): relative change of the interpolated
   material ``‖z(xᵢ + εu) − zᵢ‖ / ‖zᵢ‖`` for a random unit direction ``u`` per
   material and ε in :data:`EPSILONS` (ℓ units), exactly from Gram matrices
   (``‖Σ vⱼ zⱼ‖² = vᵀ G v``, ``v = w − eᵢ``), in raw BRDF units
   (``norm = "raw"``) and in the space the model was fitted in
   (``norm = "space"``); median, 90th percentile and max over the materials.
-  For ε → 0 it tends to the reproduction error of the smooth interpolant.
+  For ε → 0 it tends to the reproduction error of the smooth interpolant (the
+  jump above, in a random direction rather than towards a neighbour).
 * nearest-neighbour spread: distance from each latent point to its nearest
   neighbour (median, min, in ℓ), and the number of pairs closer than
   ``√(2μ)`` (where the kernel's δ term outweighs their distance) and 1e-5.
@@ -52,7 +80,6 @@ import io
 import logging
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -69,14 +96,18 @@ from brdfpipe.spec import tables
 
 __all__ = [
     "EPSILONS",
-    "LOG_ALBEDO_POINTS",
+    "NN_STEP",
+    "CLAMPED_HULL_POINTS",
+    "CLAMPED_MAP_STRIDE",
     "SPACE_COLUMNS",
     "STABILITY_COLUMNS",
-    "Candidate",
     "candidate_label",
     "smooth_weights",
     "albedo_outside",
+    "clamped_albedos",
     "stability",
+    "nearest_neighbour_jump",
+    "reproduction_at_points",
     "nearest_neighbour_spread",
     "path_uniformity",
     "hull_sample",
@@ -89,24 +120,17 @@ logger = logging.getLogger("brdfpipe.manifold.fidelity")
 
 #: Offsets from the training points (ℓ units) of the stability measure.
 EPSILONS: Final = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
-#: Latent points whose tables are interpolated to measure albedo in the ``log`` space.
-LOG_ALBEDO_POINTS: Final = 16
+#: The step towards the nearest neighbour (a fraction of the way) of the continuity measure.
+NN_STEP: Final = 1e-6
 #: Hull points drawn per model for the albedo and weight statistics.
 HULL_POINTS: Final = 20000
+#: The hull points (the first drawn) whose clamped tables' albedo is measured: each costs a blend of every
+#: material over the albedo's cells (~0.9 M values); 2,000 give a share to ±0.5 % (one standard error at 5 %).
+CLAMPED_HULL_POINTS: Final = 2000
+#: Every this-th row and column of the albedo map grid whose clamped tables' albedo is measured (q = 2).
+CLAMPED_MAP_STRIDE: Final = 3
 SPACE_COLUMNS: Final = tables.SPACES
 STABILITY_COLUMNS: Final = tables.STABILITY
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """One data space and noise term μ whose fits are compared."""
-
-    space: str
-    mu: float
-
-    @property
-    def label(self) -> str:
-        return candidate_label(self.space, self.mu)
 
 
 # --------------------------------------------------------------------------
@@ -150,6 +174,23 @@ def albedo_outside(
     return _outside(blendpass.measure_blends(store, W, model=model).albedo)
 
 
+def clamped_albedos(
+    store: Any, fits: Mapping[int, gplvm.GplvmModel], points: Mapping[int, NDArray[np.float64]]
+) -> dict[int, NDArray[np.float64]]:
+    """White-sky albedo ``(P, 3)`` of the clamped interpolated table at each latent point, per q.
+
+    The tables ``brdfpipe interpolate`` writes (negative values in valid
+    cells set to 0): the fits of one candidate (same materials and space)
+    blended together in one pass over the store, over the cells the albedo
+    reads (:func:`brdfpipe.manifold.blendpass.measure_blends`, ``albedo_only``).
+    """
+    first = next(iter(fits.values()))
+    blocks = [smooth_weights(fits[q], points[q]) for q in fits]
+    got = blendpass.measure_blends(store, np.vstack(blocks), model=first, albedo_only=True)
+    ends = np.cumsum([0] + [b.shape[0] for b in blocks])
+    return {q: got.albedo[a:b] for q, a, b in zip(fits, ends[:-1], ends[1:])}
+
+
 # --------------------------------------------------------------------------
 # Stability near the training points
 # --------------------------------------------------------------------------
@@ -175,13 +216,43 @@ def stability(
         raise ValueError(f"gram must be {n} x {n}, got {G.shape}")
     u = rng.standard_normal((n, q))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return {float(eps): _relative_distances(smooth_weights(model, model.X + float(eps) * u), G) for eps in epsilons}
+
+
+def _relative_distances(W: NDArray[np.float64], G: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``‖Σⱼ Wᵢⱼ zⱼ − zᵢ‖ / ‖zᵢ‖`` per row i, from the un-centred Gram matrix ``G = Z Zᵀ``."""
+    V = W - np.eye(W.shape[0])
     norms = np.sqrt(np.maximum(np.diag(G), 0.0))
     norms[norms == 0] = 1.0
-    out: dict[float, NDArray[np.float64]] = {}
-    for eps in epsilons:
-        V = smooth_weights(model, model.X + float(eps) * u) - np.eye(n)
-        out[float(eps)] = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", V, G, V), 0.0)) / norms
-    return out
+    return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", V, G, V), 0.0)) / norms
+
+
+def nearest_neighbour_jump(
+    model: gplvm.GplvmModel, raw_gram: ArrayLike, t: float = NN_STEP
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Per material i: ``‖z(xᵢ + t(xⱼ − xᵢ)) − zᵢ‖ / ‖zᵢ‖`` with j its nearest neighbour in latent space, and j.
+
+    ``raw_gram``: the un-centred Gram matrix ``Z Zᵀ`` of the materials in
+    model order (raw units).  The point is ``(1 − t) xᵢ + t xⱼ`` and its
+    weights the model's own (:func:`brdfpipe.manifold.gplvm.weights`), as
+    ``brdfpipe interpolate --between`` computes them.  Linear spaces only.
+    """
+    G = np.asarray(raw_gram, dtype=np.float64)
+    X = model.X
+    n = X.shape[0]
+    if G.shape != (n, n):
+        raise ValueError(f"gram must be {n} x {n}, got {G.shape}")
+    D = ((X[:, None, :] - X[None, :, :]) ** 2).sum(axis=2)
+    np.fill_diagonal(D, np.inf)
+    nn = D.argmin(axis=1)
+    W = np.stack([gplvm.blend_weights(gplvm.weights(model, (1.0 - t) * X[i] + t * X[nn[i]])) for i in range(n)])
+    return _relative_distances(W, G), nn
+
+
+def reproduction_at_points(model: gplvm.GplvmModel, raw_gram: ArrayLike) -> NDArray[np.float64]:
+    """``‖z(xᵢ) − zᵢ‖ / ‖zᵢ‖`` per material at its own latent point (the model's weights, δ term included)."""
+    W = np.stack([gplvm.blend_weights(gplvm.weights(model, x)) for x in model.X])
+    return _relative_distances(W, np.asarray(raw_gram, dtype=np.float64))
 
 
 def nearest_neighbour_spread(model: gplvm.GplvmModel) -> dict[str, float]:
@@ -236,56 +307,50 @@ def measure_model(
     *,
     albedos: ArrayLike,
     raw_gram: ArrayLike,
-    space_gram: ArrayLike,
+    space_gram: ArrayLike | None,
+    centred_gram: ArrayLike,
     paths: Sequence[tuple[str, str]],
     steps: int,
     rng: np.random.Generator,
-    store: Any = None,
+    clamped_albedo: ArrayLike,
+    clamped_map_albedo: ArrayLike | None = None,
     hull_points: int = HULL_POINTS,
     albedo_grid: int = 96,
     hull: ArrayLike | None = None,
-    blend_albedo: ArrayLike | None = None,
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Every measure of the module docstring for one fit: a :data:`SPACE_COLUMNS` row (partial) and stability rows.
 
     ``raw_gram`` / ``space_gram``: un-centred Gram matrices of the model's
     materials in raw units and in the model's space (``space_gram`` may be
     None for the ``log`` space, whose stability is not a Gram quantity and
-    is left empty).  ``paths``: latent paths (material pairs) for ``Σ|w|``.
+    is left empty); ``centred_gram``: the centred Gram matrix of the model's
+    space (eq. 6 without normalisation).  ``paths``: latent paths (material
+    pairs) for ``Σ|w|``.  ``clamped_albedo`` / ``clamped_map_albedo``: the
+    albedos ``(P, 3)`` of the clamped tables at the first hull points and at
+    the map's sub-grid (q = 2; :func:`clamped_albedos`, measured by the caller
+    in one pass for every q).
 
     ``hull``: the hull points, already drawn from ``rng`` (:func:`hull_sample`;
     ``rng`` then in the state after the draw); None: drawn here.
-    ``blend_albedo``: in the ``log`` space, the albedo ``(P, 3)`` of the
-    interpolated tables at the first :data:`LOG_ALBEDO_POINTS` hull points,
-    measured by the caller in a pass over the store it shares with other
-    blends (:func:`measure_candidate`); None: measured here from ``store``.
     """
     A = np.asarray(albedos, dtype=np.float64)
     n, q = model.X.shape
     row: dict[str, Any] = {"q": q, "log_likelihood": model.log_likelihood}
+    row["log_likelihood_eq6"] = gplvm.log_likelihood(model.X, centred_gram, model.d, model.ell, model.mu)
     K = model.chol @ model.chol.T
     row["kappa"] = float(np.linalg.cond(K))
     linear = model.space in LINEAR_SPACES
-
     H = hull_sample(model, hull_points, rng) if hull is None else np.asarray(hull, dtype=np.float64)
-    row["hull_points"] = int(H.shape[0])
-    if linear:
-        row["albedo_bad_hull"] = float(albedo_outside(model, H, A).mean())
-    else:
-        pick = H[: LOG_ALBEDO_POINTS]
-        if blend_albedo is None:
-            row["albedo_bad_hull"] = float(albedo_outside(model, pick, A, store=store).mean())
-        else:
-            alb = np.asarray(blend_albedo, dtype=np.float64)
-            if alb.shape != (pick.shape[0], 3):
-                raise ValueError(f"blend_albedo must have shape ({pick.shape[0]}, 3), got {alb.shape}")
-            row["albedo_bad_hull"] = float(_outside(alb).mean())
-        row["hull_points"] = int(pick.shape[0])
-    if q == 2 and linear:
-        xs, ys = analysis.latent_grid(model.X, (0, 1), albedo_grid)
-        XX, YY = np.meshgrid(xs, ys)
-        row["albedo_bad_map"] = float(albedo_outside(model, np.c_[XX.ravel(), YY.ravel()], A).mean())
-    else:
+    bad = _outside(np.asarray(clamped_albedo, dtype=np.float64))
+    row["albedo_clamped_bad_hull"], row["albedo_clamped_points"] = float(bad.mean()), int(bad.size)
+    row["albedo_clamped_bad_map"] = (float("nan") if clamped_map_albedo is None else
+                                     float(_outside(np.asarray(clamped_map_albedo, dtype=np.float64)).mean()))
+    if linear:  # the unclamped table's albedo w·A, every hull point and the whole map
+        row["albedo_bad_hull"], row["hull_points"] = float(albedo_outside(model, H, A).mean()), int(H.shape[0])
+        row["albedo_bad_map"] = (float(albedo_outside(model, _map_points(model.X, albedo_grid), A).mean())
+                                 if q == 2 else float("nan"))
+    else:  # every table of the log space is clamped
+        row["albedo_bad_hull"], row["hull_points"] = row["albedo_clamped_bad_hull"], row["albedo_clamped_points"]
         row["albedo_bad_map"] = float("nan")
     sw = np.abs(smooth_weights(model, H)).sum(axis=1)
     row["sum_abs_w_hull_median"], row["sum_abs_w_hull_max"] = float(np.median(sw)), float(sw.max())
@@ -298,6 +363,7 @@ def measure_model(
     spa = np.concatenate(sp) if sp else np.array([np.nan])
     row["sum_abs_w_path_median"], row["sum_abs_w_path_max"] = float(np.median(spa)), float(np.max(spa))
     row.update(nearest_neighbour_spread(model))
+    row.update(_continuity(model, raw_gram if linear else None))
 
     stab_rows: list[dict[str, Any]] = []
     for norm, G in (("raw", raw_gram), ("space", space_gram)):
@@ -314,46 +380,41 @@ def measure_model(
     return row, stab_rows
 
 
-@dataclass(frozen=True)
-class _SharedBlends:
-    hull_albedo: dict[int, NDArray[np.float64]]  # q → albedo (LOG_ALBEDO_POINTS, 3) (non-linear spaces)
-    path_distances: list[NDArray[np.float64]]  # per latent path: the distances of LatentPath.pairs()
+def _map_points(X: NDArray[np.float64], grid: int, stride: int = 1) -> NDArray[np.float64]:
+    """The albedo map's latent points (q = 2), every ``stride``-th row and column of its grid."""
+    xs, ys = analysis.latent_grid(X, (0, 1), grid)
+    XX, YY = np.meshgrid(xs[::stride], ys[::stride])
+    return np.c_[XX.ravel(), YY.ravel()]
 
 
-def _shared_blends(
-    st: Any, fits: Mapping[int, gplvm.GplvmModel], hulls: Mapping[int, NDArray[np.float64]],
-    paths: Sequence[analysis.LatentPath],
-) -> _SharedBlends:
-    """Every interpolated table a candidate's measures need, measured in one pass over the store.
+def _continuity(model: gplvm.GplvmModel, raw_gram: ArrayLike | None) -> dict[str, Any]:
+    """The ``jump_nn_*`` and ``reproduction_max`` columns (NaN / empty without a raw Gram: the log space)."""
+    if raw_gram is None:
+        return {"jump_nn_median_1e-6": float("nan"), "jump_nn_p90_1e-6": float("nan"),
+                "jump_nn_max_1e-6": float("nan"), "jump_nn_worst": "", "reproduction_max": float("nan")}
+    jump, nn = nearest_neighbour_jump(model, raw_gram)
+    i = int(jump.argmax())
+    return {"jump_nn_median_1e-6": float(np.median(jump)), "jump_nn_p90_1e-6": float(np.percentile(jump, 90)),
+            "jump_nn_max_1e-6": float(jump[i]), "jump_nn_worst": f"{model.names[i]}>{model.names[int(nn[i])]}",
+            "reproduction_max": float(reproduction_at_points(model, raw_gram).max())}
 
-    The fits of one candidate share materials and data space, so the hull
-    points of every q (non-linear spaces: their albedo) and the points of the
-    latent paths (their perceptual distances) are blended together
-    (:func:`brdfpipe.manifold.blendpass.measure_blends`).
-    """
-    first = next(iter(fits.values()))
-    blocks: list[NDArray[np.float64]] = []
-    hull_rows: dict[int, slice] = {}
-    at = 0
-    if first.space not in LINEAR_SPACES:
-        for q, model in fits.items():
-            W = smooth_weights(model, hulls[q][:LOG_ALBEDO_POINTS])
-            hull_rows[q] = slice(at, at + W.shape[0])
-            blocks.append(W)
-            at += W.shape[0]
+
+def _path_distances(
+    st: Any, model: gplvm.GplvmModel, paths: Sequence[analysis.LatentPath]
+) -> list[NDArray[np.float64]]:
+    """The perceptual distances of every latent path's points (:meth:`LatentPath.pairs`), one pass over the store."""
+    if not paths:
+        return []
     pairs: list[tuple[int, int]] = []
     counts = []
+    at = 0
     for p in paths:
         pairs += p.pairs(at)
         counts.append(len(p.pairs()))
-        blocks.append(p.weights)
         at += p.weights.shape[0]
-    if not blocks:
-        return _SharedBlends({}, [])
-    got = blendpass.measure_blends(st, np.vstack(blocks), materials=first.names, space=first.space, pairs=pairs)
+    got = blendpass.measure_blends(st, np.vstack([p.weights for p in paths]), model=model, pairs=pairs)
     ends = np.cumsum([0] + counts)
-    return _SharedBlends({q: got.albedo[r] for q, r in hull_rows.items()},
-                         [got.distances[a:b] for a, b in zip(ends[:-1], ends[1:])])
+    return [got.distances[a:b] for a, b in zip(ends[:-1], ends[1:])]
 
 
 def _fmt(v: Any) -> str:
@@ -393,17 +454,17 @@ def measure_candidate(
     """The workflow's ``measure_gplvm_candidate`` job: every measure for one candidate's fits.
 
     ``grams``: data space → Gram file (:func:`brdfpipe.manifold.gplvm.save_gram`):
-    the ``raw`` one (raw-unit stability) and the candidate's own space;
-    ``models``: {q: model file} of the candidate (:func:`candidate_label`
-    must give ``candidate``); ``default``: the label of the configured
+    the ``raw`` one (raw-unit stability and continuity) and the candidate's own space;
+    ``models``: {q: model file} of the candidate (:func:`candidate_label` of
+    its space, μ, normalisation, optimiser and start must give ``candidate``;
+    the row records the last three); ``default``: the label of the configured
     default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row per q)
     and ``stability_out`` (:data:`STABILITY_COLUMNS`).  ``albedos``: the
     materials' albedos (:func:`brdfpipe.manifold.albedo.write_material_albedos`,
     checked against the store); None computes them here.  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``).
-    Every interpolated table the measures need (the ``log`` space's hull
-    points of every q, the latent paths' points) is blended and measured in
-    one pass over the store (:func:`_shared_blends`).
+    The clamped tables' albedos of every q are measured in one pass over the
+    store (:func:`clamped_albedos`), the latent paths' points in another.
     """
     from brdfpipe.spec.manifold import check_paths, default_paths
     from brdfpipe.data.store import open_store
@@ -423,34 +484,44 @@ def measure_candidate(
         model = gplvm.load_model(path)
         if list(model.names) != names:
             raise ValueError(f"{path}: its materials differ from those of {grams['raw']}")
-        if candidate_label(model.space, model.mu) != candidate:
-            raise ValueError(f"{path}: a {candidate_label(model.space, model.mu)} fit, expected {candidate}")
+        label = candidate_label(model.space, model.mu, model.normalised, model.method, model.init)
+        if label != candidate:
+            raise ValueError(f"{path}: a {label} fit, expected {candidate}")
+        if model.space not in loaded:
+            raise ValueError(f"{path}: a fit in the {model.space} space, but no Gram matrix of that space is given")
         gplvm.check_store(model, st)
         fits[int(q)] = model
     rngs = {q: np.random.default_rng([seed, int(q), *candidate.encode()]) for q in fits}
     hulls = {q: hull_sample(m, HULL_POINTS, rngs[q]) for q, m in fits.items()}
     lp = [analysis.latent_path(fits[int(path_q)], a, b, steps) for a, b in pairs] \
         if perceptual_paths and int(path_q) in fits else []
-    shared = _shared_blends(st, fits, hulls, lp)
+    # the clamped tables at the first hull points of every q, and at the map's sub-grid (q = 2): one pass
+    maps = {q: _map_points(m.X, albedo_grid, CLAMPED_MAP_STRIDE) for q, m in fits.items() if q == 2}
+    picks = {q: np.vstack([hulls[q][:CLAMPED_HULL_POINTS], maps.get(q, np.empty((0, q)))]) for q in fits}
+    clamped = clamped_albedos(st, fits, picks)
+    distances = _path_distances(st, fits[int(path_q)], lp) if lp else []
     rows: list[dict[str, Any]] = []
     stab: list[dict[str, Any]] = []
     for q, model in fits.items():
-        sg = loaded[model.space][2].raw_gram if model.space in loaded else None
-        row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=sg, paths=pairs,
-                                   steps=steps, rng=rngs[q], store=st, albedo_grid=albedo_grid,
-                                   hull=hulls[q], blend_albedo=shared.hull_albedo.get(q))
+        centred, _, info = loaded[model.space]
+        k = min(CLAMPED_HULL_POINTS, hulls[q].shape[0])
+        row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=info.raw_gram,
+                                   centred_gram=centred, paths=pairs, steps=steps, rng=rngs[q],
+                                   clamped_albedo=clamped[q][:k], clamped_map_albedo=clamped[q][k:] if q in maps
+                                   else None, albedo_grid=albedo_grid, hull=hulls[q])
         if lp and q == int(path_q):
-            gram = loaded[model.space][0] if model.space in loaded else loaded["raw"][0]
-            prow = [r for p, d in zip(lp, shared.path_distances) for r in p.rows(model, gram, d)]
+            prow = [r for p, d in zip(lp, distances) for r in p.rows(model, centred, d)]
             row.update(path_uniformity(prow))
         else:
             row.update({"perceptual_max_deviation": float("nan"), "perceptual_decreasing_steps": -1})
-        meta = {"database": st.database, "candidate": candidate, "space": model.space, "mu": model.mu}
+        meta = {"database": st.database, "candidate": candidate, "space": model.space, "mu": model.mu,
+                "normalise": model.normalised, "method": model.method, "init": model.init}
         rows.append({**meta, "default": candidate == default, **row})
         stab += [{**meta, **r} for r in srows]
-        logger.info("%s q = %d: albedo outside [0, 1] on %.2f %% of the hull; kappa %.3g; "
-                    "stability at 1e-6 (space) median %.3g", candidate, q, 100 * row["albedo_bad_hull"],
-                    row["kappa"], row["stability_space_median_1e-6"])
+        logger.info("%s q = %d: clamped table's albedo outside [0, 1] on %.2f %% of the hull (unclamped %.2f %%); "
+                    "kappa %.3g; next to a material the table jumps by %.3g (median, max %.3g)", candidate, q,
+                    100 * row["albedo_clamped_bad_hull"], 100 * row["albedo_bad_hull"], row["kappa"],
+                    row["jump_nn_median_1e-6"], row["jump_nn_max_1e-6"])
     _write_csv(spaces_out, SPACE_COLUMNS, rows)
     _write_csv(stability_out, STABILITY_COLUMNS, stab)
     return rows

@@ -450,8 +450,8 @@ def _read_model(path: str | os.PathLike[str], q: int) -> Any:
 
 #: The columns of ``spaces.csv`` and ``stability.csv`` (:data:`brdfpipe.spec.tables.SPACES`, ``STABILITY``) the figure reads.
 SPACES_FIGURE_COLUMNS: tuple[str, ...] = tables.columns(
-    tables.SPACES, "database", "candidate", "space", "mu", "q", "default", "kappa", "albedo_bad_hull", "albedo_bad_map",
-    "sum_abs_w_hull_median", "sum_abs_w_path_max", "nn_median",
+    tables.SPACES, "database", "candidate", "space", "mu", "q", "default", "kappa", "albedo_clamped_bad_hull",
+    "albedo_clamped_bad_map", "albedo_bad_hull", "albedo_bad_map", "sum_abs_w_hull_median", "sum_abs_w_path_max", "nn_median",
 )
 STABILITY_FIGURE_COLUMNS: tuple[str, ...] = tables.columns(
     tables.STABILITY, "database", "candidate", "q", "norm", "epsilon", "median", "p90")
@@ -1324,10 +1324,13 @@ def manifold_spaces(table: SpacesTable, stem: str | os.PathLike[str]) -> FigureO
         for j, q in enumerate(dims):
             colour = COLOURS[j % len(COLOURS)]
             off = (j - (len(dims) - 1) / 2) * width
-            hull = [100 * table.rows.get((c, q), {}).get("albedo_bad_hull", np.nan) for c in cands]
+            hull = [100 * table.rows.get((c, q), {}).get("albedo_clamped_bad_hull", np.nan) for c in cands]
             ax_a.bar(x + off, hull, width * 0.9, color=colour, label=f"q = {q}: inside the hull")
+            unclamped = [100 * table.rows.get((c, q), {}).get("albedo_bad_hull", np.nan) for c in cands]
+            ax_a.plot(x + off, unclamped, "x", color="#222222", markersize=4,
+                      label="unclamped table (Σ wᵢ Aᵢ: negative lobes)" if j == 0 else None)
             if q == 2:
-                mp = [100 * table.rows.get((c, q), {}).get("albedo_bad_map", np.nan) for c in cands]
+                mp = [100 * table.rows.get((c, q), {}).get("albedo_clamped_bad_map", np.nan) for c in cands]
                 ax_a.plot(x + off, mp, "v", color="#222222", markersize=5, label="q = 2: plotted map (box 15 % past the data)")
             kap = [table.rows.get((c, q), {}).get("kappa", np.nan) for c in cands]
             ax_k.bar(x + off, kap, width * 0.9, color=colour, label=f"q = {q}")
@@ -1369,8 +1372,9 @@ def manifold_spaces(table: SpacesTable, stem: str | os.PathLike[str]) -> FigureO
         ax_s.set_title(f"(b) stability near the training points, q = {qs}\nsolid: the fit's own space; dotted: raw BRDF units; red: 1 %")
         ax_s.legend(fontsize=6.5)
         title = f"GPLVM data spaces compared ({database_label(table.database)})"
-        subtitle = (f"candidates: data space and kernel noise μ; default: {table.default}. (a) albedo outside [0, 1] "
-                    "of the interpolated material (linear blend, before clamping); (b) change of the interpolated "
+        subtitle = (f"candidates: data space and kernel noise μ (and how fitted, when not the standard fit); default: "
+                    f"{table.default}. (a) albedo outside [0, 1] of the interpolated table as rendered (negative "
+                    "values clamped to 0; ×: before clamping); (b) change of the interpolated "
                     "material a distance ε from a training point; (c) κ(K); (d) Σ|w|")
         return finish(fig, stem, title, subtitle, table.database, warn)
 

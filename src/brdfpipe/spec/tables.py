@@ -22,6 +22,8 @@ a GPLVM fit's ``trace.csv``               :func:`brdfpipe.manifold.gplvm.write_t
 ``results/manifold/stability.csv``        :mod:`brdfpipe.manifold.fidelity`                            figures
 ``results/unseen/<db>-albedo.csv``        :mod:`brdfpipe.data.nbrdf`                                   claims
 ``renders/<scene>/bounce-shares.csv``     :func:`brdfpipe.rendering.blend.bounce_shares`               claims
+``results/errormaps/<scene>/summary.csv``  :func:`brdfpipe.rendering.blend.error_maps`                 figures, claims
+the noise floor's ``floor-check.csv``     :func:`brdfpipe.rendering.blend.floor_check_table`           figures, claims
 ========================================  ===========================================================  ===============
 """
 
@@ -41,6 +43,8 @@ __all__ = [
     "STABILITY",
     "FIT_ALBEDO",
     "BOUNCE_SHARES",
+    "ERROR_MAP_SUMMARY",
+    "FLOOR_CHECK",
     "columns",
 ]
 
@@ -70,11 +74,18 @@ LATENT_PATHS: tuple[str, ...] = (
 )
 #: Each material's reproduction error by the GPLVM and by PCA (``reproduction.csv``).
 REPRODUCTION: tuple[str, ...] = ("database", "space", "material", "method", "k", "relative_error")
-#: One row per GPLVM candidate and latent dimension (``spaces.csv``).
+#: One row per GPLVM candidate and latent dimension (``spaces.csv``): how the candidate is fitted
+#: (``normalise``, ``method``, ``init``), the albedo of the *clamped* interpolated table (what a renderer
+#: receives; ``albedo_clamped_*``) and of the unclamped one (``albedo_bad_*``, Σ wᵢ Aᵢ), the table's jump next to
+#: each material towards its nearest neighbour (``jump_nn_*``, raw units) and its reproduction at the material;
+#: :mod:`brdfpipe.manifold.fidelity` defines each.
 SPACES: tuple[str, ...] = (
-    "database", "candidate", "space", "mu", "q", "default", "log_likelihood", "kappa",
+    "database", "candidate", "space", "mu", "normalise", "method", "init", "q", "default",
+    "log_likelihood", "log_likelihood_eq6", "kappa",
+    "albedo_clamped_bad_hull", "albedo_clamped_bad_map", "albedo_clamped_points",
     "albedo_bad_hull", "albedo_bad_map", "hull_points",
     "sum_abs_w_hull_median", "sum_abs_w_hull_max", "sum_abs_w_path_median", "sum_abs_w_path_max",
+    "jump_nn_median_1e-6", "jump_nn_p90_1e-6", "jump_nn_max_1e-6", "jump_nn_worst", "reproduction_max",
     "stability_raw_median_1e-6", "stability_raw_p90_1e-6", "stability_space_median_1e-6",
     "stability_space_p90_1e-6",
     "nn_median", "nn_min", "pairs_within_sqrt2mu", "pairs_within_1e-5",
@@ -88,6 +99,25 @@ FIT_ALBEDO: tuple[str, ...] = ("database", "material", "theta_i_deg", "r", "g", 
 BOUNCE_SHARES: tuple[str, ...] = (
     "database", "material", "mean_image", "mean_one", "share_image", "mean_image_object", "mean_one_object",
     "share_object", "object_pixels",
+)
+
+
+#: One row per rendered path point (``summary.csv``): blend of pre-renders against the reference render
+#: (``ratio*``), its ``I¹⁻`` parts (``*_one*``), Σ|wᵢ| and the share of the interpolated table the reference
+#: clamps, and the blend against a reference that differs from it only by the L²⁺ paths
+#: (``ratio_isolated_seed2``: :func:`brdfpipe.rendering.blend.error_maps` says how it is formed).
+ERROR_MAP_SUMMARY: tuple[str, ...] = (
+    "database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "rmse_blend_seed2", "ratio_seed2", "mean_reference",
+    "rmse_blend_one", "rmse_noise_one", "ratio_one", "rmse_blend_one_seed2", "ratio_one_seed2", "mean_reference_one",
+    "ratio_seed2_se", "ratio_one_seed2_se", "sum_abs_w", "clamped_fraction",
+    "ratio_isolated_seed2", "ratio_isolated_seed2_se",
+)
+#: Every floor-checked candidate's blends against the noise floor, one row per path point (``floor-check.csv``).
+FLOOR_CHECK: tuple[str, ...] = (
+    "database", "candidate", "space", "mu", "default", "path", "t", "width", "height", "spp",
+    "sum_abs_w", "norm2_w", "clamped_fraction",
+    "rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2",
+    "ratio_seed2_se", "ratio_one_seed2_se", "ratio_isolated_seed2", "ratio_isolated_seed2_se",
 )
 
 
