@@ -328,7 +328,8 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
     for k, pt in enumerate(points):
         wf = tmp_path / f"w{k}.json"
         integrity.write_json(wf, ({"path": pt["path"], "t": pt["t"], "weights": pt["weights"],
-                                  "material_a": MATERIALS[0], "material_b": MATERIALS[1]}))
+                                  "material_a": MATERIALS[0], "material_b": MATERIALS[1],
+                                  "clamped": 30 * k, "measured_values": 1000}))
         wfiles.append(wf)
     out = tmp_path / "maps"
     mapped = _outputs(points, out)
@@ -343,7 +344,9 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
     direct = error_maps(prerenders=prerenders, paths=_outputs(points, direct_dir),
                         summary=direct_dir / "summary.csv", database="synthetic")
     assert [r["rmse_blend"] for r in rows] == [r["rmse_blend"] for r in direct]
-    assert summary.read_bytes() == (direct_dir / "summary.csv").read_bytes()
+    # the share of the table the reference clamps comes from the point's weights file
+    assert [r["clamped_fraction"] for r in rows] == [0.0, 0.03] and "clamped_fraction" not in direct[0]
+    assert [r["sum_abs_w"] for r in rows] == [r["sum_abs_w"] for r in direct] == pytest.approx([1.0, 1.4])
     figs = tmp_path / "figs"
     figure_files = {k: [figs / f"my-{k}.png", figs / f"my-{k}.pdf"] for k in figures.RENDER_FIGURE_STEMS}
     files = figures.make_render_figures(prerenders=prerenders, weights=wfiles,
@@ -422,6 +425,58 @@ def test_error_maps_of_the_one_bounce_part(tmp_path: Path) -> None:
     with pytest.raises(BlendError, match="different materials"):
         error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=out / "s.csv",
                    database="synthetic", prerenders_one={MATERIALS[0]: ones[MATERIALS[0]]})
+
+
+@pytest.mark.parametrize("l2_error", [0.0, 1.0])
+def test_isolated_reference_differs_from_the_blend_by_the_l2_paths_alone(tmp_path: Path, l2_error: float) -> None:
+    """ratio_isolated_seed2: the blend against Σ wᵢ I¹⁻ᵢ + the second reference's I²⁺.  The reference's table is
+    clamped — its I¹⁻ is not the blend of the pre-renders' I¹⁻ — which the clamped reference's ratio reads as a
+    large excess; the isolated reference does not, and reads an L²⁺ error (the reference's I²⁺ off the blend of
+    the pre-renders' I²⁺) when there is one."""
+    prerenders, points, images = _setup(tmp_path)
+    rng = np.random.default_rng(9)
+    src = tmp_path / "in"
+    ones = {}
+    for m in MATERIALS:  # I = I¹⁻ + I²⁺ with I²⁺ a tenth of the image
+        images[m + "-one"] = (0.9 * images[m]).astype(np.float32)
+        ones[m] = src / f"{m}-one.exr"
+        write_exr(ones[m], images[m + "-one"])
+    for k, pt in enumerate(points):
+        w = pt["weights"]
+        one = sum(w[m] * images[m + "-one"].astype(np.float64) for m in MATERIALS)
+        two = sum(w[m] * (images[m] - images[m + "-one"]).astype(np.float64) for m in MATERIALS)
+        clamp = 0.5 * np.abs(one).mean() * (rng.random(one.shape) < 0.3)  # the clamped table's brighter I¹⁻
+        for key, seed in (("", ""), ("_seed2", "-2")):
+            ref_one = one + clamp + rng.normal(0.0, 0.01, one.shape)
+            ref = ref_one + (1.0 + l2_error) * two + rng.normal(0.0, 0.01, one.shape)
+            for kind, img in (("reference" + key, ref), ("reference_one" + key, ref_one)):
+                name = f"{kind}-{k}.exr"
+                write_exr(src / name, img.astype(np.float32))
+                images[name] = img.astype(np.float32).astype(np.float64)
+                pt[kind] = str(src / name)
+    out = tmp_path / "out"
+    rows = error_maps(prerenders=prerenders, paths=_outputs(points, out), summary=out / "s.csv",
+                      database="synthetic", prerenders_one=ones)
+    for k, (row, pt) in enumerate(zip(rows, points)):
+        w = pt["weights"]
+        bl = sum(w[m] * images[m].astype(np.float64) for m in MATERIALS)
+        bl_one = sum(w[m] * images[m + "-one"].astype(np.float64) for m in MATERIALS)
+        ref, ref2, ref2_one = (images[f"{n}-{k}.exr"] for n in ("reference", "reference_seed2", "reference_one_seed2"))
+        isolated = bl_one + ref2 - ref2_one
+        want = np.sqrt(np.mean((bl - isolated) ** 2) / np.mean((ref - ref2) ** 2))
+        assert row["ratio_isolated_seed2"] == pytest.approx(want, rel=1e-9)
+        assert row["ratio_isolated_seed2_se"] == pytest.approx(
+            blend.ratio_standard_error(bl, ref, ref2, isolated), rel=1e-9)
+        assert row["ratio_seed2"] > 5.0  # the clamped reference: the clamp, not the L²⁺ paths
+        assert row["sum_abs_w"] == pytest.approx(sum(abs(v) for v in w.values()))
+        if l2_error == 0.0:  # only the I²⁺ noise left: below the whole images' floor
+            assert row["ratio_isolated_seed2"] < 1.0
+        else:
+            assert row["ratio_isolated_seed2"] > 2.0
+    with io.StringIO(integrity.read_csv_text(out / "s.csv"), newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert float(table[1]["ratio_isolated_seed2"]) == pytest.approx(rows[1]["ratio_isolated_seed2"], rel=1e-8)
+    assert table[0]["clamped_fraction"] == ""  # not given with the point
 
 
 def test_bounce_shares(tmp_path: Path) -> None:

@@ -71,12 +71,9 @@ __all__ = [
 logger = logging.getLogger("brdfpipe.rendering.blend")
 
 #: Columns of ``summary.csv`` written by :func:`error_maps`, in order (the ``_one``
-#: columns: the same for the I¹⁻ images; empty when no I¹⁻ images are given).
-SUMMARY_COLUMNS: Final = (
-    "database", "path", "t", "rmse_blend", "rmse_noise", "ratio", "rmse_blend_seed2", "ratio_seed2", "mean_reference",
-    "rmse_blend_one", "rmse_noise_one", "ratio_one", "rmse_blend_one_seed2", "ratio_one_seed2", "mean_reference_one",
-    "ratio_seed2_se", "ratio_one_seed2_se",
-)
+#: columns: the same for the I¹⁻ images; they and the isolated reference's ratio are
+#: empty when no I¹⁻ images are given).
+SUMMARY_COLUMNS: Final = tables.ERROR_MAP_SUMMARY
 #: The I¹⁻ columns of :data:`SUMMARY_COLUMNS`.
 SUMMARY_ONE_COLUMNS: Final = SUMMARY_COLUMNS[9:15] + ("ratio_one_seed2_se",)
 #: Columns of the I²⁺ share CSV written by :func:`bounce_shares`, in order.
@@ -185,7 +182,9 @@ def rmse(a: ArrayLike, b: ArrayLike) -> float:
     return float(np.sqrt(np.mean(np.square(a64 - b64))))
 
 
-def ratio_standard_error(blend: ArrayLike, reference: ArrayLike, reference_seed2: ArrayLike) -> float:
+def ratio_standard_error(
+    blend: ArrayLike, reference: ArrayLike, reference_seed2: ArrayLike, compared_with: ArrayLike | None = None
+) -> float:
     """Standard error of ``rmse(blend, reference_seed2) / rmse(reference, reference_seed2)``, from the pixels.
 
     The noise floor is measured from one pair of seeds: its own estimate is
@@ -196,15 +195,18 @@ def ratio_standard_error(blend: ArrayLike, reference: ArrayLike, reference_seed2
     uᵢ and vᵢ over the n pixels) SE(R²) = sd(uᵢ − R² vᵢ) / (√n · v̄) and
     SE(R) = SE(R²) / (2R).  Heavy-tailed noise (fireflies) widens it, as it
     should.  ``nan`` when the ratio is not finite and positive or there is a
-    single pixel.
+    single pixel.  ``compared_with``: the image the blend is compared with
+    in the numerator, when it is not ``reference_seed2`` (the isolated
+    reference of :func:`error_maps`); the floor stays the two references'.
     """
     b64, r2 = _pair(blend, reference_seed2)
     r64, _ = _pair(reference, r2)
+    c64 = r2 if compared_with is None else _pair(compared_with, r2)[0]
     if b64.ndim == 3:
-        u = np.square(b64 - r2).sum(axis=2).ravel()
+        u = np.square(b64 - c64).sum(axis=2).ravel()
         v = np.square(r64 - r2).sum(axis=2).ravel()
     else:
-        u, v = np.square(b64 - r2).ravel(), np.square(r64 - r2).ravel()
+        u, v = np.square(b64 - c64).ravel(), np.square(r64 - r2).ravel()
     n = u.size
     vbar = float(v.mean()) if n else 0.0
     if n < 2 or not vbar > 0.0:
@@ -333,8 +335,18 @@ def _ratio(err: float, noise: float) -> float:
     return math.inf if err > 0.0 else math.nan
 
 
-def _one_row(blend: NDArray[np.float64], ref_path: Path, ref2_path: Path) -> dict[str, float]:
-    """The ``_one`` columns of a summary row: the I¹⁻ blend against the two I¹⁻ references."""
+def _one_row(blend: NDArray[np.float64], ref_path: Path, ref2_path: Path,
+             whole: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]) -> dict[str, float]:
+    """The ``_one`` and ``ratio_isolated`` columns of a summary row, from the I¹⁻ blend and references.
+
+    ``whole``: the whole images' blend and two references.  The isolated
+    reference of the second seed is ``Σ wᵢ I¹⁻ᵢ + (ref₂ − ref₂¹⁻)``: the I¹⁻
+    part of the *unclamped* interpolated table (exact by linearity: I¹⁻ is
+    affine in the table, negative values included) plus the reference's own
+    I²⁺ part.  The blend differs from it by ``Σ wᵢ I²⁺ᵢ − I²⁺_ref`` alone —
+    the L²⁺ approximation (Soler eq. 13) and its noise — and not by the
+    clamping of the reference's table, which enters the I²⁺ paths only.
+    """
     ref = read_exr(ref_path).astype(np.float64)
     ref2 = read_exr(ref2_path).astype(np.float64)
     for p, img in ((ref_path, ref), (ref2_path, ref2)):
@@ -343,10 +355,14 @@ def _one_row(blend: NDArray[np.float64], ref_path: Path, ref2_path: Path) -> dic
     rmse_blend = relative_rmse(blend, ref, ref)
     rmse_noise = relative_rmse(ref, ref2, ref)
     rmse_blend2 = relative_rmse(blend, ref2, ref)
+    w_blend, w_ref, w_ref2 = whole
+    isolated2 = blend + (w_ref2 - ref2)
     return {"rmse_blend_one": rmse_blend, "rmse_noise_one": rmse_noise,
             "ratio_one": _ratio(rmse_blend, rmse_noise), "rmse_blend_one_seed2": rmse_blend2,
             "ratio_one_seed2": _ratio(rmse_blend2, rmse_noise), "mean_reference_one": float(ref.mean()),
-            "ratio_one_seed2_se": ratio_standard_error(blend, ref, ref2)}
+            "ratio_one_seed2_se": ratio_standard_error(blend, ref, ref2),
+            "ratio_isolated_seed2": _ratio(rmse(w_blend, isolated2), rmse(w_ref, w_ref2)),
+            "ratio_isolated_seed2_se": ratio_standard_error(w_blend, w_ref, w_ref2, isolated2)}
 
 
 def error_maps(
@@ -393,7 +409,12 @@ def error_maps(
     * ``ratio_seed2_se`` = :func:`ratio_standard_error`: the uncertainty of
       ``ratio_seed2`` that comes from measuring the noise floor from one
       pair of seeds (a verdict "blend within the floor" compares
-      ``ratio_seed2`` with 1 within a few of these).
+      ``ratio_seed2`` with 1 within a few of these);
+    * ``sum_abs_w`` = Σ|wᵢ| (1 for a convex blend; the pre-renders' noise and
+      any bias enter the blend amplified) and ``clamped_fraction``: the share
+      of the interpolated table's measured values the reference's table has
+      clamped at 0 (the point's optional ``clamped_fraction``; empty without),
+      which no blend of images can do.
 
     With ``prerenders_one`` (each material's ``I¹⁻`` pre-render: light paths
     with at most one scattering on the material, :mod:`brdfpipe.rendering.bounce`;
@@ -406,8 +427,16 @@ def error_maps(
     ``ratio_one_seed2_se``;
     relative to the ``I¹⁻`` reference's mean).  ``I¹⁻`` is exactly affine in
     the material, so its blend has no bias from ``I²⁺``: ``ratio_one_seed2``
-    ≈ 1 apart from the material interpolation's own error.  Without
-    ``prerenders_one`` those cells are empty.
+    ≈ 1 apart from the material interpolation's own error.  And the
+    blend against a reference that isolates the paper's question, the L²⁺
+    approximation, from the clamping of the reference's table:
+    ``ratio_isolated_seed2`` = RMSE(blend, Σ wᵢ I¹⁻ᵢ + I²⁺ of the second
+    reference) / RMSE(the two references), with its standard error
+    ``ratio_isolated_seed2_se`` (see :func:`_one_row`).  The renderer cannot
+    take the unclamped table itself (its MERL plugin reads negative values
+    as unmeasured, and sampling needs a non-negative BRDF); its I¹⁻ part
+    needs no render, being affine in the table.  Without ``prerenders_one``
+    those cells are empty.
 
     Then writes ``summary`` (CSV, columns :data:`SUMMARY_COLUMNS`, one line
     per point in input order, numbers as ``%.9g``, ``t`` as ``format_t``)
@@ -450,7 +479,8 @@ def error_maps(
     rows: list[dict[str, Any]] = []
     errs: list[NDArray[np.float64]] = []
     for k, ((name, t, s), pt) in enumerate(zip(points, paths)):
-        row, err = _point_row(blends[k], None if blends_one is None else blends_one[k], pt, name, t, s, database)
+        row, err = _point_row(blends[k], None if blends_one is None else blends_one[k], W[k], pt, name, t, s,
+                              database)
         rows.append(row)
         errs.append(err)
         msg = (f"{name} t={s}: relative RMSE blend {row['rmse_blend']:.4g}, noise {row['rmse_noise']:.4g}, "
@@ -518,8 +548,8 @@ def _check_files(inputs: Sequence[Path], outputs: Sequence[Path]) -> None:
 
 
 def _point_row(
-    blend: NDArray[np.float64], blend_one: NDArray[np.float64] | None, pt: Mapping[str, Any],
-    name: str, t: float, s: str, database: str,
+    blend: NDArray[np.float64], blend_one: NDArray[np.float64] | None, weights: NDArray[np.float64],
+    pt: Mapping[str, Any], name: str, t: float, s: str, database: str,
 ) -> tuple[dict[str, Any], NDArray[np.float64]]:
     """One point of :func:`error_maps`: its blend and error-map EXRs written, its summary row and error map."""
     ref_path, ref2_path = Path(pt["reference"]), Path(pt["reference_seed2"])
@@ -544,9 +574,12 @@ def _point_row(
                                "reference": ref_path.name})
     row = {"path": name, "t": t, "rmse_blend": rmse_blend, "rmse_noise": rmse_noise,
            "ratio": ratio, "rmse_blend_seed2": rmse_blend2, "ratio_seed2": ratio2,
-           "mean_reference": mean_ref, "ratio_seed2_se": ratio_standard_error(blend, ref, ref2)}
+           "mean_reference": mean_ref, "ratio_seed2_se": ratio_standard_error(blend, ref, ref2),
+           "sum_abs_w": float(np.abs(weights).sum())}
+    if "clamped_fraction" in pt:
+        row["clamped_fraction"] = float(pt["clamped_fraction"])
     if blend_one is not None:
-        row.update(_one_row(blend_one, Path(pt["reference_one"]), Path(pt["reference_one_seed2"])))
+        row.update(_one_row(blend_one, Path(pt["reference_one"]), Path(pt["reference_one_seed2"]), (blend, ref, ref2)))
     return row, err
 
 
@@ -604,13 +637,21 @@ def error_maps_from_files(
         try:
             points.append({"path": doc["path"], "t": float(doc["t"]), "weights": dict(doc["weights"]),
                            "reference": ref, "reference_seed2": ref2, "blended": bl, "error_exr": ee,
-                           "error_png": ep})
+                           "error_png": ep, "clamped_fraction": _clamped_fraction(doc)})
         except (OSError, ValueError, KeyError, TypeError) as err:
             raise BlendError(f"{wf}: not a path-point weights file ({type(err).__name__}: {err})") from None
         if one:
             points[-1].update(reference_one=one[0], reference_one_seed2=one[1])
     return error_maps(prerenders=prerenders, paths=points, summary=summary, database=database,
                       prerenders_one=prerenders_one, progress=lambda msg: logger.info("%s", msg))
+
+
+def _clamped_fraction(doc: Mapping[str, Any]) -> float:
+    """The share of a path point's measured values clamped at 0 (ValueError unless 0 ≤ clamped ≤ measured > 0)."""
+    clamped, measured = int(doc["clamped"]), int(doc["measured_values"])
+    if measured <= 0 or not 0 <= clamped <= measured:
+        raise ValueError(f"clamped = {clamped} of measured_values = {measured}: need 0 <= clamped <= measured > 0")
+    return clamped / measured
 
 
 def bounce_shares(
@@ -691,12 +732,7 @@ def bounce_shares(
 # --------------------------------------------------------------------------
 
 #: Columns of the floor check's CSV written by :func:`floor_check_table`, in order.
-FLOOR_CHECK_COLUMNS: Final = (
-    "database", "candidate", "space", "mu", "default", "path", "t", "width", "height", "spp",
-    "sum_abs_w", "norm2_w", "clamped_fraction",
-    "rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2",
-    "ratio_seed2_se", "ratio_one_seed2_se",
-)
+FLOOR_CHECK_COLUMNS: Final = tables.FLOOR_CHECK
 
 
 def _read_summary_rows(path: Path, database: str) -> list[dict[str, str]]:
@@ -745,8 +781,8 @@ def floor_check_table(
     Σ|wᵢ| and ‖w‖₂ (noise of the pre-renders enters the blend with ‖w‖₂),
     the share of the interpolated table's measured values clamped at 0
     (a clamp the linear blend of images cannot know), the noise floor and
-    the ratios of the summary with their standard errors (whole image and
-    I¹⁻).  Writes ``out``
+    the ratios of the summary with their standard errors (whole image,
+    I¹⁻, and against the reference that differs only by the L²⁺ paths).  Writes ``out``
     (columns :data:`FLOOR_CHECK_COLUMNS`, numbers ``%.9g``) atomically.
     :class:`BlendError` naming the file when a summary is of another
     database, its rows and the weights disagree on the points, or the renders
@@ -796,7 +832,7 @@ def floor_check_table(
                 "clamped_fraction": doc["clamped"] / doc["measured"],
             }
             for col in ("rmse_noise", "ratio", "ratio_seed2", "rmse_noise_one", "ratio_one", "ratio_one_seed2",
-                        "ratio_seed2_se", "ratio_one_seed2_se"):
+                        "ratio_seed2_se", "ratio_one_seed2_se", "ratio_isolated_seed2", "ratio_isolated_seed2_se"):
                 row[col] = float(srow[col]) if srow[col] != "" else math.nan
             rows.append(row)
     buf = io.StringIO()

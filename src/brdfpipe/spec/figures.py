@@ -232,10 +232,13 @@ REPORT_ENTRIES: tuple[ReportEntry, ...] = (
                          'colour bar.')),
     ReportEntry('render-summary', 'Soler Fig. 13 (table)',
                 caption=('``summary.csv``: per path point the relative RMSE of the blend vs the reference (same and second'
-                         ' seed), the two-seed noise floor and their ratios, for the whole image and its I¹⁻ part.')),
+                         ' seed), the two-seed noise floor and their ratios, for the whole image and its I¹⁻ part; Σ|w|, '
+                         'the share of the table the reference clamps, and the ratio against a reference that differs '
+                         'from the blend only by the L²⁺ paths (Σ wᵢ I¹⁻ᵢ plus the reference\'s I²⁺).')),
     ReportEntry('render-floor-check-table', 'Soler Fig. 13 (noise-floor check, table)',
                 caption=('``floor-check.csv``: per candidate and path point Σ|w|, ‖w‖₂, the clamped share, the two-seed '
-                         'noise floor and the blend / floor ratios.')),
+                         'noise floor and the blend / floor ratios (whole image, I¹⁻, and against the reference that '
+                         'differs only by the L²⁺ paths).')),
     ReportEntry('claims', 'all claims',
                 caption=("Every quantitative claim of both papers: the paper's value, this run's value computed from its "
                          'CSVs, and whether it holds (also on the front page).')),
