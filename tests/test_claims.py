@@ -315,49 +315,67 @@ def test_reproduction_perfect_and_pca_not(t: Tables) -> None:
     assert "PCA reproduces as well" in check(claim(0.005, pca40=0.001), D).cause
 
 
-SPACES = ("database", "candidate", "space", "mu", "q", "default", "albedo_bad_hull", "albedo_bad_map")
+FIT = {"space": "standardised", "mu": 1e-5, "normalise": "true", "method": "newton", "init": "best"}
+RECIPE = {"space": "raw", "mu": 1e-4, "normalise": "false", "method": "hooke-jeeves", "init": "pca"}
+SPACES = ("database", *soler.FIT_COLUMNS, "q", "default", *soler.CLAMPED_ALBEDO, "albedo_clamped_points",
+          "albedo_bad_hull", "albedo_bad_map", *soler.JUMP_COLUMNS)
 
 
-def spaces(t: Tables, bad: float, *, clamped: float | None = None, space: str = "standardised",
-           mu: float = 1e-5) -> Path:
-    extra = () if clamped is None else soler.CLAMPED_ALBEDO
-    rows = [{"database": "synthetic", "candidate": "std", "space": space, "mu": mu, "q": q, "default": "true",
-             "albedo_bad_hull": bad if q == 2 else 0.5, "albedo_bad_map": "" if q == 5 else bad,
-             **({c: clamped for c in extra})} for q in (2, 5)]
-    rows.append({"database": "synthetic", "candidate": "raw", "space": "raw", "mu": 1e-4, "q": 2, "default": "false",
-                 "albedo_bad_hull": 0.5, "albedo_bad_map": 0.5, **({c: 0.5 for c in extra})})
-    return t(SPACES + extra, rows)
+def spaces(t: Tables, clamped: float, *, unclamped: float = 0.0, fit: Mapping[str, object] = FIT,
+           jump: tuple[float, float, float] = (1e-4, 1e-3, 5e-3), worst: str = "a>b",
+           recipe: tuple[float, float] | None = None) -> Path:
+    """spaces.csv: the default candidate (q = 2 the claim's; q = 5's albedo does not count), another
+    candidate that fails everything, and with ``recipe`` (clamped share, largest jump) the paper's recipe."""
+    def row(name: str, f: Mapping[str, object], q: int, default: bool, c: float, u: float,
+            j: tuple[float, float, float], w: str) -> dict[str, object]:
+        return {"database": "synthetic", "candidate": name, **f, "q": q, "default": str(default).lower(),
+                "albedo_clamped_bad_hull": c, "albedo_clamped_bad_map": "" if q == 5 else c,
+                "albedo_clamped_points": 2000, "albedo_bad_hull": u, "albedo_bad_map": "" if q == 5 else u,
+                "jump_nn_median_1e-6": j[0], "jump_nn_p90_1e-6": j[1], "jump_nn_max_1e-6": j[2],
+                "jump_nn_worst": w}
+
+    rows = [row("std", fit, 2, True, clamped, unclamped, jump, worst),
+            row("std", fit, 5, True, 0.5, 0.5, (jump[0], jump[1], jump[2] / 2), "c>d"),
+            row("other", FIT, 2, False, 0.5, 0.5, (0.9, 0.9, 0.9), "e>f")]
+    if recipe is not None:
+        rows += [row("paper", RECIPE, q, False, recipe[0], recipe[0], (recipe[1] / 4, recipe[1] / 2, recipe[1]), "g>h")
+                 for q in (2, 5)]
+    return t(SPACES, rows)
 
 
 def test_albedo_in_the_unit_interval_at_q2(t: Tables) -> None:
-    """Fig. 7 "observed to be limited to [0, 1]" (q = 2): the clamped table's albedo when spaces.csv has it."""
-    check(soler.albedo_in_unit_interval(spaces(t, 0.0)), R, "1 %", "q = 2")  # q = 5 and other candidates do not count
-    check(soler.albedo_in_unit_interval(spaces(t, 0.005)), W)
-    c = check(soler.albedo_in_unit_interval(spaces(t, 0.0687)), D, "unclamped")
-    assert c.cause.startswith("the method: 6.87 % of the q = 2 hull and 6.87 % of the map")
+    """Fig. 7 "observed to be limited to [0, 1]" (q = 2), on the clamped table a renderer receives."""
+    c = check(soler.albedo_in_unit_interval(spaces(t, 0.0)), R, "1 %", "q = 2", "negative values clamped")
     assert "not the paper's recipe" in c.cause
-    # with the clamped table's columns the claim is on them (what a renderer receives)
-    c = check(soler.albedo_in_unit_interval(spaces(t, 0.0687, clamped=0.0)), R, "clamped interpolated table")
-    c = check(soler.albedo_in_unit_interval(spaces(t, 0.0, clamped=0.03, space="raw", mu=1e-4)), D)
-    assert c.cause.startswith("a real difference") and "recipe" not in c.cause
+    check(soler.albedo_in_unit_interval(spaces(t, 0.005)), W)
+    # the unclamped table's negative lobes are a diagnostic: the verdict is on the clamped table
+    c = check(soler.albedo_in_unit_interval(spaces(t, 0.0, unclamped=0.0687)), R)
+    assert "unclamped Σ wᵢ Aᵢ (negative lobes): q = 2: 6.87 % of the hull" in c.measured
+    c = check(soler.albedo_in_unit_interval(spaces(t, 0.03)), D)
+    assert c.cause.startswith("the method: the default candidate is not the paper's recipe") and "not measured" in c.cause
+    # with the paper's recipe among the candidates: the method when it passes, a real difference when it fails too
+    c = check(soler.albedo_in_unit_interval(spaces(t, 0.03, recipe=(0.0, 0.0))), D)
+    assert c.cause.startswith("the method: the paper's recipe (paper) passes (0 % of its hull)")
+    c = check(soler.albedo_in_unit_interval(spaces(t, 0.03, recipe=(0.2, 0.0))), D)
+    assert c.cause.startswith("a real difference: the paper's recipe (paper) fails too (20 % of its hull)")
+    c = check(soler.albedo_in_unit_interval(spaces(t, 0.03, fit=RECIPE)), D)
+    assert c.cause.startswith("a real difference: 3 % of the q = 2 hull") and "the paper's recipe" in c.measured
 
 
 def test_a_negligible_discontinuity_next_to_each_material(t: Tables) -> None:
-    """§3 "a negligible discontinuity in the interpolant": ≤ 1 % of a material's norm next to it (ε = 1e-6)."""
-    sp = spaces(t, 0.0)
-
-    def claim(p90: float, top: float) -> claims.Claim:
-        rows = [{"database": "synthetic", "candidate": c, "space": "standardised", "mu": 1e-5, "q": 2, "norm": norm,
-                 "epsilon": eps, "median": 1e-4, "p90": p90, "max": top}
-                for c in ("std", "raw") for norm in ("raw", "space") for eps in (1e-6, 1e-3)]
-        rows = [r if r["candidate"] == "std" and r["norm"] == "raw" and r["epsilon"] == 1e-6
-                else {**r, "p90": 0.9, "max": 0.9} for r in rows]  # other candidates, norms and ε do not count
-        return soler.negligible_discontinuity(sp, t(tables.STABILITY, rows))
-
-    check(claim(0.001, 0.005), R, "1 %", "ε = 1e-06")
-    check(claim(0.005, 0.48), W)
-    c = check(claim(0.03, 0.48), D)
-    assert c.cause.startswith("the method: the default candidate is std") and "48 %" in c.cause
+    """§3 "a negligible discontinuity in the interpolant": ≤ 1 % of a material's norm next to it (t = 1e-6)."""
+    check(soler.negligible_discontinuity(spaces(t, 0.0, jump=(1e-4, 1e-3, 0.005))), R, "1 %", "t = 1e-6")
+    check(soler.negligible_discontinuity(spaces(t, 0.0, jump=(1e-4, 0.005, 0.48))), W)
+    c = check(soler.negligible_discontinuity(spaces(t, 0.0, jump=(0.01, 0.03, 0.48), worst="blue-fabric>green-fabric")),
+              D)
+    assert c.cause.startswith("the method: the default candidate is not the paper's recipe") and "48 %" in c.cause
+    assert "blue-fabric → green-fabric, q = 2" in c.cause and c.value == 0.48  # other candidates do not count
+    c = check(soler.negligible_discontinuity(spaces(t, 0.0, jump=(0.01, 0.03, 0.48), recipe=(0.0, 0.003))), D)
+    assert c.cause.startswith("the method: the paper's recipe (paper) passes (jumps by at most 0.3 %)")
+    c = check(soler.negligible_discontinuity(spaces(t, 0.0, jump=(0.01, 0.03, 0.48), recipe=(0.0, 0.2))), D)
+    assert c.cause.startswith("a real difference: the paper's recipe (paper) fails too")
+    nan = float("nan")  # a non-linear space: not measured
+    check(soler.negligible_discontinuity(spaces(t, 0.0, jump=(nan, nan, nan))), N)
 
 
 PATHS = ("database", "path", "t", "perceptual_a", "perceptual_b", "perceptual_ab", "deviation", "bound")
@@ -400,29 +418,33 @@ def test_second_bounce_an_order_of_magnitude_below(t: Tables) -> None:
     check(claim(0.1, 0.2, 0.3), D)
 
 
-SUMMARY = ("database", "path", "t", "ratio_seed2", "ratio_one_seed2", "ratio_seed2_se")
+SUMMARY = ("database", "path", "t", "ratio_seed2", "ratio_one_seed2", "ratio_seed2_se", "sum_abs_w", "clamped_fraction",
+           *soler.ISOLATED_RATIO)
 
 
-def summary(t: Tables, points: Sequence[tuple[str, float, float, float]], **extra: float) -> Path:
-    return t(SUMMARY + tuple(extra), [{"database": "synthetic", "path": p, "t": x, "ratio_seed2": r,
-                                       "ratio_one_seed2": r, "ratio_seed2_se": se, **extra}
-                                      for p, x, r, se in points])
+def summary(t: Tables, points: Sequence[tuple[str, float, float, float]], clamped: float = 1.07,
+            fraction: float = 0.04) -> Path:
+    """summary.csv: per point (path, t, ratio against the isolated reference, its s.e.); the clamped reference's
+    ratio ``clamped`` (its s.e. that of the isolated one)."""
+    return t(SUMMARY, [{"database": "synthetic", "path": p, "t": x, "ratio_seed2": clamped, "ratio_one_seed2": clamped,
+                        "ratio_seed2_se": se, "sum_abs_w": 3.0, "clamped_fraction": fraction,
+                        "ratio_isolated_seed2": r, "ratio_isolated_seed2_se": se} for p, x, r, se in points])
 
 
 def test_blend_against_the_noise_floor(t: Tables) -> None:
-    """Fig. 13 "well below the numerical error": ≤ 1 strictly, ≤ 1 + 2 s.e. of the floor within."""
-    def claim(r: float, se: float, **extra: float) -> claims.Claim:
-        return soler.blend_vs_noise_floor(summary(t, [("a--b", 0.5, r, se)], **extra), floor_check=False)
+    """Fig. 13 "well below the numerical error": against a reference differing only by L²⁺, ≤ 1 strictly,
+    ≤ 1 + 2 s.e. of the floor within; the clamped reference's ratio does not decide."""
+    def claim(r: float, se: float, **kw: float) -> claims.Claim:
+        return soler.blend_vs_noise_floor(summary(t, [("a--b", 0.5, r, se)], **kw), floor_check=False)
 
-    check(claim(0.98, 0.01), R, "2 standard errors", "not rendered here")
+    c = check(claim(0.98, 0.01), R, "2 standard errors", "not rendered here", "only by the L²⁺")
+    assert "against the clamped reference 1.07" in c.measured and "Σ|w| 3" in c.measured
+    assert "the excess is the clamping of 4 % of the table" in c.cause
+    assert "clamping" not in check(claim(0.98, 0.01, clamped=0.99), R).cause
     check(claim(1.03, 0.02), W)
-    assert check(claim(1.07, 0.01), D).cause.startswith("a real difference: the blend is 7 s.e. above")
-    c = check(claim(1.07, 0.01, sum_abs_w=3.0, clamped_fraction=0.04), D)
-    assert c.cause.startswith("the method: the reference renders the interpolated table with its negative values "
-                              "clamped (4 %") and "sum_abs_w 3" in c.measured
-    # a reference isolating the L²⁺ paths decides when the table has it
-    c = check(claim(1.07, 0.01, ratio_isolated_seed2=0.99, ratio_isolated_seed2_se=0.01), R, "only by the L²⁺")
-    assert "clamped reference 1.07" in c.measured
+    assert check(claim(1.07, 0.01, clamped=1.0), D).cause.startswith(
+        "a real difference: against a reference that differs only by the L²⁺ paths the blend is 7 s.e. above")
+    check(claim(float("nan"), float("nan")), N)  # no I¹⁻ renders: no isolated reference
     # the paper's point (chrome → silver-paint, t = 0.5) alone, when rendered
     both = summary(t, [("a--b", 0.5, 1.5, 0.01), ("chrome--silver-paint", 0.5, 0.99, 0.01)])
     check(soler.blend_vs_noise_floor(both, floor_check=False), R, "at the paper's point")
@@ -430,10 +452,11 @@ def test_blend_against_the_noise_floor(t: Tables) -> None:
 
 def test_blend_floor_check_reads_the_default_candidate(t: Tables) -> None:
     cols = ("database", "candidate", "default", "path", "t", "spp", "ratio_seed2", "ratio_one_seed2",
-            "ratio_seed2_se", "ratio_one_seed2_se", "clamped_fraction")
+            "ratio_seed2_se", "ratio_one_seed2_se", "sum_abs_w", "clamped_fraction", *soler.ISOLATED_RATIO)
     floor = t(cols, [{"database": "synthetic", "candidate": c, "default": d, "path": "a--b", "t": 0.5, "spp": 4096,
                       "ratio_seed2": r, "ratio_one_seed2": r, "ratio_seed2_se": 0.01, "ratio_one_seed2_se": 0.01,
-                      "clamped_fraction": 0.0} for c, d, r in (("std", "true", 0.9), ("raw", "false", 29.0))])
+                      "sum_abs_w": 1.0, "clamped_fraction": 0.0, "ratio_isolated_seed2": r,
+                      "ratio_isolated_seed2_se": 0.01} for c, d, r in (("std", "true", 0.9), ("raw", "false", 29.0))])
     c = check(soler.blend_vs_noise_floor(floor, floor_check=True), R)
     assert c.value == 0.9 and "std, 4096 spp" in c.measured
 

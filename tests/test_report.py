@@ -275,7 +275,7 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
                               claims.WITHIN if median >= 1.25 and want >= 1 / 1.1 else claims.DIFFERS)
     with open(results / "errormaps" / "preview" / "summary.csv", newline="") as fh:
         next(fh)  # the digest line
-        points = [(float(r["ratio_seed2"]), float(r["ratio_seed2_se"])) for r in csv.DictReader(fh)]
+        points = [(float(r["ratio_isolated_seed2"]), float(r["ratio_isolated_seed2_se"])) for r in csv.DictReader(fh)]
     worst = max(points, key=lambda p: (p[0] - 1) / p[1])[0]  # the point farthest above the floor, in s.e.
     within = all(ratio - 1 <= claims.NOISE_SIGMAS * se for ratio, se in points)
     row = next(r for r in rows if r["key"] == "soler-blend-vs-noise-floor")
@@ -294,14 +294,11 @@ def test_header_only_csvs_give_not_measured_claims(tmp_path: Path) -> None:
         training_size=empty("ts.csv", ("database", "n_train", "order_seed", "material", "channel", "kind", "value")),
         fig08_table=empty("f8.csv", tables.FIG08),
         reproduction=empty("rep.csv", ("database", "space", "material", "method", "k", "relative_error")),
-        spaces=empty("sp.csv", ("database", "candidate", "space", "mu", "q", "default", "albedo_bad_hull",
-                                "albedo_bad_map")),
-        stability=empty("st.csv", tables.STABILITY),
+        spaces=empty("sp.csv", tables.SPACES),
         paths=empty("pa.csv", ("database", "path", "t", "perceptual_a", "perceptual_b", "perceptual_ab",
                                "deviation", "bound")),
         bounce_shares=empty("bs.csv", ("database", "material", "share_object")),
-        errormap_summary=empty("su.csv", ("database", "path", "t", "ratio_seed2", "ratio_one_seed2", "ratio_seed2_se",
-                                          "ratio_one_seed2_se")),
+        errormap_summary=empty("su.csv", tables.ERROR_MAP_SUMMARY),
     ))
     assert found and {c.verdict for c in found} == {claims.NOT_CHECKABLE}
     assert all(c.cause.startswith(("not measured by this run", "needs ")) for c in found)

@@ -110,7 +110,7 @@ def _xu(inputs: ClaimInputs) -> list[Claim]:
 def _soler(inputs: ClaimInputs) -> list[Claim]:
     """Soler's claims but the likelihood's (which takes its database from the others)."""
     return [reproduction_vs_pca(inputs.reproduction), albedo_in_unit_interval(inputs.spaces),
-            negligible_discontinuity(inputs.spaces, inputs.stability), eq7_bound(inputs.paths),
+            negligible_discontinuity(inputs.spaces), eq7_bound(inputs.paths),
             second_bounce_share(inputs.bounce_shares),
             blend_vs_noise_floor(inputs.errormap_summary, floor_check=False),
             blend_vs_noise_floor(inputs.floor_check, floor_check=True)] + soler_not_checkable()

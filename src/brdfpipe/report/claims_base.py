@@ -138,8 +138,6 @@ class ClaimInputs:
     fig08_table: str | os.PathLike[str] | None = None
     reproduction: str | os.PathLike[str] | None = None
     spaces: str | os.PathLike[str] | None = None
-    #: ``spaces-stability.csv``: the interpolant next to each material (Soler §3's "negligible discontinuity")
-    stability: str | os.PathLike[str] | None = None
     paths: str | os.PathLike[str] | None = None
     traces: Mapping[int, str | os.PathLike[str]] = field(default_factory=dict)
     bounce_shares: str | os.PathLike[str] | None = None
