@@ -61,6 +61,35 @@ def test_measure_blends_equals_the_per_point_tables(holed: dict, space: str) -> 
     assert got.distances[-1] == 0.0
 
 
+@pytest.mark.parametrize("space", ["log", "raw"])
+def test_distance_to_a_material_is_that_of_the_clamped_table(holed: dict, space: str) -> None:
+    """``targets``: ‖table − z_m‖ / ‖z_m‖ over the store's valid cells, the table clamped as written."""
+    targets = [1, -1, 0, 5, 1]
+    tables, _ = gplvm.interpolate_tables(holed["store"], holed["W"], materials=holed["names"], space=space)
+    got = blendpass.measure_blends(holed["store"], holed["W"], materials=holed["names"], space=space,
+                                   targets=targets)
+    st = store.open_store(holed["store"])
+    valid = np.tile(np.asarray(st.valid[:], dtype=bool), 3)
+    for k, m in enumerate(targets):
+        if m < 0:
+            assert np.isnan(got.to_target[k])
+            continue
+        row = np.asarray(st.brdf[list(st.materials).index(holed["names"][m])], dtype=np.float64).reshape(-1)[valid]
+        want = np.linalg.norm(tables[k].reshape(-1)[valid] - row) / np.linalg.norm(row)
+        np.testing.assert_allclose(got.to_target[k], want, rtol=RTOL, atol=1e-12)
+    assert got.to_target[0] < 1e-6 < got.to_target[2]  # row 0 is material 1 itself; row 2 a spread blend
+    # the albedo alone needs only the cells it reads: the same albedo
+    only = blendpass.measure_blends(holed["store"], holed["W"], materials=holed["names"], space=space,
+                                    albedo_only=True)
+    np.testing.assert_allclose(only.albedo, got.albedo, rtol=RTOL, atol=0)
+    assert (only.clamped <= got.clamped).all() and only.clamped.sum() < got.clamped.sum()
+    with pytest.raises(ValueError, match="targets must give one material index"):
+        blendpass.measure_blends(holed["store"], holed["W"], materials=holed["names"], targets=[0, 1])
+    with pytest.raises(ValueError, match="albedo_only"):
+        blendpass.measure_blends(holed["store"], holed["W"], materials=holed["names"], targets=targets,
+                                 albedo_only=True)
+
+
 def test_narrow_blocks_give_the_same_measures(holed: dict, monkeypatch: pytest.MonkeyPatch) -> None:
     """The cells per block shrink with the number of points (memory); the sums do not depend on it."""
     pairs = [(0, 1), (3, 2)]

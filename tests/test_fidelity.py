@@ -246,7 +246,10 @@ def test_log_candidate_measures_its_blends_in_two_passes(setup: dict, monkeypatc
         np.testing.assert_allclose(given[q], want, rtol=1e-9, atol=0)
         bad = ((want < 0) | (want > 1)).any(axis=1).mean()
         assert row["albedo_clamped_bad_hull"] == row["albedo_bad_hull"] == bad and row["albedo_clamped_points"] == 12
-        assert np.isnan(row["jump_nn_max_1e-6"]) and row["jump_nn_worst"] == ""  # not a Gram quantity here
+        jump, nn = fidelity.nearest_neighbour_jump(setup["store"], m)  # the tables of the log space's blends
+        assert row["jump_nn_max_1e-6"] == pytest.approx(jump.max(), rel=1e-9) and row["jump_nn_worst"] == (
+            f"{m.names[int(jump.argmax())]}>{m.names[int(nn[jump.argmax()])]}")
+        assert np.isnan(row["reproduction_max"])  # a Gram quantity: linear spaces only
     assert 0.0 <= rows[0]["albedo_clamped_bad_map"] <= 1.0 and np.isnan(rows[1]["albedo_clamped_bad_map"])
     m3 = gplvm.load_model(models[3])
     ref = []
@@ -299,26 +302,27 @@ def test_clamped_albedo_is_that_of_the_table_brdfpipe_interpolate_writes(setup: 
     assert differs >= 2
 
 
-def _distance_bound(w: np.ndarray, i: int, norms: np.ndarray, n_values: int) -> float:
-    """Bound on |Gram-route − direct| of ‖Σ wⱼ zⱼ − zᵢ‖ / ‖zᵢ‖ from rounding alone.
+def _rounding(w: np.ndarray, i: int, norms: np.ndarray, n_values: int, dist: float, gram: bool = False) -> float:
+    """Bound on the difference of two float64 routes to ‖Σ wⱼ zⱼ − zᵢ‖ / ‖zᵢ‖ (``dist``) from rounding alone.
 
-    The Gram route: each entry of G = Z Zᵀ is a sum of n_values products, off by at most n_values·eps·‖zⱼ‖‖zₖ‖,
-    so vᵀGv (v = w − eᵢ) by n_values·eps·(Σ|vⱼ|‖zⱼ‖)² and its root by the root of that.  The direct route: each
-    value of Σ wⱼ zⱼ − zᵢ is off by at most (N + 1)·eps·Σ|wⱼ||zⱼ| (and its norm by one more eps).
+    Each value of the blend is a dot product over the N materials, off by at most (N + 2)·eps·Σ|wⱼ||zⱼ| in any
+    order of summation (and by 2 eps more through a MERL file's scale factors), so the difference vector by
+    (N + 4)·eps·Σ|wⱼ|‖zⱼ‖ in norm; the norm itself sums n_values squares (n_values·eps relative).  ``gram``: one
+    route is vᵀGv (v = w − eᵢ) with each entry of G = Z Zᵀ off by n_values·eps·‖zⱼ‖‖zₖ‖: its root by
+    √(n_values·eps)·Σ|vⱼ|‖zⱼ‖ more.
     """
-    v = w - np.eye(len(w))[i]
-    gram = np.sqrt(n_values * EPS) * float(np.abs(v) @ norms)
-    direct = (len(w) + 2) * EPS * (float(np.abs(w) @ norms) + norms[i])
-    return (gram + direct) / norms[i]
+    v = np.abs(w - np.eye(len(w))[i]) @ norms
+    return ((len(w) + 4) * EPS * float(np.abs(w) @ norms) + (np.sqrt(n_values * EPS) * v if gram else 0.0)) \
+        / norms[i] + n_values * EPS * dist
 
 
 def test_jump_next_to_a_material_is_the_table_brdfpipe_interpolate_writes(setup: dict, tmp_path: Path) -> None:
-    """jump_nn: the table `brdfpipe interpolate --between i j --t 1e-6` writes (j the nearest neighbour), against
-    the material's own table; at t = 0 the same command gives the material back (reproduction_max), which a
-    measure at the points alone would report as the interpolant's fidelity."""
+    """jump_nn: the distance from the material's own table of the table `brdfpipe interpolate --between i j
+    --t 1e-6` writes (j the nearest neighbour), clamped as written — the unclamped blend is farther; at t = 0 the
+    same command gives the material back (reproduction_max), the fidelity a measure at the points alone reports."""
     m = _model(setup, 3)
+    jump, nn = fidelity.nearest_neighbour_jump(setup["store"], m)
     _, _, info = gplvm.load_gram(setup["grams"]["raw"])
-    jump, nn = fidelity.nearest_neighbour_jump(m, info.raw_gram)
     repro = fidelity.reproduction_at_points(m, info.raw_gram)
     Z = setup["brdf"][:, setup["valid"]]
     norms = np.linalg.norm(Z, axis=1)
@@ -326,11 +330,11 @@ def test_jump_next_to_a_material_is_the_table_brdfpipe_interpolate_writes(setup:
     a, b = m.names[i], m.names[int(nn[i])]
     for t, measured in ((1e-6, jump[i]), (0.0, repro[i])):
         table = _interpolate(setup, 3, tmp_path / f"t{t:g}.binary", "--between", a, b, "--t", f"{t:g}")
-        w = gplvm.blend_weights(gplvm.weights(m, (1.0 - t) * m.X[i] + t * m.X[int(nn[i])]))
-        unclamped = w @ Z
-        direct = np.linalg.norm(unclamped - Z[i]) / norms[i]
-        assert abs(measured - direct) <= _distance_bound(w, i, norms, Z.shape[1]), (t, measured, direct)
-        # the file: the clamped table (clamping, a projection onto tables ≥ 0 that holds zᵢ, brings it no farther)
         written = np.linalg.norm(table.reshape(-1)[setup["valid"]] - Z[i]) / norms[i]
-        assert written <= direct * (1 + 1e-9) + 1e-12
+        w = gplvm.blend_weights(gplvm.weights(m, (1.0 - t) * m.X[i] + t * m.X[int(nn[i])]))
+        bound = _rounding(w, i, norms, Z.shape[1], written, gram=t == 0.0)  # reproduction_max: the Gram route
+        assert abs(measured - written) <= bound, (t, measured, written)
+        unclamped = np.linalg.norm(w @ Z - Z[i]) / norms[i]
+        if t > 0:  # negative values written as 0: the rendered table is nearer than the blend's negative lobes
+            assert unclamped > written + 2 * _rounding(w, i, norms, Z.shape[1], unclamped)
     assert jump[i] > 1e3 * max(repro[i], 1e-12)  # next to the material, not at it: the jump the δ term hides

@@ -66,6 +66,8 @@ class BlendMeasures:
     clamped: NDArray[np.int64]
     #: PR12 distance of each requested pair ``(len(pairs),)``.
     distances: NDArray[np.float64]
+    #: ``‖table − z_m‖ / ‖z_m‖`` over the valid cells, z_m the material of ``targets`` (NaN without one) ``(P,)``.
+    to_target: NDArray[np.float64]
 
 
 @lru_cache(maxsize=1)
@@ -86,6 +88,7 @@ def measure_blends(
     model: gplvm.GplvmModel | None = None,
     pairs: Sequence[tuple[int, int]] = (),
     albedo_only: bool = False,
+    targets: Sequence[int] | None = None,
 ) -> BlendMeasures:
     """Albedo of each blend ``weights`` ``(P, N)`` and the PR12 distances of ``pairs``, in one pass over the store.
 
@@ -98,7 +101,10 @@ def measure_blends(
     by :data:`POINT_CELLS`, whatever P.  ``albedo_only`` (no ``pairs``): blend
     only the cells the albedo reads (a fifth of the valid ones: the same
     albedo for a fifth of the work; ``clamped`` then counts those cells).
-    See the module docstring.
+    ``targets``: per blend, the index (in ``materials``' order) of a material
+    whose table's distance from the blend's is wanted, relative to its norm
+    (raw units, the clamped blend, as :func:`~brdfpipe.manifold.gplvm.interpolate_tables`
+    writes it), or −1.  See the module docstring.
     """
     st = store if isinstance(store, BrdfStore) else open_store(store)
     if model is not None:
@@ -122,9 +128,15 @@ def measure_blends(
     order = np.argsort(idx, kind="stable")
     rows, W_sorted = idx[order], W[:, order]
     P = W.shape[0]
+    tgt = np.full(P, -1, dtype=np.intp) if targets is None else np.asarray(targets, dtype=np.intp)
+    if tgt.shape != (P,) or tgt.min(initial=0) < -1 or tgt.max(initial=-1) >= idx.size:
+        raise ValueError(f"targets must give one material index in [0, {idx.size}) or -1 per blend")
+    aimed = np.flatnonzero(tgt >= 0)
+    at_sorted = np.argsort(order)[tgt[aimed]]  # the target materials' rows in the block (store order)
+    d2, n2 = np.zeros(P), np.zeros(P)
 
-    if albedo_only and pairs:
-        raise ValueError("albedo_only blends the cells the albedo reads: no perceptual distance (pairs) then")
+    if albedo_only and (pairs or targets is not None):
+        raise ValueError("albedo_only blends the cells the albedo reads: no distance (pairs, targets) then")
     use = np.asarray(st.valid[:], dtype=bool) & (albedo_cell_weights() != 0 if albedo_only else True)
     cells = np.flatnonzero(use).astype(np.int64)
     a_w = albedo_cell_weights()[cells]
@@ -156,10 +168,17 @@ def measure_blends(
             neg = vals < 0
             clamped += neg.sum(axis=1)
             vals[neg] = 0.0
+            if aimed.size:
+                own = block[at_sorted].reshape(aimed.size, 3 * m).astype(np.float64)
+                d2[aimed] += np.einsum("ij,ij->i", vals[aimed] - own, vals[aimed] - own)
+                n2[aimed] += np.einsum("ij,ij->i", own, own)
             vals = vals.reshape(P, 3, m)
             albedo += vals @ a_w[j0 + a : j0 + b]
             if paired:
                 dist.add(cells[j0 + a : j0 + b], vals[paired])
     if clamped.any():
-        logger.warning("blends: %s negative values in measured cells clamped to 0", clamped.tolist())
-    return BlendMeasures(albedo=albedo, clamped=clamped, distances=dist.distances())
+        logger.warning("blends: negative values in measured cells clamped to 0 in %d of %d tables (up to %d values)",
+                       int((clamped > 0).sum()), P, int(clamped.max()))
+    to_target = np.full(P, np.nan)
+    to_target[aimed] = np.sqrt(d2[aimed] / np.where(n2[aimed] > 0, n2[aimed], 1.0))
+    return BlendMeasures(albedo=albedo, clamped=clamped, distances=dist.distances(), to_target=to_target)

@@ -45,13 +45,14 @@ Measures
 * ``jump_nn_*_1e-6`` (:func:`nearest_neighbour_jump`): next to each material,
   towards its nearest neighbour in latent space (``x = (1 − t) xᵢ + t xⱼ``,
   t = :data:`NN_STEP`, the point ``brdfpipe interpolate --between i j --t 1e-6``
-  takes), the distance of the interpolated table from the material's,
-  ``‖z(x) − zᵢ‖ / ‖zᵢ‖`` in raw BRDF units over the valid cells (exactly, from
-  the raw Gram matrix); median, 90th percentile, max and the worst pair.  With
-  the kernel's noise term μ the weights a hair away from a training point are
-  not its own (``μ K⁻¹ eᵢ`` off), so the interpolant jumps there.  It is the
-  unclamped table's distance; clamping is a projection onto the non-negative
-  tables, which contains zᵢ, so the rendered table is no farther.
+  takes), the distance of the interpolated table *as that command writes it*
+  (negative values clamped) from the material's, ``‖z(x) − zᵢ‖ / ‖zᵢ‖`` in
+  raw BRDF units over the valid cells, measured in a pass over the store (any
+  data space); median, 90th percentile, max and the worst pair.  With the
+  kernel's noise term μ the weights a hair away from a training point are
+  not its own (``μ K⁻¹ eᵢ`` off), so the interpolant jumps there.  The
+  unclamped table can be much farther (its negative lobes): on merl-nbrdf's
+  blue-fabric → green-fabric, 159 % against the 48 % written.
 * ``reproduction_max``: at the training points themselves (the model's own
   weights, δ term included), the largest ``‖z(xᵢ) − zᵢ‖ / ‖zᵢ‖`` in raw units:
   rounding, amplified by κ(K).
@@ -227,26 +228,31 @@ def _relative_distances(W: NDArray[np.float64], G: NDArray[np.float64]) -> NDArr
     return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", V, G, V), 0.0)) / norms
 
 
-def nearest_neighbour_jump(
-    model: gplvm.GplvmModel, raw_gram: ArrayLike, t: float = NN_STEP
-) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
-    """Per material i: ``‖z(xᵢ + t(xⱼ − xᵢ)) − zᵢ‖ / ‖zᵢ‖`` with j its nearest neighbour in latent space, and j.
+def nearest_neighbour_points(model: gplvm.GplvmModel, t: float = NN_STEP) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Blend weights ``(N, N)`` at ``(1 − t) xᵢ + t xⱼ`` next to each material i, j its nearest latent neighbour; and j.
 
-    ``raw_gram``: the un-centred Gram matrix ``Z Zᵀ`` of the materials in
-    model order (raw units).  The point is ``(1 − t) xᵢ + t xⱼ`` and its
-    weights the model's own (:func:`brdfpipe.manifold.gplvm.weights`), as
-    ``brdfpipe interpolate --between`` computes them.  Linear spaces only.
+    The point and its weights are those of ``brdfpipe interpolate --between i j --t t``
+    (:func:`brdfpipe.manifold.gplvm.interpolate_to_file`: the model's own weights, δ term where the point is a
+    training point bitwise).
     """
-    G = np.asarray(raw_gram, dtype=np.float64)
     X = model.X
-    n = X.shape[0]
-    if G.shape != (n, n):
-        raise ValueError(f"gram must be {n} x {n}, got {G.shape}")
     D = ((X[:, None, :] - X[None, :, :]) ** 2).sum(axis=2)
     np.fill_diagonal(D, np.inf)
     nn = D.argmin(axis=1)
-    W = np.stack([gplvm.blend_weights(gplvm.weights(model, (1.0 - t) * X[i] + t * X[nn[i]])) for i in range(n)])
-    return _relative_distances(W, G), nn
+    W = np.stack([gplvm.blend_weights(gplvm.weights(model, (1.0 - t) * X[i] + t * X[nn[i]])) for i in range(len(nn))])
+    return W, nn
+
+
+def nearest_neighbour_jump(store: Any, model: gplvm.GplvmModel, t: float = NN_STEP) -> tuple[NDArray[np.float64],
+                                                                                              NDArray[np.intp]]:
+    """Per material i: ``‖table(xᵢ + t(xⱼ − xᵢ)) − zᵢ‖ / ‖zᵢ‖`` (raw units, valid cells), and j its nearest neighbour.
+
+    The table as ``brdfpipe interpolate`` writes it (negative values clamped), in one pass over the store
+    (:func:`brdfpipe.manifold.blendpass.measure_blends` with ``targets``); any data space.
+    """
+    W, nn = nearest_neighbour_points(model, t)
+    got = blendpass.measure_blends(store, W, model=model, targets=range(W.shape[0]))
+    return got.to_target, nn
 
 
 def reproduction_at_points(model: gplvm.GplvmModel, raw_gram: ArrayLike) -> NDArray[np.float64]:
@@ -313,6 +319,7 @@ def measure_model(
     steps: int,
     rng: np.random.Generator,
     clamped_albedo: ArrayLike,
+    jump: tuple[NDArray[np.float64], NDArray[np.intp]],
     clamped_map_albedo: ArrayLike | None = None,
     hull_points: int = HULL_POINTS,
     albedo_grid: int = 96,
@@ -328,7 +335,9 @@ def measure_model(
     pairs) for ``Σ|w|``.  ``clamped_albedo`` / ``clamped_map_albedo``: the
     albedos ``(P, 3)`` of the clamped tables at the first hull points and at
     the map's sub-grid (q = 2; :func:`clamped_albedos`, measured by the caller
-    in one pass for every q).
+    in one pass for every q); ``jump``: the table's distance from each
+    material next to it, and the neighbour it was taken towards
+    (:func:`nearest_neighbour_jump`).
 
     ``hull``: the hull points, already drawn from ``rng`` (:func:`hull_sample`;
     ``rng`` then in the state after the draw); None: drawn here.
@@ -363,7 +372,7 @@ def measure_model(
     spa = np.concatenate(sp) if sp else np.array([np.nan])
     row["sum_abs_w_path_median"], row["sum_abs_w_path_max"] = float(np.median(spa)), float(np.max(spa))
     row.update(nearest_neighbour_spread(model))
-    row.update(_continuity(model, raw_gram if linear else None))
+    row.update(_continuity(model, *jump, raw_gram if linear else None))
 
     stab_rows: list[dict[str, Any]] = []
     for norm, G in (("raw", raw_gram), ("space", space_gram)):
@@ -387,34 +396,45 @@ def _map_points(X: NDArray[np.float64], grid: int, stride: int = 1) -> NDArray[n
     return np.c_[XX.ravel(), YY.ravel()]
 
 
-def _continuity(model: gplvm.GplvmModel, raw_gram: ArrayLike | None) -> dict[str, Any]:
-    """The ``jump_nn_*`` and ``reproduction_max`` columns (NaN / empty without a raw Gram: the log space)."""
-    if raw_gram is None:
-        return {"jump_nn_median_1e-6": float("nan"), "jump_nn_p90_1e-6": float("nan"),
-                "jump_nn_max_1e-6": float("nan"), "jump_nn_worst": "", "reproduction_max": float("nan")}
-    jump, nn = nearest_neighbour_jump(model, raw_gram)
+def _continuity(model: gplvm.GplvmModel, jump: NDArray[np.float64], nn: NDArray[np.intp],
+                raw_gram: ArrayLike | None) -> dict[str, Any]:
+    """The ``jump_nn_*`` and ``reproduction_max`` columns (the latter NaN without a raw Gram: the log space)."""
     i = int(jump.argmax())
     return {"jump_nn_median_1e-6": float(np.median(jump)), "jump_nn_p90_1e-6": float(np.percentile(jump, 90)),
             "jump_nn_max_1e-6": float(jump[i]), "jump_nn_worst": f"{model.names[i]}>{model.names[int(nn[i])]}",
-            "reproduction_max": float(reproduction_at_points(model, raw_gram).max())}
+            "reproduction_max": (float(reproduction_at_points(model, raw_gram).max()) if raw_gram is not None
+                                 else float("nan"))}
 
 
-def _path_distances(
-    st: Any, model: gplvm.GplvmModel, paths: Sequence[analysis.LatentPath]
-) -> list[NDArray[np.float64]]:
-    """The perceptual distances of every latent path's points (:meth:`LatentPath.pairs`), one pass over the store."""
-    if not paths:
-        return []
+def _table_pass(
+    st: Any, fits: Mapping[int, gplvm.GplvmModel], paths: Sequence[analysis.LatentPath]
+) -> tuple[list[NDArray[np.float64]], dict[int, tuple[NDArray[np.float64], NDArray[np.intp]]]]:
+    """One pass over the store (every valid cell) for the measures of whole tables.
+
+    The perceptual distances of the latent paths' points (:meth:`LatentPath.pairs`, of the paths' fit) and,
+    for every q, the jump next to each material (:func:`nearest_neighbour_jump`).
+    """
+    first = next(iter(fits.values()))
+    blocks: list[NDArray[np.float64]] = []
     pairs: list[tuple[int, int]] = []
+    targets: list[int] = []
     counts = []
-    at = 0
     for p in paths:
-        pairs += p.pairs(at)
+        pairs += p.pairs(len(targets))
         counts.append(len(p.pairs()))
-        at += p.weights.shape[0]
-    got = blendpass.measure_blends(st, np.vstack([p.weights for p in paths]), model=model, pairs=pairs)
+        blocks.append(p.weights)
+        targets += [-1] * p.weights.shape[0]
+    near = {q: nearest_neighbour_points(m) for q, m in fits.items()}
+    rows = {}
+    for q, (W, _) in near.items():
+        rows[q] = slice(len(targets), len(targets) + W.shape[0])
+        blocks.append(W)
+        targets += list(range(W.shape[0]))
+    got = blendpass.measure_blends(st, np.vstack(blocks), materials=first.names, space=first.space, pairs=pairs,
+                                   targets=targets)
     ends = np.cumsum([0] + counts)
-    return [got.distances[a:b] for a, b in zip(ends[:-1], ends[1:])]
+    return ([got.distances[a:b] for a, b in zip(ends[:-1], ends[1:])],
+            {q: (got.to_target[rows[q]], near[q][1]) for q in fits})
 
 
 def _fmt(v: Any) -> str:
@@ -464,7 +484,8 @@ def measure_candidate(
     checked against the store); None computes them here.  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``).
     The clamped tables' albedos of every q are measured in one pass over the
-    store (:func:`clamped_albedos`), the latent paths' points in another.
+    store (:func:`clamped_albedos`), the latent paths' points and the tables
+    next to each material of every q in another (:func:`_table_pass`).
     """
     from brdfpipe.spec.manifold import check_paths, default_paths
     from brdfpipe.data.store import open_store
@@ -499,7 +520,7 @@ def measure_candidate(
     maps = {q: _map_points(m.X, albedo_grid, CLAMPED_MAP_STRIDE) for q, m in fits.items() if q == 2}
     picks = {q: np.vstack([hulls[q][:CLAMPED_HULL_POINTS], maps.get(q, np.empty((0, q)))]) for q in fits}
     clamped = clamped_albedos(st, fits, picks)
-    distances = _path_distances(st, fits[int(path_q)], lp) if lp else []
+    distances, jumps = _table_pass(st, fits, lp)
     rows: list[dict[str, Any]] = []
     stab: list[dict[str, Any]] = []
     for q, model in fits.items():
@@ -508,7 +529,7 @@ def measure_candidate(
         row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=info.raw_gram,
                                    centred_gram=centred, paths=pairs, steps=steps, rng=rngs[q],
                                    clamped_albedo=clamped[q][:k], clamped_map_albedo=clamped[q][k:] if q in maps
-                                   else None, albedo_grid=albedo_grid, hull=hulls[q])
+                                   else None, jump=jumps[q], albedo_grid=albedo_grid, hull=hulls[q])
         if lp and q == int(path_q):
             prow = [r for p, d in zip(lp, distances) for r in p.rows(model, centred, d)]
             row.update(path_uniformity(prow))
