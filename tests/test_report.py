@@ -222,7 +222,9 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
     cfg = yaml.safe_load((Path(__file__).parent / "config" / "tiny.yaml").read_text())
     emaps = sorted(p.name for p in (results / "errormaps" / "preview").glob("*-error.png"))
     declared = items.report_items(
-        database="synthetic", acquisition_figures=plan.acquisition_figures(cfg["acquisition"]),
+        database="synthetic",
+        acquisition_figures={**plan.acquisition_figures(cfg["acquisition"]),
+                             **plan.reconstruction_figures(cfg["acquisition"])},
         manifold_figures=plan.manifold_figures(cfg["manifold"]), render_figures=plan.render_figures(len(emaps)),
         floor_figure=filenames.figure_files(filenames.FLOOR_CHECK_STEM), spaces_table=filenames.spaces_csv(),
         errormaps=[(n.split("-t")[0], "0.5", f"{filenames.RESULTS}/errormaps/preview/{n}") for n in emaps],
@@ -231,7 +233,7 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         closedloop_figure=filenames.figure_files(filenames.CLOSEDLOOP_STEM),
         closedloop_table=filenames.closedloop_errors())
     pngs = [it for it in declared if it.path.endswith(".png")]
-    assert len(emaps) == 3 and len(pngs) == 20 + 3  # 20 figures (the closed loop's included), 3 error maps
+    assert len(emaps) == 3 and len(pngs) == 25 + 3  # 25 figures (the closed loop's included), 3 error maps
     assert set(entries) == {it.path for it in declared}, set(entries) ^ {it.path for it in declared}
     rows = claims.read_claims(results / "report" / "claims.csv")
     figs_of = {c["key"]: c["figures"] for c in json.loads((results / "report" / "claims.json").read_text())}

@@ -75,6 +75,9 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("plot_acquisition_figures", 1),
                     # the closed loop: one capture per held-out material, one evaluation, one figure
                     ("capture_closedloop", 3), ("evaluate_closedloop", 1), ("plot_closedloop", 1),
+                    # Xu Figs. 2, 15: each held-out material reconstructed and rendered, one figure job
+                    ("reconstruct_figure_material", 3), ("render_reconstructions", 3),
+                    ("plot_reconstruction_figures", 1),
                     ("compute_gram", 2), ("fit_gplvm", 4), ("measure_material_albedos", 1), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
                     ("make_envmap", 1), ("interpolate_path_points", 1),
@@ -131,7 +134,8 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
+    # Xu's (Figs. 2, 3, 8, 9, 14, 15 with their tables), Soler's, the renders', the closed loop's, the floor check's
+    assert len(figures) == 36 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
     assert "closedloop-vs-table.png" in figures
     # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
     closed = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "closedloop.csv")[1]
@@ -301,7 +305,8 @@ def declared_outputs(configfile: Path) -> set[str]:
     from brdfpipe import plan
 
     cfg = yaml.safe_load(configfile.read_text())
-    files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
+    files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.reconstruction_figures(cfg["acquisition"]),
+                            plan.manifold_figures(cfg["manifold"]))
              for fs in figs.values() for f in fs}
     if plan.closedloop_directions(cfg):
         files |= set(filenames.figure_files(filenames.CLOSEDLOOP_STEM))
