@@ -59,18 +59,23 @@ Optimisation
 :func:`_newton_stages`):
 
 1. start: :func:`pca_init` scaled by the rules ``rms`` and ``unit``
-   (:data:`NEWTON_TRIAL_SCALES`; below); steps 2 and 3 from each, the higher
+   (:data:`NEWTON_TRIAL_SCALES`; below); steps 2 to 4 from each, the higher
    final L is kept;
 2. Newton steps with the exact Hessian (:func:`log_likelihood_hessian`,
    ≈ 20 gradients' worth at q = 5) in Levenberg–Marquardt form: the shift λ
-   on a ladder of powers of two, never below twice the largest eigenvalue of
-   ∇²L (so a step along a direction where L curves up is at most twice the
-   gradient step there), raised until L gains, lowered after good steps;
-   until the gain left is at the rounding level of L;
-3. where the Hessian shows the stationary point to be a saddle, a step along
-   its direction of positive curvature and back to 2.  The result is a local
-   maximum: gradient at rounding level, Hessian negative semi-definite up to
-   the rigid motions.
+   on a ladder of powers of two, raised until L gains, lowered after good
+   steps; where L curves up along some direction by more than λ/2, λ is
+   raised up to 8-fold, and beyond that the step is taken with the Hessian's
+   absolute value (its eigenvalues' signs dropped: saddle-free Newton), which
+   moves uphill along such a direction at the gradient's pace instead of
+   letting it set λ for every other direction; until no step can gain above
+   the rounding level of L;
+3. where the Hessian shows the stationary point to be a saddle (L curving up
+   by more than :data:`SADDLE_CURVATURE` of its typical curvature), a step
+   along its direction of positive curvature and back to 2;
+4. a few Newton steps judged by the gradient, where the gains are below the
+   rounding level of L.  The result is a local maximum: gradient at rounding
+   level, Hessian negative semi-definite up to the rigid motions.
 
 It has no random element (``seed`` is not used).  The objective is
 multimodal (several maxima within a few per cent of each other, and on
@@ -79,7 +84,7 @@ start can end in a different one, either way; no optimiser here is global.
 
 Reproducibility.  The path must not depend on the BLAS kernel: the L of one X
 differs between kernels (and thread counts) by up to ~4e-13 relative, the
-Gram matrix computed from the same store by ~3e-16 of its largest entry.  The
+Gram matrix computed from the same store by ~1e-15 of its largest entry.  The
 optimiser before issue 31 (L-BFGS trials, Hessian-preconditioned L-BFGS,
 Newton) amplified these differences ~10× every ten L-BFGS iterations (the
 curvature pairs of L-BFGS are differences of nearly equal gradients), and
@@ -87,21 +92,22 @@ ended at different maxima on different kernels: on merl-nbrdf, default space,
 q = 2, four maxima among five kernels (L 1.529e8 to 1.548e8).  So:
 
 * no quasi-Newton memory: every step is a function of the current point alone;
-* the shift keeps each step's sensitivity to rounding bounded (step 2);
 * each step's component along the rigid motions (under which L is invariant:
   rounding noise divided by the shift) is removed, and the rest is rounded to
   :data:`STEP_BITS` bits of its largest entry (:func:`_snap`, exact and the
   same on every machine), the start to :data:`POINT_BITS` bits: two machines
   whose steps differ by rounding take bit for bit the same step, so their
   paths do not drift apart (a rounded step is an inexact Newton step with
-  relative error ≤ 2^-9, which converges all the same);
+  relative error ≤ 2^-8, which converges all the same);
 * the discrete decisions are taken on a ladder (λ = unit·2^k, k an integer)
   or with margins (a step predicted to gain less than :data:`GAIN_RESOLUTION`
   of |L| is not tried; of two starts the later wins only by more than that).
 
-Measured (docs/design/reproducibility.md): under six OpenBLAS kernels and
-thread counts the paths are bit for bit the same up to the last few steps
-(where the gain is at rounding level), and every fit ends at the same maximum.
+Measured (docs/design/reproducibility.md): 17 fits under five OpenBLAS
+kernels and two thread counts take the same steps and end at the same
+maximum, the latent points at most 4e-10 ℓ apart; the fits before issue 31
+ended at up to four maxima.  The other two methods below are not
+reproducible across kernels.
 
 ``method="hooke-jeeves"`` is the paper's direct search alone (below).
 ``method="hybrid"`` (the default before issue 23): the initial scale is chosen by short
