@@ -254,7 +254,7 @@ def test_readers(inputs: dict[str, object]) -> None:
     assert inp.database == DB and sorted(inp.models) == list(QS)
     tr = read_trace(inputs["traces"][2])  # type: ignore[index]
     st = list(tr.stage)
-    assert st[0] == "start" and "lbfgs" in st
+    assert st[0] == "start" and "newton" in st
     assert tr.switches == [k for k in range(1, len(st)) if st[k] != st[k - 1] and st[k - 1] != "start"]
     m = read_albedo_map(inputs["albedo_maps"][5])  # type: ignore[index]
     assert m.q == 5 and m.dims == (0, 1) and m.luminance.shape == (19, 23) and m.fixed.shape == (5,)
