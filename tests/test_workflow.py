@@ -341,7 +341,8 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
         r = subprocess.run(cmd, capture_output=True, text=True, cwd=work, env=env, timeout=900)
         assert r.returncode == 0, r.stderr[-4000:]
     figures = {p.relative_to(work).as_posix() for p in (work / "results" / "figures").iterdir()}
-    render = {f for fs in plan.render_figures(len(cfg["render"]["path_points"])).values() for f in fs}
+    samples = cfg["render"].get("latent_samples", {}).get("count", 11)  # the schema's default: Soler Fig. 1's 11
+    render = {f for fs in plan.render_figures(len(cfg["render"]["path_points"]), samples).values() for f in fs}
     floor_checked = cfg["render"]["floor_check"]["candidates"] != "none"  # tiny-nearfield: default; tiny-point: none
     assert floor_checked == (shape == "tiny-nearfield")
     if floor_checked:

@@ -768,7 +768,7 @@ def render_points(
     merl_paths: Sequence[str | os.PathLike[str]],
     *,
     outs: Sequence[Sequence[str | os.PathLike[str]]],
-    outs_one: Sequence[Sequence[str | os.PathLike[str]]],
+    outs_one: Sequence[Sequence[str | os.PathLike[str]]] | None,
     seeds: list[int],
     labels: Sequence[str],
     derived: bool = False,
@@ -779,7 +779,8 @@ def render_points(
     """:func:`render_material_seeds` for many interpolated materials in one process (the path points' jobs).
 
     ``merl_paths[k]`` is rendered once per seed, ``outs[k][s]`` and
-    ``outs_one[k][s]`` with ``seeds[s]``, and ``path_point = labels[k]`` in
+    ``outs_one[k][s]`` with ``seeds[s]`` (``outs_one`` None: no I¹⁻ part is
+    written), and ``path_point = labels[k]`` in
     the headers; the other keywords are :func:`render_material`'s.  One
     Mitsuba start for all points (the points of a path come from one
     interpolation job, so they change together); each image is the one the
@@ -789,9 +790,9 @@ def render_points(
     """
     n = len(merl_paths)
     for name, values in (("outs", outs), ("outs_one", outs_one), ("labels", labels)):
-        if len(values) != n:
+        if values is not None and len(values) != n:
             raise ValueError(f"render_points: {len(values)} {name} for {n} MERL files")
-    if any(len(o) != len(seeds) for o in list(outs) + list(outs_one)):
+    if any(len(o) != len(seeds) for o in list(outs) + list(outs_one or [])):
         raise ValueError(f"render_points: every point needs one output per seed ({len(seeds)})")
     if len(set(labels)) != len(labels):
         raise ValueError("render_points: labels repeat an entry")
@@ -800,7 +801,7 @@ def render_points(
     say = progress if progress is not None else logger.info
     start = time.perf_counter()
     for k, (src, label) in enumerate(zip(merl_paths, labels)):
-        render_material_seeds(src, list(outs[k]), outs_one=list(outs_one[k]), seeds=seeds,
+        render_material_seeds(src, list(outs[k]), outs_one=None if outs_one is None else list(outs_one[k]), seeds=seeds,
                               attrs={**(attrs or {}), "path_point": label}, progress=progress, **kwargs)
         say(f"point {k + 1}/{n} rendered: {label} ({time.perf_counter() - start:.1f} s so far)")
 

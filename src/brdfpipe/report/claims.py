@@ -568,7 +568,7 @@ SECOND_BOUNCE_MAX: float = 0.10
 
 def second_bounce_share(path: str | os.PathLike[str]) -> Claim:
     """Soler §5.2: paths with ≥ 2 scatterings on the material carry little light (I²⁺ share over the object)."""
-    key, where, figs = "soler-second-bounce", "§5.2", ("render-fig01",)
+    key, where, figs = "soler-second-bounce", "§5.2", ("render-prerenders",)
     claim = f"I²⁺ share of every pre-render over the object at most {SECOND_BOUNCE_MAX:.0%} (our reading of \"≪\")"
     paper_value = "\"we expect L2+ ≪ L1−\" (not measured in the paper)"
     p, rows = _rows(path, tables.columns(tables.BOUNCE_SHARES, "database", "material", "share_object"))
