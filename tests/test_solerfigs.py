@@ -155,7 +155,7 @@ def test_fig01_samples_are_brdfpipe_sample_s_rendered_like_the_pre_renders(work:
     note = read_note(work / filenames.figure_files("render-fig01-latent-samples", note=True)[-1])
     sums = [s["sum_abs_w"] for s in doc["samples"]]
     assert f"--seed {seed} --count {count}" in note and f"Σ|w| from {min(sums):.3g} to {max(sums):.3g}" in note
-    assert "Soler's measured materials gold-paint;" in note  # the only one of his four in this config
+    assert "pre-renders of Soler's measured gold-paint; " in note  # the only one of his four in this config
 
 
 @pytest.mark.slow

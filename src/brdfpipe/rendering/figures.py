@@ -175,9 +175,10 @@ def fig01_layout(n_samples: int, materials: Sequence[str], seed: int) -> tuple[l
     it = iter(range(n_samples))
     out = [cell if cell is not None else ("sample", str(next(it))) for cell in cells]
     lacking = [m for m, _ in SOLER_FIG1_MATERIALS if m not in names]
-    how = ("Soler's measured materials " + (", ".join(m for m, _ in paper) if paper else "none")
-           + (f"; {', '.join(drawn)} drawn (seed {seed}) in place of {', '.join(lacking[:len(drawn)])}, which the "
-              "database lacks" if drawn else ""))
+    how = "; ".join(part for part in (
+        f"Soler's measured {', '.join(m for m, _ in paper)}" if paper else "",
+        f"{', '.join(drawn)} (drawn with seed {seed} in place of {', '.join(lacking[:len(drawn)])}, which the "
+        "database lacks)" if drawn else "") if part)
     return out, how
 
 
@@ -257,8 +258,8 @@ def paper_path(points: Sequence[RenderPoint]) -> tuple[str, str]:
     soler = path_name(*SOLER_FIG12_PATH)
     if soler in names:
         return soler, ""
-    return names[0], (f"Soler's path {SOLER_FIG12_PATH[0]} → {SOLER_FIG12_PATH[1]} is not rendered here (the "
-                      "database lacks one of them): the first rendered path instead")
+    return names[0], (f"Soler's path {SOLER_FIG12_PATH[0]} → {SOLER_FIG12_PATH[1]} is not rendered here, the "
+                      "database lacking one of them: the first rendered path instead")
 
 
 def _point_numbers(q: RenderPoint, row: Mapping[str, str] | None) -> str:
@@ -312,7 +313,7 @@ def render_fig12_interpolation(prerenders: Mapping[str, Path], points: Sequence[
                     f"B: {b}\n(pre-rendered)", 5.0)
     first = by_path[main]
     a, b = ends[main]
-    note = (f"{a} → {b} in the q = {first[0].q} latent space" + (f" ({why})" if why else " (Soler's path)")
+    note = (f"{a} → {b} in the q = {first[0].q} latent space" + (f" — {why}" if why else " (Soler's path)")
             + ", rendered at t = " + ", ".join(f"{q.t:g}" for q in first) + ": "
             + "; ".join(f"t = {q.t:g}: {_point_numbers(q, summary.get((q.path, format_t(q.t))))}" for q in first)
             + (f". {len(paths) - 1} other rendered path(s) below it." if len(paths) > 1 else "."))
@@ -368,11 +369,11 @@ def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[st
     if row is None:
         warn(f"no summary row for {q.path} t = {format_t(q.t)}")
     note = (f"{q.material_a} → {q.material_b} at t = {q.t:g} in the q = {q.q} latent space"
-            + (f" ({why})" if why else " (Soler's point)") + f": {_point_numbers(q, row)}.")
+            + (f" — {why} —" if why else " (Soler's point)") + f": {_point_numbers(q, row)}.")
     title = (f"Blended pre-renders vs the render of the interpolated material at the path's midpoint (Soler Fig. 13)"
              f" — {database_label(database)}")
     subtitle = (f"{q.material_a} → {q.material_b}, t = {q.t:g}, q = {q.q}"
-                + (f" ({why})" if why else "") + "; error maps on one scale, against the reference's second seed "
+                + (f"; {why}" if why else "") + "; error maps on one scale, against the reference's second seed "
                 "(the pre-renders share the first seed's samples)")
     return finish(fig, stem, title, subtitle, database, warn, note=note)
 
