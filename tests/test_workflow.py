@@ -77,7 +77,10 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("capture_closedloop", 3), ("evaluate_closedloop", 1), ("plot_closedloop", 1),
                     ("compute_gram", 2), ("fit_gplvm", 4), ("measure_material_albedos", 1), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
+                    ("measure_lengthscales", 1),  # Soler Fig. 6
                     ("make_envmap", 1), ("interpolate_path_points", 1),
+                    # Soler Fig. 1: the latent samples drawn in one job, rendered in one
+                    ("sample_latent_materials", 1), ("render_latent_samples", 1),
                     # pre-renders: 12 materials in 2 batches of 6 (materials_per_job 10), both scene folders
                     ("prerender_materials_b00", 1), ("prerender_materials_b01", 1),
                     ("render_path_points", 1), ("error_maps", 1), ("render_object_mask", 1),
@@ -131,7 +134,8 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
+    # + Soler Figs. 1 and 6 (PNG, PDF and note each) and the notes of Figs. 12 and 13
+    assert len(figures) == 16 + 16 + 6 + 2 + 2 + 8 and "fig05-error-vs-images.png" in figures
     assert "closedloop-vs-table.png" in figures
     # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
     closed = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "closedloop.csv")[1]
