@@ -570,7 +570,11 @@ def _producers() -> list[tuple[str, str]]:
         (albedo_map(w), "analyze_manifold"),
         (paths_csv(), "analyze_manifold"),
         (reproduction(), "analyze_manifold"),
-        (f"{FIGURES}/{w}", "plot_acquisition_figures"),  # fig08's table: the one figure file read back
+        (lengthscales_csv(), "measure_lengthscales"),
+        # the figure files read back: the notes (by write_claims) and fig08's table
+        (f"{FIGURES}/manifold-{w}.json", "plot_manifold_figures"),
+        (f"{FIGURES}/render-{w}.json", "plot_render_figures"),
+        (f"{FIGURES}/{w}", "plot_acquisition_figures"),
         (envmap(w), "make_envmap"),
         (prerender(w, w), "prerender_materials"),
         (prerender_one(w, w), "prerender_materials"),
@@ -579,6 +583,9 @@ def _producers() -> list[tuple[str, str]]:
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}.binary", "interpolate_candidate_path_points"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}-weights.json", "interpolate_candidate_path_points"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}.exr", "render_candidate_path_points"),
+        (latent_samples_json(w), "sample_latent_materials"),
+        (latent_sample(w, w, "binary"), "sample_latent_materials"),
+        (latent_sample(w, w, "image"), "render_latent_samples"),
         (path_point(w, w, w, "binary"), "interpolate_path_points"),
         (path_point(w, w, w, "weights"), "interpolate_path_points"),
         (f"{RESULTS}/renders/{w}/paths/{w}.exr", "render_path_points"),
