@@ -75,6 +75,7 @@ import tempfile
 import time
 from pathlib import Path
 from _common import training_materials  # noqa: E402  (benches/ is on sys.path)
+from brdfpipe.spec import acquisition as acquisition_spec  # noqa: E402  (standard library only: before numpy)
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 600.0
@@ -134,7 +135,7 @@ def main() -> None:
     ap.add_argument("--grid", type=int, default=32)
     ap.add_argument("--n", type=int, default=2, help="n_max (images)")
     ap.add_argument("--candidates", type=int, default=500)
-    ap.add_argument("--metric", default="error", choices=["error", "condition"])
+    ap.add_argument("--metric", default="error", choices=list(acquisition_spec.METRICS))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--blas-threads", type=int, default=None)
     ap.add_argument("--work", type=Path, default=None, help="scratch folder (default: a new one in /tmp)")

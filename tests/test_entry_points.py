@@ -128,8 +128,9 @@ def inputs(latent_inputs: dict[str, Path], tmp_path_factory: pytest.TempPathFact
     i.obs.write_text("theta_h,theta_d,phi_d,r,g,b\n10,20,30,0.1,0.1,0.1\n")
     i.claims = d / "run" / "claims.csv"
     i.claims.parent.mkdir()
-    claim = claims.Claim(key="one_shot", paper="Xu 2016", where="Fig. 5", claim="one image", paper_value="3°",
-                         measured="7.2°", value=7.2, holds="no", database="synthetic", source="errors.csv")
+    claim = claims.Claim(key="one_shot", paper="Xu 2016", where="Fig. 5", sentence="3°", claim="one image",
+                         measured="7.2°", value=7.2, verdict=claims.DIFFERS, cause="a real difference: 7.2°",
+                         database="synthetic", source="errors.csv")
     claims.write_claims([claim], csv_path=i.claims, json_path=d / "run" / "claims.json", rst_path=d / "run" / "c.rst")
     i.claims_json = d / "run" / "claims.json"
     i.claims_truncated = d / "claims-truncated.csv"

@@ -35,6 +35,7 @@ from brdfpipe.acquisition.figures import (
 from brdfpipe.acquisition.geometry import config_to_dict, Setup
 from brdfpipe.acquisition.optimize import DirectionSet, read_directions, write_directions
 from brdfpipe.core.filenames import FIGURE_STEMS
+from brdfpipe.spec import figures as fig_spec
 
 DB = "synthetic"
 MATERIALS = ("blue-acrylic", "gold-metallic-paint", "white-fabric")
@@ -48,7 +49,7 @@ CONFIGS = {15.0: [(16, 50, 90), (20, 70, 60)], 25.0: [(17, 48, 90), (30, 75, 100
 
 
 def _value(setup: str, fov: float, metric: str, n: int, mi: int, ch: int) -> float:
-    base = SETUPS[(setup, fov)] * (1.6 if metric == "condition" else 1.0)
+    base = SETUPS[(setup, fov)] * {"error": 1.0, "condition": 1.6, "condition_nielsen": 1.8}[metric]
     return base / n ** 0.7 * (1.0 + 0.15 * mi) * (1.0 + 0.05 * ch)
 
 
@@ -56,7 +57,9 @@ def write_errors(path: Path, database: str = DB, drop: str | None = None) -> Pat
     cols = [c for c in figures.ERRORS_COLUMNS if c != drop]
     rows = []
     for (setup, fov), _ in SETUPS.items():
-        for metric in ("error", "condition"):
+        for metric in ("error", "condition", "condition_nielsen"):
+            if metric == "condition_nielsen" and setup != "point":  # Nielsen's κ: point samples only
+                continue
             for n in range(1, N_MAX + 1):
                 for kind in ("rms_log", "relrms_linear"):
                     scale = 1.0 if kind == "rms_log" else 0.3
@@ -134,8 +137,13 @@ def write_dirs(root: Path, database: str = DB) -> tuple[dict[float, Path], list[
 
 def figure_map(out: Path, keys: "tuple[str, ...] | None" = None) -> dict[str, list[Path]]:
     """The workflow's figure files (:func:`brdfpipe.core.filenames.figure_files`), under ``out`` instead of results/."""
-    return {k: [out / Path(f).name for f in filenames.figure_files(stem, table=(k == "fig08"))]
+    return {k: [out / Path(f).name for f in filenames.figure_files(stem, table=_table(k))]
             for k, stem in FIGURE_STEMS.items() if keys is None or k in keys}
+
+
+def _table(key: str) -> bool:
+    """Whether figure ``key`` writes a table next to it (its registry record)."""
+    return fig_spec.figure(f"xu-{key}").table
 
 
 def files_under(folder: Path) -> list[Path]:
@@ -166,8 +174,10 @@ def outputs(inputs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -
 
 def test_wrapper_writes_every_file(outputs: tuple[Path, list[Path]]) -> None:
     out, files = outputs
-    expected = {out / f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in ("png", "pdf")}
-    expected |= {out / "fig08-optimal-configurations.csv", out / "fig08-optimal-configurations.md"}
+    expected = {out / f"{stem}.{ext}" for k, stem in FIGURE_STEMS.items()
+                for ext in ("png", "pdf", *(("csv", "md") if _table(k) else ()))}
+    assert {p.name for p in expected} >= {"fig08-optimal-configurations.csv", "fig03-recon-vs-deviation.md",
+                                          "fig09-configurations-fov25.csv", "fig14-fixed-configurations.csv"}
     assert expected == {p for v in figure_map(out).values() for p in v}
     assert set(files) == expected
     assert len(files) == len(expected)
@@ -264,7 +274,7 @@ def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: P
         files = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"],
                                          directions=inputs["dirs"], figures=figure_map(tmp_path),
                                          fovs=(15, 25, 35), n_point=7, fov_fixed=30)
-    assert len(files) == 2 * len(FIGURE_STEMS) + 2
+    assert len(files) == sum(len(v) for v in figure_map(tmp_path).values())
     assert sorted(files) == files_under(tmp_path)
     text = caplog.text
     assert "FOV 35°" in text  # fig05/06/08
@@ -422,23 +432,31 @@ def test_figure_stem(tmp_path: Path) -> None:
     assert files_under(tmp_path) == [] and not (tmp_path / "c").exists()
 
 
-def test_the_condition_baseline_is_labelled_as_xu_eq6(inputs: dict[str, Path], tmp_path: Path,
-                                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    """The κ baseline is Xu's eq. 6 over all k components, not Nielsen 2015's released code: legends say so."""
+def test_the_previous_work_curve_is_nielsens_kappa_and_eq6_has_its_own(inputs: dict[str, Path], tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Xu Figs. 6, 18, 19: "previous work" is Nielsen 2015's κ as released (first n components), drawn red;
+    eq. 6 over all k components is a curve of its own, labelled so; the two are never confused."""
     legends: list[str] = []
+    colours: dict[str, str] = {}
     save = figures.finish
 
     def record(fig, *args, **kwargs):  # the legend texts of every figure, then the real save
         boxes = [ax.get_legend() for ax in fig.axes if ax.get_legend()] + list(fig.legends)
         legends.extend(t.get_text() for box in boxes for t in box.get_texts())
+        colours.update({line.get_label(): line.get_color() for ax in fig.axes for line in ax.get_lines()})
         return save(fig, *args, **kwargs)
 
     monkeypatch.setattr(figures, "finish", record)
     figures.fig06_fov_vs_point(inputs["errors"], tmp_path / "f6", fovs=FOVS)
     fig18_per_material(inputs["errors"], tmp_path / "f18", n=N_MAX)
     kappa = [t for t in legends if "κ" in t]
-    assert {"point samples, min κ (Xu eq. 6)", "directions: min κ (Xu eq. 6)"} <= set(kappa), legends
-    assert not [t for t in legends if "Nielsen" in t], legends
+    nielsen = "min κ, first n components (Nielsen 2015 as released)"
+    eq6 = "min κ, all k components (Xu eq. 6)"
+    assert {f"previous work: point samples, {nielsen}", f"point samples, {eq6}", f"previous work: directions: {nielsen}",
+            f"directions: {eq6}"} <= set(kappa), legends
+    assert not [t for t in legends if "Nielsen" in t and "previous work" not in t], legends
+    assert not [t for t in legends if "eq. 6" in t and ("Nielsen" in t or "previous" in t)], legends
+    assert colours[f"previous work: point samples, {nielsen}"] == "#d62728"  # red, as the paper's Fig. 6
 
 
 def test_an_edited_errors_table_is_refused(inputs: dict[str, Path], tmp_path: Path) -> None:

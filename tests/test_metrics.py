@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from brdfpipe.acquisition import metrics
-from brdfpipe.acquisition.metrics import ErrorModel, add_rows, condition_number, direct_training_error, empty_stats, expected_error, expected_error_literal, expected_error_terms, reconstruct_coefficients, remove_rows, selection_stats
+from brdfpipe.acquisition.metrics import ErrorModel, add_rows, condition_number, condition_number_first_n, direct_training_error, empty_stats, expected_error, expected_error_literal, expected_error_terms, reconstruct_coefficients, remove_rows, selection_stats
 
 M_ROWS = 12
 P_COLS = 3000
@@ -452,6 +452,34 @@ def test_condition_number_edge_cases() -> None:
     assert condition_number(np.zeros((4, 4)), n=0) == np.inf
     assert condition_number(np.zeros((3, 4))) == np.inf
     assert condition_number(np.array([[3.0, 4.0]])) == pytest.approx(1.0)
+
+
+def test_nielsens_kappa_conditions_the_first_n_components_only() -> None:
+    """Nielsen 2015's κ as released: the n × n block of the rows and the first n components (analytic basis)."""
+    e1, e2, e3 = np.eye(4)[:3]
+    golden = (3 + np.sqrt(5)) / 2  # κ of rows (1, 0, 0, 0), (1, 0, 1, 0): Gram [[1, 1], [1, 2]], λ = (3 ± √5) / 2
+    # rows equal in their first 2 components: singular for Nielsen's κ, finite over all k (eq. 6)
+    A = np.array([e1, e1 + e3])
+    assert condition_number_first_n(A) == np.inf
+    assert condition_number(A, method="svd") == pytest.approx(golden, rel=1e-12)
+    # a row that is large only past component n: ignored by Nielsen's κ, dominant over all k
+    B = np.array([e1 + 5 * e3, e2])
+    assert condition_number_first_n(B) == pytest.approx(1.0, rel=1e-12)
+    assert condition_number(B, method="svd") == pytest.approx(np.sqrt(26.0), rel=1e-12)
+    # where the first n components carry everything, the two agree
+    C = np.array([2 * e1, e1 + e2])
+    assert condition_number_first_n(C) == pytest.approx(condition_number(C, method="svd"), rel=1e-12)
+    # one sample: the released code's 1 / |q11|; more rows than components: all k columns (eq. 6)
+    assert condition_number_first_n(np.array([[-4.0, 1.0, 9.0]])) == pytest.approx(0.25)
+    assert condition_number_first_n(np.array([[0.0, 1.0, 9.0]])) == np.inf
+    D = np.random.default_rng(3).standard_normal((7, 4))
+    assert condition_number_first_n(D) == pytest.approx(np.linalg.cond(D), rel=1e-10)
+    # n ≤ k: numpy's κ of the square block
+    F = np.random.default_rng(4).standard_normal((3, 6))
+    assert condition_number_first_n(F) == pytest.approx(np.linalg.cond(F[:, :3]), rel=1e-10)
+    assert condition_number_first_n(np.zeros((0, 3))) == np.inf
+    with pytest.raises(ValueError, match="finite"):
+        condition_number_first_n(np.array([[np.nan, 1.0]]))
 
 
 # --------------------------------------------------------------------------

@@ -23,7 +23,8 @@ from numpy.typing import NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.acquisition.geometry import config_to_dict, observation_cells, Setup
-from brdfpipe.acquisition.metrics import ErrorModel, condition_number, direct_training_error, expected_error, selection_stats
+from brdfpipe.acquisition.metrics import (ErrorModel, condition_number, condition_number_first_n, direct_training_error,
+                                          expected_error, selection_stats)
 from brdfpipe.acquisition.optimize import DIRECTIONS_FORMAT, DirectionSet, optimize, read_directions, write_directions
 from brdfpipe.core import filenames
 from brdfpipe.data import merl
@@ -393,3 +394,50 @@ def test_bad_directions_files(tmp_path) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(ValueError):
         write_directions(p, sets, setup=setup_of("nearfield"), metric="kappa", split="train", model_path="m",
                          seed=0, eta=40, beta=0, database="merl")
+
+
+def test_each_kappa_metric_picks_the_sets_a_brute_force_greedy_search_picks() -> None:
+    """A tiny candidate set (8 point cells, k = 4): every step adds what an exhaustive search over the cells adds.
+
+    The cells are 5 φd cells apart, so no local move (≤ 3 cells) lands on
+    another: the optimiser is the paper's greedy few-to-many search with
+    every candidate tried (t = p).  The brute force evaluates each metric's
+    key (κ, then E(S)) on every remaining cell, independently of the
+    optimiser.  On this basis the two κ pick different sets, so a swapped
+    metric fails.
+    """
+    @dataclass
+    class Tiny:
+        Q: NDArray[np.float32]
+        sigma: NDArray[np.float64]
+        U: NDArray[np.float64]
+        cells: NDArray[np.int64]
+
+    rng = np.random.default_rng(1)
+    p, k, n_max = 8, 4, 4
+    cells = np.ravel_multi_index((np.full(p, 40), np.full(p, 40), 5 * np.arange(p)), merl.DIMS).astype(np.int64)
+    model = Tiny((rng.standard_normal((p, k)) * [4.0, 2.0, 1.0, 0.5]).astype(np.float32), np.array([4.0, 2.0, 1.0, 0.5]),
+                 np.linalg.qr(rng.standard_normal((6, k)))[0], cells)
+    em = ErrorModel(model.sigma, model.U)
+    Q = model.Q.astype(np.float64)
+
+    def brute_force(kappa) -> list[int]:  # type: ignore[no-untyped-def]
+        chosen: list[int] = []
+        for _ in range(n_max):
+            def key(c: int) -> tuple[float, float]:
+                rows = Q[chosen + [c]]
+                return kappa(rows), expected_error(em, *selection_stats(rows))
+            chosen.append(min((c for c in range(p) if c not in chosen), key=key))
+        return chosen
+
+    picked = {}
+    for metric, kappa in (("condition_nielsen", condition_number_first_n), ("condition", condition_number)):
+        sets = optimize(model, Setup("point", 0.0, 8), metric=metric, n_max=n_max, candidates=p, seed=0,
+                        log=lambda line: None)
+        order = [int(np.flatnonzero(cells == np.ravel_multi_index(c, merl.DIMS))[0]) for c in sets[-1].configurations]
+        want = brute_force(kappa)
+        assert order == want, (metric, order, want)
+        assert [sorted(s.configurations) for s in sets] == [
+            sorted(sets[-1].configurations[:n]) for n in range(1, n_max + 1)]  # each set grows from the previous
+        picked[metric] = want
+    assert picked["condition_nielsen"] != picked["condition"]

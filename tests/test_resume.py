@@ -435,7 +435,7 @@ def test_a_change_snakemake_cannot_see_replans_its_jobs(tmp_path: Path,
     """acquisition.eta 40 → 7 on tiny: optimize_directions' values stay the set {…, 40, 7} (candidates, seed).
 
     Before job stamps Snakemake replanned the evaluations (whose params changed
-    visibly) over the nine direction sets optimised with η = 40; a dry run now
+    visibly) over the ten direction sets optimised with η = 40; a dry run now
     plans every job that reads η.
     """
     base = shared_run(tmp_path_factory, TINY)
@@ -448,7 +448,7 @@ def test_a_change_snakemake_cannot_see_replans_its_jobs(tmp_path: Path,
     assert run_state(work) == before  # a dry run writes nothing under results/
     planned = {line.split()[0]: int(line.split()[1]) for line in out.splitlines()
                if len(line.split()) == 2 and line.split()[1].isdigit()}
-    assert planned.get("optimize_directions") == 9, out[-3000:]
+    assert planned.get("optimize_directions") == 10, out[-3000:]  # point: 3 metrics, Nielsen's κ included
     assert {"evaluate_directions", "capture_closedloop", "evaluate_closedloop"} <= set(planned), out[-3000:]
 
 

@@ -473,15 +473,17 @@ def check_tiny_nbrdf_run(work: Path) -> None:
     _, crows = integrity.read_csv_rows(work / filenames.claims_csv(), required=claims.CLAIM_COLUMNS)
     by_key = {c["key"]: c for c in crows}
     spectralon = by_key["unseen-rgl-spectralon-albedo"]
-    assert spectralon["holds"] == "yes" and spectralon["database"] == "rgl-nbrdf"
+    assert spectralon["verdict"] == claims.REPRODUCES and spectralon["database"] == "rgl-nbrdf"
+    assert spectralon["paper"] == claims.OURS  # a radiometric check of ours, not a claim of a paper
     assert abs(float(spectralon["value"]) - 0.96) < 0.03
     assert {"unseen-xu-rgl-nbrdf", "unseen-xu-nielsen-nbrdf"} <= set(by_key)
     # the side-by-side page heads the run's column by the run's own database, the unseen rows naming theirs
     from brdfpipe.report import sidebyside
 
     page = sidebyside.side_by_side_markdown([sidebyside.read_run(work / filenames.claims_csv())])
-    assert next(line for line in page.splitlines() if line.startswith("| paper")).endswith("| merl-nbrdf |")
-    assert "rgl-nbrdf spectralon-rgb: r, g, b" in page
+    assert next(line for line in page.splitlines() if line.startswith("| paper")).endswith(
+        "| merl-nbrdf: verdict — cause |")
+    assert "luminance 0.9" in page.split("## Our own checks")[1]
     for stem in (filenames.UNSEEN_STEM, filenames.MANIFOLD_UNSEEN_STEM):
         assert all((work / f).stat().st_size > 0 for f in filenames.figure_files(stem))
     # every store carries its own label: the unseen fits are never labelled merl
@@ -498,11 +500,12 @@ def test_spectralon_claim(tmp_path: Path) -> None:
         return path
 
     ok = claims.spectralon_albedo([albedo_csv("a.csv", "rgl-nbrdf", "spectralon-rgb", 0.958)])
-    assert ok.holds == "yes" and ok.database == "rgl-nbrdf" and math.isclose(ok.value, 0.958)
+    assert ok.verdict == claims.REPRODUCES and ok.database == "rgl-nbrdf" and math.isclose(ok.value, 0.958)
+    assert "±0.03 of 0.96" in ok.claim  # the tolerance is in the row's text
     dark = claims.spectralon_albedo([albedo_csv("b.csv", "rgl-nbrdf", "spectralon-rgb", 0.80)])
-    assert dark.holds == "no"
+    assert dark.verdict == claims.DIFFERS and dark.cause.startswith("the data: luminance 0.800")
     absent = claims.spectralon_albedo([albedo_csv("c.csv", "nielsen-nbrdf", "bluebook", 0.3)])
-    assert absent.holds == "not measured"
+    assert absent.verdict == claims.NOT_CHECKABLE and absent.cause.startswith("not measured by this run")
     with pytest.raises(claims.ClaimsInputError, match="appears twice"):
         claims.spectralon_albedo([tmp_path / "a.csv", albedo_csv("d.csv", "rgl-nbrdf", "spectralon-rgb", 0.95)])
 
@@ -511,8 +514,8 @@ def test_unseen_claims_do_not_change_the_runs_database_side_by_side(tmp_path: Pa
     from brdfpipe.report import claims, sidebyside
 
     def claim(key: str, database: str) -> claims.Claim:
-        return claims.Claim(key=key, paper="Xu 2016", where="§7", claim=key, paper_value="-", measured=f"{database} m",
-                            value=1.0, holds="yes", database=database, source="x.csv")
+        return claims.Claim(key=key, paper="Xu 2016", where="§7", sentence="-", claim=key, measured=f"{database} m",
+                            value=1.0, verdict=claims.REPRODUCES, cause="c", database=database, source="x.csv")
 
     rows = [claim("one_shot", "merl-nbrdf"), claim(f"{claims.UNSEEN_CLAIM_PREFIX}xu-rgl-nbrdf", "rgl-nbrdf"),
             claim(f"{claims.UNSEEN_CLAIM_PREFIX}rgl-spectralon-albedo", "rgl-nbrdf")]

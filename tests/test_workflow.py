@@ -70,11 +70,14 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
     out = r.stdout + r.stderr
     for rule, n in [("synthesize_material", 12), ("ingest_material", 12), ("assemble_store", 1),
                     ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
-                    ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 9),
+                    ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 10),
                     ("evaluate_directions", 1), ("evaluate_training_size", 1), ("check_directions", 2),
                     ("plot_acquisition_figures", 1),
                     # the closed loop: one capture per held-out material, one evaluation, one figure
                     ("capture_closedloop", 3), ("evaluate_closedloop", 1), ("plot_closedloop", 1),
+                    # Xu Figs. 2, 15: each held-out material reconstructed and rendered, one figure job
+                    ("reconstruct_figure_material", 3), ("render_reconstructions", 3),
+                    ("plot_reconstruction_figures", 1),
                     ("compute_gram", 2), ("fit_gplvm", 4), ("measure_material_albedos", 1), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
                     ("measure_lengthscales", 1),  # Soler Fig. 6
@@ -134,8 +137,9 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
+    # Xu's (Figs. 2, 3, 8, 9, 14, 15 with their tables), Soler's, the renders', the closed loop's, the floor check's;
     # + Soler Figs. 1 and 6 (PNG, PDF and note each) and the notes of Figs. 12 and 13
-    assert len(figures) == 16 + 16 + 6 + 2 + 2 + 8 and "fig05-error-vs-images.png" in figures
+    assert len(figures) == 36 + 16 + 6 + 2 + 2 + 8 and "fig05-error-vs-images.png" in figures
     assert "closedloop-vs-table.png" in figures
     # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
     closed = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "closedloop.csv")[1]
@@ -305,7 +309,8 @@ def declared_outputs(configfile: Path) -> set[str]:
     from brdfpipe import plan
 
     cfg = yaml.safe_load(configfile.read_text())
-    files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
+    files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.reconstruction_figures(cfg["acquisition"]),
+                            plan.manifold_figures(cfg["manifold"]))
              for fs in figs.values() for f in fs}
     if plan.closedloop_directions(cfg):
         files |= set(filenames.figure_files(filenames.CLOSEDLOOP_STEM))

@@ -194,6 +194,17 @@ UNSEEN_EVALUATED = bool(UNSEEN) and bool(UNSEEN_DIRECTIONS or CLOSEDLOOP_SETS)
 UNSEEN_FIGURES = plan.unseen_figures(unseen=bool(UNSEEN), evaluated=UNSEEN_EVALUATED)
 UNSEEN_MAP_Q = plan.unseen_map_q(MAN)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
+# Xu Figs. 2 and 15: held-out materials (FIGURE_MATERIALS, also Fig. 3's) reconstructed
+# from the training split's direction sets RECON_SETS (setup, fov, metric, n), one job
+# per material, rendered in the pre-renders' scene, one job (one Mitsuba start) per material.
+RECONSTRUCTION_FIGURES = plan.reconstruction_figures(ACQ)
+RECON_COLUMNS = plan.reconstruction_columns(ACQ)
+RECON_SETS = plan.reconstruction_sets(ACQ)
+FIGURE_MATERIALS = plan.figure_materials(TEST_MATERIALS)
+RECON_DIRECTIONS = list(
+    dict.fromkeys(fn.directions("train", s, f, m) for s, f, m, _ in RECON_SETS)
+)
+RECON_MATERIALS = FIGURE_MATERIALS if RECON_SETS else []
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
 DEFAULT_CANDIDATE = manifold_specs.candidate_label(MAN["space"], MAN["mu"])
 CANDIDATE_SPACES = sorted({space for space, _ in CANDIDATES.values()} | {"raw"})
@@ -411,3 +422,28 @@ def closedloop_tables(material, source):
 def source_file(wildcards):
     """The .binary file of one material (real MERL folder or generated)."""
     return str(DATABASE.sources[wildcards.material])
+
+
+def recon_image_count(recon_set):
+    """Images of a reconstructed set (its n for an image set-up, none for point samples)."""
+    setup, _, _, n = recon_set
+    return n if setup_specs.SETUPS[setup].images else 0
+
+
+def recon_tables(material):
+    """A figure material's reconstructed tables, one per set of RECON_SETS."""
+    return [fn.reconstruction(material, *s) for s in RECON_SETS]
+
+
+def recon_inputs(material):
+    """The input images of a figure material's image sets, set by set."""
+    return [
+        fn.reconstruction_input(material, *s, j)
+        for s in RECON_SETS
+        for j in range(1, recon_image_count(s) + 1)
+    ]
+
+
+def recon_renders(material):
+    """The renders of a figure material's reconstructed tables, one per set of RECON_SETS."""
+    return [fn.reconstruction_render(SCENE, material, *s) for s in RECON_SETS]

@@ -196,6 +196,42 @@ if N_SAMPLES:
             "../scripts/render_latent_samples.py"
 
 
+if RECON_SETS:
+
+    # Xu Figs. 2 and 15: a figure material's reconstructed tables rendered exactly as
+    # the pre-renders (scene, resolution, spp, depth, seed): the reference is the
+    # material's pre-render. One job (one Mitsuba start) per material.
+    rule render_reconstructions:
+        input:
+            merl=recon_tables("{material}"),
+            envmap=fn.envmap(SCENE),
+            stamp=stamp_of("render_reconstructions"),
+        output:
+            images=recon_renders("{material}"),
+        log:
+            f"logs/render_reconstructions/{SCENE}/{{material}}.log",
+        benchmark:
+            f"benchmarks/render_reconstructions/{SCENE}/{{material}}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 2
+        resources:
+            gpu=RENDER_GPUS,
+            mem_mb=mem("render_reconstructions"),
+            runtime=5 + 2 * len(RECON_SETS),
+        params:
+            labels=[f"{s}-fov{fn.fov_tag(f)}-{m}-n{n}" for s, f, m, n in RECON_SETS],
+            variant=RENDER["variant"],
+            resolution=RENDER["resolution"],
+            spp=RENDER["spp"],
+            max_depth=RENDER["max_depth"],
+            seed=RENDER["seed"],
+            database=DATABASE.kind,
+            code=code("render_reconstructions.py"),
+        script:
+            "../scripts/render_reconstructions.py"
+
+
 # The object's pixels (for the I²⁺ share over the object): one small render.
 rule render_object_mask:
     input:

@@ -15,6 +15,7 @@ rule write_claims:
         ],
         reproduction=fn.reproduction(),
         spaces=fn.spaces_csv(),
+        stability=fn.spaces_stability_csv(),
         paths=fn.paths_csv(),
         traces=expand(fn.gplvm_trace(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
         bounce_shares=fn.bounce_shares(SCENE),

@@ -7,7 +7,7 @@ from brdfpipe.plan import report as report_plan
 
 REPORT_ITEMS = report_plan.report_items(
     database=DATABASE.kind,
-    acquisition_figures=ACQUISITION_FIGURES,
+    acquisition_figures={**ACQUISITION_FIGURES, **RECONSTRUCTION_FIGURES},
     manifold_figures=MANIFOLD_FIGURES,
     render_figures=RENDER_FIGURES,
     floor_figure=FLOOR_FIGURE,

@@ -9,6 +9,7 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         outs=[[f] for f in snakemake.output.images],
         outs_one=None,
         labels=snakemake.params.labels,
+        label_key="latent_sample",
         seeds=[snakemake.params.seed],
         envmap=snakemake.input.envmap,
         variant=snakemake.params.variant,

@@ -16,6 +16,7 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
             fig08_table=inp.fig08_table[0] if inp.fig08_table else None,
             reproduction=inp.reproduction,
             spaces=inp.spaces,
+            stability=inp.stability,
             paths=inp.paths,
             traces=dict(zip(snakemake.params.latent_dims, inp.traces)),
             bounce_shares=inp.bounce_shares,

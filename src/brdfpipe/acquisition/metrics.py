@@ -5,7 +5,7 @@ How good a selection of MERL cells is for reconstructing a BRDF from the
 principal components of :mod:`brdfpipe.acquisition.svd`: the expected error
 of a selection (the paper's eq. 15), its fast sufficient-statistics form, the
 literal p-space formula it is checked against, the condition-number baseline
-of Nielsen et al. 2015 (eq. 6), many candidate selections evaluated against
+of eq. 6 and Nielsen et al. 2015's released variant of it, many candidate selections evaluated against
 one factored base selection (:class:`FactoredSelection`, for the optimiser),
 and the regularised reconstruction of eq. 4.  Which cells an acquisition
 configuration observes is :mod:`brdfpipe.acquisition.geometry`; the search
@@ -74,6 +74,7 @@ __all__ = [
     "ErrorModel",
     "add_rows",
     "condition_number",
+    "condition_number_first_n",
     "direct_training_error",
     "empty_stats",
     "expected_error",
@@ -938,7 +939,7 @@ def condition_number(
 
     Over all k components of Q̃, as Xu write it.  (Nielsen et al. 2015's
     released code conditions only the first n components and picks other
-    directions; the figures label this baseline "min κ (Xu eq. 6)".)
+    directions: :func:`condition_number_first_n`.)
 
     The singular values are the ``min(n, k)`` singular values of the n × k
     matrix ``Q̃`` — for ``n < k`` the ``n`` (generically non-zero) ones, so a
@@ -1024,6 +1025,38 @@ def condition_number(
     if lam_max <= 0 or lam_min <= (tol**2) * lam_max:
         return float("inf")
     return float(np.sqrt(lam_max / lam_min))
+
+
+def condition_number_first_n(Qrows: ArrayLike) -> float:
+    """Nielsen et al. 2015's κ as their released code computes it: the first n components only.
+
+    For the n selected rows ``Q̃`` (n × k) the code's ``CondNum`` conditions
+    the n × n matrix of those rows and the first ``n`` columns of ``Q``
+    (``usePrimaryColumnsOnly``), so the i-th sample is paired with the i-th
+    principal component; with more rows than components (n > k) it is the
+    all-k κ of :func:`condition_number`.  A single sample gives a 1 × 1
+    matrix, whose ``CondNum`` is ``1 / |q₁₁|`` (the code's rule for one
+    value; it then favours the row of largest first component).  κ of the
+    square matrix from its singular values (rank tolerance ``n · ε``, as
+    :func:`condition_number`'s ``"svd"``); ``inf`` when singular or empty.
+
+    Unlike eq. 6 over all k, it ignores what the rows say about components
+    n + 1 … k: two rows equal in their first n components give ``inf`` even
+    when they differ beyond, and rows that differ only there do not help.
+    """
+    A = np.asarray(Qrows, dtype=np.float64)
+    if A.ndim != 2 or A.shape[1] == 0:
+        raise ValueError(f"condition_number_first_n needs an (n, k) array with k ≥ 1, got shape {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise ValueError("condition_number_first_n: input must be finite")
+    n, k = A.shape
+    if n == 0:
+        return float("inf")
+    if n > k:
+        return condition_number(A, method="svd")
+    if n == 1:
+        return float("inf") if A[0, 0] == 0 else float(1.0 / abs(A[0, 0]))
+    return condition_number(A[:, :n], method="svd")
 
 
 # ---------------------------------------------------------------------------

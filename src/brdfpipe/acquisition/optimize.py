@@ -3,8 +3,8 @@ after Nielsen et al. 2015) and its directions files.
 
 :func:`optimize` runs the greedy few-to-many search with local moves over the
 configurations of a setup of :mod:`brdfpipe.acquisition.geometry`, minimising
-a metric of :mod:`brdfpipe.acquisition.metrics` (E(S) of eq. 15, or the
-condition number of eq. 6); :func:`write_directions` and
+a metric of :mod:`brdfpipe.acquisition.metrics` (E(S) of eq. 15, the
+condition number of eq. 6, or Nielsen et al. 2015's first-n variant of it); :func:`write_directions` and
 :func:`read_directions` write and read the direction sets as JSON, and
 :func:`optimize_to_file` is the workflow's ``optimize_directions`` job.  The
 comment below the imports describes the search, its moves, metrics and cost.
@@ -49,6 +49,7 @@ from brdfpipe.acquisition.metrics import (
     block_stats,
     check_eta,
     condition_number,
+    condition_number_first_n,
     empty_stats,
     expected_error,
     selection_stats,
@@ -98,7 +99,13 @@ F64 = NDArray[np.float64]
 # for both, rank-deficient Q̃, which the κ metric of near-field images often
 # gives) broken by the smaller E(S): finite κ always wins, among equal κ the
 # smaller E.  That the κ search is poor for near-field images is the paper's
-# point (§3.1, Fig. 5) and is left as it is.  Improvements must exceed a
+# point (§3.1, Fig. 5) and is left as it is.  "condition_nielsen" minimises
+# Nielsen et al. 2015's κ as released (the n × n matrix of the n rows and the
+# first n components, condition_number_first_n; all k columns once there are
+# more rows than k), with the same tie-break; its cost per candidate is one
+# n × n SVD, as κ's.  (Their code also starts from the row of largest norm and
+# runs no local search at n = 1; here n = 1 is searched like any n, on the
+# code's 1 / |q₁₁|.)  Improvements must exceed a
 # relative 1e-12, so rounding noise never counts as one (and the search
 # cannot cycle).
 #
@@ -386,9 +393,10 @@ class _Optimizer:
         return (self.kappa(G, nrows, parts), E)
 
     def kappa(self, G: Callable[[], F64] | F64, nrows: int, parts: Callable[[], list[NDArray[np.float32]]]) -> float:
-        """κ(Q̃): from the rows when there are at most k, else from the Gram matrix ``G``."""
+        """κ(Q̃) of the metric: from the rows when there are at most k, else from the Gram matrix ``G``."""
         if nrows <= self.k:
-            return condition_number(np.concatenate(parts(), axis=0))
+            rows = np.concatenate(parts(), axis=0)
+            return condition_number_first_n(rows) if self.metric == "condition_nielsen" else condition_number(rows)
         return condition_number(G() if callable(G) else G, nrows)
 
     def evaluate(
@@ -421,7 +429,7 @@ class _Optimizer:
             while start + len(blocks) < len(cands) and (not blocks or rows < _EVAL_CHUNK_ROWS):
                 idx = cands[start + len(blocks)]
                 b = self.row_block(idx)
-                if self.metric == "condition" and n0 + idx.size > self.k:
+                if self.metric != "error" and n0 + idx.size > self.k:
                     # κ needs the candidate's Gram matrix: computed once, also used for E when direct.
                     b = b._replace(stats=block_stats(b, self.k))
                 blocks.append(b)
@@ -664,7 +672,7 @@ def optimize(
     model: ModelLike,
     setup: Setup,
     *,
-    metric: Literal["error", "condition"] = "error",
+    metric: Literal["error", "condition", "condition_nielsen"] = "error",
     n_max: int,
     candidates: int = 500,
     steps: Sequence[int] = (3, 2, 1),
@@ -686,8 +694,9 @@ def optimize(
     setup:
         The acquisition :class:`Setup`.
     metric:
-        ``"error"`` (E(S), eq. 15) or ``"condition"`` (κ(Q̃), eq. 6, ties and
-        inf broken by E(S)).
+        ``"error"`` (E(S), eq. 15), ``"condition"`` (κ(Q̃), eq. 6, ties and
+        inf broken by E(S)) or ``"condition_nielsen"`` (κ of the first n
+        components, Nielsen et al. 2015 as released; ties likewise).
     n_max:
         Largest set size (≥ 1).
     candidates:
@@ -763,7 +772,7 @@ def optimize(
 # JSON, written atomically (temporary sibling + rename):
 #
 #   {"format": "brdfpipe.directions/1", "setup": kind, "fov": degrees (0 for
-#    point), "grid": g, "metric": "error" | "condition", "split": …, "eta": η,
+#    point), "grid": g, "metric": "error" | "condition" | "condition_nielsen", "split": …, "eta": η,
 #    "beta": β, "seed": …, "database": …, "model": path, "brdfpipe_version": …,
 #    "sets": [{"n": n, "configurations": [config_to_dict records],
 #              "expected_error": E, "condition_number": κ (null when

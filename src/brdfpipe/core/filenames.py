@@ -23,6 +23,7 @@ __all__ = [
     "FIGURES",
     "SYNTHETIC",
     "FIGURE_STEMS",
+    "RECONSTRUCTION_FIGURE_STEMS",
     "MANIFOLD_FIGURE_STEMS",
     "RENDER_FIGURE_STEMS",
     "FLOOR_CHECK_STEM",
@@ -51,6 +52,9 @@ __all__ = [
     "closedloop_image",
     "closedloop_observations",
     "closedloop_errors",
+    "reconstruction",
+    "reconstruction_input",
+    "reconstruction_render",
     "UNSEEN_STEM",
     "MANIFOLD_UNSEEN_STEM",
     "unseen_tables",
@@ -112,6 +116,10 @@ FIGURES = f"{RESULTS}/figures"
 
 #: Xu 2016 figure analogues drawn by rule plot_acquisition_figures: key → file stem (:mod:`brdfpipe.spec.figures`).
 FIGURE_STEMS: dict[str, str] = {f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_acquisition_figures")}
+#: Xu 2016 figures of rendered reconstructions (Figs. 2, 15), drawn by rule plot_reconstruction_figures: key → file stem.
+RECONSTRUCTION_FIGURE_STEMS: dict[str, str] = {
+    f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_reconstruction_figures")
+}
 #: Soler 2018 figure analogues of the manifold track: key → file stem.
 MANIFOLD_FIGURE_STEMS: dict[str, str] = {
     f.key: f.stem for f in figure_specs.track_figures("manifold", "plot_manifold_figures")
@@ -235,6 +243,30 @@ def closedloop_observations(material: str, setup: str, fov: float | str, metric:
 def closedloop_errors() -> str:
     """Table-lookup and closed-loop errors of the held-out materials (the columns of errors.csv)."""
     return f"{RESULTS}/evaluation/closedloop.csv"
+
+
+# -- held-out materials reconstructed from direction sets (Xu Figs. 2, 15) ----
+
+
+def _set_tag(setup: str, fov: float | str, metric: str, n: int | str) -> str:
+    return f"{setup}-fov{fov_tag(fov)}-{metric}-n{n}"
+
+
+def reconstruction(material: str, setup: str, fov: float | str, metric: str, n: int | str) -> str:
+    """A held-out material's table reconstructed from the n-set of a directions file (MERL file, derived mark)."""
+    return f"{RESULTS}/reconstructions/{material}/{_set_tag(setup, fov, metric, n)}.binary"
+
+
+def reconstruction_input(material: str, setup: str, fov: float | str, metric: str, n: int | str,
+                         j: int | str) -> str:
+    """EXR of image ``j`` (1-based) of that set: the observed pixels it was reconstructed from."""
+    return f"{RESULTS}/reconstructions/{material}/{_set_tag(setup, fov, metric, n)}-{j}-input.exr"
+
+
+def reconstruction_render(scene: str, material: str, setup: str, fov: float | str, metric: str,
+                          n: int | str) -> str:
+    """The render of a reconstructed table in a scene folder (the pre-renders' settings)."""
+    return f"{RESULTS}/renders/{scene}/reconstructions/{material}/{_set_tag(setup, fov, metric, n)}.exr"
 
 
 # -- materials outside the training database (config unseen) ----------------
@@ -558,6 +590,8 @@ def _producers() -> list[tuple[str, str]]:
         (unseen_store(w), "evaluate_unseen_fits"),
         (unseen_tables(w), "evaluate_unseen_fits"),
         (f"{RESULTS}/closedloop/{w}/{w}", "capture_closedloop"),
+        (f"{RESULTS}/reconstructions/{w}/{w}", "reconstruct_figure_material"),
+        (f"{RESULTS}/renders/{w}/reconstructions/{w}/{w}", "render_reconstructions"),
         (gram(w), "compute_gram"),
         (gplvm_model(w, w), "fit_gplvm"),
         (gplvm_trace(w, w), "fit_gplvm"),

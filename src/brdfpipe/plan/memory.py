@@ -13,7 +13,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from brdfpipe.plan.outputs import closedloop_directions, curve_directions, unseen_directions
+from brdfpipe.plan.outputs import closedloop_directions, curve_directions, reconstruction_sets, unseen_directions
 from brdfpipe.spec.errors import ConfigError
 
 __all__ = [
@@ -65,6 +65,10 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "capture_closedloop": (250.0, 0.0),  # 231-251 MB measured (default config, 33 × 33 images)
     "evaluate_closedloop": (900.0, 0.0),  # 1,135 MB measured: 10 held-out materials × 8 sets (default config)
     "plot_closedloop": (157.0, 0.0),  # as plot_acquisition_figures
+    # Xu Figs. 2 and 15, a held-out material reconstructed from each figure set (a job per material): 447 MB peak measured on the tiny config (k = 26, 4 sets); at k = 269 and 5 sets one chunk
+    # of Q (36,450 × k, float32 and float64) and x̂ (3 × sets × p float64) add about 130 MB
+    "reconstruct_figure_material": (600.0, 0.0),
+    "plot_reconstruction_figures": (240.0, 0.0),  # 108 MB measured (tiny, 3 materials × 10 images of 32 × 24)
     # materials outside the training database (config unseen); see SIZE_MEMORY_MB for their number
     "evaluate_unseen_fits": (480.0, 0.0),  # as evaluate_fits (same library call, up to 4 threads)
     "capture_unseen_closedloop": (250.0, 0.0),  # as capture_closedloop, plus every material's tables
@@ -88,6 +92,7 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "render_path_points": (350.0, 0.0),  # as prerender_materials: several renders in one process
     "sample_latent_materials": (250.0, 2.22),  # as interpolate_path_points: 622 MB (N = 13), 817 MB (N = 100), 11 tables
     "render_latent_samples": (350.0, 0.0),  # as render_path_points: 385 MB (32 × 24, N = 13), 374 MB (256 × 192, N = 100)
+    "render_reconstructions": (350.0, 0.0),  # as render_path_points (306 MB measured, tiny): renders in one process
     "render_object_mask": (253.0, 0.0),  # as one render of render_path_points: one small render, not measured alone
     "bounce_shares": (110.0, 0.0),  # not measured: reads two images at a time, less than error_maps
     "error_maps": (110.0, 0.1),  # reads the I¹⁻ pre-renders too: twice error_maps' per-material share
@@ -161,11 +166,14 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     "render_latent_samples": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_object_mask": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_candidate_path_points": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_reconstructions": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     # readers of the renders (tiny config, 12 materials, 32 × 24 → 384 × 288: +5.6, +30, +56 and +264 MB)
     "bounce_shares": (("render_pixels", (), 6.0e-5),),
     "error_maps": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
     "measure_candidate_blends": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
     "plot_render_figures": (("render_pixels", ("materials",), 4.3e-5),),
+    # Figs. 2 and 15: up to 7 materials × 6 renders held at once, float64 RGB and the 8-bit copy shown (~1.9 kB a pixel)
+    "plot_reconstruction_figures": (("render_pixels", (), 1.9e-3),),
     "write_explorer": (("render_pixels", ("materials",), 2.0e-4),),
     # path points: an interpolated table (35 MB) and its perceptual features (53 MB) each, up to PATH_CHUNK at
     # once (tiny config, path_steps 4 → 30: +1,760 MB); the albedo map: distances and kernel values of every
@@ -401,4 +409,6 @@ def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bo
         skip |= {"sample_latent_materials", "render_latent_samples"}
     if not curve_directions(config["acquisition"]):
         skip.add("evaluate_training_size")
+    if not reconstruction_sets(config["acquisition"]):
+        skip |= {"reconstruct_figure_material", "render_reconstructions", "plot_reconstruction_figures"}
     return [r for r in MEMORY_MB if r not in skip]

@@ -11,12 +11,13 @@ and which rules a configuration runs
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from brdfpipe.core import filenames
 from brdfpipe.spec import figures as figure_specs
-from brdfpipe.spec.acquisition import setup_fovs
+from brdfpipe.spec.figures import ReconSet
+from brdfpipe.spec.acquisition import setup_fovs, setup_metrics
 
 __all__ = [
     "direction_files",
@@ -28,6 +29,10 @@ __all__ = [
     "curve_directions",
     "albedo_map_dims",
     "acquisition_figures",
+    "figure_materials",
+    "reconstruction_columns",
+    "reconstruction_sets",
+    "reconstruction_figures",
     "manifold_figures",
     "render_figures",
     "floor_check_candidates",
@@ -37,7 +42,8 @@ __all__ = [
 def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
     """Direction sets optimised on a split.
 
-    ``train``: every setup × FOV × metric (they are evaluated); ``all``: only
+    ``train``: every setup × FOV × metric that applies to the setup (they are
+    evaluated; :func:`brdfpipe.spec.acquisition.setup_metrics`); ``all``: only
     the near-field sets of the error metric (the paper's table of optimal
     configurations, Xu Fig. 8).
     """
@@ -46,7 +52,7 @@ def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
         if split == "all" and setup != "nearfield":
             continue
         fovs = setup_fovs(setup, acquisition["fovs"], acquisition["fixed_fov"])
-        metrics = acquisition["metrics"] if split == "train" else ["error"]
+        metrics = setup_metrics(setup, acquisition["metrics"]) if split == "train" else ["error"]
         files += [filenames.directions(split, setup, fov, metric) for fov in fovs for metric in metrics]
     return files
 
@@ -127,6 +133,69 @@ def _track_figures(track: str, rule: str, settings: Mapping[str, Any]) -> dict[s
 def acquisition_figures(acquisition: Mapping[str, Any]) -> dict[str, list[str]]:
     """Xu 2016 figure analogues this config produces: key → files (PNG, PDF[, CSV, MD])."""
     return _track_figures("acquisition", "plot_acquisition_figures", acquisition)
+
+
+def figure_materials(test_materials: Sequence[str]) -> list[str]:
+    """The held-out materials of Xu Figs. 2, 3 and 15: those of Xu's Fig. 2 that are held out, in its order.
+
+    A run that holds none of them out (another database, other
+    ``test_materials``) shows its first :data:`~brdfpipe.spec.figures.FIG02_FALLBACK_COUNT`
+    held-out materials.
+    """
+    held = list(test_materials)
+    paper = [m for m in figure_specs.FIG02_MATERIALS if m in held]
+    return paper or held[: figure_specs.FIG02_FALLBACK_COUNT]
+
+
+def reconstruction_columns(acquisition: Mapping[str, Any]) -> dict[str, list[tuple[str, ReconSet]]]:
+    """Per figure of rule plot_reconstruction_figures that the config produces: its columns, (label, set).
+
+    Xu Fig. 2: 1 image (near-field, :func:`curve_fov`, min E(S)), 5 point
+    samples of previous work (:data:`~brdfpipe.spec.figures.PREVIOUS_WORK_METRIC`),
+    2 images, 20 point samples — set sizes capped at ``n_max_images`` /
+    ``n_max_point``; the point columns only when the config optimises that
+    metric for point samples.  Xu Fig. 15: 2 images with a fixed camera
+    (``fixed_fov``), next to the 2-image near-field set.
+    """
+    fov = curve_fov(acquisition)
+    n_img, n_pt = int(acquisition["n_max_images"]), int(acquisition["n_max_point"])
+    points = "point" in acquisition["setups"] and figure_specs.PREVIOUS_WORK_METRIC in acquisition["metrics"]
+    columns: dict[str, list[tuple[str, ReconSet]]] = {}
+    for f in figure_specs.track_figures("acquisition", "plot_reconstruction_figures"):
+        if not f.produced(acquisition):
+            continue
+        if f.key == "fig02":
+            cols = []
+            for n_images, n_points in zip((1, 2), figure_specs.PREVIOUS_WORK_POINTS):
+                if n_images <= n_img:
+                    cols.append((f"{n_images} image{'s' if n_images > 1 else ''}",
+                                 ("nearfield", fov, "error", n_images)))
+                if points:
+                    n = min(n_points, n_pt)
+                    cols.append((f"{n} point{'s' if n > 1 else ''}",
+                                 ("point", 0.0, figure_specs.PREVIOUS_WORK_METRIC, n)))
+            columns[f.key] = cols
+        elif f.key == "fig15":
+            columns[f.key] = [("2 images, fixed camera", ("fixed_camera", float(acquisition["fixed_fov"]), "error", 2))]
+            if _nearfield_error(acquisition):
+                columns[f.key].append(("2 images, near-field", ("nearfield", fov, "error", 2)))
+        else:
+            raise ValueError(f"no columns for figure {f.report_key}")
+    return columns
+
+
+def _nearfield_error(acquisition: Mapping[str, Any]) -> bool:
+    return figure_specs.figure("xu-fig02").produced(acquisition)
+
+
+def reconstruction_sets(acquisition: Mapping[str, Any]) -> list[ReconSet]:
+    """Every direction set a held-out material of Figs. 2 and 15 is reconstructed from (each once, in order)."""
+    return list(dict.fromkeys(s for cols in reconstruction_columns(acquisition).values() for _, s in cols))
+
+
+def reconstruction_figures(acquisition: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Xu 2016 figures of rendered reconstructions (Figs. 2, 15) this config produces: key → files."""
+    return _track_figures("acquisition", "plot_reconstruction_figures", acquisition)
 
 
 def manifold_figures(manifold: Mapping[str, Any]) -> dict[str, list[str]]:

@@ -17,11 +17,15 @@ cannot read files (Snakemake passes only the job's input, output, params,
 wildcards and config), and a number typed into a caption would go stale.
 
 Modules (which files the report holds is the planner's,
-:mod:`brdfpipe.plan.report`): :mod:`brdfpipe.report.claims`,
+:mod:`brdfpipe.plan.report`): :mod:`brdfpipe.report.claims` (each claim as its paper
+states it, with one of four verdicts and its cause; its parts:
+:mod:`brdfpipe.report.claims_base`, :mod:`brdfpipe.report.claims_xu`,
+:mod:`brdfpipe.report.claims_setups`, :mod:`brdfpipe.report.claims_soler`,
+:mod:`brdfpipe.report.claims_ours`, :mod:`brdfpipe.report.claims_io`),
 :mod:`brdfpipe.report.captions`, :mod:`brdfpipe.report.runinfo` (job time),
 :mod:`brdfpipe.report.rst` (the one escaping of run-supplied text into
 reStructuredText and Jinja2: every name reaches the page as text),
 :mod:`brdfpipe.report.critical_path` (where a finished run's wall time went:
 its critical path, CPU per rule, idle cores; ``benches/bench_critical_path.py``),
-:mod:`brdfpipe.report.sidebyside` (the claims of several runs side by side, for ``docs/``).
+:mod:`brdfpipe.report.sidebyside` (the fidelity page: several runs' verdicts side by side, for ``docs/``).
 """

@@ -38,9 +38,10 @@ def _bars(text: str) -> str:
 
 
 def _claim_item(c: Claim) -> str:
-    mark = {"yes": "**holds**", "no": "**does not hold**", "not measured": "not measured"}[c.holds]
-    return (f"- {rst_cell(c.paper)}, {rst_cell(c.where)}: {rst_cell(c.claim)}. Paper: {rst_cell(c.paper_value)}. "
-            f"This run: {rst_cell(c.measured)}. {mark}.")
+    who = "Our own check" if c.ours else f"{rst_cell(c.paper)}, {rst_cell(c.where)}"
+    said = "" if c.ours else f" The paper: {rst_cell(c.sentence)}."
+    return (f"- {who}:{said} Checked: {rst_cell(c.claim)}. This run: {rst_cell(c.measured)}. "
+            f"**{rst_cell(c.verdict)}**: {rst_cell(c.cause)}.")
 
 
 def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequence[str] = (),
@@ -55,7 +56,7 @@ def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequ
     if note:
         lines += ["This run: " + rst.text(note), ""]
     if mine:
-        lines += ["Claims (paper value vs this run):", ""] + [_claim_item(c) for c in mine] + [""]
+        lines += ["Claims (the paper's sentence, as checked, this run, the verdict and its cause):", ""] + [_claim_item(c) for c in mine] + [""]
     else:
         lines += ["The paper makes no quantitative claim about this figure; it is shown for comparison.", ""]
     if key == "render-errormap":
@@ -73,7 +74,7 @@ def write_captions(items: Sequence[Mapping[str, str]], claims: Sequence[Claim], 
                    notes: Mapping[str, str] | None = None) -> list[Path]:
     """One caption file per distinct ``caption`` of ``items`` (dicts with ``key``, ``path``, ``caption``).
 
-    ``notes``: report key → the figure's note (:func:`brdfpipe.core.plot.read_note`), quoted by its caption.
+    ``notes``: report key → the figure's note (:func:`brdfpipe.core.notes.read_note`), quoted by its caption.
     """
     by_caption: dict[str, tuple[str, list[str]]] = {}
     for it in items:

@@ -25,7 +25,7 @@ from typing import Any
 
 from brdfpipe.core import atomic, version
 from brdfpipe.report import rst
-from brdfpipe.report.claims import Claim, RunClaims, claims_table_rst, rst_cell
+from brdfpipe.report.claims import Claim, RunClaims, claims_table_rst, rst_cell, verdict_counts
 
 __all__ = [
     "TRACKS",
@@ -44,12 +44,12 @@ TRACKS: dict[str, tuple[str, ...]] = {
     "data": ("synthesize_material", "write_manifest", "ingest_material", "assemble_store", "write_splits"),
     "acquisition (Xu 2016)": ("map_logrelative", "accumulate_gram", "decompose_svd", "optimize_directions",
                               "evaluate_directions", "check_directions", "evaluate_training_size",
-                              "plot_acquisition_figures"),
+                              "plot_acquisition_figures", "reconstruct_figure_material", "plot_reconstruction_figures"),
     "manifold (Soler 2018)": ("compute_gram", "fit_gplvm", "measure_material_albedos", "analyze_manifold", "measure_gplvm_candidate",
                               "compare_spaces", "measure_lengthscales", "plot_manifold_figures"),
     "rendering": ("make_envmap", "prerender_materials", "interpolate_path_points", "render_path_points",
                   "sample_latent_materials", "render_latent_samples",
-                  "render_object_mask", "bounce_shares", "error_maps", "plot_render_figures",
+                  "render_object_mask", "bounce_shares", "error_maps", "plot_render_figures", "render_reconstructions",
                   "interpolate_candidate_path_points", "render_candidate_path_points", "measure_candidate_blends",
                   "summarize_floor_check", "plot_floor_check"),
     "unseen materials": ("evaluate_unseen_fits", "capture_unseen_closedloop", "evaluate_unseen", "locate_unseen",
@@ -200,7 +200,8 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
     """
     database = str(splits["database"])
     title = str(splits.get("database_title") or database)
-    counts = {h: sum(c.holds == h for c in claims) for h in ("yes", "no", "not measured")}
+    counts = verdict_counts([c.row() for c in claims])
+    ours = sum(c.ours for c in claims)
     lines = ["What ran", "--------", "",
              f"Database: **{rst.text(title)}** (label ``{rst.text(database)}``; "
              f"{len(splits['materials'])} materials: {len(splits['train'])} training, "
@@ -213,9 +214,12 @@ def front_rst(*, claims: Sequence[Claim], splits: Mapping[str, Any], config: Map
              "", "Targets of rule ``all`` (files):", ""]
     lines += [f"- {rst_cell(k)}: {v}" for k, v in targets.items()]
     lines += ["", "Claims", "------", "",
-              f"Each quantitative claim of the two papers, computed from this run's CSVs: {counts['yes']} hold, "
-              f"{counts['no']} do not, {counts['not measured']} were not measured by this configuration "
-              "(``results/report/claims.csv``). The figure captions repeat the claims next to their figures."
+              "Each claim of the two papers as the paper states it (its sentence, the tolerance its wording "
+              "implies), computed from this run's CSVs: "
+              + ", ".join(f"{n} {rst_cell(v)}" for v, n in counts.items())
+              + f" (``results/report/claims.csv``); then {ours} check(s) of our own that the papers do not make. "
+              "A verdict's cause gives the measurement behind it. The figure captions repeat the claims next to "
+              "their figures."
               + (" Beside this run's column, the same claims as measured by recorded runs on other databases "
                  "(config ``report.compare_with``)." if recorded else ""), "",
               claims_table_rst(claims, recorded), "",

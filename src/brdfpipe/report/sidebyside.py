@@ -1,18 +1,21 @@
-"""The papers' claims on several databases side by side: paper · run A · run B …
+"""Fidelity: each claim of both papers, its sentence, and each run's verdict and cause side by side.
 
 Each run's ``results/report/claims.csv`` (digest-checked, through
 :func:`brdfpipe.report.claims.read_run`) gives one column; the rows are the
-claims in the order of the first run, claims missing from a run say so.  A
-column is headed by the database its CSV names (``database`` column), never by
-what the caller believes it to be: a run made on synthetic data cannot be
-headed "MERL".  Claims about materials outside a run's database
+claims in the order of the first run, claims missing from a run say so; the
+papers' claims first, then the checks of our own (``ours``).  A column is
+headed by the database its CSV names (``database`` column), never by what
+the caller believes it to be: a run made on synthetic data cannot be headed
+"MERL".  Claims about materials outside a run's database
 (:func:`brdfpipe.report.claims.is_unseen_claim`) name those materials'
-database and do not count; their ``measured`` text names it.  Nothing is typed in: every cell is a run's own ``measured``
-text and verdict.
+database and do not count.  Nothing is typed in: every cell is a run's own
+verdict and cause.
 
-``python -m brdfpipe.report.sidebyside RUN_A/results/report/claims.csv
-RUN_B/results/report/claims.csv --out docs/results/claims.md`` writes the
-Markdown page that ``docs/`` keeps.
+``python -m brdfpipe.report.sidebyside MERL_RUN/results/report/claims.csv
+SYNTHETIC_RUN/results/report/claims.csv --out docs/results/fidelity.md``
+writes the page ``docs/results/fidelity.md``; it heads itself with that
+command (:func:`command_line`).  A ``claims.csv`` of the yes/no schema before
+issue 32 is refused as superseded.
 """
 
 from __future__ import annotations
@@ -33,17 +36,13 @@ from brdfpipe.report.claims import RunClaims, read_run
 __all__ = ["RunClaims", "read_run", "RECORDED_RUN", "RECORDED", "recorded_runs", "command_line",
            "side_by_side_markdown", "build_parser", "main"]
 
-#: The recorded runs' tag (date and machine): the default workflow on each database on the 2-core
-#: development machine, 2026-11-28 (docs/results/runs/2026-11-28-cpu/ has their configs and critical
-#: paths; docs/results/claims.md their claims side by side).
-RECORDED_RUN: str = "2026-11-28-cpu"
-#: The runs recorded with brdfpipe: each one's claims.csv, shipped in the package so that a copied
-#: workflow or an installed library finds them.
-RECORDED: dict[str, Path] = {
-    db: Path(__file__).resolve().parent / "recorded" / f"{RECORDED_RUN}-{db}.csv" for db in ("merl-nbrdf", "synthetic")
-}
-
-_MARK = {"yes": "yes", "no": "**NO**", "not measured": "not measured"}
+#: The runs recorded with brdfpipe, shown beside a run's claims by default (config ``report.compare_with``:
+#: null): none of the current schema yet.  The runs of 2026-11-28 answered yes/no to claims that were not
+#: checked as the papers state them; issue 32 superseded them (``docs/results/claims.md`` keeps their table
+#: as a record).  Record a run as ``recorded/<tag>-<database>.csv`` in this package and list it here, its
+#: tag in :data:`RECORDED_RUN`.
+RECORDED_RUN: str = ""
+RECORDED: dict[str, Path] = {}
 
 
 def recorded_runs(entries: Sequence[str] | None, *, root: Path, exclude: str) -> list[RunClaims]:
@@ -87,7 +86,8 @@ def _cell(text: str) -> str:
     return " ".join(text.split()).replace("\\", "\\\\").replace("|", "\\|")
 
 
-DEFAULT_TITLE = "The papers' claims, side by side"
+DEFAULT_TITLE = "Fidelity: the papers' claims as the papers state them"
+_MARK = {claims_mod.DIFFERS: "**differs**"}
 
 
 def _shell_word(word: str) -> str:
@@ -105,31 +105,49 @@ def command_line(claims: Sequence[str | os.PathLike[str]], out: str | os.PathLik
     return " ".join(_shell_word(w) for w in [*words, "--out", str(out)])
 
 
+def _table(runs: Sequence[RunClaims], keys: Sequence[str], first: dict[str, dict[str, str]]) -> list[str]:
+    lines = ["| paper | where | claim as checked (tolerance) | the paper's sentence | "
+             + " | ".join(f"{_cell(r.database)}: verdict — cause" for r in runs) + " |",
+             "|" + "---|" * (4 + len(runs))]
+    for k in keys:
+        f = first[k]
+        cells = [f["paper"], f["where"], f["claim"], f["sentence"]]
+        for r in runs:
+            row = r.rows.get(k)
+            cells.append("(not in this run)" if row is None else
+                         f"{_MARK.get(row['verdict'], row['verdict'])} — {row['cause']}")
+        lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    return lines
+
+
 def side_by_side_markdown(runs: Sequence[RunClaims], *, title: str = DEFAULT_TITLE, command: str | None = None) -> str:
-    """A Markdown page: one row per claim, the paper's value then each run's measurement and verdict.
+    """A Markdown page: the verdict counts per run, then one row per claim — claim, sentence, each run's verdict and cause.
 
     ``command``: the command line that writes the page (:func:`command_line`), shown at its top.
     """
     if not runs:
         raise ValueError("no runs to compare")
-    keys = list(runs[0].order) + [k for r in runs[1:] for k in r.order if k not in runs[0].rows]
-    keys = list(dict.fromkeys(keys))
+    keys = list(dict.fromkeys(list(runs[0].order) + [k for r in runs[1:] for k in r.order]))
     first = {k: next(r.rows[k] for r in runs if k in r.rows) for k in keys}
     lines = [f"# {_cell(title)}", ""]
     if command is not None:
         lines += ["Generated by", "", "```sh", command, "```", ""]
     lines += ["from these runs' `claims.csv` (each column is headed by the database its CSV names):", ""]
     lines += [f"- {_cell(r.database)}: `{_cell(str(r.path))}`" for r in runs]
-    lines += ["", "| paper | where | claim (as checked) | paper value | "
-              + " | ".join(_cell(r.database) for r in runs) + " |",
-              "|" + "---|" * (4 + len(runs))]
-    for k in keys:
-        f = first[k]
-        cells = [f["paper"], f["where"], f["claim"], f["paper_value"]]
-        for r in runs:
-            row = r.rows.get(k)
-            cells.append("(not in this run)" if row is None else f"{row['measured']} ({_MARK.get(row['holds'], row['holds'])})")
-        lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    lines += ["", "Each claim as its paper states it: the sentence, what is compared with what and the tolerance its "
+              "wording implies. Verdicts: *reproduces*; *reproduces within the stated tolerance*; *differs*, its "
+              "cause headed by the data, the method (a stated deviation of ours) or a real difference; *not "
+              "checkable here* (the supplementary material, real captures, hardware — or not measured by that "
+              "run's configuration).", "",
+              "| the papers' claims | " + " | ".join(_cell(r.database) for r in runs) + " |",
+              "|" + "---|" * (1 + len(runs))]
+    counts = [claims_mod.verdict_counts(list(r.rows.values())) for r in runs]
+    lines += [f"| {v} | " + " | ".join(str(c[v]) for c in counts) + " |" for v in claims_mod.VERDICTS]
+    papers = [k for k in keys if first[k]["paper"] != claims_mod.OURS]
+    ours = [k for k in keys if first[k]["paper"] == claims_mod.OURS]
+    lines += ["", "## The papers' claims", ""] + _table(runs, papers, first)
+    if ours:
+        lines += ["", "## Our own checks (not claims of the papers)", ""] + _table(runs, ours, first)
     return "\n".join(lines) + "\n"
 
 
@@ -141,7 +159,7 @@ def build_parser() -> OneLineParser:
     """The argument parser of ``python -m brdfpipe.report.sidebyside``."""
     parser = OneLineParser(prog=PROG, description=__doc__.split("\n")[0])
     parser.add_argument("claims", nargs="+", help="a run's results/report/claims.csv, one per column")
-    parser.add_argument("--out", required=True, help="the Markdown page to write")
+    parser.add_argument("--out", required=True, help="the Markdown page to write (docs/results/fidelity.md)")
     parser.add_argument("--title", default=DEFAULT_TITLE)
     return parser
 

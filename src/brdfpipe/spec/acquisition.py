@@ -14,6 +14,12 @@ Adding a set-up: a record in :data:`SETUPS` here, its physics in
 name in the config schema's two enums (``acquisition.setups``, and
 ``closed_loop.setups`` for an image set-up; a test keeps them equal to this
 registry).  See ``docs/design/extending.md``.
+
+Adding a metric: a record in :data:`METRIC_KINDS` (its legend label and the
+set-ups it applies to), its κ or error in ``acquisition/metrics.py`` and the
+optimiser's choice of it in ``acquisition/optimize.py``, and its name in the
+schema's ``acquisition.metrics`` enum (and ``closed_loop.metric`` for a
+metric of image set-ups).
 """
 
 from __future__ import annotations
@@ -26,7 +32,11 @@ __all__ = [
     "SETUP_NAMES",
     "IMAGE_SETUPS",
     "FIXED_SETUPS",
+    "MetricKind",
+    "METRIC_KINDS",
     "METRICS",
+    "IMAGE_METRICS",
+    "setup_metrics",
     "DIRECTIONS_FORMAT",
     "setup",
     "setup_fovs",
@@ -85,8 +95,41 @@ SETUP_NAMES: tuple[str, ...] = tuple(SETUPS)
 IMAGE_SETUPS: tuple[str, ...] = tuple(n for n, s in SETUPS.items() if s.images)
 #: The set-ups whose images share one direction.
 FIXED_SETUPS: tuple[str, ...] = tuple(n for n, s in SETUPS.items() if s.shared)
-#: The optimiser's criteria: the expected error E(S) (Xu eq. 15) and the condition number κ (eq. 6).
-METRICS: tuple[str, ...] = ("error", "condition")
+
+
+@dataclass(frozen=True)
+class MetricKind:
+    """One criterion of the direction optimiser.
+
+    ``label``: how figures and claims name the direction sets it chooses.
+    ``setups``: the set-ups it is optimised for (a configured metric is
+    optimised for every configured set-up it applies to).
+    """
+
+    name: str
+    label: str
+    setups: tuple[str, ...]
+
+
+#: The optimiser's criteria: the expected error E(S) (Xu eq. 15); the condition number κ over all k
+#: components (Xu eq. 6 as printed); and Nielsen et al. 2015's κ as their released code computes it, of the
+#: n × n matrix of the n chosen rows and the first n components — the "previous work" curve of Xu Figs. 6,
+#: 18 and 19.  Nielsen's κ pairs n point samples with n components, so it is defined for point samples only
+#: (an image set-up has more rows than components, where it is eq. 6's κ).
+METRIC_KINDS: dict[str, MetricKind] = {
+    m.name: m
+    for m in (
+        MetricKind("error", "min E(S) (eq. 15)", SETUP_NAMES),
+        MetricKind("condition", "min κ, all k components (Xu eq. 6)", SETUP_NAMES),
+        MetricKind("condition_nielsen", "min κ, first n components (Nielsen 2015 as released)", ("point",)),
+    )
+}
+#: The metrics' names (the schema's ``acquisition.metrics`` enum).
+METRICS: tuple[str, ...] = tuple(METRIC_KINDS)
+#: The metrics of image set-ups (the schema's ``closed_loop.metric`` enum).
+IMAGE_METRICS: tuple[str, ...] = tuple(
+    m for m, kind in METRIC_KINDS.items() if any(SETUPS[s].images for s in kind.setups)
+)
 #: Format tag of a directions file (written by :func:`brdfpipe.acquisition.optimize.write_directions`, read by
 #: the optimiser's reader and by the capture, :func:`brdfpipe.rendering.capture.read_configurations`).
 DIRECTIONS_FORMAT: str = "brdfpipe.directions/1"
@@ -106,3 +149,9 @@ def setup_fovs(name: str, fovs: list[float] | tuple[float, ...], fixed_fov: floa
     if where == "none":
         return [0]
     return list(fovs) if where == "fovs" else [fixed_fov]
+
+
+def setup_metrics(name: str, metrics: list[str] | tuple[str, ...]) -> list[str]:
+    """The configured ``metrics`` that set-up ``name`` is optimised with (in their order)."""
+    setup(name)
+    return [m for m in metrics if name in METRIC_KINDS[m].setups]

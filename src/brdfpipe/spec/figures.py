@@ -25,9 +25,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from brdfpipe.spec.acquisition import FIXED_SETUPS
+from brdfpipe.spec.acquisition import FIXED_SETUPS, METRIC_KINDS
 
 __all__ = [
+    "FIG02_MATERIALS",
+    "FIG02_FALLBACK_COUNT",
+    "PREVIOUS_WORK_METRIC",
+    "PREVIOUS_WORK_POINTS",
+    "ReconSet",
     "TRACK_PREFIX",
     "Figure",
     "ReportEntry",
@@ -38,6 +43,24 @@ __all__ = [
     "paper_figures",
     "captions",
 ]
+
+#: The held-out materials Xu Fig. 2 shows (Xu §6: their nine less green fabric and silver metallic paint, "whose
+#: results are very similar to black soft plastic and two layer silver"); also Figs. 3 and 15's.
+FIG02_MATERIALS: tuple[str, ...] = (
+    "black-soft-plastic", "blue-acrylic", "light-red-paint", "pink-jasper", "specular-violet-phenolic",
+    "two-layer-silver", "white-fabric",
+)
+#: On a database that holds none of them out: Figs. 2, 3 and 15 show its first held-out materials, this many.
+FIG02_FALLBACK_COUNT: int = 4
+#: The criterion of the point-sample sets of Xu Fig. 2's "previous work" columns (Nielsen et al. 2015).
+#: ``condition`` is κ over all k components (Xu eq. 6); Nielsen's κ as released is ``condition_nielsen``.
+PREVIOUS_WORK_METRIC: str = "condition_nielsen"
+#: The point-sample counts of Xu Fig. 2's "previous work" columns: 5 beside the 1-image result, 20 beside the
+#: 2-image one (fewer when ``acquisition.n_max_point`` is smaller).
+PREVIOUS_WORK_POINTS: tuple[int, int] = (5, 20)
+
+#: A direction set whose reconstructions a figure shows (Xu Figs. 2, 15): (setup, fov, metric, n).
+ReconSet = tuple[str, float, str, int]
 
 #: Track → the prefix of its figures' report keys (``xu-fig05``, ``soler-fig10_q2``, ``render-fig01``).
 TRACK_PREFIX: dict[str, str] = {"acquisition": "xu", "manifold": "soler", "rendering": "render"}
@@ -60,6 +83,22 @@ def _has_nearfield(acquisition: Mapping[str, Any]) -> bool:
 
 def _has_fixed(acquisition: Mapping[str, Any]) -> bool:
     return bool(set(acquisition["setups"]) & set(FIXED_SETUPS))
+
+
+def _has_nearfield_error(acquisition: Mapping[str, Any]) -> bool:
+    """Xu Figs. 2, 3, 9: the near-field sets chosen by E(S)."""
+    return "nearfield" in acquisition["setups"] and "error" in acquisition["metrics"]
+
+
+def _has_fixed_error(acquisition: Mapping[str, Any]) -> bool:
+    """Xu Fig. 14: a fixed-camera or fixed-light set-up's sets chosen by E(S)."""
+    return _has_fixed(acquisition) and "error" in acquisition["metrics"]
+
+
+def _has_fixed_camera_pair(acquisition: Mapping[str, Any]) -> bool:
+    """Xu Fig. 15: the fixed-camera set of two images chosen by E(S)."""
+    return ("fixed_camera" in acquisition["setups"] and "error" in acquisition["metrics"]
+            and int(acquisition["n_max_images"]) >= 2)
 
 
 def _has_point(acquisition: Mapping[str, Any]) -> bool:
@@ -130,28 +169,60 @@ class ReportEntry:
 
 #: Every figure, in the report's order within each track.
 FIGURES: tuple[Figure, ...] = (
+    Figure('acquisition', 'fig02', 'fig02-reconstructions', 'Xu Fig. 2', rule='plot_reconstruction_figures', draw='fig02_reconstructions', table=True, when=_has_nearfield_error,
+           caption=('Held-out materials reconstructed from 1 and from 2 near-field images (FOV 25°, else the first '
+                    'configured; min E(S)) and from 5 and 20 point samples of previous work, '
+                    f'{METRIC_KINDS[PREVIOUS_WORK_METRIC].label}, rendered in the pre-renders\' scene '
+                    '(Mitsuba 3, same settings and seed), next to the reference, the material\'s own pre-render; '
+                    'inputs: the observed pixels of each image (BRDF × cos θi, table lookup). Each panel gives the '
+                    'RMS log error of its table and the relative RMS difference of its render from the reference; '
+                    'the CSV/Markdown table next to it lists every panel.')),
+    Figure('acquisition', 'fig03', 'fig03-recon-vs-deviation', 'Xu Fig. 3', rule='plot_acquisition_figures', draw='fig03_recon_vs_deviation', table=True, when=_has_nearfield_error,
+           caption=('E_recon (eq. 12) of the 1- and 2-image near-field sets (FOV 25°, else the first configured; '
+                    'min E(S)) next to '
+                    'E_deviation (eq. 9) for each material of Fig. 2, RMS over the cells of the log-mapped BRDF; '
+                    'E_recon = √(rms_log² − E_deviation²) from errors.csv (the residual of the least-squares '
+                    'projection is orthogonal to the span of Q). The CSV/Markdown table next to it lists the '
+                    'values.')),
     Figure('acquisition', 'fig05', 'fig05-error-vs-images', 'Xu Fig. 5', rule='plot_acquisition_figures', draw='fig05_error_vs_images',
            caption=('Mean RMS error of the log-mapped BRDF over the held-out materials vs the number of near-field '
                     'images, one panel per field of view: direction sets chosen by min E(S) (eq. 15) and by min κ (Xu'
                     ' eq. 6, over all k components).')),
     Figure('acquisition', 'fig06', 'fig06-fov-vs-point', 'Xu Fig. 6', rule='plot_acquisition_figures', draw='fig06_fov_vs_point',
            caption=('Mean RMS error vs the number of images (near-field, every FOV) or point samples, min E(S); point'
-                    ' samples chosen by min κ dashed.')),
+                    ' samples of the previous work (red: min κ of the first n components, Nielsen 2015 as released)'
+                    ' and of min κ over all k components (Xu eq. 6, dotted).')),
     Figure('acquisition', 'fig07', 'fig07-training-size', 'Xu Fig. 7', rule='plot_acquisition_figures', draw='fig07_training_size', when=_has_training_curve,
            caption=('Mean RMS error of 2-image near-field acquisition vs the number of training materials (materials '
                     'added in seeded random order).')),
     Figure('acquisition', 'fig08', 'fig08-optimal-configurations', 'Xu Fig. 8', rule='plot_acquisition_figures', draw='fig08_optimal_configurations', table=True, when=_has_nearfield,
            caption=('The optimal near-field configurations (1 and 2 images) per FOV, optimised on all materials: '
                     'light and camera directions over the sample. The CSV/Markdown table next to it lists the angles.')),
+    Figure('acquisition', 'fig09', 'fig09-configurations-fov25', 'Xu Fig. 9', rule='plot_acquisition_figures', draw='fig09_configurations', table=True, when=_has_nearfield_error,
+           caption=('The one- and two-shot near-field configurations at FOV 25° (else the first configured) with '
+                    'which the held-out materials '
+                    'are acquired (min E(S), training split): light and camera over the sample (3-D sketch and top '
+                    'view) and their angles; the CSV/Markdown table next to it lists them in in-out and '
+                    'Rusinkiewicz coordinates.')),
     Figure('acquisition', 'fig13', 'fig13-fixed-camera-light', 'Xu Fig. 13', rule='plot_acquisition_figures', draw='fig13_fixed_camera_light', when=_has_fixed,
            caption=('Mean RMS error vs the number of images for the image setups at one FOV: near-field (both move), '
                     'fixed camera with moving lights, fixed light with moving cameras; solid min E(S), dashed min κ.')),
+    Figure('acquisition', 'fig14', 'fig14-fixed-configurations', 'Xu Fig. 14', rule='plot_acquisition_figures', draw='fig14_fixed_configurations', table=True, when=_has_fixed_error,
+           caption=('The optimal two-image configurations with a fixed camera (moving light) and with a fixed light '
+                    '(moving camera), min E(S), training split, analogous to Fig. 9; angles in in-out (θi, φi, θo, '
+                    'φo) and Rusinkiewicz (θh, θd, φd) coordinates (the CSV/Markdown table next to it).')),
+    Figure('acquisition', 'fig15', 'fig15-fixed-camera-reconstructions', 'Xu Fig. 15', rule='plot_reconstruction_figures', draw='fig15_fixed_camera_reconstructions', table=True, when=_has_fixed_camera_pair,
+           caption=('The materials of Fig. 2 reconstructed from two images with a fixed camera (min E(S)), rendered '
+                    'as in Fig. 2 next to their 2-image near-field reconstruction and the reference; inputs: the '
+                    'observed pixels of each image. The CSV/Markdown table next to it lists every panel.')),
     Figure('acquisition', 'fig18', 'fig18-per-material', 'Xu Fig. 18', rule='plot_acquisition_figures', draw='fig18_per_material', when=_has_point,
            caption=('Per held-out material RMS error of point sampling with 5 samples (or fewer when n_max_point is '
-                    'smaller): min E(S) vs min κ, and the deviation floor (all cells observed).')),
+                    'smaller): min E(S) vs the previous work (red: min κ of the first n components, Nielsen 2015 as '
+                    'released) and min κ over all k (Xu eq. 6), and the deviation floor (all cells observed).')),
     Figure('acquisition', 'fig19', 'fig19-error-vs-n', 'Xu Fig. 19', rule='plot_acquisition_figures', draw='fig19_error_vs_n',
-           caption=('Mean RMS error of point sampling vs the number of samples n: min E(S) vs min κ, with the '
-                    'deviation floor.')),
+           caption=('Mean RMS error of point sampling vs the number of samples n: min E(S) vs the previous work '
+                    '(red: min κ of the first n components, Nielsen 2015 as released) and min κ over all k (Xu eq. 6),'
+                    ' with the deviation floor.')),
     Figure('acquisition', 'closedloop', 'closedloop-vs-table', 'Xu §7 (closed loop)', rule='plot_closedloop', draw='plot_closedloop',
            caption=('Closed loop: each held-out material photographed by the optimised set-ups (Mitsuba 3, the '
                     "``merl`` BSDF on a flat sample, a point light, the set-up's camera and resolution, a sensor with"
