@@ -163,8 +163,9 @@ def test_manifold_and_render_figures_follow_the_config() -> None:
     assert "fig10_q5" not in plan.manifold_figures({"latent_dims": [2]})
     assert set(plan.manifold_figures({"latent_dims": [2, 5]})) == set(fn.MANIFOLD_FIGURE_STEMS)
     assert plan.albedo_map_dims({"latent_dims": [1, 2, 5]}) == [2, 5]
-    assert list(plan.render_figures(0)) == ["fig01"]
-    assert list(plan.render_figures(3)) == ["fig01", "fig12", "fig13"]
+    assert list(plan.render_figures(0)) == ["prerenders"]
+    assert list(plan.render_figures(3)) == ["prerenders", "fig12", "fig13"]
+    assert list(plan.render_figures(3, 11)) == ["fig01", "prerenders", "fig12", "fig13"]
 
 
 def test_file_names_keep_wildcards_and_format_numbers() -> None:

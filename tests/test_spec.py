@@ -76,8 +76,9 @@ def test_the_figures_a_config_produces_follow_the_when_predicates() -> None:
     assert list(plan.acquisition_figures(acq)) == ["fig03", "fig05", "fig06", "fig07", "fig08", "fig09", "fig13",
                                                    "fig14", "fig19"]
     assert list(plan.reconstruction_figures({**acq, "n_max_images": 2})) == ["fig02"]  # Fig. 15: fixed camera only
-    assert list(plan.render_figures(0)) == ["fig01"]
-    assert list(plan.render_figures(3)) == ["fig01", "fig12", "fig13"]
+    assert list(plan.render_figures(0)) == ["prerenders"]
+    assert list(plan.render_figures(3)) == ["prerenders", "fig12", "fig13"]
+    assert list(plan.render_figures(3, 11)) == ["fig01", "prerenders", "fig12", "fig13"]
 
 
 def test_setup_records_drive_the_geometry_and_the_optimiser() -> None:

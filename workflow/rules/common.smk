@@ -228,9 +228,20 @@ MANIFOLD_DATA = [
 # ask for a GPU (the Slurm plugin's `gpu` resource) when the variant needs one.
 SCENE = RENDER["scene"]
 RENDER_GPUS = 1 if RENDER["variant"].startswith("cuda") else 0
-PATH_ENDS = {fn.path_name(a, b): (a, b) for a, b in MANIFOLD_PATHS}
+# The rendered paths: manifold.paths and, where the database has both ends,
+# Soler Figs. 12/13's chrome -> silver-paint (in the model of PATH_Q).
+RENDER_PATHS = manifold_specs.rendered_paths(MANIFOLD_PATHS, MATERIALS)
+PATH_ENDS = {fn.path_name(a, b): (a, b) for a, b in RENDER_PATHS}
 PATH_POINTS = [(p, fn.format_t(t)) for p in PATH_ENDS for t in RENDER["path_points"]]
-RENDER_FIGURES = plan.render_figures(len(PATH_POINTS))
+# Soler Fig. 6 along Figs. 12/13's path where it is rendered, else the first path.
+FIG06_PATH = (
+    manifold_specs.SOLER_FIG12_PATH
+    if manifold_specs.SOLER_FIG12_PATH in RENDER_PATHS
+    else RENDER_PATHS[0]
+)
+# Soler Fig. 1: materials at random latent points (render.latent_samples).
+N_SAMPLES = RENDER["latent_samples"]["count"]
+RENDER_FIGURES = plan.render_figures(len(PATH_POINTS), N_SAMPLES)
 # The noise-floor check (render.floor_check): every material and the chosen
 # candidates' path points rendered again, small and with many samples, in a
 # scene folder of its own. Render settings per scene folder.
@@ -279,8 +290,12 @@ PLANNED_RULES = plan.planned_rules(
     path_points=bool(PATH_POINTS),
     floor_check=bool(FLOOR_CANDIDATES),
     unseen=bool(UNSEEN),
+    samples=bool(N_SAMPLES),
 )
-POINT_OUTPUTS = {r: len(PATH_POINTS) for r in plan.PER_OUTPUT_MB}
+POINT_OUTPUTS = {
+    **{r: len(PATH_POINTS) for r in plan.PER_OUTPUT_MB},
+    "sample_latent_materials": N_SAMPLES,
+}
 try:
     plan.check_memory(
         config,
@@ -330,6 +345,11 @@ def flat(figures):
 def path_point_files(kind):
     """One file per rendered path point (kind: binary, image, noise, weights)."""
     return [fn.path_point(SCENE, p, t, kind) for p, t in PATH_POINTS]
+
+
+def sample_files(kind):
+    """One file per latent sample of Soler Fig. 1 (kind: binary, image)."""
+    return [fn.latent_sample(SCENE, k, kind) for k in range(N_SAMPLES)]
 
 
 def errormap_files(kind):

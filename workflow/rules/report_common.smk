@@ -23,6 +23,12 @@ REPORT_ITEMS = report_plan.report_items(
     manifold_unseen_figure=UNSEEN_FIGURES.get("manifold", ()),
     manifold_unseen_table=fn.unseen_manifold() if UNSEEN else None,
 )
+# Report key -> the note (this run's numbers) a figure writes next to it, quoted by its caption.
+FIGURE_NOTES = report_plan.figure_notes(
+    acquisition_figures=ACQUISITION_FIGURES,
+    manifold_figures=MANIFOLD_FIGURES,
+    render_figures=RENDER_FIGURES,
+)
 _REPORTED = {item.path: item for item in REPORT_ITEMS}
 REPORT_CAPTIONS = sorted({item.caption for item in REPORT_ITEMS})
 REPORT_FILES = [

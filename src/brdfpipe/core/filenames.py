@@ -75,6 +75,7 @@ __all__ = [
     "material_albedos",
     "albedo_map",
     "paths_csv",
+    "lengthscales_csv",
     "reproduction",
     "figure_files",
     "envmap",
@@ -83,6 +84,8 @@ __all__ = [
     "object_mask",
     "bounce_shares",
     "path_point",
+    "latent_sample",
+    "latent_samples_json",
     "errormap_summary",
     "errormap",
     "floor_scene",
@@ -360,14 +363,23 @@ def paths_csv() -> str:
     return f"{RESULTS}/manifold/paths.csv"
 
 
+def lengthscales_csv() -> str:
+    """The interpolant and the eq. 7 bound along a latent path as the length scale shrinks (Soler Fig. 6)."""
+    return f"{RESULTS}/manifold/lengthscales.csv"
+
+
 def reproduction() -> str:
     return f"{RESULTS}/manifold/reproduction.csv"
 
 
-def figure_files(stem: str, *, table: bool = False) -> list[str]:
-    """The files of one figure: PNG and PDF (plus CSV and Markdown for a table figure)."""
+def figure_files(stem: str, *, table: bool = False, note: bool = False) -> list[str]:
+    """The files of one figure: PNG and PDF (plus CSV and Markdown for a table figure, and its note, ``.json``).
+
+    A figure's note is one paragraph of this run's numbers that its report
+    caption quotes (:mod:`brdfpipe.report.captions`), in a JSON file with its digest.
+    """
     exts = ("png", "pdf", "csv", "md") if table else ("png", "pdf")
-    return [f"{FIGURES}/{stem}.{ext}" for ext in exts]
+    return [f"{FIGURES}/{stem}.{ext}" for ext in exts + (("json",) if note else ())]
 
 
 # -- rendering track --------------------------------------------------------
@@ -404,6 +416,20 @@ def path_point(scene: str, path: str, t: float | str, kind: str) -> str:
     if kind not in suffix:
         raise ValueError(f"kind must be one of {sorted(suffix)}, got {kind!r}")
     return base + suffix[kind]
+
+
+def latent_sample(scene: str, index: int | str, kind: str) -> str:
+    """A material at a random latent point (Soler Fig. 1): kind ``binary`` (its table) or ``image`` (its render)."""
+    suffix = {"binary": ".binary", "image": ".exr"}
+    if kind not in suffix:
+        raise ValueError(f"kind must be one of {sorted(suffix)}, got {kind!r}")
+    name = index if isinstance(index, str) else f"{int(index):03d}"
+    return f"{RESULTS}/renders/{scene}/samples/sample-{name}{suffix[kind]}"
+
+
+def latent_samples_json(scene: str) -> str:
+    """What the latent samples of Soler Fig. 1 are: their points, weights and albedos."""
+    return f"{RESULTS}/renders/{scene}/samples/samples.json"
 
 
 def errormap_summary(scene: str) -> str:
@@ -578,7 +604,11 @@ def _producers() -> list[tuple[str, str]]:
         (albedo_map(w), "analyze_manifold"),
         (paths_csv(), "analyze_manifold"),
         (reproduction(), "analyze_manifold"),
-        (f"{FIGURES}/{w}", "plot_acquisition_figures"),  # fig08's table: the one figure file read back
+        (lengthscales_csv(), "measure_lengthscales"),
+        # the figure files read back: the notes (by write_claims) and fig08's table
+        (f"{FIGURES}/manifold-{w}.json", "plot_manifold_figures"),
+        (f"{FIGURES}/render-{w}.json", "plot_render_figures"),
+        (f"{FIGURES}/{w}", "plot_acquisition_figures"),
         (envmap(w), "make_envmap"),
         (prerender(w, w), "prerender_materials"),
         (prerender_one(w, w), "prerender_materials"),
@@ -587,6 +617,9 @@ def _producers() -> list[tuple[str, str]]:
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}.binary", "interpolate_candidate_path_points"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}-weights.json", "interpolate_candidate_path_points"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}.exr", "render_candidate_path_points"),
+        (latent_samples_json(w), "sample_latent_materials"),
+        (latent_sample(w, w, "binary"), "sample_latent_materials"),
+        (latent_sample(w, w, "image"), "render_latent_samples"),
         (path_point(w, w, w, "binary"), "interpolate_path_points"),
         (path_point(w, w, w, "weights"), "interpolate_path_points"),
         (f"{RESULTS}/renders/{w}/paths/{w}.exr", "render_path_points"),

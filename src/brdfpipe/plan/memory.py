@@ -84,11 +84,14 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "measure_gplvm_candidate": (400.0, 16.8),
     "compare_spaces": (60.0, 0.0),
     "plot_manifold_figures": (204.0, 0.0),
+    "measure_lengthscales": (115.0, 0.0),  # 114 MB measured at N = 13, 95 MB at N = 100 (N × N matrices only)
     # rendering track
     "make_envmap": (116.0, 0.0),
     "prerender_materials": (350.0, 0.0),  # a batch: 248 MB for 1 material, 344 MB for 12 or 24 (4 tables cached)
     "interpolate_path_points": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
     "render_path_points": (350.0, 0.0),  # as prerender_materials: several renders in one process
+    "sample_latent_materials": (250.0, 2.22),  # as interpolate_path_points: 622 MB (N = 13), 817 MB (N = 100), 11 tables
+    "render_latent_samples": (350.0, 0.0),  # as render_path_points: 385 MB (32 × 24, N = 13), 374 MB (256 × 192, N = 100)
     "render_reconstructions": (350.0, 0.0),  # as render_path_points (306 MB measured, tiny): renders in one process
     "render_object_mask": (253.0, 0.0),  # as one render of render_path_points: one small render, not measured alone
     "bounce_shares": (110.0, 0.0),  # not measured: reads two images at a time, less than error_maps
@@ -109,8 +112,10 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
 
 #: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every
 #: output in memory: ``interpolate_path_points`` holds one float64 MERL table
-#: (35 MB) per path point, plus the blend of one column block.
-PER_OUTPUT_MB: dict[str, float] = {"interpolate_path_points": 36.0, "interpolate_candidate_path_points": 36.0}
+#: (35 MB) per path point, plus the blend of one column block (and
+#: ``sample_latent_materials`` one per latent sample).
+PER_OUTPUT_MB: dict[str, float] = {"interpolate_path_points": 36.0, "interpolate_candidate_path_points": 36.0,
+                                   "sample_latent_materials": 36.0}
 
 
 #: Declared / modelled peak on the first attempt (keeps declared within [1, 2] × measured).
@@ -158,6 +163,7 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     # 1,028 MB, 32 spp per pass); Mitsuba's copy of the envmap, 63 B per pixel (4096 × 2048: +529 MB)
     "prerender_materials": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_path_points": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_latent_samples": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_object_mask": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_candidate_path_points": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_reconstructions": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
@@ -373,13 +379,14 @@ UNSEEN_RULES: tuple[str, ...] = ("evaluate_unseen_fits", "capture_unseen_closedl
 
 
 def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bool, floor_check: bool,
-                  fits: bool = False, unseen: bool = False) -> list[str]:
+                  fits: bool = False, unseen: bool = False, samples: bool = False) -> list[str]:
     """The rules of :data:`MEMORY_MB` whose jobs ``config`` plans (for :func:`check_memory`).
 
     ``generated``: the run generates the synthetic database; ``fits``: it
     evaluates a database of fits (rule ``evaluate_fits`` instead of
     ``ingest_material``); ``unseen``: it has materials outside its database
-    (config ``unseen``).
+    (config ``unseen``); ``samples``: it draws latent samples (Soler Fig. 1,
+    ``render.latent_samples.count`` > 0).
     """
     skip: set[str] = set()
     if not unseen:
@@ -398,6 +405,8 @@ def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bo
         skip |= {"interpolate_path_points", "render_path_points", "error_maps"}
     if not floor_check:
         skip |= FLOOR_RULES
+    if not samples:
+        skip |= {"sample_latent_materials", "render_latent_samples"}
     if not curve_directions(config["acquisition"]):
         skip.add("evaluate_training_size")
     if not reconstruction_sets(config["acquisition"]):

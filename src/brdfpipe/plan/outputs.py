@@ -126,7 +126,7 @@ def albedo_map_dims(manifold: Mapping[str, Any]) -> list[int]:
 
 def _track_figures(track: str, rule: str, settings: Mapping[str, Any]) -> dict[str, list[str]]:
     """The figures of ``track`` drawn by ``rule`` that a config with the track's ``settings`` produces: key → files."""
-    return {f.key: filenames.figure_files(f.stem, table=f.table)
+    return {f.key: filenames.figure_files(f.stem, table=f.table, note=f.note)
             for f in figure_specs.track_figures(track, rule) if f.produced(settings)}
 
 
@@ -203,9 +203,10 @@ def manifold_figures(manifold: Mapping[str, Any]) -> dict[str, list[str]]:
     return _track_figures("manifold", "plot_manifold_figures", manifold)
 
 
-def render_figures(n_path_points: int) -> dict[str, list[str]]:
-    """Rendering-track figures: the pre-render grid always; the path figures when there are path points."""
-    return _track_figures("rendering", "plot_render_figures", {"n_path_points": n_path_points})
+def render_figures(n_path_points: int, n_samples: int = 0) -> dict[str, list[str]]:
+    """Rendering-track figures: the pre-render grid always; the path figures when there are path points; Soler
+    Fig. 1 when there are latent samples (``render.latent_samples.count``)."""
+    return _track_figures("rendering", "plot_render_figures", {"n_path_points": n_path_points, "n_samples": n_samples})
 
 
 def floor_check_candidates(

@@ -24,6 +24,7 @@ __all__ = [
     "FIGURE_NUMBERS",
     "Item",
     "report_items",
+    "figure_notes",
 ]
 
 #: Report categories: one per track, and the claims table.
@@ -133,3 +134,20 @@ def report_items(
         add("render-floor-check-table", floor_check_table, RENDERING, "Noise-floor check")
     add("claims", filenames.claims_csv(), CLAIMS, "Claims")
     return items
+
+
+def figure_notes(
+    *,
+    acquisition_figures: Mapping[str, Sequence[str]],
+    manifold_figures: Mapping[str, Sequence[str]],
+    render_figures: Mapping[str, Sequence[str]],
+) -> dict[str, str]:
+    """Report key → the note file (``<stem>.json``) of every planned figure that writes one (its caption quotes it)."""
+    out: dict[str, str] = {}
+    for track, figures in (("acquisition", acquisition_figures), ("manifold", manifold_figures),
+                           ("rendering", render_figures)):
+        for k, files in figures.items():
+            notes = [f for f in files if f.endswith(".json")]
+            if notes:
+                out[f"{figure_specs.TRACK_PREFIX[track]}-{k}"] = notes[0]
+    return out

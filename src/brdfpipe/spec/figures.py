@@ -68,7 +68,8 @@ TRACK_PREFIX: dict[str, str] = {"acquisition": "xu", "manifold": "soler", "rende
 
 # -- whether a configuration produces a figure --------------------------------
 # Each takes the settings of the figure's track: the config's ``acquisition``
-# or ``manifold`` section, or ``{"n_path_points": n}`` for the rendering track.
+# or ``manifold`` section, or ``{"n_path_points": n, "n_samples": m}`` for the
+# rendering track.
 
 def _has_training_curve(acquisition: Mapping[str, Any]) -> bool:
     """Xu Fig. 7: a near-field error-metric set to draw the training-size curve with, and sizes to draw."""
@@ -118,13 +119,20 @@ def _has_path_points(rendering: Mapping[str, Any]) -> bool:
     return int(rendering["n_path_points"]) > 0
 
 
+def _has_samples(rendering: Mapping[str, Any]) -> bool:
+    """Soler Fig. 1: materials at random latent points (``render.latent_samples.count`` > 0)."""
+    return int(rendering.get("n_samples", 0)) > 0
+
+
 @dataclass(frozen=True)
 class Figure:
     """One figure: ``track``, ``key`` (unique in the track), file ``stem``, ``paper`` figure, ``caption``.
 
     ``rule``: the workflow rule that draws it; ``draw``: the function of
     ``brdfpipe.<track>.figures`` that draws it.  ``table``: a CSV and a
-    Markdown table are written next to the PNG and PDF.  ``when``: whether a
+    Markdown table are written next to the PNG and PDF.  ``note``: a note
+    (``<stem>.json``: one paragraph of the run's numbers) is written next to
+    them, and the report's caption quotes it.  ``when``: whether a
     configuration produces it (the track's settings → bool; None: always,
     once its rule runs).
     """
@@ -137,6 +145,7 @@ class Figure:
     draw: str
     caption: str
     table: bool = False
+    note: bool = False
     when: Callable[[Mapping[str, Any]], bool] | None = None
 
     @property
@@ -247,6 +256,12 @@ FIGURES: tuple[Figure, ...] = (
     Figure('manifold', 'eq7', 'manifold-eq7-bound', 'Soler eq. 7', rule='plot_manifold_figures', draw='manifold_eq7_bound',
            caption=('Actual deviation ‖z* − z_j‖ of the interpolant from the nearest training material vs the eq. 7 '
                     'bound, along the latent paths.')),
+    Figure('manifold', 'fig06', 'manifold-fig06-lengthscale', 'Soler Fig. 6', rule='plot_manifold_figures', draw='manifold_fig06_lengthscale', note=True,
+           caption=('The eq. 7 bound on the behaviour of the interpolant as the length scale ℓ shrinks: the default '
+                    "candidate's latent points kept, the kernel's ℓ scaled; along Soler Figs. 12/13's path (chrome → "
+                    'silver-paint) or the first latent path, the deviation ‖z* − z_j‖ from the nearest training '
+                    'material and its eq. 7 bound, and the distance ‖z* − z̄‖ from the mean of the materials, '
+                    'which the interpolant approaches away from the materials as ℓ → 0.')),
     Figure('manifold', 'spaces', 'manifold-spaces', 'Soler §4.1-4.3 (data spaces)', rule='plot_manifold_figures', draw='manifold_spaces',
            caption=('Every GPLVM candidate (data space, μ) measured the same way: κ(K), albedo outside [0, 1], Σ|w|, '
                     'stability near the training points, perceptual uniformity.')),
@@ -256,15 +271,27 @@ FIGURES: tuple[Figure, ...] = (
                     'least squares of Σ bᵢ(x) zᵢ against it) among the training materials; right, the relative error '
                     "of b(x*)'s reproduction of each, next to the projection on k principal components of the same "
                     'training materials (k = each q and the configured PCA sizes).')),
-    Figure('rendering', 'fig01', 'render-fig01-prerenders', 'Soler Fig. 1', rule='plot_render_figures', draw='render_fig01_prerenders',
+    Figure('rendering', 'fig01', 'render-fig01-latent-samples', 'Soler Fig. 1', rule='plot_render_figures', draw='render_fig01_latent_samples', note=True, when=_has_samples,
+           caption=('Materials at random latent points of the manifold (default GPLVM candidate, the rendering '
+                    "track's q), drawn as ``brdfpipe sample`` draws them (uniform in the convex hull of the "
+                    "materials' latent points, albedo in [0, 1]; seed ``render.latent_samples.seed``), written as "
+                    'MERL tables with a ``derived`` provenance mark and rendered in the pre-renders\' scene and '
+                    "settings, among measured materials' pre-renders (Soler's four where the database has them) at "
+                    "the paper's places.")),
+    Figure('rendering', 'prerenders', 'render-prerenders', 'Soler §5.2 (pre-renders)', rule='plot_render_figures', draw='render_prerenders',
            caption=('Global-illumination pre-renders of every material (Mitsuba 3, the ``merl`` BSDF), the images the'
                     ' blends are made of.')),
-    Figure('rendering', 'fig12', 'render-fig12-interpolation', 'Soler Fig. 12', rule='plot_render_figures', draw='render_fig12_interpolation', when=_has_path_points,
-           caption=('Interpolation along each latent path: the blend of pre-renders Σ wᵢ Iᵢ next to the true render '
-                    'of the interpolated material.')),
-    Figure('rendering', 'fig13', 'render-fig13-errors', 'Soler Fig. 13', rule='plot_render_figures', draw='render_fig13_errors', when=_has_path_points,
-           caption=('Error panel: blend, reference and their difference at each rendered path point, with the '
-                    'two-seed noise floor.')),
+    Figure('rendering', 'fig12', 'render-fig12-interpolation', 'Soler Fig. 12', rule='plot_render_figures', draw='render_fig12_interpolation', note=True, when=_has_path_points,
+           caption=("Soler Fig. 12's path, chrome → silver-paint, in the rendering track's latent space (or, on a "
+                    'database without both, the first rendered path): top, the two pre-rendered ends and between '
+                    'them the blends Σ wᵢ Iᵢ of the pre-renders with the weights b(x*) = K⁻¹k(x*) of each rendered '
+                    'point; bottom, the interpolated materials rendered (the reference). Then every other rendered '
+                    'path the same way.')),
+    Figure('rendering', 'fig13', 'render-fig13-errors', 'Soler Fig. 13', rule='plot_render_figures', draw='render_fig13_errors', note=True, when=_has_path_points,
+           caption=("Soler Fig. 13's check at the midpoint of Fig. 12's path (the rendered point nearest t = 0.5): "
+                    'the blend of pre-renders, the reference render of the interpolated material, |blend − '
+                    "reference| against the reference's second seed, and the noise floor |reference − second seed|, "
+                    'on one colour scale.')),
     Figure('rendering', 'floor-check', 'render-floor-check', 'Soler Fig. 13 (noise-floor check)', rule='plot_floor_check', draw='plot_floor_check',
            caption=("The noise-floor check: blends vs the noise floor of every checked candidate's path points, "
                     'rendered small with many samples (render.floor_check).')),

@@ -20,6 +20,7 @@ Xu Figs. 2, 15 (``fig02-*.csv``, …)       :mod:`brdfpipe.acquisition.figures_r
 a GPLVM fit's ``trace.csv``               :func:`brdfpipe.manifold.gplvm.write_trace`                  figures, claims
 ``results/manifold/albedo.csv``           :mod:`brdfpipe.manifold.analysis`                            figures
 ``results/manifold/paths.csv``            :mod:`brdfpipe.manifold.analysis`                            figures, claims
+``results/manifold/lengthscales.csv``     :mod:`brdfpipe.manifold.lengthscale`                         figures
 ``results/manifold/reproduction.csv``     :mod:`brdfpipe.manifold.analysis`                            figures, claims
 ``results/manifold/spaces.csv``           :mod:`brdfpipe.manifold.fidelity`                            figures, claims
 ``results/manifold/stability.csv``        :mod:`brdfpipe.manifold.fidelity`                            figures
@@ -42,6 +43,7 @@ __all__ = [
     "GPLVM_TRACE",
     "MATERIAL_ALBEDO",
     "LATENT_PATHS",
+    "LENGTHSCALES",
     "REPRODUCTION",
     "SPACES",
     "STABILITY",
@@ -87,6 +89,11 @@ MATERIAL_ALBEDO: tuple[str, ...] = ("database", "material", "r", "g", "b", "lumi
 LATENT_PATHS: tuple[str, ...] = (
     "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
     "perceptual_a", "perceptual_b", "perceptual_ab", "nearest", "deviation", "bound",
+)
+#: The interpolant and the eq. 7 bound along one latent path per length scale (``lengthscales.csv``, Soler Fig. 6).
+LENGTHSCALES: tuple[str, ...] = (
+    "database", "space", "q", "path", "material_a", "material_b", "ell_factor", "ell", "kappa", "t", "nearest",
+    "latent_distance_nearest", "deviation", "bound", "from_mean", "sum_abs_w", "z_norm",
 )
 #: Each material's reproduction error by the GPLVM and by PCA (``reproduction.csv``).
 REPRODUCTION: tuple[str, ...] = ("database", "space", "material", "method", "k", "relative_error")
