@@ -26,6 +26,7 @@ from brdfpipe.rendering.blend import (
     tonemap,
 )
 from brdfpipe.core.exr import ExrError, read_exr, read_exr_attrs, write_exr
+from brdfpipe.core.notes import read_note
 
 H, W = 6, 8
 MATERIALS = ("alum-bronze", "chrome", "silver-paint")
@@ -348,14 +349,25 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
     assert [r["clamped_fraction"] for r in rows] == [0.0, 0.03] and "clamped_fraction" not in direct[0]
     assert [r["sum_abs_w"] for r in rows] == [r["sum_abs_w"] for r in direct] == pytest.approx([1.0, 1.4])
     figs = tmp_path / "figs"
-    figure_files = {k: [figs / f"my-{k}.png", figs / f"my-{k}.pdf"] for k in figures.RENDER_FIGURE_STEMS}
+
+    def figure_map(folder: Path) -> dict[str, list[Path]]:  # the path figures write their note too
+        return {k: [folder / f"my-{k}.{e}" for e in ("png", "pdf") + (("json",) if k != "prerenders" else ())]
+                for k in ("prerenders", "fig12", "fig13")}
+
+    figure_files = figure_map(figs)
     files = figures.make_render_figures(prerenders=prerenders, weights=wfiles,
                                         references=[p["reference"] for p in points],
+                                        references_noise=[p["reference_seed2"] for p in points],
                                         blended=[p["blended"] for p in mapped],
                                         errors=[p["error_exr"] for p in mapped], summary=summary,
                                         figures=figure_files, database="synthetic")
-    assert len(files) == 6 and all(f.stat().st_size > 1000 for f in files)
+    assert len(files) == 8 and all(f.stat().st_size > 200 for f in files)
     assert sorted(files) == sorted(p for v in figure_files.values() for p in v) == sorted(figs.iterdir())
+    # Fig. 13 at the midpoint of the (only) path, its numbers those of the summary and the weights
+    note = read_note(figs / "my-fig13.json")
+    ratio = next(r["ratio_seed2"] for r in rows if r["t"] == 0.5)
+    assert "t = 0.5" in note and f"ratio {ratio:.3g}" in note and "Σ|w| = 1.4," in note  # |0.6| + |0.6| + |−0.2|
+    assert "is not rendered here" in note  # not Soler's chrome → silver-paint: the figure says so
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(BlendError, match="bad.json"):
         error_maps_from_files(prerenders=prerenders, weights=[tmp_path / "bad.json"], references=["x"],
@@ -373,8 +385,7 @@ def test_error_maps_from_weight_files_and_render_figures(tmp_path: Path) -> None
                                     references=[p["reference"] for p in points],
                                     blended=[p["blended"] for p in mapped],
                                     errors=[p["error_exr"] for p in mapped], summary=summary,
-                                    figures={k: [tmp_path / "figs2" / f"{k}.png", tmp_path / "figs2" / f"{k}.pdf"]
-                                             for k in figures.RENDER_FIGURE_STEMS}, database="synthetic")
+                                    figures=figure_map(tmp_path / "figs2"), database="synthetic")
     assert not (tmp_path / "figs2").exists() or not list((tmp_path / "figs2").iterdir())
 
 

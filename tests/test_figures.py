@@ -35,6 +35,7 @@ from brdfpipe.acquisition.figures import (
 from brdfpipe.acquisition.geometry import config_to_dict, Setup
 from brdfpipe.acquisition.optimize import DirectionSet, read_directions, write_directions
 from brdfpipe.core.filenames import FIGURE_STEMS
+from brdfpipe.spec import figures as fig_spec
 
 DB = "synthetic"
 MATERIALS = ("blue-acrylic", "gold-metallic-paint", "white-fabric")
@@ -136,8 +137,13 @@ def write_dirs(root: Path, database: str = DB) -> tuple[dict[float, Path], list[
 
 def figure_map(out: Path, keys: "tuple[str, ...] | None" = None) -> dict[str, list[Path]]:
     """The workflow's figure files (:func:`brdfpipe.core.filenames.figure_files`), under ``out`` instead of results/."""
-    return {k: [out / Path(f).name for f in filenames.figure_files(stem, table=(k == "fig08"))]
+    return {k: [out / Path(f).name for f in filenames.figure_files(stem, table=_table(k))]
             for k, stem in FIGURE_STEMS.items() if keys is None or k in keys}
+
+
+def _table(key: str) -> bool:
+    """Whether figure ``key`` writes a table next to it (its registry record)."""
+    return fig_spec.figure(f"xu-{key}").table
 
 
 def files_under(folder: Path) -> list[Path]:
@@ -168,8 +174,10 @@ def outputs(inputs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -
 
 def test_wrapper_writes_every_file(outputs: tuple[Path, list[Path]]) -> None:
     out, files = outputs
-    expected = {out / f"{stem}.{ext}" for stem in FIGURE_STEMS.values() for ext in ("png", "pdf")}
-    expected |= {out / "fig08-optimal-configurations.csv", out / "fig08-optimal-configurations.md"}
+    expected = {out / f"{stem}.{ext}" for k, stem in FIGURE_STEMS.items()
+                for ext in ("png", "pdf", *(("csv", "md") if _table(k) else ()))}
+    assert {p.name for p in expected} >= {"fig08-optimal-configurations.csv", "fig03-recon-vs-deviation.md",
+                                          "fig09-configurations-fov25.csv", "fig14-fixed-configurations.csv"}
     assert expected == {p for v in figure_map(out).values() for p in v}
     assert set(files) == expected
     assert len(files) == len(expected)
@@ -266,7 +274,7 @@ def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: P
         files = make_acquisition_figures(errors_csv=inputs["errors"], training_csv=inputs["training"],
                                          directions=inputs["dirs"], figures=figure_map(tmp_path),
                                          fovs=(15, 25, 35), n_point=7, fov_fixed=30)
-    assert len(files) == 2 * len(FIGURE_STEMS) + 2
+    assert len(files) == sum(len(v) for v in figure_map(tmp_path).values())
     assert sorted(files) == files_under(tmp_path)
     text = caplog.text
     assert "FOV 35°" in text  # fig05/06/08

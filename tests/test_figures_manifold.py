@@ -23,8 +23,9 @@ import pytest
 
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
+from brdfpipe.core.notes import read_note
 from brdfpipe.core.plot import FigureInputError
-from brdfpipe.manifold import figures, gplvm
+from brdfpipe.manifold import figures, gplvm, lengthscale
 from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
 from brdfpipe.manifold.figures import (
     ALBEDO_COLUMNS,
@@ -155,8 +156,14 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
                     srows.append([database, c, space, mu, q, norm, eps, med, 2 * med, 3 * med])
     spaces_csv = _write_csv(root / "manifold" / "spaces.csv", SPACE_COLUMNS, rows)
     stability_csv = _write_csv(root / "manifold" / "spaces-stability.csv", STABILITY_COLUMNS, srows)
+    gram = root / "gplvm" / "gram-raw.npz"
+    gplvm.save_gram(gram, G, D, gplvm.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
+    lengthscales_csv = root / "manifold" / "lengthscales.csv"
+    lengthscale.measure_lengthscales(model=models[5], gram=gram, path=["teflon", "silver-paint"],
+                                     out=lengthscales_csv, database=database)
     return dict(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=maps, paths_csv=paths_csv,
-                reproduction_csv=repro_csv, spaces_csv=spaces_csv, stability_csv=stability_csv)
+                reproduction_csv=repro_csv, spaces_csv=spaces_csv, stability_csv=stability_csv,
+                lengthscales_csv=lengthscales_csv)
 
 
 @pytest.fixture(scope="module")
@@ -165,9 +172,9 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
 
 
 def figure_map(out: Path, keys: tuple[str, ...] | None = None) -> dict[str, list[Path]]:
-    """The workflow's figure files (stems :data:`MANIFOLD_FIGURE_STEMS`, PNG + PDF) under ``out``."""
-    return {k: [out / f"{stem}.png", out / f"{stem}.pdf"] for k, stem in MANIFOLD_FIGURE_STEMS.items()
-            if keys is None or k in keys}
+    """The workflow's figure files (stems :data:`MANIFOLD_FIGURE_STEMS`, PNG + PDF, Fig. 6's note) under ``out``."""
+    return {k: [out / f"{stem}.png", out / f"{stem}.pdf"] + ([out / f"{stem}.json"] if k == "fig06" else [])
+            for k, stem in MANIFOLD_FIGURE_STEMS.items() if keys is None or k in keys}
 
 
 def files_under(folder: Path) -> list[Path]:
@@ -183,11 +190,13 @@ def outputs(inputs: dict[str, object], tmp_path_factory: pytest.TempPathFactory)
 
 def test_writes_every_figure(outputs: tuple[Path, list[Path]]) -> None:
     out, files = outputs
-    expected = [out / f"{stem}.{ext}" for stem in MANIFOLD_FIGURE_STEMS.values() for ext in ("png", "pdf")]
-    assert files == expected and len(files) == 16
+    expected = [out / f"{stem}.{ext}" for k, stem in MANIFOLD_FIGURE_STEMS.items()
+                for ext in ("png", "pdf") + (("json",) if k == "fig06" else ())]
+    assert files == expected and len(files) == 2 * len(MANIFOLD_FIGURE_STEMS) + 1
     assert files == [p for v in figure_map(out).values() for p in v]
     for p in files:
-        assert p.is_file() and p.stat().st_size > 1000, p
+        assert p.is_file() and p.stat().st_size > (1000 if p.suffix != ".json" else 100), p
+    assert read_note(out / f"{MANIFOLD_FIGURE_STEMS['fig06']}.json").startswith("Along teflon → silver-paint (q = 5")
     assert files_under(out) == sorted(files)  # exactly the files passed in: no temporary files left
     for stem in MANIFOLD_FIGURE_STEMS.values():
         img = matplotlib.image.imread(out / f"{stem}.png")
@@ -254,7 +263,7 @@ def test_readers(inputs: dict[str, object]) -> None:
     assert inp.database == DB and sorted(inp.models) == list(QS)
     tr = read_trace(inputs["traces"][2])  # type: ignore[index]
     st = list(tr.stage)
-    assert st[0] == "start" and "lbfgs" in st
+    assert st[0] == "start" and "newton" in st
     assert tr.switches == [k for k in range(1, len(st)) if st[k] != st[k - 1] and st[k - 1] != "start"]
     m = read_albedo_map(inputs["albedo_maps"][5])  # type: ignore[index]
     assert m.q == 5 and m.dims == (0, 1) and m.luminance.shape == (19, 23) and m.fixed.shape == (5,)
@@ -372,7 +381,7 @@ def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     with caplog.at_level(logging.WARNING, logger="brdfpipe"):
         files = make_manifold_figures(**{**kw, "models": {2: kw["models"][2]}, "traces": {}, "albedo_maps": {},  # type: ignore[index]
                                          "paths_csv": paths}, figures=figure_map(tmp_path / "out"))
-    assert len(files) == 16 and all(p.is_file() for p in files)
+    assert len(files) == 2 * len(MANIFOLD_FIGURE_STEMS) + 1 and all(p.is_file() for p in files)
     assert files_under(tmp_path / "out") == sorted(files)
     for p in files:
         assert b"Matusik et al. 2003" in p.read_bytes(), p.name  # the title ("MERL (Matusik et al. 2003)"), also in the PDF

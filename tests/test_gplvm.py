@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import inspect
+import os
+import platform
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +36,44 @@ def _random_gram(n: int, seed: int, d: float) -> np.ndarray:
     F = np.concatenate([np.sin(lat @ rng.normal(size=(3, 200))), 0.1 * rng.normal(size=(n, 300))], axis=1)
     F -= F.mean(axis=0)
     return F @ F.T * (d / F.shape[1])
+
+
+#: Unit roundoff of float64; γ_n = n·u / (1 − n·u) bounds the relative error of n floating-point operations
+#: in any order (Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed., §3.1).
+U = np.finfo(np.float64).eps / 2
+
+
+def _gamma(n: int) -> float:
+    return n * U / (1 - n * U)
+
+
+def _loglik_error_bound(X: np.ndarray, G: np.ndarray, d: float, ell: float = 1.0, mu: float = 1e-4) -> float:
+    """Bound on the rounding error of L(X) = −(d/2) log|K| − ½ tr(K⁻¹G) computed through a Cholesky factor C
+    of K, whatever the BLAS kernel and summation order; first order, ×2 for the rest.
+
+    Factorisation and solves are backward stable: the computed L is that of K + ΔK with
+    |ΔK| ≤ γ_{3n+1}|C||Cᵀ| (Higham Thm 10.4; the triangular solves of the other route, C⁻¹R with G = RRᵀ,
+    perturb K by no more), which moves log|K| by tr(K⁻¹ΔK) and tr(K⁻¹G) by −tr(K⁻¹ΔKK⁻¹G); the sum
+    2Σ log c_ii adds ≤ 2γ_{n+1}Σ|log c_ii| and the trace's sum (≤ n² terms) ≤ γ_{n²} tr(K⁻¹|G|).
+    """
+    K = gplvm.kernel_matrix(X, ell, mu)
+    n = K.shape[0]
+    C = np.linalg.cholesky(K)
+    Kinv = scipy.linalg.cho_solve((C, True), np.eye(n))
+    A = np.abs(C) @ np.abs(C.T)
+    M = np.abs(Kinv) @ np.abs(Kinv @ G)
+    lam, V = np.linalg.eigh(G)
+    logdet = _gamma(3 * n + 1) * (A * np.abs(Kinv)).sum() + 2 * _gamma(n + 1) * np.abs(np.log(np.diag(C))).sum()
+    tr = _gamma(3 * n + 1) * (A * (M + M.T)).sum() + _gamma(n * n) * np.trace(Kinv @ (V * np.abs(lam)) @ V.T)
+    return 2 * (0.5 * d * logdet + 0.5 * tr)
+
+
+def _align(X: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """X moved onto ref by the rigid motions and reflections that leave L unchanged (translation, orthogonal
+    Procrustes)."""
+    Xc, Rc = X - X.mean(axis=0), ref - ref.mean(axis=0)
+    u, _, vt = np.linalg.svd(Xc.T @ Rc)
+    return Xc @ (u @ vt) + ref.mean(axis=0)
 
 
 # --------------------------------------------------------------------------
@@ -184,30 +228,85 @@ def test_hessian_matches_finite_differences_and_is_blind_to_rigid_motions() -> N
         gplvm.log_likelihood_hessian(np.zeros((3, 2)), np.eye(4), 10.0)
 
 
-def test_newton_ends_at_a_local_maximum_above_the_references(hj_and_hybrid: tuple) -> None:
-    """Default method: L-BFGS trials of two start scales, Hessian-preconditioned L-BFGS, Newton steps.
-    Same data and q as the hybrid test: it ends above Hooke–Jeeves alone and above the hybrid, level
-    with plain L-BFGS run to convergence from the same start (both end at local maxima, and which of
-    the two nearby maxima each reaches depends on the BLAS's rounding: on one machine newton's is
-    higher, on another 0.3 % lower; it is not a global optimiser), with a gradient at rounding level
-    and a negative semi-definite Hessian (a maximum, not a saddle)."""
+@pytest.fixture(scope="module")
+def newton_fit(hj_and_hybrid: tuple) -> gplvm.FitResult:
+    """The default method on the data of :func:`hj_and_hybrid`."""
+    G, d, _, _ = hj_and_hybrid
+    return gplvm.fit(G, d, q=2)
+
+
+def test_newton_ends_at_a_local_maximum_above_the_references(hj_and_hybrid: tuple, newton_fit) -> None:
+    """Default method: Newton steps from two start scales, the better end kept.  Same data and q as the
+    hybrid test: a local maximum (gradient at rounding level, Hessian negative semi-definite: not a saddle),
+    above Hooke–Jeeves alone and the hybrid by more than the error bounds of the L compared.
+
+    Not asserted: a comparison with plain L-BFGS from the same start.  Which of several maxima L-BFGS
+    reaches depends on the BLAS kernel (here three, 24 % apart, among ten kernels and thread counts:
+    docs/design/reproducibility.md), so such a bound held on the machine it was measured on only.
+    """
     G, d, hj, hy = hj_and_hybrid
-    r = gplvm.fit(G, d, q=2)
-    assert r.method == "newton" and r.init_scale in gplvm.NEWTON_TRIAL_SCALES
+    r = newton_fit
+    assert r.method == "newton" and r.init_scale in gplvm.NEWTON_TRIAL_SCALES and r.polish_iterations == 0
     assert set(r.scale_trials) == set(gplvm.NEWTON_TRIAL_SCALES) and r.scale_trials[r.init_scale] == max(r.scale_trials.values())
-    X0 = gplvm.pca_init(G, 2) * r.init_factor
-    X_ref, _, _ = gplvm._lbfgs_polish(X0, G, d, 1.0, 1e-4, max_iter=20000, ftol=1e-13, gtol=1e-10)
-    L_ref = gplvm.log_likelihood(X_ref, G, d)
-    assert r.log_likelihood > max(hj.log_likelihood, hy.log_likelihood)
-    assert r.log_likelihood >= L_ref - 0.01 * abs(L_ref)
+    for ref in (hj, hy):
+        assert r.log_likelihood > ref.log_likelihood + _loglik_error_bound(r.X, G, d) + _loglik_error_bound(ref.X, G, d)
     L, g, H = gplvm.log_likelihood_hessian(r.X, G, d)
-    assert L == pytest.approx(r.log_likelihood, rel=1e-12)
+    assert abs(L - r.log_likelihood) <= 2 * _loglik_error_bound(r.X, G, d)  # two routes to the same L
     _, g_hj = gplvm.log_likelihood_grad(hj.X, G, d)
     assert np.abs(g).max() <= min(1e-7 * abs(L), 1e-4 * np.abs(g_hj).max())  # the gain left is at rounding level
     w = np.linalg.eigvalsh(H)
     assert w.max() <= 1e-9 * np.abs(w).max()
-    # the work: far fewer gradient evaluations than plain L-BFGS's iterations to its (lower) maximum
-    assert r.gradient_evaluations > 0 and r.hessian_evaluations > 0 and r.polish_iterations > 0
+    assert r.gradient_evaluations > 0 and r.hessian_evaluations > r.newton_iterations > 0
+
+
+#: OpenBLAS kernels (``OPENBLAS_CORETYPE``) and thread counts that every x86-64 machine of the kind can run;
+#: numpy's and scipy's bundled OpenBLAS (DYNAMIC_ARCH) honour the variable when they load.
+BLAS_KERNELS = (("Haswell", 1), ("Sandybridge", 1), ("Nehalem", 1), ("Prescott", 1), ("Haswell", 2))
+
+
+def test_newton_ends_at_the_same_maximum_on_every_blas_kernel(hj_and_hybrid: tuple, newton_fit, tmp_path: Path) -> None:
+    """The same data fitted in fresh processes under other BLAS kernels and thread counts (which change
+    every reduction's summation order: the Gram matrix itself differs in ~70 % of its entries) ends at the
+    same local maximum as here: the latent points up to the rigid motions, L to its error bounds.
+
+    Tolerances from the arithmetic: each fit stops where no step can gain more than GAIN_RESOLUTION·|L|
+    (×2: the scale is the power of two above |L|), the two Gram matrices move L by ½⟨|K⁻¹|, |ΔG|⟩, and each L
+    carries its rounding bound, so both points lie within ε of the maximum's L and, by the quadratic model
+    there, within √(2ε/λ) of it along a direction of curvature λ (λ the smallest curvature of −L off the
+    rigid motions).  A fit at another maximum moves points by O(ℓ).
+    """
+    if platform.machine().lower() not in ("x86_64", "amd64"):
+        pytest.skip("OPENBLAS_CORETYPE names x86-64 kernels")
+    G, d, _, _ = hj_and_hybrid
+    r = newton_fit
+    script = ("import sys\nimport numpy as np\nfrom brdfpipe.manifold import gplvm\n" + inspect.getsource(_random_gram)
+              + "G = _random_gram(40, 4, 4e6)\nG = G / gplvm.gram_scale(G, 4e6)\nr = gplvm.fit(G, 4e6, q=2)\n"
+              "np.savez(sys.argv[1], X=r.X, G=G, L=r.log_likelihood)\n")
+    src = str(Path(gplvm.__file__).resolve().parents[2])
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OPENBLAS", "OMP_", "MKL_"))}
+    env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
+    procs = [subprocess.Popen([sys.executable, "-c", script, str(tmp_path / f"{core}-{threads}.npz")],
+                              env={**env, "OPENBLAS_CORETYPE": core, "OPENBLAS_NUM_THREADS": str(threads),
+                                   "OPENBLAS_VERBOSE": "2"},
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+             for core, threads in BLAS_KERNELS]
+    ran = []
+    for (core, threads), proc in zip(BLAS_KERNELS, procs):
+        out = proc.communicate(timeout=300)[0]
+        assert proc.returncode == 0, out
+        if set(re.findall(r"Core: (\w+)", out)) == {core}:  # the kernel asked for is the one that ran
+            ran.append((core, threads))
+    if len({core for core, _ in ran}) < 2:
+        pytest.skip(f"this OpenBLAS does not switch kernels (ran: {ran})")
+    K_inv = np.linalg.inv(gplvm.kernel_matrix(r.X))
+    w = np.linalg.eigvalsh(-gplvm.log_likelihood_hessian(r.X, G, d)[2])
+    curvature = np.sort(np.abs(w))[3]  # the three smallest: the rigid motions of q = 2 (two translations, one rotation)
+    for core, threads in ran:
+        z = np.load(tmp_path / f"{core}-{threads}.npz")
+        eps = (4 * gplvm.GAIN_RESOLUTION * abs(r.log_likelihood) + 0.5 * (np.abs(K_inv) * np.abs(z["G"] - G)).sum()
+               + _loglik_error_bound(r.X, G, d) + _loglik_error_bound(z["X"], z["G"], d))
+        assert abs(float(z["L"]) - r.log_likelihood) <= eps, (core, threads)
+        assert np.abs(_align(z["X"], r.X) - r.X).max() <= 2 * np.sqrt(2 * eps / curvature), (core, threads)
 
 
 def test_newton_trace_is_monotone_and_staged() -> None:
@@ -217,20 +316,23 @@ def test_newton_trace_is_monotone_and_staged() -> None:
     r = gplvm.fit(G, d, q=3)
     Ls = np.array([v for _, v in r.trace])
     assert [s for s, _ in r.trace] == list(range(len(Ls))) and len(r.stages) == len(Ls)
-    assert np.all(np.diff(Ls) >= -1e-12 * np.abs(Ls).max())
-    assert r.stages[0] == "start" and set(r.stages[1:]) <= {"lbfgs", "newton"} and r.stages[1] == "lbfgs"
-    assert r.stages.count("lbfgs") == r.polish_iterations and r.trial_iterations <= r.polish_iterations
+    # every step gains, but for the last few (judged by the gradient) that may lose up to the resolution of L,
+    # and the last value is recomputed by another route (its error bound, twice)
+    assert np.all(np.diff(Ls) >= -(gplvm.GAIN_RESOLUTION * np.abs(Ls).max() + 2 * _loglik_error_bound(r.X, G, d)))
+    assert r.stages[0] == "start" and set(r.stages[1:]) == {"newton"}
+    assert r.stages.count("newton") == r.newton_iterations > 0 and r.trial_iterations > 0 and r.polish_iterations == 0
     assert Ls[0] == r.initial_log_likelihood and r.log_likelihood == Ls[-1] > Ls[0]
     assert gplvm.log_likelihood(r.X, G, d) == r.log_likelihood
-    # one start scale given: no trials
+    # one start scale given: no other start
     u = gplvm.fit(G, d, q=3, init_scale="unit")
     assert u.init_scale == "unit" and u.scale_trials == {} and u.trial_iterations == 0
+    assert u.log_likelihood == r.scale_trials["unit"]
 
 
 def test_newton_leaves_a_saddle_point() -> None:
     """Latent points on a line (q = 2, second coordinates 0) of data that are not: by symmetry every
-    gradient, and so every (preconditioned) L-BFGS step, keeps them on the line, which ends at a saddle
-    point.  The Newton stage finds the direction of positive curvature and leaves it."""
+    gradient, and so every Newton step, keeps them on the line, which ends at a saddle point.  The Newton
+    stage finds the direction of positive curvature there and leaves it."""
     d = 4e6
     G = _random_gram(30, 3, d)
     G = G / gplvm.gram_scale(G, d)
@@ -238,9 +340,9 @@ def test_newton_leaves_a_saddle_point() -> None:
     X0 = Y * gplvm._scale_factor(Y, "rms", 1.0)
     X0[:, 1] = 0.0
     root = gplvm._GramRoot(G)
-    kw = dict(restart_every=30, max_restarts=200, shift=1e-3, newton_iterations=50, gtol=1e-10)
-    X_line, _ = gplvm._newton_stages(X0, root, d, 1.0, 1e-4, max_escapes=0, counts=gplvm._Counts(), **kw)
-    X_esc, hist = gplvm._newton_stages(X0, root, d, 1.0, 1e-4, max_escapes=10, counts=gplvm._Counts(), **kw)
+    kw = dict(newton_iterations=2000, gtol=1e-10)
+    X_line, _, _ = gplvm._newton_stages(X0, root, d, 1.0, 1e-4, max_escapes=0, counts=gplvm._Counts(), **kw)
+    X_esc, _, hist = gplvm._newton_stages(X0, root, d, 1.0, 1e-4, max_escapes=10, counts=gplvm._Counts(), **kw)
     assert np.abs(X_line[:, 1]).max() == 0.0
     L_line, _, H_line = gplvm.log_likelihood_hessian(X_line, G, d)
     L_esc, _, H_esc = gplvm.log_likelihood_hessian(X_esc, G, d)
@@ -248,8 +350,8 @@ def test_newton_leaves_a_saddle_point() -> None:
     assert w_line.max() > 1e-3 * np.abs(w_line).max()  # a saddle: L curves up along some direction
     assert w_esc.max() <= 1e-6 * np.abs(w_esc).max()  # a maximum
     assert L_esc > L_line + 1e-3 * abs(L_line) and np.abs(X_esc[:, 1]).max() > 0.1
-    stages = [s for s, _ in hist]
-    assert "newton" in stages and stages.index("newton") < len(stages) - 1 - stages[::-1].index("lbfgs")
+    Ls = [v for _, v in hist]
+    assert len(Ls) > 1 and np.all(np.diff(Ls) > 0) and {s for s, _ in hist} == {"newton"}
 
 
 def test_gram_scale_is_mean_entry_variance_and_leaves_weights_alone() -> None:
@@ -280,7 +382,7 @@ def test_fit_to_files_normalises_and_records_stages(tmp_path: Path) -> None:
     lines = integrity.read_csv_text(tmp_path / "t.csv").splitlines()  # after its digest line
     assert lines[0] == "step,stage,log_likelihood"
     stages = [ln.split(",")[1] for ln in lines[1:]]
-    assert stages == r.stages and stages[0] == "start" and set(stages) <= {"start", "lbfgs", "newton"}
+    assert stages == r.stages and stages[0] == "start" and set(stages) == {"start", "newton"}
     # the latent points are spread on the kernel's scale, not collapsed
     D = np.sqrt(((m.X[:, None] - m.X[None]) ** 2).sum(-1))
     assert np.median(D[np.triu_indices(20, 1)]) > 0.05 * m.ell
@@ -314,7 +416,7 @@ def test_fit_to_files_same_bytes_twice(tmp_path: Path) -> None:
         gplvm.fit_to_files(tmp_path / "g.npz", tmp_path / f"m{k}.npz", tmp_path / f"t{k}.csv", q=2, seed=k)
     assert (tmp_path / "m1.npz").read_bytes() == (tmp_path / "m2.npz").read_bytes()
     assert (tmp_path / "t1.csv").read_bytes() == (tmp_path / "t2.csv").read_bytes()
-    assert "newton" in (tmp_path / "t1.csv").read_text() or ",lbfgs," in (tmp_path / "t1.csv").read_text()
+    assert ",newton," in (tmp_path / "t1.csv").read_text()
 
 
 @pytest.mark.parametrize("q", [2, 5])
@@ -339,10 +441,8 @@ def test_fit_at_full_database_size(q: int) -> None:
         ({"q": 2, "mu": -1e-4}, "noise parameter mu"),
         ({"q": 2, "init_scale": "huge"}, "unknown init_scale"),
         ({"q": 2, "method": "quasi-newton"}, "unknown method"),
-        ({"q": 2, "trial_iterations": -1}, "trial_iterations must be an integer >= 0"),
-        ({"q": 2, "restart_every": 0}, "restart_every must be an integer >= 1"),
         ({"q": 2, "newton_iterations": 1.5}, "newton_iterations must be an integer >= 0"),
-        ({"q": 2, "hessian_shift": 0.0}, "hessian_shift must be a finite number > 0"),
+        ({"q": 2, "max_escapes": -1}, "max_escapes must be an integer >= 0"),
         ({"q": 2, "newton_gtol": float("nan")}, "newton_gtol must be a finite number > 0"),
         ({"q": 2, "init_scale": -2.0}, "init_scale factor must be > 0"),
     ],

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.linalg
 
 from brdfpipe.core import integrity
 from brdfpipe.spec.errors import ConfigError
@@ -231,8 +232,49 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
     assert not fresh.exists()  # nothing written by a failed call
 
 
+#: Unit roundoff of float64 and γ_n = n·u / (1 − n·u), the bound on the relative error of a sum of n
+#: products in any order (Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed., §3.1, §3.5).
+U = np.finfo(np.float64).eps / 2
+
+
+def _gamma(n: int) -> float:
+    return n * U / (1 - n * U)
+
+
+def _blend_tolerance(w: np.ndarray, Z: np.ndarray) -> np.ndarray:
+    """Per value, the largest |a − b| between two float64 evaluations of Σ wᵢ zᵢ in any summation order (BLAS
+    kernel, blocking, FMA) that then pass through a MERL file: each sum is within γ_n Σ|wᵢ||zᵢ| of the exact
+    one, and writing (÷ channel scale) and reading (× scale) round twice more (≤ 3u relative)."""
+    absolute = np.abs(w) @ np.abs(Z)
+    return 2 * _gamma(w.size) * absolute + 3 * U * np.abs(w @ Z)
+
+
+def _reproduction_bound(m: gplvm.GplvmModel, a: int) -> np.ndarray:
+    """Bound on |w − e_a| for the blend weights of a training point x_a (exact reproduction: w = e_a in exact
+    arithmetic), to first order, ×2 for the rest.
+
+    b = K⁻¹k with k = k(x_a) = K e_a up to the rounding of the squared distances (kernel_vector and
+    kernel_matrix sum them in other orders: ≤ 2γ_{q+2}|arg| + 4u relative in each entry); the Cholesky solve
+    is backward stable, (K + ΔK) b̂ = k̂ with |ΔK| ≤ γ_{3n+1}|C||Cᵀ| (Higham Thm 10.4), so
+    |b̂ − e_a| ≤ |K⁻¹| (|Δk| + γ_{3n+1}|C||Cᵀ||b̂|); then w = b̂ + (1 − Σb̂)/N.
+    """
+    n, q = m.X.shape
+    C = m.chol
+    Kinv = scipy.linalg.cho_solve((C, True), np.eye(n))
+    b = gplvm.weights(m, m.X[a])
+    arg = ((m.X - m.X[a]) ** 2).sum(axis=1) / (2 * m.ell**2)
+    dk = (2 * _gamma(q + 2) * arg + 4 * U) * gplvm.kernel_vector(m.X, m.X[a], m.ell, m.mu)
+    db = np.abs(Kinv) @ (dk + _gamma(3 * n + 1) * (np.abs(C) @ (np.abs(C.T) @ np.abs(b))))
+    return 2 * (db + db.sum() / n) + 4 * _gamma(n) * (1 + np.abs(b).sum())
+
+
 def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
-    """One pass over the store writes, per point, the table Σ wᵢ Zᵢ of that point's own weights."""
+    """One pass over the store writes, per point, the table Σ wᵢ Zᵢ of that point's own weights.
+
+    Tolerances from the arithmetic (the error bounds above), not from one machine's output: the table
+    and the test's own Σ wᵢ Zᵢ are two summation orders of the same sum (BLAS kernels differ between
+    machines); at t = 0 the weights are e_a up to the solve's error bound.
+    """
 
     names = small["names"]
     points = [(names[0], names[3], 0.0), (names[0], names[3], 0.5), (names[1], names[4], 0.25)]
@@ -243,25 +285,35 @@ def test_path_points_are_the_blends_of_their_weights(small: dict) -> None:
                                       merl_outs=merls, weights_outs=jsons)
     m = gplvm.load_model(small["models"][2])
     valid = np.tile(small["valid"], 3)  # per cell -> per column (3 channels)
+    Z = small["brdf"][[names.index(n) for n in m.names]][:, valid]
     for k, (a, b, t) in enumerate(points):
         x = (1 - t) * m.X[m.names.index(a)] + t * m.X[m.names.index(b)]
         w = gplvm.blend_weights(gplvm.weights(m, x))
-        np.testing.assert_allclose(W[k], w, rtol=1e-12, atol=1e-15)
+        np.testing.assert_array_equal(W[k], w)  # the same computation in the same process: the same bits
         doc = integrity.read_json(jsons[k])
         assert (doc["material_a"], doc["material_b"], doc["t"]) == (a, b, t)
-        assert np.allclose([doc["weights"][n] for n in m.names], w, rtol=1e-12, atol=1e-15)
+        assert [doc["weights"][n] for n in m.names] == list(w)  # JSON floats round-trip exactly
         table = merl.read_merl(merls[k]).reshape(-1)
-        expect = np.maximum(w @ small["brdf"][[names.index(n) for n in m.names]], 0.0)
-        np.testing.assert_allclose(table[valid], expect[valid], rtol=1e-9, atol=1e-12)
+        tol = _blend_tolerance(w, Z)
+        assert np.all(np.abs(table[valid] - np.maximum(w @ Z, 0.0)) <= tol)  # clamping at 0 is 1-Lipschitz
+        # the bound has teeth: one weight off by 1e-6 leaves it in almost every value
+        wrong = w.copy()
+        wrong[1] += 1e-6
+        assert np.mean(np.abs(table[valid] - np.maximum(wrong @ Z, 0.0)) > tol) > 0.99
         marked = np.zeros(table.size, dtype=bool)
         marked[provenance.MARK_CELLS] = True  # red channel: the provenance mark (negative, unmeasured)
         assert np.all(table[~valid & ~marked] == -1.0) and np.all(table[marked] < 0.0)
         mark = provenance.read_mark(merls[k])
         assert mark is not None and mark.kind == "derived" and mark.fields["operation"] == "path-point"
         assert mark.fields["inputs"]["path"] == [a, b] and mark.fields["inputs"]["t"] == t
-    # t = 0 is the first material itself (exact reproduction at training points)
-    first = np.maximum(small["brdf"][names.index(points[0][0])], 0.0)
-    np.testing.assert_allclose(merl.read_merl(merls[0]).reshape(-1)[valid], first[valid], rtol=1e-6, atol=1e-9)
+    # t = 0 is the first material itself (exact reproduction at training points): the weights are e_a up to
+    # the solve's rounding, and the table is z_a up to those weights' pull on the other materials
+    a = m.names.index(points[0][0])
+    bound = _reproduction_bound(m, a)
+    e_a = np.eye(len(m.names))[a]
+    assert np.all(np.abs(W[0] - e_a) <= bound) and not np.array_equal(bound, np.zeros_like(bound))
+    first = merl.read_merl(merls[0]).reshape(-1)[valid]
+    assert np.all(np.abs(first - np.maximum(Z[a], 0.0)) <= bound @ np.abs(Z) + _blend_tolerance(W[0], Z))
     with pytest.raises(ValueError, match="one MERL and one weights output per path point"):
         analysis.path_points_to_files(model=small["models"][2], store=small["store"], points=points,
                                       merl_outs=merls[:2], weights_outs=jsons)

@@ -144,7 +144,7 @@ def test_direction_files_of_the_default_config() -> None:
         ({"setups": ["point"], "metrics": ["error"]}, ["fig05", "fig06", "fig18", "fig19"]),
         ({"setups": ["nearfield"], "metrics": ["condition"]}, ["fig05", "fig06", "fig08", "fig19"]),
         ({"setups": ["nearfield", "fixed_light"], "metrics": ["error"]},
-         ["fig05", "fig06", "fig07", "fig08", "fig13", "fig19"]),
+         ["fig03", "fig05", "fig06", "fig07", "fig08", "fig09", "fig13", "fig14", "fig19"]),
     ],
 )
 def test_acquisition_figures_follow_the_setups(acq: dict, expected: list[str]) -> None:
@@ -154,7 +154,7 @@ def test_acquisition_figures_follow_the_setups(acq: dict, expected: list[str]) -
     if "fig08" in figs:  # the table figure also writes its CSV and Markdown
         assert figs["fig08"][2:] == [f"{fn.FIGURES}/fig08-optimal-configurations.csv",
                                      f"{fn.FIGURES}/fig08-optimal-configurations.md"]
-    assert all(len(files) == 2 for k, files in figs.items() if k != "fig08")
+    assert all(len(files) == 2 for k, files in figs.items() if k not in ("fig03", "fig08", "fig09", "fig14"))
     assert (plan.curve_directions(cfg) is not None) == ("fig07" in figs)
 
 
@@ -163,8 +163,9 @@ def test_manifold_and_render_figures_follow_the_config() -> None:
     assert "fig10_q5" not in plan.manifold_figures({"latent_dims": [2]})
     assert set(plan.manifold_figures({"latent_dims": [2, 5]})) == set(fn.MANIFOLD_FIGURE_STEMS)
     assert plan.albedo_map_dims({"latent_dims": [1, 2, 5]}) == [2, 5]
-    assert list(plan.render_figures(0)) == ["fig01"]
-    assert list(plan.render_figures(3)) == ["fig01", "fig12", "fig13"]
+    assert list(plan.render_figures(0)) == ["prerenders"]
+    assert list(plan.render_figures(3)) == ["prerenders", "fig12", "fig13"]
+    assert list(plan.render_figures(3, 11)) == ["fig01", "prerenders", "fig12", "fig13"]
 
 
 def test_file_names_keep_wildcards_and_format_numbers() -> None:

@@ -148,7 +148,7 @@ def test_report_items_cover_every_planned_figure() -> None:
 
     cfg = yaml.safe_load((Path(__file__).parent / "config" / "tiny.yaml").read_text())
     acq, man = plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"])
-    ren = plan.render_figures(3)
+    ren = plan.render_figures(3, 11)
     floor = filenames.figure_files(filenames.FLOOR_CHECK_STEM)
     pts = [("a--b", "0.5", filenames.errormap("preview", "a--b", "0.5", "error.png"))]
     its = items.report_items(database="synthetic", acquisition_figures=acq, manifold_figures=man,
@@ -222,8 +222,11 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
     cfg = yaml.safe_load((Path(__file__).parent / "config" / "tiny.yaml").read_text())
     emaps = sorted(p.name for p in (results / "errormaps" / "preview").glob("*-error.png"))
     declared = items.report_items(
-        database="synthetic", acquisition_figures=plan.acquisition_figures(cfg["acquisition"]),
-        manifold_figures=plan.manifold_figures(cfg["manifold"]), render_figures=plan.render_figures(len(emaps)),
+        database="synthetic",
+        acquisition_figures={**plan.acquisition_figures(cfg["acquisition"]),
+                             **plan.reconstruction_figures(cfg["acquisition"])},
+        manifold_figures=plan.manifold_figures(cfg["manifold"]),
+        render_figures=plan.render_figures(len(emaps), 11),  # Soler Fig. 1's 11 latent samples (the default)
         floor_figure=filenames.figure_files(filenames.FLOOR_CHECK_STEM), spaces_table=filenames.spaces_csv(),
         errormaps=[(n.split("-t")[0], "0.5", f"{filenames.RESULTS}/errormaps/preview/{n}") for n in emaps],
         errormap_summary=filenames.errormap_summary("preview"),
@@ -231,7 +234,7 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         closedloop_figure=filenames.figure_files(filenames.CLOSEDLOOP_STEM),
         closedloop_table=filenames.closedloop_errors())
     pngs = [it for it in declared if it.path.endswith(".png")]
-    assert len(emaps) == 3 and len(pngs) == 20 + 3  # 20 figures (the closed loop's included), 3 error maps
+    assert len(emaps) == 3 and len(pngs) == 27 + 3  # 27 figures (the closed loop's included), 3 error maps
     assert set(entries) == {it.path for it in declared}, set(entries) ^ {it.path for it in declared}
     rows = claims.read_claims(results / "report" / "claims.csv")
     figs_of = {c["key"]: c["figures"] for c in json.loads((results / "report" / "claims.json").read_text())}

@@ -26,6 +26,7 @@ from brdfpipe.spec import manifold as man_spec
 
 MAKERS = {
     "plot_acquisition_figures": ("brdfpipe.acquisition.figures", "make_acquisition_figures"),
+    "plot_reconstruction_figures": ("brdfpipe.acquisition.figures", "make_reconstruction_figures"),
     "plot_manifold_figures": ("brdfpipe.manifold.figures", "make_manifold_figures"),
     "plot_render_figures": ("brdfpipe.rendering.figures", "make_render_figures"),
 }
@@ -72,9 +73,12 @@ def test_the_figures_a_config_produces_follow_the_when_predicates() -> None:
     acq = {"setups": ["point"], "metrics": ["error"], "training_sizes": [10], "fovs": [25], "fixed_fov": 25}
     assert list(plan.acquisition_figures(acq)) == ["fig05", "fig06", "fig18", "fig19"]
     acq["setups"] = ["nearfield", "fixed_light"]
-    assert list(plan.acquisition_figures(acq)) == ["fig05", "fig06", "fig07", "fig08", "fig13", "fig19"]
-    assert list(plan.render_figures(0)) == ["fig01"]
-    assert list(plan.render_figures(3)) == ["fig01", "fig12", "fig13"]
+    assert list(plan.acquisition_figures(acq)) == ["fig03", "fig05", "fig06", "fig07", "fig08", "fig09", "fig13",
+                                                   "fig14", "fig19"]
+    assert list(plan.reconstruction_figures({**acq, "n_max_images": 2})) == ["fig02"]  # Fig. 15: fixed camera only
+    assert list(plan.render_figures(0)) == ["prerenders"]
+    assert list(plan.render_figures(3)) == ["prerenders", "fig12", "fig13"]
+    assert list(plan.render_figures(3, 11)) == ["fig01", "prerenders", "fig12", "fig13"]
 
 
 def test_setup_records_drive_the_geometry_and_the_optimiser() -> None:

@@ -75,9 +75,15 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("plot_acquisition_figures", 1),
                     # the closed loop: one capture per held-out material, one evaluation, one figure
                     ("capture_closedloop", 3), ("evaluate_closedloop", 1), ("plot_closedloop", 1),
+                    # Xu Figs. 2, 15: each held-out material reconstructed and rendered, one figure job
+                    ("reconstruct_figure_material", 3), ("render_reconstructions", 3),
+                    ("plot_reconstruction_figures", 1),
                     ("compute_gram", 2), ("fit_gplvm", 4), ("measure_material_albedos", 1), ("analyze_manifold", 1),
                     ("measure_gplvm_candidate", 2), ("compare_spaces", 1),
+                    ("measure_lengthscales", 1),  # Soler Fig. 6
                     ("make_envmap", 1), ("interpolate_path_points", 1),
+                    # Soler Fig. 1: the latent samples drawn in one job, rendered in one
+                    ("sample_latent_materials", 1), ("render_latent_samples", 1),
                     # pre-renders: 12 materials in 2 batches of 6 (materials_per_job 10), both scene folders
                     ("prerender_materials_b00", 1), ("prerender_materials_b01", 1),
                     ("render_path_points", 1), ("error_maps", 1), ("render_object_mask", 1),
@@ -131,7 +137,9 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     assert {r["database"] for r in errors} == {"synthetic"}
     assert {r["kind"] for r in errors} == {"rms_log", "relrms_linear", "deviation"}
     figures = sorted(p.name for p in (tmp_path / "results" / "figures").iterdir())
-    assert len(figures) == 16 + 16 + 6 + 2 + 2 and "fig05-error-vs-images.png" in figures
+    # Xu's (Figs. 2, 3, 8, 9, 14, 15 with their tables), Soler's, the renders', the closed loop's, the floor check's;
+    # + Soler Figs. 1 and 6 (PNG, PDF and note each) and the notes of Figs. 12 and 13
+    assert len(figures) == 36 + 16 + 6 + 2 + 2 + 8 and "fig05-error-vs-images.png" in figures
     assert "closedloop-vs-table.png" in figures
     # the closed loop: every held-out material photographed by the 25° sets of 1 and 2 images
     closed = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "closedloop.csv")[1]
@@ -301,7 +309,8 @@ def declared_outputs(configfile: Path) -> set[str]:
     from brdfpipe import plan
 
     cfg = yaml.safe_load(configfile.read_text())
-    files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.manifold_figures(cfg["manifold"]))
+    files = {f for figs in (plan.acquisition_figures(cfg["acquisition"]), plan.reconstruction_figures(cfg["acquisition"]),
+                            plan.manifold_figures(cfg["manifold"]))
              for fs in figs.values() for f in fs}
     if plan.closedloop_directions(cfg):
         files |= set(filenames.figure_files(filenames.CLOSEDLOOP_STEM))
@@ -341,7 +350,8 @@ def test_other_dag_shapes_run_end_to_end(tmp_path: Path, tmp_path_factory: pytes
         r = subprocess.run(cmd, capture_output=True, text=True, cwd=work, env=env, timeout=900)
         assert r.returncode == 0, r.stderr[-4000:]
     figures = {p.relative_to(work).as_posix() for p in (work / "results" / "figures").iterdir()}
-    render = {f for fs in plan.render_figures(len(cfg["render"]["path_points"])).values() for f in fs}
+    samples = cfg["render"].get("latent_samples", {}).get("count", 11)  # the schema's default: Soler Fig. 1's 11
+    render = {f for fs in plan.render_figures(len(cfg["render"]["path_points"]), samples).values() for f in fs}
     floor_checked = cfg["render"]["floor_check"]["candidates"] != "none"  # tiny-nearfield: default; tiny-point: none
     assert floor_checked == (shape == "tiny-nearfield")
     if floor_checked:

@@ -213,6 +213,8 @@ rule plot_acquisition_figures:
         figure_keys=list(ACQUISITION_FIGURES),
         fovs=ACQ["fovs"],
         fixed_fov=ACQ["fixed_fov"],
+        figure_fov=plan.curve_fov(ACQ),
+        figure_materials=FIGURE_MATERIALS,
         n_point=min(5, ACQ["n_max_point"]),
         code=code("plot_acquisition_figures.py"),
     script:
@@ -311,3 +313,68 @@ if CLOSEDLOOP_SETS:
             code=code("plot_closedloop.py"),
         script:
             "../scripts/plot_closedloop.py"
+
+
+if RECON_SETS:
+
+    # Xu Figs. 2 and 15: a held-out material reconstructed from each set of RECON_SETS
+    # by table lookup (the evaluation's observations), written as MERL tables with a
+    # derived mark, and the observed pixels of every image; one pass over Q per material.
+    rule reconstruct_figure_material:
+        input:
+            store=fn.store(),
+            model=fn.svd_model("train"),
+            directions=RECON_DIRECTIONS,
+            stamp=stamp_of("reconstruct_figure_material"),
+        output:
+            tables=recon_tables("{material}"),
+            inputs=recon_inputs("{material}"),
+        log:
+            "logs/reconstruct_figure_material/{material}.log",
+        benchmark:
+            "benchmarks/reconstruct_figure_material/{material}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("reconstruct_figure_material"),
+            runtime=15,
+        params:
+            sets=[[fn.directions("train", s, f, m), n] for s, f, m, n in RECON_SETS],
+            images=[recon_image_count(s) for s in RECON_SETS],
+            eta=ACQ["eta"],
+            code=code("reconstruct_figure_material.py"),
+        script:
+            "../scripts/reconstruct_figure_material.py"
+
+    rule plot_reconstruction_figures:
+        input:
+            errors=fn.errors(),
+            prerenders=[fn.prerender(SCENE, m) for m in RECON_MATERIALS],
+            renders=[f for m in RECON_MATERIALS for f in recon_renders(m)],
+            inputs=[f for m in RECON_MATERIALS for f in recon_inputs(m)],
+            stamp=stamp_of("plot_reconstruction_figures"),
+        output:
+            **reported_figures(RECONSTRUCTION_FIGURES),
+        log:
+            "logs/plot_reconstruction_figures.log",
+        benchmark:
+            "benchmarks/plot_reconstruction_figures.tsv"
+        localrule: True
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("plot_reconstruction_figures"),
+            runtime=15,
+        params:
+            figure_keys=list(RECONSTRUCTION_FIGURES),
+            materials=RECON_MATERIALS,
+            sets=[list(s) for s in RECON_SETS],
+            columns={
+                k: [[label, list(s)] for label, s in cols]
+                for k, cols in RECON_COLUMNS.items()
+            },
+            code=code("plot_reconstruction_figures.py"),
+        script:
+            "../scripts/plot_reconstruction_figures.py"

@@ -194,6 +194,17 @@ UNSEEN_EVALUATED = bool(UNSEEN) and bool(UNSEEN_DIRECTIONS or CLOSEDLOOP_SETS)
 UNSEEN_FIGURES = plan.unseen_figures(unseen=bool(UNSEEN), evaluated=UNSEEN_EVALUATED)
 UNSEEN_MAP_Q = plan.unseen_map_q(MAN)
 ACQUISITION_FIGURES = plan.acquisition_figures(ACQ)
+# Xu Figs. 2 and 15: held-out materials (FIGURE_MATERIALS, also Fig. 3's) reconstructed
+# from the training split's direction sets RECON_SETS (setup, fov, metric, n), one job
+# per material, rendered in the pre-renders' scene, one job (one Mitsuba start) per material.
+RECONSTRUCTION_FIGURES = plan.reconstruction_figures(ACQ)
+RECON_COLUMNS = plan.reconstruction_columns(ACQ)
+RECON_SETS = plan.reconstruction_sets(ACQ)
+FIGURE_MATERIALS = plan.figure_materials(TEST_MATERIALS)
+RECON_DIRECTIONS = list(
+    dict.fromkeys(fn.directions("train", s, f, m) for s, f, m, _ in RECON_SETS)
+)
+RECON_MATERIALS = FIGURE_MATERIALS if RECON_SETS else []
 MANIFOLD_FIGURES = plan.manifold_figures(MAN)
 DEFAULT_CANDIDATE = next(iter(CANDIDATES))
 CANDIDATE_SPACES = sorted({c.space for c in CANDIDATES.values()} | {"raw"})
@@ -217,9 +228,20 @@ MANIFOLD_DATA = [
 # ask for a GPU (the Slurm plugin's `gpu` resource) when the variant needs one.
 SCENE = RENDER["scene"]
 RENDER_GPUS = 1 if RENDER["variant"].startswith("cuda") else 0
-PATH_ENDS = {fn.path_name(a, b): (a, b) for a, b in MANIFOLD_PATHS}
+# The rendered paths: manifold.paths and, where the database has both ends,
+# Soler Figs. 12/13's chrome -> silver-paint (in the model of PATH_Q).
+RENDER_PATHS = manifold_specs.rendered_paths(MANIFOLD_PATHS, MATERIALS)
+PATH_ENDS = {fn.path_name(a, b): (a, b) for a, b in RENDER_PATHS}
 PATH_POINTS = [(p, fn.format_t(t)) for p in PATH_ENDS for t in RENDER["path_points"]]
-RENDER_FIGURES = plan.render_figures(len(PATH_POINTS))
+# Soler Fig. 6 along Figs. 12/13's path where it is rendered, else the first path.
+FIG06_PATH = (
+    manifold_specs.SOLER_FIG12_PATH
+    if manifold_specs.SOLER_FIG12_PATH in RENDER_PATHS
+    else RENDER_PATHS[0]
+)
+# Soler Fig. 1: materials at random latent points (render.latent_samples).
+N_SAMPLES = RENDER["latent_samples"]["count"]
+RENDER_FIGURES = plan.render_figures(len(PATH_POINTS), N_SAMPLES)
 # The noise-floor check (render.floor_check): every material and the chosen
 # candidates' path points rendered again, small and with many samples, in a
 # scene folder of its own. Render settings per scene folder.
@@ -268,8 +290,12 @@ PLANNED_RULES = plan.planned_rules(
     path_points=bool(PATH_POINTS),
     floor_check=bool(FLOOR_CANDIDATES),
     unseen=bool(UNSEEN),
+    samples=bool(N_SAMPLES),
 )
-POINT_OUTPUTS = {r: len(PATH_POINTS) for r in plan.PER_OUTPUT_MB}
+POINT_OUTPUTS = {
+    **{r: len(PATH_POINTS) for r in plan.PER_OUTPUT_MB},
+    "sample_latent_materials": N_SAMPLES,
+}
 try:
     plan.check_memory(
         config,
@@ -319,6 +345,11 @@ def flat(figures):
 def path_point_files(kind):
     """One file per rendered path point (kind: binary, image, noise, weights)."""
     return [fn.path_point(SCENE, p, t, kind) for p, t in PATH_POINTS]
+
+
+def sample_files(kind):
+    """One file per latent sample of Soler Fig. 1 (kind: binary, image)."""
+    return [fn.latent_sample(SCENE, k, kind) for k in range(N_SAMPLES)]
 
 
 def errormap_files(kind):
@@ -391,3 +422,28 @@ def closedloop_tables(material, source):
 def source_file(wildcards):
     """The .binary file of one material (real MERL folder or generated)."""
     return str(DATABASE.sources[wildcards.material])
+
+
+def recon_image_count(recon_set):
+    """Images of a reconstructed set (its n for an image set-up, none for point samples)."""
+    setup, _, _, n = recon_set
+    return n if setup_specs.SETUPS[setup].images else 0
+
+
+def recon_tables(material):
+    """A figure material's reconstructed tables, one per set of RECON_SETS."""
+    return [fn.reconstruction(material, *s) for s in RECON_SETS]
+
+
+def recon_inputs(material):
+    """The input images of a figure material's image sets, set by set."""
+    return [
+        fn.reconstruction_input(material, *s, j)
+        for s in RECON_SETS
+        for j in range(1, recon_image_count(s) + 1)
+    ]
+
+
+def recon_renders(material):
+    """The renders of a figure material's reconstructed tables, one per set of RECON_SETS."""
+    return [fn.reconstruction_render(SCENE, material, *s) for s in RECON_SETS]

@@ -178,6 +178,33 @@ rule compare_spaces:
         "../scripts/compare_spaces.py"
 
 
+# Soler Fig. 6: the interpolant and the eq. 7 bound along one path as the
+# kernel's length scale shrinks (the default candidate's fit of the paths' q).
+rule measure_lengthscales:
+    input:
+        model=fn.gplvm_model(DEFAULT_CANDIDATE, PATH_Q),
+        gram=fn.gram(MAN["space"]),
+        stamp=stamp_of("measure_lengthscales"),
+    output:
+        table=fn.lengthscales_csv(),
+    log:
+        "logs/measure_lengthscales.log",
+    benchmark:
+        "benchmarks/measure_lengthscales.tsv"
+    conda:
+        "../envs/brdfpipe.yaml"
+    threads: 1
+    resources:
+        mem_mb=mem("measure_lengthscales"),
+        runtime=5,
+    params:
+        path=list(FIG06_PATH),
+        database=DATABASE.kind,
+        code=code("measure_lengthscales.py"),
+    script:
+        "../scripts/measure_lengthscales.py"
+
+
 rule plot_manifold_figures:
     input:
         models=expand(fn.gplvm_model(DEFAULT_CANDIDATE, "{q}"), q=MAN["latent_dims"]),
@@ -188,6 +215,7 @@ rule plot_manifold_figures:
         albedo_maps=[fn.albedo_map(q) for q in ALBEDO_MAP_DIMS],
         paths=fn.paths_csv(),
         reproduction=fn.reproduction(),
+        lengthscales=fn.lengthscales_csv(),
         stamp=stamp_of("plot_manifold_figures"),
     output:
         **reported_figures(MANIFOLD_FIGURES),

@@ -134,6 +134,104 @@ if PATH_POINTS:
             "../scripts/render_path_points.py"
 
 
+if N_SAMPLES:
+
+    # Soler Fig. 1: materials at random latent points of the default candidate's
+    # manifold, drawn as `brdfpipe sample` draws them (render.latent_samples),
+    # blended in one pass over the store and written with their derived marks.
+    rule sample_latent_materials:
+        input:
+            model=fn.gplvm_model(DEFAULT_CANDIDATE, PATH_Q),
+            store=fn.store(),
+            albedos=fn.material_albedos(),
+            stamp=stamp_of("sample_latent_materials"),
+        output:
+            merl=sample_files("binary"),
+            samples=fn.latent_samples_json(SCENE),
+        log:
+            f"logs/sample_latent_materials/{SCENE}.log",
+        benchmark:
+            f"benchmarks/sample_latent_materials/{SCENE}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 1
+        resources:
+            mem_mb=mem("sample_latent_materials", N_SAMPLES),
+            runtime=20,
+        params:
+            seed=RENDER["latent_samples"]["seed"],
+            code=code("sample_latent_materials.py"),
+        script:
+            "../scripts/sample_latent_materials.py"
+
+    # Their renders, in the pre-renders' scene and settings (one seed, one Mitsuba start).
+    rule render_latent_samples:
+        input:
+            merl=sample_files("binary"),
+            envmap=fn.envmap(SCENE),
+            stamp=stamp_of("render_latent_samples"),
+        output:
+            images=sample_files("image"),
+        log:
+            f"logs/render_latent_samples/{SCENE}.log",
+        benchmark:
+            f"benchmarks/render_latent_samples/{SCENE}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 2
+        resources:
+            gpu=RENDER_GPUS,
+            mem_mb=mem("render_latent_samples"),
+            runtime=10 + 2 * N_SAMPLES,
+        params:
+            labels=[Path(f).stem for f in sample_files("binary")],
+            variant=RENDER["variant"],
+            resolution=RENDER["resolution"],
+            spp=RENDER["spp"],
+            max_depth=RENDER["max_depth"],
+            seed=RENDER["seed"],
+            database=DATABASE.kind,
+            code=code("render_latent_samples.py"),
+        script:
+            "../scripts/render_latent_samples.py"
+
+
+if RECON_SETS:
+
+    # Xu Figs. 2 and 15: a figure material's reconstructed tables rendered exactly as
+    # the pre-renders (scene, resolution, spp, depth, seed): the reference is the
+    # material's pre-render. One job (one Mitsuba start) per material.
+    rule render_reconstructions:
+        input:
+            merl=recon_tables("{material}"),
+            envmap=fn.envmap(SCENE),
+            stamp=stamp_of("render_reconstructions"),
+        output:
+            images=recon_renders("{material}"),
+        log:
+            f"logs/render_reconstructions/{SCENE}/{{material}}.log",
+        benchmark:
+            f"benchmarks/render_reconstructions/{SCENE}/{{material}}.tsv"
+        conda:
+            "../envs/brdfpipe.yaml"
+        threads: 2
+        resources:
+            gpu=RENDER_GPUS,
+            mem_mb=mem("render_reconstructions"),
+            runtime=5 + 2 * len(RECON_SETS),
+        params:
+            labels=[f"{s}-fov{fn.fov_tag(f)}-{m}-n{n}" for s, f, m, n in RECON_SETS],
+            variant=RENDER["variant"],
+            resolution=RENDER["resolution"],
+            spp=RENDER["spp"],
+            max_depth=RENDER["max_depth"],
+            seed=RENDER["seed"],
+            database=DATABASE.kind,
+            code=code("render_reconstructions.py"),
+        script:
+            "../scripts/render_reconstructions.py"
+
+
 # The object's pixels (for the I²⁺ share over the object): one small render.
 rule render_object_mask:
     input:
@@ -233,6 +331,9 @@ rule plot_render_figures:
         prerenders=expand(fn.prerender(SCENE, "{material}"), material=MATERIALS),
         weights=path_point_files("weights"),
         references=path_point_files("image"),
+        references_noise=path_point_files("noise"),
+        samples=fn.latent_samples_json(SCENE) if N_SAMPLES else [],
+        sample_images=sample_files("image"),
         blended=errormap_files("blended.exr"),
         errors=errormap_files("error.exr"),
         summary=fn.errormap_summary(SCENE) if PATH_POINTS else [],

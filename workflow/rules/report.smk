@@ -23,6 +23,7 @@ rule write_claims:
         closedloop=fn.closedloop_errors() if CLOSEDLOOP_SETS else [],
         unseen=fn.unseen_errors() if UNSEEN_EVALUATED else [],
         unseen_albedo=[fn.unseen_albedo(d) for d in UNSEEN],
+        notes=list(FIGURE_NOTES.values()),
         stamp=stamp_of("write_claims"),
     output:
         claims=reported(fn.claims_csv()),
@@ -44,6 +45,7 @@ rule write_claims:
             for it in REPORT_ITEMS
         ],
         latent_dims=MAN["latent_dims"],
+        note_keys=list(FIGURE_NOTES),
         # the recorded runs' claims, read (digest-checked) at parse time: by content, so that
         # where the library or a user's file lives does not rerun the job, and an edit of them does
         recorded=[

@@ -7,7 +7,7 @@ from brdfpipe.plan import report as report_plan
 
 REPORT_ITEMS = report_plan.report_items(
     database=DATABASE.kind,
-    acquisition_figures=ACQUISITION_FIGURES,
+    acquisition_figures={**ACQUISITION_FIGURES, **RECONSTRUCTION_FIGURES},
     manifold_figures=MANIFOLD_FIGURES,
     render_figures=RENDER_FIGURES,
     floor_figure=FLOOR_FIGURE,
@@ -22,6 +22,12 @@ REPORT_ITEMS = report_plan.report_items(
     unseen_albedo=[fn.unseen_albedo(d) for d in UNSEEN],
     manifold_unseen_figure=UNSEEN_FIGURES.get("manifold", ()),
     manifold_unseen_table=fn.unseen_manifold() if UNSEEN else None,
+)
+# Report key -> the note (this run's numbers) a figure writes next to it, quoted by its caption.
+FIGURE_NOTES = report_plan.figure_notes(
+    acquisition_figures=ACQUISITION_FIGURES,
+    manifold_figures=MANIFOLD_FIGURES,
+    render_figures=RENDER_FIGURES,
 )
 _REPORTED = {item.path: item for item in REPORT_ITEMS}
 REPORT_CAPTIONS = sorted({item.caption for item in REPORT_ITEMS})

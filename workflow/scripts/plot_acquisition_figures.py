@@ -12,4 +12,6 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         fovs=snakemake.params.fovs,
         n_point=snakemake.params.n_point,
         fov_fixed=snakemake.params.fixed_fov,
+        figure_fov=snakemake.params.figure_fov,
+        figure_materials=snakemake.params.figure_materials,
     )

@@ -14,5 +14,6 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         reproduction_csv=snakemake.input.reproduction,
         spaces_csv=snakemake.input.spaces,
         stability_csv=snakemake.input.stability,
+        lengthscales_csv=snakemake.input.lengthscales,
         figures={key: list(snakemake.output[key]) for key in snakemake.params.figure_keys},
     )

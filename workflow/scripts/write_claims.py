@@ -4,6 +4,7 @@ from pathlib import Path
 
 from brdfpipe.core import integrity
 from brdfpipe.core.logutil import log_to
+from brdfpipe.core.notes import read_note
 from brdfpipe.report import captions, claims, runinfo
 
 with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
@@ -35,8 +36,9 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         recorded=recorded,
     )
     splits = integrity.read_json(inp.splits, kind="splits file")  # its digest checked
+    notes = {k: read_note(f) for k, f in zip(snakemake.params.note_keys, inp.notes)}  # digests checked
     captions.write_captions(snakemake.params.entries, found,
-                            database=splits.get("database_title") or splits["database"])
+                            database=splits.get("database_title") or splits["database"], notes=notes)
     runinfo.write_front(
         snakemake.output.front,
         claims=found,

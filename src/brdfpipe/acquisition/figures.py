@@ -21,22 +21,32 @@ kind, value`` (+ mean rows).
 Directions files ``{directions_dir}/{split}/{setup}-fov{fov}-{metric}.json``
 (:func:`brdfpipe.acquisition.optimize.read_directions`).
 
+The readers of the two tables are :mod:`brdfpipe.acquisition.figure_inputs`'s;
+the figures of configurations (Figs. 8, 9, 14) are
+:mod:`brdfpipe.acquisition.figures_configs`', those of rendered
+reconstructions (Figs. 2, 15) :mod:`brdfpipe.acquisition.figures_recon`'s;
+this module re-exports their public names.
+
 Outputs
 -------
 One public function per figure; each takes its input path(s) and an output
-*stem* and writes ``<stem>.png`` and ``<stem>.pdf`` (Fig. 8 also
-``<stem>.csv`` and ``<stem>.md``), each atomically (temporary sibling, then
+*stem* and writes ``<stem>.png`` and ``<stem>.pdf`` (a figure with a table,
+:attr:`brdfpipe.spec.figures.Figure.table`, also ``<stem>.csv`` and
+``<stem>.md``), each atomically (temporary sibling, then
 :func:`os.replace`), and returns a :class:`FigureOutput`.
 :func:`make_acquisition_figures` writes them all.
 
 =============================  ================================================
+``fig03-recon-vs-deviation``   E_recon vs E_deviation of the Fig. 2 materials
 ``fig05-error-vs-images``      near-field error vs n, one panel per FOV,
                                E(S) vs condition-number directions
 ``fig06-fov-vs-point``         near-field (each FOV) vs point sampling
 ``fig07-training-size``        error vs number of training materials
 ``fig08-optimal-configurations``  table + 3-D sketch of the 1-/2-image
-                               near-field configurations per FOV (Figs. 8, 9)
+                               near-field configurations per FOV
+``fig09-configurations-fov25``  the 1- and 2-shot pairs at one FOV, with angles
 ``fig13-fixed-camera-light``   fixed camera / fixed light / near-field / point
+``fig14-fixed-configurations``  the 2-image fixed camera / fixed light sets
 ``fig18-per-material``         per-material error of n point samples, with
                                the E_deviation floor
 ``fig19-error-vs-n``           point sampling error vs n, with the floor
@@ -59,18 +69,38 @@ import logging
 import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
+from brdfpipe.acquisition.figure_inputs import (
+    ERRORS_COLUMNS,
+    FOV_TOL,
+    TRAINING_COLUMNS,
+    ErrorTable,
+    TrainingTable,
+    read_errors,
+    read_training_size,
+)
+from brdfpipe.acquisition.figures_recon import (
+    fig02_reconstructions,
+    fig15_fixed_camera_reconstructions,
+    make_reconstruction_figures,
+)
+from brdfpipe.acquisition.figures_configs import (
+    FIG08_COLUMNS,
+    fig08_optimal_configurations,
+    fig09_configurations,
+    fig14_fixed_configurations,
+)
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.filenames import FIGURE_STEMS
 from brdfpipe.data.databases import title as database_label
 from brdfpipe.spec import acquisition as acquisition_spec
+from brdfpipe.spec import figures as figure_specs
 from brdfpipe.spec import tables
 from brdfpipe.core.plot import (
     COLOURS,
@@ -97,11 +127,20 @@ __all__ = [
     "TrainingTable",
     "read_errors",
     "read_training_size",
+    "FIG08_COLUMNS",
+    "fig02_reconstructions",
+    "fig15_fixed_camera_reconstructions",
+    "make_reconstruction_figures",
+    "RECON_VS_DEVIATION_COLUMNS",
+    "recon_vs_deviation",
+    "fig03_recon_vs_deviation",
     "fig05_error_vs_images",
     "fig06_fov_vs_point",
     "fig07_training_size",
     "fig08_optimal_configurations",
+    "fig09_configurations",
     "fig13_fixed_camera_light",
+    "fig14_fixed_configurations",
     "fig18_per_material",
     "fig19_error_vs_n",
     "make_acquisition_figures",
@@ -112,13 +151,7 @@ __all__ = [
 
 logger = logging.getLogger("brdfpipe.acquisition.figures")
 
-#: Required columns of ``errors.csv`` (extra columns are ignored).
-ERRORS_COLUMNS: tuple[str, ...] = tables.ERRORS
-#: Required columns of ``training_size.csv``.
-TRAINING_COLUMNS: tuple[str, ...] = tables.TRAINING_SIZE
-
 _FOV_COLOURS = ("#1f77b4", "#2ca02c", "#9467bd", "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22")
-_IMAGE_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
 _METRIC_STYLE = {
     "error": dict(label="min E(S) (eq. 15)", linestyle="-", marker="o"),
     "condition": dict(label="min condition number κ", linestyle="--", marker="s"),
@@ -129,103 +162,7 @@ _KIND_LABEL = {
     "deviation": "E_deviation (log-mapped BRDF)",
 }
 _SETUP_LABEL = {name: s.label for name, s in acquisition_spec.SETUPS.items()}
-_FOV_TOL = 1e-6
-
-
-# ---------------------------------------------------------------------------
-# Inputs
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ErrorTable:
-    """``errors.csv``, parsed: one value per (split, setup, fov, metric, n, material, channel, kind)."""
-
-    path: Path
-    database: str
-    values: dict[tuple[str, str, float, str, int, str, str, str], float]
-
-    def splits(self) -> list[str]:
-        return sorted({k[0] for k in self.values})
-
-    def fovs(self, split: str, setup: str, metric: str | None = None, kind: str | None = None) -> list[float]:
-        return sorted({k[2] for k in self.values if k[0] == split and k[1] == setup
-                       and (metric is None or k[3] == metric) and (kind is None or k[7] == kind)})
-
-    def series(self, split: str, setup: str, fov: float, metric: str, kind: str,
-               material: str = "mean", channel: str = "all") -> tuple[np.ndarray, np.ndarray]:
-        """(n, value) sorted by n, finite values only (empty arrays if none)."""
-        pts = sorted((k[4], v) for k, v in self.values.items()
-                     if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
-                     and k[5] == material and k[6] == channel and k[7] == kind and math.isfinite(v))
-        return (np.array([p[0] for p in pts], dtype=np.int64), np.array([p[1] for p in pts], dtype=np.float64))
-
-    def materials(self, split: str, setup: str, fov: float, metric: str, n: int, kind: str) -> list[str]:
-        return sorted({k[5] for k in self.values
-                       if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
-                       and k[4] == n and k[7] == kind and k[5] != "mean"})
-
-    def material_value(self, split: str, setup: str, fov: float, metric: str, n: int, kind: str,
-                       material: str) -> float:
-        """A material's value averaged over channels: its ``all`` row, else the mean of its channel rows."""
-        vals = {k[6]: v for k, v in self.values.items()
-                if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
-                and k[4] == n and k[7] == kind and k[5] == material}
-        if "all" in vals and math.isfinite(vals["all"]):
-            return vals["all"]
-        chans = [v for c, v in sorted(vals.items()) if c != "all" and math.isfinite(v)]
-        return float(np.mean(chans)) if chans else math.nan
-
-
-def read_errors(path: str | os.PathLike[str]) -> ErrorTable:
-    """Read and check ``errors.csv`` (:class:`FigureInputError` naming the file if it is malformed)."""
-    p, rows = read_csv(path, ERRORS_COLUMNS)
-    values: dict[tuple[str, str, float, str, int, str, str, str], float] = {}
-    for r in rows:
-        i = int(r["__line__"])
-        for c in ("split", "setup", "metric", "material", "channel", "kind"):
-            if not r[c]:
-                raise FigureInputError(f"{p}: line {i}: empty {c!r}")
-        key = (r["split"], r["setup"], parse_float(p, i, "fov", r["fov"]), r["metric"],
-               parse_int(p, i, "n", r["n"]), r["material"], r["channel"], r["kind"])
-        if key in values:
-            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(ERRORS_COLUMNS[1:9], key))}")
-        values[key] = parse_float(p, i, "value", r["value"])
-    return ErrorTable(p, single_database(p, (r["database"] for r in rows)), values)
-
-
-@dataclass(frozen=True)
-class TrainingTable:
-    """``training_size.csv``, parsed: value per (n_train, order_seed, material, channel, kind)."""
-
-    path: Path
-    database: str
-    values: dict[tuple[int, str, str, str, str], float]
-
-    def seeds(self, kind: str) -> list[str]:
-        return sorted({k[1] for k in self.values if k[4] == kind},
-                      key=lambda s: (0, int(s), s) if s.lstrip("-").isdigit() else (1, 0, s))
-
-    def series(self, seed: str, kind: str, material: str = "mean", channel: str = "all") -> tuple[np.ndarray, np.ndarray]:
-        pts = sorted((k[0], v) for k, v in self.values.items()
-                     if k[1] == seed and k[2] == material and k[3] == channel and k[4] == kind and math.isfinite(v))
-        return (np.array([p[0] for p in pts], dtype=np.int64), np.array([p[1] for p in pts], dtype=np.float64))
-
-
-def read_training_size(path: str | os.PathLike[str]) -> TrainingTable:
-    """Read and check ``training_size.csv`` (:class:`FigureInputError` naming the file if it is malformed)."""
-    p, rows = read_csv(path, TRAINING_COLUMNS)
-    values: dict[tuple[int, str, str, str, str], float] = {}
-    for r in rows:
-        i = int(r["__line__"])
-        for c in ("order_seed", "material", "channel", "kind"):
-            if not r[c]:
-                raise FigureInputError(f"{p}: line {i}: empty {c!r}")
-        key = (parse_int(p, i, "n_train", r["n_train"]), r["order_seed"], r["material"], r["channel"], r["kind"])
-        if key in values:
-            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(TRAINING_COLUMNS[1:6], key))}")
-        values[key] = parse_float(p, i, "value", r["value"])
-    return TrainingTable(p, single_database(p, (r["database"] for r in rows)), values)
+_FOV_TOL = FOV_TOL
 
 
 # ---------------------------------------------------------------------------
@@ -556,6 +493,108 @@ def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
 
 
 # ---------------------------------------------------------------------------
+# Fig. 3 (E_recon vs E_deviation)
+# ---------------------------------------------------------------------------
+
+#: Columns of Fig. 3's table (CSV and Markdown).
+RECON_VS_DEVIATION_COLUMNS: tuple[str, ...] = tables.RECON_VS_DEVIATION
+
+
+def recon_vs_deviation(table: ErrorTable, materials: Sequence[str], *, split: str, setup: str, fov: float,
+                       metric: str, n: int, warn: Warnings) -> list[dict[str, Any]]:
+    """Per material: E_recon (Xu eq. 12) and E_deviation (eq. 9) of one direction set, from ``errors.csv``.
+
+    E_deviation = ‖y − Qc‖ with c the least-squares coefficients (every cell
+    observed) is the table's ``deviation``; the set's reconstruction x̂ =
+    μ + Qc̄ lies in the span of Q, and y − Qc is orthogonal to it, so
+    ``rms_log``² = ‖y − Qc̄‖²/p = E_deviation² + E_recon² (eq. 14 holds with
+    equality in squares): E_recon = √(rms_log² − deviation²) per channel
+    (RMS over the p cells, like both columns), clamped at 0 where rounding
+    makes the difference negative.  A material's values are the means over
+    its channel rows (R, G, B); a material without rows of the same
+    channels of both kinds is skipped with a warning.
+    """
+    dev_split = _deviation_split(table, split)
+    out = []
+    for m in materials:
+        rms = {k[6]: v for k, v in table.values.items() if k[:6] == (split, setup, fov, metric, n, m)
+               and k[7] == "rms_log" and k[6] != "all"}
+        dev = {k[6]: v for k, v in table.values.items() if k[:6] == (dev_split, "all", 0.0, "none", 0, m)
+               and k[7] == "deviation" and k[6] != "all"}
+        channels = sorted(set(rms) & set(dev))
+        if not channels or set(rms) != set(dev) or not all(math.isfinite(rms[c] + dev[c]) for c in channels):
+            warn(f"no rms_log and deviation rows of the same channels for {m} ({setup} FOV {_fov_text(fov)}, "
+                 f"{metric}, n = {n}); skipped")
+            continue
+        recon = [math.sqrt(max(rms[c] ** 2 - dev[c] ** 2, 0.0)) for c in channels]
+        out.append({"database": table.database, "material": m, "setup": setup, "fov": fov, "metric": metric, "n": n,
+                    "e_recon": float(np.mean(recon)), "e_deviation": float(np.mean([dev[c] for c in channels])),
+                    "rms_log": float(np.mean([rms[c] for c in channels]))})
+    return out
+
+
+def fig03_recon_vs_deviation(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
+                             materials: Sequence[str] | None = None, fov: float = 25.0,
+                             n_images: Sequence[int] = (1, 2), split: str = "train",
+                             metric: str = "error") -> FigureOutput:
+    """Xu Fig. 3: E_recon of the 1- and 2-image near-field sets at ``fov`` next to E_deviation, per material.
+
+    ``materials``: those of Fig. 2 (None: every held-out material with
+    rows).  The values are :func:`recon_vs_deviation`'s; writes them to
+    ``<stem>.csv`` (:data:`RECON_VS_DEVIATION_COLUMNS`, one row per material
+    and set size) and ``<stem>.md``.
+    """
+    table = read_errors(errors_csv)
+    warn = Warnings("fig03")
+    split = _choose_split(table, split, warn)
+    fov = float(fov)
+    sizes = [int(n) for n in n_images]
+    mats = list(materials) if materials is not None else table.materials(split, "nearfield", fov, metric, sizes[0],
+                                                                          "rms_log")
+    rows = [r for n in sizes for r in recon_vs_deviation(table, mats, split=split, setup="nearfield", fov=fov,
+                                                         metric=metric, n=n, warn=warn)]
+    stem = Path(stem)
+    csv_path, md_path = stem.with_name(stem.name + ".csv"), stem.with_name(stem.name + ".md")
+    integrity.write_csv(csv_path, [RECON_VS_DEVIATION_COLUMNS,
+                                   *([f"{r[c]:.17g}" if isinstance(r[c], float) else str(r[c])
+                                      for c in RECON_VS_DEVIATION_COLUMNS] for r in rows)])
+    shown = [m for m in mats if any(r["material"] == m for r in rows)]
+    dominant = {n: sum(r["e_recon"] > r["e_deviation"] for r in rows if r["n"] == n) for n in sizes}
+    lines = [f"# E_recon vs E_deviation (Xu 2016 Fig. 3 analogue), {database_label(table.database)}", "",
+             f"Near-field FOV {_fov_text(fov)}, directions min E(S); RMS over the model's cells of the log-mapped "
+             "BRDF, mean over R, G, B. E_recon = √(rms_log² − E_deviation²).", "",
+             "| material | images | E_recon | E_deviation | rms_log |", "|:---|---:|---:|---:|---:|"]
+    lines += [f"| {r['material']} | {r['n']} | {r['e_recon']:.4g} | {r['e_deviation']:.4g} | {r['rms_log']:.4g} |"
+              for r in rows]
+    md = "\n".join(lines) + "\n"
+    atomic_write(md_path, lambda fh: fh.write(md), binary=False)
+    with style():
+        fig = new_figure(max(6.5, 1.6 + 0.9 * len(shown)), 4.6)
+        ax = fig.subplots()
+        if not shown:
+            no_data(ax, f"no rows for the near-field sets at FOV {_fov_text(fov)}")
+        else:
+            x = np.arange(len(shown), dtype=np.float64)
+            width = 0.8 / (1 + len(sizes))
+            value = {(r["material"], r["n"]): r for r in rows}
+            dev = [next(r["e_deviation"] for r in rows if r["material"] == m) for m in shown]
+            ax.bar(x - 0.4 + 0.5 * width, dev, width, color="#444444", label="E_deviation (eq. 9)", zorder=2)
+            for i, n in enumerate(sizes):
+                vals = [value[(m, n)]["e_recon"] if (m, n) in value else math.nan for m in shown]
+                ax.bar(x - 0.4 + (i + 1.5) * width, np.nan_to_num(vals), width, color=_FOV_COLOURS[i],
+                       label=f"E_recon (eq. 12), {n} image{'s' if n > 1 else ''}", zorder=2)
+            ax.set_xticks(x, shown, rotation=30, ha="right", rotation_mode="anchor")
+            ax.set_ylabel("RMS error over the cells (log-mapped BRDF)")
+            ax.grid(axis="x", visible=False)
+            ax.legend(loc="best")
+        ax.set_title(f"near-field, FOV {_fov_text(fov)}, min E(S): E_recon > E_deviation for "
+                     + ", ".join(f"{dominant[n]} of {len(shown)} ({n} image{'s' if n > 1 else ''})" for n in sizes))
+        title = f"Reconstruction vs deviation error per material ({database_label(table.database)})"
+        return finish(fig, stem, title, f"Xu 2016 Fig. 3 analogue; {_split_text(split)}", table.database, warn,
+                      extra=(csv_path, md_path))
+
+
+# ---------------------------------------------------------------------------
 # Fig. 7 (training_size.csv)
 # ---------------------------------------------------------------------------
 
@@ -608,229 +647,6 @@ def fig07_training_size(training_csv: str | os.PathLike[str], stem: str | os.Pat
 
 
 # ---------------------------------------------------------------------------
-# Fig. 8 / 9 (directions files)
-# ---------------------------------------------------------------------------
-
-#: Columns of the Fig. 8 table (CSV and Markdown).
-FIG08_COLUMNS: tuple[str, ...] = tables.FIG08
-
-
-def _spherical_deg(v: Sequence[float]) -> tuple[float, float]:
-    x, y, z = (float(c) for c in v)
-    theta = math.degrees(math.acos(max(-1.0, min(1.0, z))))
-    phi = math.degrees(math.atan2(y, x)) % 360.0 if math.hypot(x, y) > 1e-9 else 0.0
-    if phi >= 360.0 - 1e-9:
-        phi = 0.0
-    return theta, phi
-
-
-@dataclass
-class _ConfigRow:
-    fov: float
-    n_images: int
-    image: int
-    theta_h: float
-    theta_d: float
-    phi_d: float
-    light: tuple[float, float, float]
-    camera: tuple[float, float, float]
-    expected_error: float
-    split: str
-    database: str
-    light_sph: tuple[float, float] = field(init=False)
-    camera_sph: tuple[float, float] = field(init=False)
-
-    def __post_init__(self) -> None:
-        self.light_sph = _spherical_deg(self.light)
-        self.camera_sph = _spherical_deg(self.camera)
-
-    def csv_values(self) -> list[str]:
-        return [f"{self.fov:g}", str(self.n_images), str(self.image),
-                f"{self.theta_h:.6f}", f"{self.theta_d:.6f}", f"{self.phi_d:.6f}",
-                f"{self.light_sph[0]:.6f}", f"{self.light_sph[1]:.6f}",
-                f"{self.camera_sph[0]:.6f}", f"{self.camera_sph[1]:.6f}",
-                f"{self.expected_error:.10g}", self.split, self.database]
-
-
-def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Sequence[float],
-                         n_images: Sequence[int], setup: str, metric: str, splits: Sequence[str],
-                         warn: Warnings) -> tuple[list[_ConfigRow], str]:
-    from brdfpipe.acquisition.optimize import read_directions  # noqa: PLC0415 (heavy import, only needed here)
-
-    loaded = []
-    for p in directions:
-        path = Path(p)
-        if not path.is_file():
-            raise FigureInputError(f"{path}: directions file not found")
-        loaded.append((path, read_directions(path)))  # ValueError naming the file if malformed
-    rows: list[_ConfigRow] = []
-    databases: dict[str, Path] = {}
-    for fov in fovs:
-        found = None
-        for split in splits:
-            found = next(((p, d) for p, d in loaded if d.split == split and d.setup.kind == setup
-                          and d.metric == metric and abs(d.setup.fov_deg - float(fov)) <= _FOV_TOL), None)
-            if found is not None:
-                break
-        if found is None:
-            warn(f"no {setup} {metric} directions file for FOV {_fov_text(fov)} among the inputs "
-                 f"(splits tried: {', '.join(splits)}); skipped")
-            continue
-        path, d = found
-        if not d.database:
-            raise FigureInputError(f"{path}: empty 'database'")
-        databases.setdefault(d.database, path)
-        by_n = {s.n: s for s in d.sets}
-        for n in n_images:
-            s = by_n.get(n)
-            if s is None:
-                warn(f"{path}: no set of {n} image(s); skipped")
-                continue
-            for i, rec in enumerate(s.records, start=1):
-                rows.append(_ConfigRow(
-                    fov=float(fov), n_images=n, image=i,
-                    theta_h=float(rec["theta_h_deg"]), theta_d=float(rec["theta_d_deg"]),
-                    phi_d=float(rec["phi_d_deg"]),
-                    light=tuple(float(c) for c in rec["light"]),  # type: ignore[arg-type]
-                    camera=tuple(float(c) for c in rec["camera"]),  # type: ignore[arg-type]
-                    expected_error=s.expected_error, split=d.split, database=d.database))
-    if len(databases) > 1:
-        raise FigureInputError("directions files from different databases: "
-                               + "; ".join(f"{db!r} ({p})" for db, p in sorted(databases.items())))
-    return rows, next(iter(databases), "")
-
-
-def _markdown(rows: Sequence[_ConfigRow], database: str, setup: str, metric: str) -> str:
-    lines = [
-        f"# Optimal {'- and '.join(sorted({str(r.n_images) for r in rows})) or '1- and 2'}-image "
-        f"{_SETUP_LABEL.get(setup, setup)} configurations (Xu 2016 Fig. 8 analogue), {database_label(database)}",
-        "",
-        f"Directions optimised with {'E(S) (eq. 15)' if metric == 'error' else 'the condition number'}; "
-        "angles in degrees at the centre of the sample (θh, θd, φd: Rusinkiewicz half/difference angles; "
-        "light and camera as (θ, φ) spherical angles from the sample normal). "
-        "E(S) is the expected error of the whole set.",
-        "",
-    ]
-    if not rows:
-        lines.append("No directions files were found for the requested fields of view.")
-        return "\n".join(lines) + "\n"
-    lines += [
-        "| FOV | images | image | θh | θd | φd | light (θ, φ) | camera (θ, φ) | E(S) | split |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r.fov:g}° | {r.n_images} | {r.image} | {r.theta_h:.1f} | {r.theta_d:.1f} | {r.phi_d:.1f} "
-            f"| ({r.light_sph[0]:.1f}, {r.light_sph[1]:.1f}) | ({r.camera_sph[0]:.1f}, {r.camera_sph[1]:.1f}) "
-            f"| {r.expected_error:.4g} | {r.split} |"
-        )
-    return "\n".join(lines) + "\n"
-
-
-def _draw_configuration(ax: Any, rows: Sequence[_ConfigRow], fov: float) -> None:
-    """3-D sketch: hemisphere, sample disk (radius tan(fov/2)), light arrows and camera positions."""
-    t = np.linspace(0.0, 2.0 * np.pi, 73)
-    for el in (0.0, 30.0, 60.0):  # parallels
-        r, z = math.cos(math.radians(el)), math.sin(math.radians(el))
-        ax.plot(r * np.cos(t), r * np.sin(t), np.full_like(t, z), color="#c8c8c8", linewidth=0.6)
-    s = np.linspace(0.0, 0.5 * np.pi, 25)
-    for az in range(0, 360, 45):  # meridians
-        a = math.radians(az)
-        ax.plot(np.cos(s) * math.cos(a), np.cos(s) * math.sin(a), np.sin(s), color="#dddddd", linewidth=0.5)
-    nu = math.tan(math.radians(fov) / 2.0)
-    ax.plot_trisurf(np.concatenate([[0.0], nu * np.cos(t)]), np.concatenate([[0.0], nu * np.sin(t)]),
-                    np.zeros(t.size + 1), color="#9e9e9e", alpha=0.55, linewidth=0, shade=False)
-    ax.plot(nu * np.cos(t), nu * np.sin(t), np.zeros_like(t), color="#555555", linewidth=0.8)
-    ax.plot([0, 0], [0, 0], [0, 1.05], color="#888888", linewidth=0.7, linestyle=":")
-    rim = np.stack([nu * np.cos(t[::9]), nu * np.sin(t[::9]), np.zeros(t[::9].size)], axis=1)
-    for r in rows:
-        colour = _IMAGE_COLOURS[(r.image - 1) % len(_IMAGE_COLOURS)]
-        li = np.asarray(r.light, dtype=np.float64)
-        ca = np.asarray(r.camera, dtype=np.float64)
-        start = 1.25 * li
-        ax.quiver(start[0], start[1], start[2], -start[0] * 0.88, -start[1] * 0.88, -start[2] * 0.88,
-                  color=colour, linewidth=1.8, arrow_length_ratio=0.18)
-        ax.text(*(1.34 * li), f"L{r.image}", color=colour, fontsize=8.5, fontweight="bold",
-                ha="center", va="center")
-        for p in rim:  # viewing cone to the disk rim
-            ax.plot([ca[0], p[0]], [ca[1], p[1]], [ca[2], p[2]], color=colour, linewidth=0.5, alpha=0.6)
-        ax.scatter([ca[0]], [ca[1]], [ca[2]], color=colour, marker="s", s=30, depthshade=False,
-                   label=(f"image {r.image}: L ({r.light_sph[0]:.0f}, {r.light_sph[1]:.0f}), "
-                          f"C ({r.camera_sph[0]:.0f}, {r.camera_sph[1]:.0f}); θh {r.theta_h:.0f}, "
-                          f"θd {r.theta_d:.0f}, φd {r.phi_d:.0f}"))
-        ax.text(*(1.14 * ca), f"C{r.image}", color=colour, fontsize=8.5, fontweight="bold",
-                ha="center", va="center")
-    ax.set_xlim(-1.05, 1.05)
-    ax.set_ylim(-1.05, 1.05)
-    ax.set_zlim(0.0, 1.1)
-    ax.set_box_aspect((1.0, 1.0, 0.55), zoom=1.3)
-    ax.view_init(elev=24, azim=-62)
-    ax.set_axis_off()
-
-
-def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], stem: str | os.PathLike[str], *,
-                                 fovs: Sequence[float], n_images: Sequence[int] = (1, 2),
-                                 setup: str = "nearfield", metric: str = "error",
-                                 splits: Sequence[str] = ("all", "train")) -> FigureOutput:
-    """Xu Figs. 8 and 9: table and sketch of the optimal 1- and 2-image configurations per FOV.
-
-    ``directions``: the direction files to choose from; for each FOV the
-    first of ``splits`` with a ``setup``/``metric`` file at that FOV is used
-    (``all``, the full database, as Xu's Fig. 8; else ``train``).  Writes
-    ``<stem>.csv`` (columns :data:`FIG08_COLUMNS`, one row per image),
-    ``<stem>.md`` and the sketch ``<stem>.png``/``.pdf`` (one 3-D panel per
-    FOV and set size: the hemisphere, the sample disk, light arrows L and
-    camera positions C with their viewing cones).
-    """
-    warn = Warnings("fig08")
-    rows, database = _load_configurations(directions, [float(f) for f in fovs], list(n_images), setup,
-                                          metric, list(splits), warn)
-    stem = Path(stem)
-    csv_path = stem.with_name(stem.name + ".csv")
-    md_path = stem.with_name(stem.name + ".md")
-
-    integrity.write_csv(csv_path, [FIG08_COLUMNS, *(r.csv_values() for r in rows)])  # with its digest line
-    md = _markdown(rows, database, setup, metric)
-    atomic_write(md_path, lambda fh: fh.write(md), binary=False)
-
-    present = sorted({r.fov for r in rows})
-    sizes = [n for n in n_images if any(r.n_images == n for r in rows)]
-    with style():
-        ncols = max(1, len(sizes))
-        nrows = max(1, len(present))
-        fig = new_figure(4.2 * ncols + 0.2, 3.9 * nrows + 0.9)
-        if not rows:
-            ax = fig.subplots()
-            no_data(ax, "no directions files for the requested FOVs")
-        else:
-            # per FOV: a row of 3-D sketches and, under each, a strip holding its legend
-            gs = fig.add_gridspec(2 * nrows, ncols, height_ratios=[6.0, 1.0] * nrows)
-            for i, fov in enumerate(present):
-                for j, n in enumerate(sizes):
-                    ax = fig.add_subplot(gs[2 * i, j], projection="3d")
-                    key = fig.add_subplot(gs[2 * i + 1, j])
-                    key.set_axis_off()
-                    sel = [r for r in rows if r.fov == fov and r.n_images == n]
-                    if not sel:
-                        ax.set_axis_off()
-                        ax.set_title(f"FOV {_fov_text(fov)}, {n} image{'s' if n > 1 else ''}: no set")
-                        continue
-                    _draw_configuration(ax, sel, fov)
-                    ax.set_title(f"FOV {_fov_text(fov)}, {n} image{'s' if n > 1 else ''}, "
-                                 f"E(S) = {sel[0].expected_error:.3g}")
-                    handles, labels = ax.get_legend_handles_labels()
-                    key.legend(handles, labels, loc="upper center", fontsize=7.5, frameon=False,
-                               handletextpad=0.3, borderaxespad=0.0,
-                               title="L: light, C: camera as (θ, φ); angles in degrees", title_fontsize=7.5)
-        title = (f"Optimal {_SETUP_LABEL.get(setup, setup)} configurations per field of view "
-                 f"({database_label(database) if database else 'no directions files found'})")
-        splits_used = sorted({r.split for r in rows})
-        subtitle = ("Xu 2016 Figs. 8-9 analogue; arrows L: light, squares C: camera with its view cone "
-                    f"to the sample disk; directions from split {', '.join(splits_used) or '-'}")
-        return finish(fig, stem, title, subtitle, database, warn, extra=(csv_path, md_path))
-
-
-# ---------------------------------------------------------------------------
 # All figures
 # ---------------------------------------------------------------------------
 
@@ -840,34 +656,43 @@ def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
                              directions: Sequence[str | os.PathLike[str]],
                              figures: Mapping[str, Sequence[str | os.PathLike[str]]],
                              fovs: Sequence[float], n_point: int, fov_fixed: float = 25.0,
+                             figure_fov: float = 25.0, figure_materials: Sequence[str] | None = None,
                              split: str = "train", kind: str = "rms_log") -> list[Path]:
     """Write the requested Xu 2016 figure analogues; return the files written.
 
     ``figures``: figure key (of :data:`FIGURE_STEMS`) → its output files
-    (PNG, PDF; Fig. 8 also CSV and Markdown), exactly as the workflow
-    declares them; only these figures are drawn.  ``training_csv`` is needed
-    for ``fig07``, ``directions`` (the direction files to tabulate) for
-    ``fig08``.  ``fovs``: near-field FOVs of Figs. 5, 6 and 8; ``n_point``:
-    number of point samples of Fig. 18; ``fov_fixed``: the FOV of Figs. 7
-    (label) and 13; ``split``: the errors.csv split whose rows are plotted
-    (``train``: directions from the training split, evaluated on the
-    held-out materials).
+    (PNG, PDF; a figure with a table, :attr:`brdfpipe.spec.figures.Figure.table`,
+    also CSV and Markdown), exactly as the workflow declares them; only
+    these figures are drawn.  ``training_csv`` is needed for ``fig07``,
+    ``directions`` (the direction files to tabulate) for ``fig08``, ``fig09``
+    and ``fig14``.  ``fovs``: near-field FOVs of Figs. 5, 6 and 8;
+    ``n_point``: number of point samples of Fig. 18; ``fov_fixed``: the FOV
+    of Figs. 7 (label), 13 and 14; ``figure_fov``: the near-field FOV of
+    Figs. 3 and 9 (Xu's 25°); ``figure_materials``: the materials of Fig. 3
+    (Fig. 2's; None: every held-out material); ``split``: the errors.csv
+    split whose rows are plotted (``train``: directions from the training
+    split, evaluated on the held-out materials).
     """
     check_keys(figures, FIGURE_STEMS, "make_acquisition_figures")
-    stems = {k: figure_stem(v, table=(k == "fig08")) for k, v in figures.items()}
+    stems = {k: figure_stem(v, table=figure_specs.figure(f"xu-{k}").table) for k, v in figures.items()}
     # Check every input before writing anything: a bad file stops the run with no partial output.
-    read_errors(errors_csv)
+    database = read_errors(errors_csv).database
     if "fig07" in stems:
         if training_csv is None:
             raise ValueError("fig07 needs the training-size table (training_csv)")
         read_training_size(training_csv)
     fovs = [float(f) for f in fovs]
     draw = {
+        "fig03": lambda st: fig03_recon_vs_deviation(errors_csv, st, materials=figure_materials, fov=figure_fov,
+                                                     split=split),
         "fig05": lambda st: fig05_error_vs_images(errors_csv, st, fovs=fovs, split=split, kind=kind),
         "fig06": lambda st: fig06_fov_vs_point(errors_csv, st, fovs=fovs, split=split, kind=kind),
         "fig07": lambda st: fig07_training_size(training_csv, st, kind=kind, fov=fov_fixed),  # type: ignore[arg-type]
         "fig08": lambda st: fig08_optimal_configurations(directions, st, fovs=fovs),
+        "fig09": lambda st: fig09_configurations(directions, st, fov=figure_fov, split=split, database=database),
         "fig13": lambda st: fig13_fixed_camera_light(errors_csv, st, fov=fov_fixed, split=split, kind=kind),
+        "fig14": lambda st: fig14_fixed_configurations(directions, st, fov=fov_fixed, split=split,
+                                                       database=database),
         "fig18": lambda st: fig18_per_material(errors_csv, st, n=n_point, split=split, kind=kind),
         "fig19": lambda st: fig19_error_vs_n(errors_csv, st, split=split, kind=kind),
     }

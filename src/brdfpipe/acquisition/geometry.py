@@ -33,6 +33,7 @@ __all__ = [
     "Setup",
     "centre_directions",
     "pixel_directions",
+    "pixel_positions",
     "observation_cells",
     "config_to_dict",
     "config_from_dict",
@@ -298,8 +299,13 @@ def _lattice(fov_deg: float, grid: int) -> tuple[F64, F64, int]:
 
 def _pixel_views(setup: Setup, wo: F64) -> F64:
     """View directions (n, 3) of the kept pixels of a camera at ``wo`` (see the section comment)."""
+    return _kept_pixels(setup, wo)[0]
+
+
+def _kept_pixels(setup: Setup, wo: F64) -> tuple[F64, NDArray[np.intp]]:
+    """:func:`_pixel_views` and the lattice indices (a·grid + b) of those pixels."""
     if wo[2] <= 0.0:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.intp)
     u, v, centre = _lattice(setup.fov_deg, setup.grid)
     nu = setup.nu
     f, e_r, e_u = nearfield.camera_basis(wo)
@@ -313,7 +319,7 @@ def _pixel_views(setup: Setup, wo: F64) -> F64:
     view = np.stack([wo[0] - px, wo[1] - py, np.full(px.shape, wo[2])], axis=1)
     view /= np.linalg.norm(view, axis=1, keepdims=True)
     view[centre] = wo  # the centre pixel looks exactly along −wo (P = 0)
-    return view[keep]
+    return view[keep], np.flatnonzero(keep)
 
 
 def pixel_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
@@ -329,6 +335,23 @@ def pixel_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
         return wi[None, :], wo[None, :]
     view = _pixel_views(setup, wo)
     return np.broadcast_to(wi, view.shape).copy(), view
+
+
+def pixel_positions(setup: Setup, config: ArrayLike) -> tuple[NDArray[np.intp], NDArray[np.intp], int]:
+    """Where each row of :func:`pixel_directions` lies in the image: ``(rows, cols, size)``.
+
+    The image is :func:`brdfpipe.spec.nearfield.image_frame`'s ``size`` ×
+    ``size`` frame (rows from the top, v up), the one the capture renders;
+    lattice index (a, b) is its column ``offset + a`` and row ``size − 1 −
+    offset − b``.  ValueError for a point set-up (it has no image).
+    """
+    if not setup.is_image:
+        raise ValueError(f"a {setup.kind} configuration has no image")
+    _, wo = centre_directions(setup, config)
+    _, kept = _kept_pixels(setup, wo)
+    size, offset = nearfield.image_frame(setup.grid)
+    a, b = np.divmod(kept, setup.grid)
+    return (size - 1 - offset - b).astype(np.intp), (offset + a).astype(np.intp), size
 
 
 @functools.lru_cache(maxsize=1)

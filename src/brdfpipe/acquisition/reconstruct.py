@@ -32,6 +32,12 @@ log-mapped (:func:`brdfpipe.data.logmap.forward` with the model's ρ_ref, w, ε)
 (:func:`reconstruct_log`, :func:`reconstruct_brdf`); cells that are not
 model columns are written as unmeasured (raw value −1, negative as in MERL
 files) by :func:`write_reconstruction`.
+
+:func:`reconstruct_sets` (the workflow's rule ``reconstruct_figure_material``,
+Xu Figs. 2 and 15) reconstructs a held-out material of the store from the
+sets of directions files, observed as the evaluation observes it (the
+store's values at the cells the geometry predicts), and writes each table
+with its ``derived`` mark and the observed pixels of each image.
 """
 
 from __future__ import annotations
@@ -40,18 +46,23 @@ import csv
 import logging
 import os
 import warnings
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from brdfpipe.acquisition import geometry
 from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
+from brdfpipe.acquisition.optimize import Directions, DirectionSet, read_directions
 from brdfpipe.acquisition.svd import Model, open_model
 from brdfpipe.core import integrity
+from brdfpipe.core.atomic import check_not_input
+from brdfpipe.core.exr import write_exr
 from brdfpipe.data import logmap, merl, provenance
 from brdfpipe.data.merl import N_CELLS
+from brdfpipe.data.store import material_indices, open_store
 
 __all__ = [
     "ObservationError",
@@ -63,6 +74,7 @@ __all__ = [
     "reconstruct_brdf",
     "reconstruction_mark",
     "write_reconstruction",
+    "reconstruct_sets",
 ]
 
 logger = logging.getLogger("brdfpipe.acquisition.reconstruct")
@@ -307,17 +319,8 @@ def _check_obs(cells: ArrayLike, rgb: ArrayLike) -> tuple[NDArray[np.intp], F64]
     return c.astype(np.intp), v
 
 
-def reconstruct_log(
-    model: Model | str | os.PathLike[str], cells: ArrayLike, rgb: ArrayLike, eta: float = DEFAULT_ETA
-) -> tuple[F64, F64, int]:
-    """Log-space reconstruction ``x̂ = μ + Q c̄`` of each channel: ``(xhat, coef, n_used)``.
-
-    ``xhat`` is (3, p) over the model's columns, ``coef`` the (k, 3)
-    coefficients of eq. 4 and ``n_used`` the number of observations on model
-    columns (the others are dropped, with a warning).  ValueError if none is
-    left, for bad shapes or values, or η ≤ 0.
-    """
-    mdl = as_model(model)
+def _coefficients(mdl: Model, cells: ArrayLike, rgb: ArrayLike, eta: float) -> tuple[F64, int]:
+    """The (k, 3) coefficients of eq. 4 from observations on MERL ``cells``, and how many fell on model columns."""
     c, v = _check_obs(cells, rgb)
     cols = column_lookup(mdl.cells)[c]
     keep = cols >= 0
@@ -330,13 +333,47 @@ def reconstruct_log(
     x_obs = logmap.forward(v.T, mdl.reference[cols], mdl.weight[cols], mdl.epsilon)  # (3, n)
     y_obs = (x_obs - mdl.mean[cols]).T  # (n, 3)
     coef = reconstruct_coefficients(_q_rows(mdl, cols), y_obs, eta)  # (k, 3)
-    xhat = np.empty((3, mdl.p))
+    logger.info("reconstructed from %d observations at %d distinct cells (k = %d, η = %g)",
+                cols.size, np.unique(cols).size, mdl.k, eta)
+    return coef, int(cols.size)
+
+
+def _expand(mdl: Model, coef: F64) -> F64:
+    """x̂ = μ + Q c̄ over the model's p columns for every column of ``coef`` (k, m): (m, p), one pass over Q."""
+    xhat = np.empty((coef.shape[1], mdl.p))
     for a, b in q_chunks(mdl):
         q = np.asarray(mdl.Q[a:b], dtype=np.float64)
         xhat[:, a:b] = (q @ coef).T + mdl.mean[a:b]
-    logger.info("reconstructed from %d observations at %d distinct cells (k = %d, η = %g)",
-                cols.size, np.unique(cols).size, mdl.k, eta)
-    return xhat, coef, int(cols.size)
+    return xhat
+
+
+def reconstruct_log(
+    model: Model | str | os.PathLike[str], cells: ArrayLike, rgb: ArrayLike, eta: float = DEFAULT_ETA
+) -> tuple[F64, F64, int]:
+    """Log-space reconstruction ``x̂ = μ + Q c̄`` of each channel: ``(xhat, coef, n_used)``.
+
+    ``xhat`` is (3, p) over the model's columns, ``coef`` the (k, 3)
+    coefficients of eq. 4 and ``n_used`` the number of observations on model
+    columns (the others are dropped, with a warning).  ValueError if none is
+    left, for bad shapes or values, or η ≤ 0.
+    """
+    mdl = as_model(model)
+    coef, n_used = _coefficients(mdl, cells, rgb, eta)
+    return _expand(mdl, coef), coef, n_used
+
+
+def _to_table(mdl: Model, xhat: F64) -> F64:
+    """The (3, 90, 90, 180) table of a (3, p) log-space reconstruction (see :func:`reconstruct_brdf`)."""
+    rho = logmap.inverse(xhat, mdl.reference, mdl.weight, mdl.epsilon)
+    neg = rho < 0
+    if neg.any():
+        logger.info("clamped %s negative reconstructed value(s) to 0 (R, G, B: %s of %d cells)",
+                    int(neg.sum()), ", ".join(str(int(n)) for n in neg.sum(axis=1)), mdl.p)
+        rho[neg] = 0.0
+    table = np.empty((3, N_CELLS))
+    table[:] = -merl.SCALES[:, None]
+    table[:, mdl.cells] = rho
+    return table.reshape(merl.SHAPE)
 
 
 def reconstruct_brdf(
@@ -350,16 +387,7 @@ def reconstruct_brdf(
     """
     mdl = as_model(model)
     xhat, _, _ = reconstruct_log(mdl, cells, rgb, eta)
-    rho = logmap.inverse(xhat, mdl.reference, mdl.weight, mdl.epsilon)
-    neg = rho < 0
-    if neg.any():
-        logger.info("clamped %s negative reconstructed value(s) to 0 (R, G, B: %s of %d cells)",
-                    int(neg.sum()), ", ".join(str(int(n)) for n in neg.sum(axis=1)), mdl.p)
-        rho[neg] = 0.0
-    table = np.empty((3, N_CELLS))
-    table[:] = -merl.SCALES[:, None]
-    table[:, mdl.cells] = rho
-    return table.reshape(merl.SHAPE)
+    return _to_table(mdl, xhat)
 
 
 def reconstruction_mark(
@@ -412,3 +440,117 @@ def write_reconstruction(
     merl.write_merl(out, table, mark=mark)
     logger.info("wrote %s", out)
     return out
+
+
+# ==========================================================================
+# Held-out materials reconstructed from direction sets (Xu Figs. 2, 15)
+# ==========================================================================
+
+
+def _set_mark(mdl: Model, store_id: dict[str, Any], material: str, path: Path, d: Directions, n: int,
+              out: Path, eta: float) -> provenance.Mark:
+    inputs = {
+        "model": {"id": mdl.id, "database": mdl.database, "k": mdl.k, "materials": len(mdl.materials)},
+        "store": store_id,
+        "material": material,
+        "directions": {"sha256": provenance.file_sha256(path), "setup": d.setup.kind, "fov": d.setup.fov_deg,
+                       "metric": d.metric, "n": int(n)},
+        "eta": float(eta),
+    }
+    return provenance.derived_mark(name=provenance.output_name(out), operation="reconstruct",
+                                   source_database=mdl.database, inputs=inputs)
+
+
+def _input_image(setup: geometry.Setup, config: geometry.Config, row: F64, valid: NDArray[np.bool_]) -> F64:
+    """The observed pixels of one image: BRDF value × cos θi at each kept pixel's cell (0 where not observed)."""
+    wi, view = geometry.pixel_directions(setup, config)
+    rows, cols, size = geometry.pixel_positions(setup, config)
+    image = np.zeros((size, size, 3))
+    if view.shape[0] == 0 or wi[0, 2] <= 0.0:
+        return image
+    cells = merl.cell_index(wi, view)
+    seen = valid[cells]
+    image[rows[seen], cols[seen]] = row[:, cells[seen]].T * wi[0, 2]
+    return image
+
+
+def reconstruct_sets(
+    store: str | os.PathLike[str],
+    model: Model | str | os.PathLike[str],
+    material: str,
+    sets: Sequence[tuple[str | os.PathLike[str], int]],
+    *,
+    outs: Sequence[str | os.PathLike[str]],
+    inputs: Sequence[Sequence[str | os.PathLike[str]]],
+    eta: float = DEFAULT_ETA,
+) -> list[Path]:
+    """A held-out material reconstructed from each direction set by table lookup: MERL files and input images.
+
+    ``sets[k]`` = (directions file, n): its n-set, optimised on the model's
+    split.  The observations are the material's store values at
+    :func:`brdfpipe.acquisition.geometry.observation_cells` of the set's
+    configurations with the model's columns as the valid cells — the
+    evaluation's (:mod:`brdfpipe.acquisition.evaluation`), so the table's
+    ``rms_log`` is ``errors.csv``'s for this material and set.  The
+    reconstruction is eq. 4 (η = ``eta``), ρ̂ = max(inverse(μ + Q c̄), 0)
+    (:func:`reconstruct_brdf`), written to ``outs[k]`` with a ``derived``
+    mark (operation ``reconstruct``: the model, the store, the material,
+    the directions file's sha256 and set, η).  ``inputs[k]``: one EXR per
+    image of an image set (none for point samples): the observed pixels,
+    BRDF × cos θi of each pixel's cell (0 where no model column is
+    observed), in the capture's image frame.  One pass over Q serves every
+    set.  ValueError naming the problem for a training material, a
+    directions file of another split or database, a missing set, an output
+    that is an input, or a count of ``inputs`` that is not the set's.
+    """
+    mdl = as_model(model)
+    if not (len(sets) == len(outs) == len(inputs)):
+        raise ValueError(f"reconstruct_sets: {len(sets)} sets, {len(outs)} outputs and {len(inputs)} input lists")
+    if material in mdl.train_materials:
+        raise ValueError(f"{material} is a training material of the model {mdl.path}; the figures need held-out ones")
+    st = open_store(store)
+    if st.database != mdl.database:
+        raise ValueError(f"{st.path} is database {st.database!r}, the model {mdl.path} {mdl.database!r}")
+    read = [Path(p) for p, _ in sets] + [Path(store), Path(mdl.path)]
+    for out in [*outs, *(f for files in inputs for f in files)]:
+        check_not_input(out, read, what="output")
+    chosen: list[tuple[Path, Directions, int, DirectionSet]] = []
+    for (path, n), files in zip(sets, inputs):
+        d = read_directions(path)
+        if d.split != mdl.split or d.database != mdl.database:
+            raise ValueError(f"{path}: directions of split {d.split!r}, database {d.database!r}; the model {mdl.path} "
+                             f"is of split {mdl.split!r}, database {mdl.database!r}")
+        found = next((s for s in d.sets if s.n == int(n)), None)
+        if found is None:
+            raise ValueError(f"{path}: no set of n = {n}")
+        want = len(found.configurations) if d.setup.is_image else 0
+        if len(files) != want:
+            raise ValueError(f"{path}: the {n}-set has {want} image(s), got {len(files)} input file(s)")
+        chosen.append((Path(path), d, int(n), found))
+    r = int(material_indices(st, [material], "material")[0])
+    st.verify([r])
+    row = np.maximum(np.asarray(st.brdf[r], dtype=np.float64).reshape(3, N_CELLS), 0.0)
+    valid = np.zeros(N_CELLS, dtype=bool)
+    valid[np.asarray(mdl.cells, dtype=np.intp)] = True
+    coefs = []
+    for path, d, n, s in chosen:
+        cells = np.concatenate([geometry.observation_cells(d.setup, c, valid) for c in s.configurations])
+        logger.info("%s: %s FOV %g %s n = %d", material, d.setup.kind, d.setup.fov_deg, d.metric, n)
+        coefs.append(_coefficients(mdl, cells, row[:, cells].T, eta)[0])
+    xhat = _expand(mdl, np.concatenate(coefs, axis=1))
+    store_id = provenance.store_identity(st)
+    written = []
+    for k, ((path, d, n, s), out, files) in enumerate(zip(chosen, outs, inputs)):
+        out = Path(out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        merl.write_merl(out, _to_table(mdl, xhat[3 * k : 3 * k + 3]),
+                        mark=_set_mark(mdl, store_id, material, path, d, n, out, eta))
+        written.append(out)
+        for j, (config, f) in enumerate(zip(s.configurations, files), start=1):
+            attrs = {"material": material, "database": mdl.database, "setup": d.setup.kind,
+                     "fov": f"{d.setup.fov_deg:g}", "metric": d.metric, "n": str(n), "image": str(j),
+                     "pixels": "BRDF x cos(theta_i) at each pixel's cell (table lookup); 0: not observed"}
+            write_exr(f, _input_image(d.setup, config, row, valid).astype(np.float32), attrs=attrs)
+            written.append(Path(f))
+    logger.info("%s: wrote %d reconstructions and %d input images", material, len(outs), len(written) - len(outs))
+    return written

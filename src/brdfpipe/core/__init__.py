@@ -13,6 +13,7 @@ configuration is the planner's (:mod:`brdfpipe.plan`, on top).
 * :mod:`brdfpipe.core.filenames` – every file name of the workflow's DAG (and the rule that writes it);
 * :mod:`brdfpipe.core.integrity` – digests of every intermediate, written by its writer, checked by its readers;
 * :mod:`brdfpipe.core.logutil`   – logging set-up of the command line and the workflow scripts;
+* :mod:`brdfpipe.core.notes`     – a figure's note: the run's numbers its report caption quotes;
 * :mod:`brdfpipe.core.plot`      – figure helpers shared by every track (style, inputs, atomic saving);
 * :mod:`brdfpipe.core.resources` – the machine's memory and free disk, for bounds checked before work starts;
 * :mod:`brdfpipe.core.stamps`    – job stamps: what defines each job, for reruns whatever Snakemake's records say;

@@ -30,7 +30,8 @@ Rules
   (OpenEXR itself has no checksum: a byte changed inside a block was not
   detected before.)
 
-Importing this module does not import Mitsuba.
+:func:`tonemap` is the display version of such an image (figures, the
+explorer's shader does the same).  Importing this module does not import Mitsuba.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ __all__ = [
     "read_exr",
     "read_exr_attrs",
     "write_exr",
+    "tonemap",
 ]
 
 #: The four bytes every OpenEXR file starts with.
@@ -238,3 +240,13 @@ def write_exr(
 
     with atomic_path(path) as tmp, OpenEXR.File(header, channels) as exr:
         exr.write(str(tmp))  # the OpenEXR writer opens the file by name
+
+
+def tonemap(image: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
+    """Display version of a linear RGB image: ``× 2**exposure``, clamp to [0, 1], sRGB OETF, 8 bits."""
+    x = np.asarray(image, dtype=np.float64)
+    if x.ndim != 3 or x.shape[2] != 3:
+        raise ValueError(f"image must have shape (H, W, 3), got {x.shape}")
+    x = np.clip(np.nan_to_num(x * 2.0 ** float(exposure), nan=0.0), 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.round(srgb * 255.0).astype(np.uint8)

@@ -23,6 +23,7 @@ __all__ = [
     "FIGURES",
     "SYNTHETIC",
     "FIGURE_STEMS",
+    "RECONSTRUCTION_FIGURE_STEMS",
     "MANIFOLD_FIGURE_STEMS",
     "RENDER_FIGURE_STEMS",
     "FLOOR_CHECK_STEM",
@@ -51,6 +52,9 @@ __all__ = [
     "closedloop_image",
     "closedloop_observations",
     "closedloop_errors",
+    "reconstruction",
+    "reconstruction_input",
+    "reconstruction_render",
     "UNSEEN_STEM",
     "MANIFOLD_UNSEEN_STEM",
     "unseen_tables",
@@ -71,6 +75,7 @@ __all__ = [
     "material_albedos",
     "albedo_map",
     "paths_csv",
+    "lengthscales_csv",
     "reproduction",
     "figure_files",
     "envmap",
@@ -79,6 +84,8 @@ __all__ = [
     "object_mask",
     "bounce_shares",
     "path_point",
+    "latent_sample",
+    "latent_samples_json",
     "errormap_summary",
     "errormap",
     "floor_scene",
@@ -109,6 +116,10 @@ FIGURES = f"{RESULTS}/figures"
 
 #: Xu 2016 figure analogues drawn by rule plot_acquisition_figures: key → file stem (:mod:`brdfpipe.spec.figures`).
 FIGURE_STEMS: dict[str, str] = {f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_acquisition_figures")}
+#: Xu 2016 figures of rendered reconstructions (Figs. 2, 15), drawn by rule plot_reconstruction_figures: key → file stem.
+RECONSTRUCTION_FIGURE_STEMS: dict[str, str] = {
+    f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_reconstruction_figures")
+}
 #: Soler 2018 figure analogues of the manifold track: key → file stem.
 MANIFOLD_FIGURE_STEMS: dict[str, str] = {
     f.key: f.stem for f in figure_specs.track_figures("manifold", "plot_manifold_figures")
@@ -234,6 +245,30 @@ def closedloop_errors() -> str:
     return f"{RESULTS}/evaluation/closedloop.csv"
 
 
+# -- held-out materials reconstructed from direction sets (Xu Figs. 2, 15) ----
+
+
+def _set_tag(setup: str, fov: float | str, metric: str, n: int | str) -> str:
+    return f"{setup}-fov{fov_tag(fov)}-{metric}-n{n}"
+
+
+def reconstruction(material: str, setup: str, fov: float | str, metric: str, n: int | str) -> str:
+    """A held-out material's table reconstructed from the n-set of a directions file (MERL file, derived mark)."""
+    return f"{RESULTS}/reconstructions/{material}/{_set_tag(setup, fov, metric, n)}.binary"
+
+
+def reconstruction_input(material: str, setup: str, fov: float | str, metric: str, n: int | str,
+                         j: int | str) -> str:
+    """EXR of image ``j`` (1-based) of that set: the observed pixels it was reconstructed from."""
+    return f"{RESULTS}/reconstructions/{material}/{_set_tag(setup, fov, metric, n)}-{j}-input.exr"
+
+
+def reconstruction_render(scene: str, material: str, setup: str, fov: float | str, metric: str,
+                          n: int | str) -> str:
+    """The render of a reconstructed table in a scene folder (the pre-renders' settings)."""
+    return f"{RESULTS}/renders/{scene}/reconstructions/{material}/{_set_tag(setup, fov, metric, n)}.exr"
+
+
 # -- materials outside the training database (config unseen) ----------------
 
 #: The unseen materials' acquisition errors next to the held-out ones (Xu Figs. 5/6 layout).
@@ -328,14 +363,23 @@ def paths_csv() -> str:
     return f"{RESULTS}/manifold/paths.csv"
 
 
+def lengthscales_csv() -> str:
+    """The interpolant and the eq. 7 bound along a latent path as the length scale shrinks (Soler Fig. 6)."""
+    return f"{RESULTS}/manifold/lengthscales.csv"
+
+
 def reproduction() -> str:
     return f"{RESULTS}/manifold/reproduction.csv"
 
 
-def figure_files(stem: str, *, table: bool = False) -> list[str]:
-    """The files of one figure: PNG and PDF (plus CSV and Markdown for a table figure)."""
+def figure_files(stem: str, *, table: bool = False, note: bool = False) -> list[str]:
+    """The files of one figure: PNG and PDF (plus CSV and Markdown for a table figure, and its note, ``.json``).
+
+    A figure's note is one paragraph of this run's numbers that its report
+    caption quotes (:mod:`brdfpipe.report.captions`), in a JSON file with its digest.
+    """
     exts = ("png", "pdf", "csv", "md") if table else ("png", "pdf")
-    return [f"{FIGURES}/{stem}.{ext}" for ext in exts]
+    return [f"{FIGURES}/{stem}.{ext}" for ext in exts + (("json",) if note else ())]
 
 
 # -- rendering track --------------------------------------------------------
@@ -372,6 +416,20 @@ def path_point(scene: str, path: str, t: float | str, kind: str) -> str:
     if kind not in suffix:
         raise ValueError(f"kind must be one of {sorted(suffix)}, got {kind!r}")
     return base + suffix[kind]
+
+
+def latent_sample(scene: str, index: int | str, kind: str) -> str:
+    """A material at a random latent point (Soler Fig. 1): kind ``binary`` (its table) or ``image`` (its render)."""
+    suffix = {"binary": ".binary", "image": ".exr"}
+    if kind not in suffix:
+        raise ValueError(f"kind must be one of {sorted(suffix)}, got {kind!r}")
+    name = index if isinstance(index, str) else f"{int(index):03d}"
+    return f"{RESULTS}/renders/{scene}/samples/sample-{name}{suffix[kind]}"
+
+
+def latent_samples_json(scene: str) -> str:
+    """What the latent samples of Soler Fig. 1 are: their points, weights and albedos."""
+    return f"{RESULTS}/renders/{scene}/samples/samples.json"
 
 
 def errormap_summary(scene: str) -> str:
@@ -532,6 +590,8 @@ def _producers() -> list[tuple[str, str]]:
         (unseen_store(w), "evaluate_unseen_fits"),
         (unseen_tables(w), "evaluate_unseen_fits"),
         (f"{RESULTS}/closedloop/{w}/{w}", "capture_closedloop"),
+        (f"{RESULTS}/reconstructions/{w}/{w}", "reconstruct_figure_material"),
+        (f"{RESULTS}/renders/{w}/reconstructions/{w}/{w}", "render_reconstructions"),
         (gram(w), "compute_gram"),
         (gplvm_model(w, w), "fit_gplvm"),
         (gplvm_trace(w, w), "fit_gplvm"),
@@ -544,7 +604,11 @@ def _producers() -> list[tuple[str, str]]:
         (albedo_map(w), "analyze_manifold"),
         (paths_csv(), "analyze_manifold"),
         (reproduction(), "analyze_manifold"),
-        (f"{FIGURES}/{w}", "plot_acquisition_figures"),  # fig08's table: the one figure file read back
+        (lengthscales_csv(), "measure_lengthscales"),
+        # the figure files read back: the notes (by write_claims) and fig08's table
+        (f"{FIGURES}/manifold-{w}.json", "plot_manifold_figures"),
+        (f"{FIGURES}/render-{w}.json", "plot_render_figures"),
+        (f"{FIGURES}/{w}", "plot_acquisition_figures"),
         (envmap(w), "make_envmap"),
         (prerender(w, w), "prerender_materials"),
         (prerender_one(w, w), "prerender_materials"),
@@ -553,6 +617,9 @@ def _producers() -> list[tuple[str, str]]:
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}.binary", "interpolate_candidate_path_points"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}-t{w}-weights.json", "interpolate_candidate_path_points"),
         (floor_point.rsplit("/", 1)[0] + f"/{w}.exr", "render_candidate_path_points"),
+        (latent_samples_json(w), "sample_latent_materials"),
+        (latent_sample(w, w, "binary"), "sample_latent_materials"),
+        (latent_sample(w, w, "image"), "render_latent_samples"),
         (path_point(w, w, w, "binary"), "interpolate_path_points"),
         (path_point(w, w, w, "weights"), "interpolate_path_points"),
         (f"{RESULTS}/renders/{w}/paths/{w}.exr", "render_path_points"),

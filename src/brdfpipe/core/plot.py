@@ -37,6 +37,7 @@ from matplotlib.figure import Figure
 
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write as _atomic_write
+from brdfpipe.core.notes import write_note
 from brdfpipe.core.version import full_version
 
 __all__ = [
@@ -110,7 +111,8 @@ class FigureOutput:
     PNG's and PDF's ``Title`` metadata); ``panel_titles``: the axes' titles;
     ``database``: the database name read from the input ("" if none was
     readable); ``size_px``: (height, width) of the PNG; ``warnings``: the
-    skipped combinations, as logged.
+    skipped combinations, as logged; ``note``: the note written next to it
+    (``<stem>.json``, "" for none).
     """
 
     files: tuple[Path, ...]
@@ -119,6 +121,7 @@ class FigureOutput:
     database: str
     size_px: tuple[int, int]
     warnings: tuple[str, ...] = ()
+    note: str = ""
 
 
 # ---------------------------------------------------------------------------
@@ -247,15 +250,22 @@ def _save(fig: Figure, stem: str | os.PathLike[str], title: str) -> tuple[tuple[
 
 
 def finish(fig: Figure, stem: str | os.PathLike[str], title: str, subtitle: str, database: str,
-            warn: Warnings, extra: Sequence[Path] = ()) -> FigureOutput:
-    """Title the figure (``title``, then ``subtitle``, each wrapped to its width) and save it."""
+            warn: Warnings, extra: Sequence[Path] = (), note: str | None = None) -> FigureOutput:
+    """Title the figure (``title``, then ``subtitle``, each wrapped to its width) and save it.
+
+    ``note``: the figure's note (one paragraph of the run's numbers, quoted
+    by its report caption), written to ``<stem>.json``
+    (:func:`brdfpipe.core.notes.write_note`) after the PNG and PDF.
+    """
     chars = max(30, int(float(fig.get_size_inches()[0]) * 72.0 / (0.6 * 10.5)))
     lines = textwrap.wrap(title, chars) + (textwrap.wrap(subtitle, chars) if subtitle else [])
     fig.suptitle("\n".join(lines))
     panel_titles = tuple(ax.get_title() for ax in fig.axes if ax.get_title())
     files, size = _save(fig, stem, title)
+    if note is not None:
+        extra = (*extra, write_note(stem, title, note))
     return FigureOutput(files=files + tuple(extra), title=title, panel_titles=panel_titles,
-                        database=database, size_px=size, warnings=tuple(warn.items))
+                        database=database, size_px=size, warnings=tuple(warn.items), note=note or "")
 
 
 # ---------------------------------------------------------------------------
@@ -263,15 +273,16 @@ def finish(fig: Figure, stem: str | os.PathLike[str], title: str, subtitle: str,
 # ---------------------------------------------------------------------------
 
 
-def figure_stem(files: Sequence[str | os.PathLike[str]], *, table: bool = False) -> Path:
-    """The common stem of one figure's output files, checked: ``[X.png, X.pdf]`` (``+ [X.csv, X.md]`` for a table).
+def figure_stem(files: Sequence[str | os.PathLike[str]], *, table: bool = False, note: bool = False) -> Path:
+    """The common stem of one figure's output files, checked: ``[X.png, X.pdf]`` (``+ [X.csv, X.md]`` for a table,
+    ``+ [X.json]`` for a note: :func:`brdfpipe.core.filenames.figure_files`).
 
     The workflow passes every output path explicitly; this only checks that
     the list names the files a figure function writes, so none is missing or
     written under a name the caller did not declare.
     """
     paths = [Path(f) for f in files]
-    exts = [".png", ".pdf", ".csv", ".md"] if table else [".png", ".pdf"]
+    exts = ([".png", ".pdf", ".csv", ".md"] if table else [".png", ".pdf"]) + ([".json"] if note else [])
     if len(paths) != len(exts) or [p.suffix for p in paths] != exts:
         raise ValueError(f"figure outputs {[str(p) for p in paths]}: expected files ending in {exts}, in that order")
     stems = {p.with_suffix("") for p in paths}

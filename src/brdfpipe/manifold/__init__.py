@@ -15,5 +15,8 @@ faithful it is per data space, and the track's figures.  Imports
 * :mod:`brdfpipe.manifold.analysis`   – analyses of a fitted manifold (§4, Figs. 7–10);
 * :mod:`brdfpipe.manifold.derivation` – the provenance marks of the materials it blends;
 * :mod:`brdfpipe.manifold.unseen`     – materials outside the training set: latent position x*, reproduction;
-* :mod:`brdfpipe.manifold.figures`    – the Soler et al. 2018 figure analogues.
+* :mod:`brdfpipe.manifold.samples`    – materials at random latent points, written for rendering (Fig. 1);
+* :mod:`brdfpipe.manifold.lengthscale` – the interpolant and the eq. 7 bound as the length scale shrinks (Fig. 6);
+* :mod:`brdfpipe.manifold.figures`    – the Soler et al. 2018 figure analogues;
+* :mod:`brdfpipe.manifold.lengthscale_figure` – Fig. 6, drawn for :mod:`~brdfpipe.manifold.figures`.
 """

@@ -2,7 +2,9 @@
 Measured Material Manifolds") for the manifold track.
 
 Figs. 5, 7, 8, 9, 10 and eq. 7 from the GPLVM fits and
-:mod:`brdfpipe.manifold.analysis`'s tables, and the comparison of data
+:mod:`brdfpipe.manifold.analysis`'s tables, Fig. 6 from
+:mod:`brdfpipe.manifold.lengthscale`'s (drawn by
+:mod:`brdfpipe.manifold.lengthscale_figure`), and the comparison of data
 spaces: :func:`make_manifold_figures` (stems :data:`MANIFOLD_FIGURE_STEMS`)
 and :func:`manifold_spaces`.  Every input is read and checked first; a
 missing or malformed file raises :class:`~brdfpipe.core.plot.FigureInputError`
@@ -32,6 +34,8 @@ from matplotlib.ticker import MaxNLocator
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.data.databases import title as database_label
+from brdfpipe.manifold.lengthscale_figure import LengthscaleTable, manifold_fig06_lengthscale, read_lengthscales
+from brdfpipe.spec import figures as figure_specs
 from brdfpipe.spec import tables
 from brdfpipe.core.plot import (
     COLOURS,
@@ -78,6 +82,7 @@ __all__ = [
     "manifold_fig09_paths",
     "manifold_fig08_reproduction",
     "manifold_eq7_bound",
+    "manifold_fig06_lengthscale",
     "make_manifold_figures",
     "SpacesTable",
     "read_spaces",
@@ -531,6 +536,8 @@ class ManifoldInputs:
     reproduction: ReproductionTable
     #: The data-space comparison (``spaces.csv``), when given.
     spaces: SpacesTable | None = None
+    #: Fig. 6's table (``lengthscales.csv``), when given.
+    lengthscales: LengthscaleTable | None = None
 
 
 def _q_key(q: Any, what: str) -> int:
@@ -548,7 +555,8 @@ def read_manifold_inputs(*, models: Mapping[int, str | os.PathLike[str]],
                          albedo_maps: Mapping[int, str | os.PathLike[str]], paths_csv: str | os.PathLike[str],
                          reproduction_csv: str | os.PathLike[str], database: str | None = None,
                          spaces_csv: str | os.PathLike[str] | None = None,
-                         stability_csv: str | os.PathLike[str] | None = None) -> ManifoldInputs:
+                         stability_csv: str | os.PathLike[str] | None = None,
+                         lengthscales_csv: str | os.PathLike[str] | None = None) -> ManifoldInputs:
     """Read every input of the manifold figures and check them against each other.
 
     FigureInputError (naming the file) for a missing or malformed file, a
@@ -599,6 +607,9 @@ def read_manifold_inputs(*, models: Mapping[int, str | os.PathLike[str]],
                (reproduction.database, reproduction.path)] + [(m.database, m.path) for m in maps.values()]
     if spaces is not None:
         sources.append((spaces.database, spaces.path))
+    scales = read_lengthscales(lengthscales_csv) if lengthscales_csv is not None else None
+    if scales is not None:
+        sources.append((scales.database, scales.path))
     names = sorted({db for db, _ in sources})
     if len(names) > 1:
         raise FigureInputError("inputs from different databases: "
@@ -606,7 +617,8 @@ def read_manifold_inputs(*, models: Mapping[int, str | os.PathLike[str]],
     if database is not None and str(database).strip() and names[0] != str(database).strip():
         raise FigureInputError(f"{sources[0][1]}: database {names[0]!r}, but the figures are for database "
                                f"{str(database).strip()!r}")
-    return ManifoldInputs(names[0], loaded, model_paths, trace_tables, albedo, maps, paths, reproduction, spaces)
+    return ManifoldInputs(names[0], loaded, model_paths, trace_tables, albedo, maps, paths, reproduction, spaces,
+                          scales)
 
 
 # ---------------------------------------------------------------------------
@@ -1386,7 +1398,8 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
                           figures: Mapping[str, Sequence[str | os.PathLike[str]]],
                           database: str | None = None,
                           spaces_csv: str | os.PathLike[str] | None = None,
-                          stability_csv: str | os.PathLike[str] | None = None) -> list[Path]:
+                          stability_csv: str | os.PathLike[str] | None = None,
+                          lengthscales_csv: str | os.PathLike[str] | None = None) -> list[Path]:
     """Write the requested Soler 2018 figure analogues (keys of :data:`MANIFOLD_FIGURE_STEMS`).
 
     ``models``, ``traces``, ``albedo_maps``: q → path.  ``figures``: key →
@@ -1405,17 +1418,22 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
     ``fig09`` paths                  perceptual distance to A / B along paths
     ``fig08`` reproduction           per-material reproduction error, PCA vs GPLVM
     ``eq7`` bound                    deviation vs eq. 7 bound along paths
+    ``fig06`` length scale           eq. 7 as ℓ shrinks (``lengthscales_csv``),
+                                     PNG, PDF and its note
     ``spaces`` data spaces           the candidates of ``compare_spaces``
                                      (``spaces_csv``, ``stability_csv``)
     ==============================  ===========================================
     """
     check_keys(figures, MANIFOLD_FIGURE_STEMS, "make_manifold_figures")
-    stems = {k: figure_stem(v) for k, v in figures.items()}
+    notes = {f.key for f in figure_specs.track_figures("manifold", "plot_manifold_figures") if f.note}
+    stems = {k: figure_stem(v, note=k in notes) for k, v in figures.items()}
     if "spaces" in stems and (spaces_csv is None or stability_csv is None):
         raise FigureInputError("the 'spaces' figure needs spaces_csv and stability_csv")
+    if "fig06" in stems and lengthscales_csv is None:
+        raise FigureInputError("the 'fig06' figure needs lengthscales_csv")
     inp = read_manifold_inputs(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=albedo_maps,
                                paths_csv=paths_csv, reproduction_csv=reproduction_csv, database=database,
-                               spaces_csv=spaces_csv, stability_csv=stability_csv)
+                               spaces_csv=spaces_csv, stability_csv=stability_csv, lengthscales_csv=lengthscales_csv)
     draw = {
         "fig05": manifold_fig05_likelihood,
         "fig10_q2": manifold_fig10_latent_q2,
@@ -1425,7 +1443,9 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
         "fig08": manifold_fig08_reproduction,
         "eq7": manifold_eq7_bound,
     }
-    results = [draw[k](inp, stems[k]) for k in MANIFOLD_FIGURE_STEMS if k in stems and k != "spaces"]
+    results = [draw[k](inp, stems[k]) for k in MANIFOLD_FIGURE_STEMS if k in stems and k not in ("spaces", "fig06")]
+    if "fig06" in stems and inp.lengthscales is not None:
+        results.append(manifold_fig06_lengthscale(inp.lengthscales, stems["fig06"], inp.database))
     if "spaces" in stems and inp.spaces is not None:
         results.append(manifold_spaces(inp.spaces, stems["spaces"]))
     return [p for r in results for p in r.files]

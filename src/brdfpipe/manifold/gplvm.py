@@ -55,33 +55,59 @@ degenerate "all points coincide"; measured in ``benches/bench_gplvm.py``.)
 
 Optimisation
 ------------
-``method="newton"`` (the default since issue 23; :func:`_newton_stages`):
+``method="newton"`` (the default since issue 23, in this form since issue 31;
+:func:`_newton_stages`):
 
 1. start: :func:`pca_init` scaled by the rules ``rms`` and ``unit``
-   (:data:`NEWTON_TRIAL_SCALES`; below), 100 plain L-BFGS iterations from
-   each, the higher L continues;
-2. L-BFGS preconditioned by the exact Hessian
-   (:func:`log_likelihood_hessian`, ≈ 20 gradients' worth at q = 5): every
-   30 iterations the Hessian is recomputed, shifted into a positive
-   definite matrix where it is not (far from a maximum) and factorised, and
-   L-BFGS continues in the coordinates where it is the identity;
-3. Newton steps (a Levenberg–Marquardt trust region) with the exact Hessian
-   until the gain is at rounding level; where the Hessian shows a stationary
-   point to be a saddle, a step along its direction of positive curvature
-   and back to 2.  The result is a local maximum: gradient at rounding
+   (:data:`NEWTON_TRIAL_SCALES`; below); steps 2 to 4 from each, the higher
+   final L is kept;
+2. Newton steps with the exact Hessian (:func:`log_likelihood_hessian`,
+   ≈ 20 gradients' worth at q = 5) in Levenberg–Marquardt form: the shift λ
+   on a ladder of powers of two, raised until L gains, lowered after good
+   steps; where L curves up along some direction by more than λ/2, λ is
+   raised up to 8-fold, and beyond that the step is taken with the Hessian's
+   absolute value (its eigenvalues' signs dropped: saddle-free Newton), which
+   moves uphill along such a direction at the gradient's pace instead of
+   letting it set λ for every other direction; until no step can gain above
+   the rounding level of L;
+3. where the Hessian shows the stationary point to be a saddle (L curving up
+   by more than :data:`SADDLE_CURVATURE` of its typical curvature), a step
+   along its direction of positive curvature and back to 2;
+4. a few Newton steps judged by the gradient, where the gains are below the
+   rounding level of L.  The result is a local maximum: gradient at rounding
    level, Hessian negative semi-definite up to the rigid motions.
 
-It has no random element (``seed`` is not used).  Why: plain L-BFGS needs
-up to thousands of iterations on these data (the curvature spans many
-decades: nearly coincident materials make K nearly singular along a few
-directions), and the ``hybrid`` optimiser (below) adds Hooke–Jeeves trials
-and sweeps around it.  The objective is multimodal (several maxima
-within a few per cent of each other), and a different path from the same
-start can end in a different one, either way; no optimiser here is
-global.  Step 3 does what motivated ``hybrid``'s direct search (leaving
-the stationary points where L-BFGS stops).  Iterations, likelihoods and
-times against ``hybrid``, plain L-BFGS and GPy: ``docs/results/manifold.md``
-and ``benches/bench_gplvm.py``.
+It has no random element (``seed`` is not used).  The objective is
+multimodal (several maxima within a few per cent of each other, and on
+merl-nbrdf at q = 2 up to 20 % apart), and a different path from the same
+start can end in a different one, either way; no optimiser here is global.
+
+Reproducibility.  The path must not depend on the BLAS kernel: the L of one X
+differs between kernels (and thread counts) by up to ~4e-13 relative, the
+Gram matrix computed from the same store by ~1e-15 of its largest entry.  The
+optimiser before issue 31 (L-BFGS trials, Hessian-preconditioned L-BFGS,
+Newton) amplified these differences ~10× every ten L-BFGS iterations (the
+curvature pairs of L-BFGS are differences of nearly equal gradients), and
+ended at different maxima on different kernels: on merl-nbrdf, default space,
+q = 2, four maxima among five kernels (L 1.529e8 to 1.548e8).  So:
+
+* no quasi-Newton memory: every step is a function of the current point alone;
+* each step's component along the rigid motions (under which L is invariant:
+  rounding noise divided by the shift) is removed, and the rest is rounded to
+  :data:`STEP_BITS` bits of its largest entry (:func:`_snap`, exact and the
+  same on every machine), the start to :data:`POINT_BITS` bits: two machines
+  whose steps differ by rounding take bit for bit the same step, so their
+  paths do not drift apart (a rounded step is an inexact Newton step with
+  relative error ≤ 2^-8, which converges all the same);
+* the discrete decisions are taken on a ladder (λ = unit·2^k, k an integer)
+  or with margins (a step predicted to gain less than :data:`GAIN_RESOLUTION`
+  of |L| is not tried; of two starts the later wins only by more than that).
+
+Measured (docs/design/reproducibility.md): 17 fits under five OpenBLAS
+kernels and two thread counts take the same steps and end at the same
+maximum, the latent points at most 4e-10 ℓ apart; the fits before issue 31
+ended at up to four maxima.  The other two methods below are not
+reproducible across kernels.
 
 ``method="hooke-jeeves"`` is the paper's direct search alone (below).
 ``method="hybrid"`` (the default before issue 23): the initial scale is chosen by short
@@ -135,11 +161,10 @@ random    5      3.37e8           3.76e8           **4.05e8**
 
 so ``init_scale="best"`` (the default) runs every rule for ``trial_sweeps``
 sweeps (10) and continues the search from the one with the highest L (that
-is ``hybrid`` and ``hooke-jeeves``; ``newton`` tries ``rms`` and ``unit``
-with 100 L-BFGS iterations each: under L-BFGS to convergence, on the 18
+is ``hybrid`` and ``hooke-jeeves``; ``newton`` runs from ``rms`` and ``unit``
+to convergence and keeps the better: under L-BFGS to convergence, on the 18
 default fits, ``nn`` never ended best — its final L was 0.43–0.97 of the
-best rule's — and the L after 100 iterations picked the better of ``rms``
-/ ``unit`` in 15, losing 0.3 % on average, against 13 and 2.3 % after 50); on the
+best rule's); on the
 eight cases above it ends within 2 % of the best single rule or above it
 (raw q = 2: −1.36e16), for about 30 % more time.  The tendencies: ``nn``
 (points spread so neighbours sit at ℓ) wins at q = 2 when the data are on
@@ -251,6 +276,23 @@ INIT_SCALES: Final = ("nn", "rms", "unit")
 NEWTON_TRIAL_SCALES: Final = ("rms", "unit")
 #: Optimisers of :func:`fit` (see the module docstring, "Optimisation").
 METHODS: Final = ("newton", "hybrid", "hooke-jeeves")
+#: ``newton``: each step is rounded to this many bits of its largest entry, and the start point
+#: likewise to :data:`POINT_BITS` (module docstring, "Reproducibility").
+STEP_BITS: Final = 8
+POINT_BITS: Final = 10
+#: ``newton``: a step predicted to gain less than this × |L| is not tried (2^-40 ≈ 9.1e-13: twice
+#: the largest difference between the L of one X computed with different BLAS kernels, measured
+#: in docs/design/reproducibility.md).
+GAIN_RESOLUTION: Final = 2.0**-40
+#: ``newton``: a stationary point where L curves up by more than this × the mean |diagonal| of −∇²L along
+#: some direction is a saddle point, and is left.
+SADDLE_CURVATURE: Final = 1e-6
+#: ``newton``: the exponents k of the Levenberg–Marquardt shift ``λ = unit·2^k``.
+_MIN_SHIFT_EXPONENT: Final = -30
+_MAX_SHIFT_EXPONENT: Final = 60
+#: ``newton``: λ is raised at most 2^this-fold for a direction along which L curves up; beyond, the step
+#: is taken with |∇²L| instead.
+_MAX_RAISE: Final = 3
 #: /3: how it was fitted (``normalised``, ``init``) besides the digests of the store rows it was fitted on.
 MODEL_FORMAT: Final = "brdfpipe.gplvm/3"
 #: /2: the digests of the store rows (``row_digests``) and the file's digest.
@@ -862,13 +904,14 @@ class FitResult:
     stages: list[str] = field(default_factory=list)
     #: L when the Hooke–Jeeves stage ended.
     hj_log_likelihood: float = float("nan")
-    #: L-BFGS iterations of the polish (0 for ``"hooke-jeeves"``); for ``"newton"`` all its L-BFGS iterations.
+    #: ``"hybrid"``: L-BFGS iterations of the polish (0 for the other methods).
     polish_iterations: int = 0
-    #: ``"newton"``: L-BFGS iterations of the chosen start's trial (included in ``polish_iterations``).
+    #: ``"newton"``: Newton steps from the start scales that were not kept.
     trial_iterations: int = 0
-    #: ``"newton"``: Newton steps taken after the preconditioned L-BFGS.
+    #: ``"newton"``: Newton steps (and steps out of saddle points) from the start that was kept.
     newton_iterations: int = 0
-    #: ``"newton"``: evaluations of L and its gradient (trials of every rule included) and of the Hessian.
+    #: ``"newton"``: evaluations of L alone (the trial points of the steps) and of L with its gradient and
+    #: Hessian, every start included.
     gradient_evaluations: int = 0
     hessian_evaluations: int = 0
 
@@ -1008,284 +1051,292 @@ def _lbfgs_polish(
 
 @dataclass
 class _Counts:
-    """Work of the ``newton`` method: gradient evaluations, Hessians, factorisations of the preconditioner."""
+    """Work of the ``newton`` method: evaluations of L alone, of L with its gradient and Hessian, factorisations."""
 
-    gradients: int = 0
+    evaluations: int = 0
     hessians: int = 0
     factorisations: int = 0
-    lbfgs_iterations: int = 0
     newton_iterations: int = 0
 
 
-def _lbfgs_run(
-    X0: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *, scale: float,
-    max_iter: int, ftol: float, gtol: float, chol: NDArray[np.float64] | None, counts: _Counts,
-) -> tuple[NDArray[np.float64], list[float]]:
-    """scipy L-BFGS-B on ``−L/scale`` in the coordinates ``y``, ``X = X₀ + C⁻ᵀy``; returns X and L per iteration.
+def _snap(x: NDArray[np.float64], bits: int) -> NDArray[np.float64]:
+    """``x`` rounded to the grid of spacing ``2^(e − bits)``, where ``2^(e−1) ≤ max|x| < 2^e``.
 
-    ``chol``: the lower Cholesky factor ``C`` of a preconditioner ``M = CCᵀ``
-    (an approximation of the Hessian of −L/scale), so that the Hessian in
-    ``y`` is ``C⁻¹(−∇²L/scale)C⁻ᵀ`` ≈ I; None for plain L-BFGS (``C = I``).
-    A point where K is not positive definite scores +∞.  The iterates are
-    monotone (L-BFGS-B's line search); the result is never worse than X₀.
+    ``frexp``, scaling by a power of two and rounding to an integer (round half to even) are exact,
+    so the result is a function of the bits of ``x`` alone, the same on every machine; two ``x``
+    that differ by δ land on the same grid point unless an entry lies within δ of a midpoint
+    (chance ≈ δ / spacing per entry).  See the module docstring, "Reproducibility".
     """
-    import scipy.optimize
-
-    n, q = X0.shape
-    x0 = X0.ravel()
-    trsv = scipy.linalg.blas.dtrsv
-    last: dict[bytes, float] = {}
-
-    def to_x(y: NDArray[np.float64]) -> NDArray[np.float64]:
-        return x0 + (y if chol is None else trsv(chol, y, lower=1, trans=1))
-
-    def f(y: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
-        counts.gradients += 1
-        try:
-            L, g = _loglik_grad(to_x(y).reshape(n, q), root, d, ell, mu)
-        except np.linalg.LinAlgError:
-            return np.inf, np.zeros_like(y)
-        last.clear()
-        last[y.tobytes()] = L
-        gy = g.ravel() * (-1.0 / scale)
-        return -L / scale, (gy if chol is None else trsv(chol, gy, lower=1))
-
-    history: list[float] = []
-
-    def record(yk: NDArray[np.float64]) -> None:
-        key = yk.tobytes()
-        history.append(last[key] if key in last else _loglik_only(to_x(yk).reshape(n, q), root, d, ell, mu))
-
-    res = scipy.optimize.minimize(
-        f, np.zeros(n * q), jac=True, method="L-BFGS-B", callback=record,
-        options={"maxiter": int(max_iter), "maxfun": 4 * int(max_iter) + 20, "ftol": ftol, "gtol": gtol,
-                 "maxcor": 20},
-    )
-    counts.lbfgs_iterations += int(res.nit)
-    X = to_x(res.x).reshape(n, q)
-    L0 = _loglik_only(X0, root, d, ell, mu)
-    if not history or not np.isfinite(res.fun) or -res.fun * scale < L0:
-        return X0.copy(), history[:0]
-    return X, history
+    top = float(np.abs(x).max()) if x.size else 0.0
+    if not top > 0 or not np.isfinite(top):
+        return x.copy()
+    spacing = np.ldexp(1.0, int(np.frexp(top)[1]) - int(bits))
+    return np.round(x / spacing) * spacing
 
 
-def _shifted_cholesky(
-    B: NDArray[np.float64], lam: float, counts: _Counts
-) -> tuple[NDArray[np.float64], float]:
-    """Lower Cholesky factor of ``B + λI`` for the first ``λ`` of ``lam, 8·lam, 64·lam, …`` that makes it positive definite."""
-    lapack = scipy.linalg.lapack
+def _rigid_motions(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Orthonormal basis (Nq × ≤ q(q+1)/2) of the infinitesimal translations and rotations of the latent points.
+
+    L is invariant under them (the Hessian is singular along them), so a Newton step has no
+    business there: its component along them is rounding noise divided by the shift.
+    """
+    n, q = x.shape
+    cols = []
+    for a in range(q):
+        t = np.zeros((n, q))
+        t[:, a] = 1.0
+        cols.append(t.ravel())
+        for b in range(a + 1, q):
+            r = np.zeros((n, q))
+            r[:, a], r[:, b] = -x[:, b], x[:, a]
+            cols.append(r.ravel())
+    U, s, _ = np.linalg.svd(np.stack(cols, axis=1), full_matrices=False)
+    return U[:, s > 1e-12 * s[0]]
+
+
+def _positive_definite(B: NDArray[np.float64], shift: float, counts: _Counts) -> bool:
+    """Whether ``B + shift·I`` is positive definite (its Cholesky factorisation succeeds)."""
     diag = np.diag_indices_from(B)
     base = B[diag].copy()
-    if not lam > 0:  # a zero Hessian (every point far from all others): any positive shift
-        lam = 1e-12 * max(float(np.abs(base).max()), 1e-300)
-    for _ in range(120):
-        B[diag] = base + lam
-        counts.factorisations += 1
-        c, info = lapack.dpotrf(B, lower=1, clean=1)
-        if info == 0:
-            B[diag] = base
-            return c, lam
-        lam *= 8.0
+    B[diag] = base + shift
+    counts.factorisations += 1
+    ok = scipy.linalg.lapack.dpotrf(B, lower=1, clean=0)[1] == 0
     B[diag] = base
-    raise np.linalg.LinAlgError("the Hessian could not be shifted to a positive definite matrix")
+    return bool(ok)
 
 
-def _newton_stages(
-    X0: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *,
-    restart_every: int, max_restarts: int, shift: float, newton_iterations: int, gtol: float,
-    max_escapes: int, counts: _Counts,
-) -> tuple[NDArray[np.float64], list[tuple[str, float]]]:
-    """The ``newton`` method's stages from X₀; returns the final X and ``(stage, L)`` per iteration.
+def _lm_step(
+    x: NDArray[np.float64], L: float, M: NDArray[np.float64], B: NDArray[np.float64], gf: NDArray[np.float64],
+    unit: float, k: int, root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, counts: _Counts,
+) -> tuple[tuple[NDArray[np.float64], float] | None, int]:
+    """One Levenberg–Marquardt step from ``x`` (:func:`_lm_newton`): ``(step, gain / prediction)``, or None where no
+    step is predicted to gain more than :data:`GAIN_RESOLUTION`; and the last ``k``.
 
-    1. Restarted L-BFGS (stage ``lbfgs``): at the restart point compute the
-       exact Hessian (:func:`log_likelihood_hessian`), shift ``M = −∇²L/s``
-       into a positive definite ``M + λI`` (``λ`` = ``shift`` × the mean
-       |diagonal| of M, ×8 until the Cholesky factorisation succeeds: far
-       from a maximum the Hessian is indefinite) and run ``restart_every``
-       L-BFGS iterations in the coordinates where ``M + λI`` is the
-       identity.  Repeat from where it stopped while a run gains more than
-       1e-10·|L| (when a preconditioned run cannot, a plain L-BFGS run is
-       tried before giving up), at most ``max_restarts`` times.  Plain L-BFGS needs
-       1,000–5,000 iterations on these data (the curvature spans several
-       decades); preconditioned, a few hundred.
-    2. Newton (stage ``newton``) with the exact Hessian, in the
-       Levenberg–Marquardt form of a trust region: step ``p = (M + λI)⁻¹∇L/s``,
-       accepted only if L increases by at least 1e-4 of the quadratic
-       model's prediction (else ``λ`` ×4 and retry), ``λ`` ÷4 after a good
-       step.  Stops when the largest gradient entry is ≤ ``gtol``·|L|, when a
-       step gains less than 1e-15·|L| (rounding level), after three steps in
-       a row that gain less than 1e-9·|L| each (converging quadratically,
-       the step after such a one gains ~1e-18·|L|; creeping along an almost
-       flat direction — a point far from all others, whose kernel entries
-       are ~0 — it would go on for such gains), or after
-       ``newton_iterations``.
-    3. Saddle points (stage ``newton``): a first-order method can stop at a
-       stationary point that is not a maximum (L-BFGS did, on the default
-       store).  When M is not positive semi-definite there (its smallest
-       eigenvalue below −1e-6 × its mean |diagonal|, from LAPACK's
-       ``dsyevr`` for that one eigenpair), the step goes along the
-       eigenvector of that eigenvalue (the direction of positive curvature
-       of L), its length doubled or halved from 0.01ℓ while L increases,
-       and stage 1 resumes from there; at most ``max_escapes`` times.  So
-       the result is a local maximum: gradient at rounding level, Hessian
-       negative semi-definite up to the rigid motions.
-    """
-    x = X0.copy()
-    scale = max(abs(_loglik_only(x, root, d, ell, mu)), 1.0)
-    hist: list[tuple[str, float]] = []
-    newton_left = int(newton_iterations)
-    restarts_left = int(max_restarts)
-    for round_ in range(int(max_escapes) + 1):
-        x, L, g, H, restarts_left = _preconditioned_lbfgs(
-            x, root, d, ell, mu, scale=scale, restart_every=restart_every, restarts_left=restarts_left,
-            shift=shift, gtol=gtol, hist=hist, counts=counts,
-        )
-        x, newton_left, escaped = _newton_steps(
-            x, L, g, H, root, d, ell, mu, scale=scale, newton_left=newton_left, gtol=gtol,
-            may_escape=round_ < int(max_escapes), hist=hist, counts=counts,
-        )
-        if not escaped:
-            break
-    return x, hist
-
-
-def _preconditioned_lbfgs(
-    x: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, restart_every: int,
-    restarts_left: int, shift: float, gtol: float, hist: list[tuple[str, float]], counts: _Counts,
-) -> tuple[NDArray[np.float64], float, NDArray[np.float64], NDArray[np.float64], int]:
-    """Stage 1 of :func:`_newton_stages` (restarted, Hessian-preconditioned L-BFGS) from ``x``.
-
-    Appends ``("lbfgs", L)`` per iteration to ``hist``; returns the final X,
-    its L, gradient and Hessian, and the restarts left.
-    """
-    L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-    counts.hessians += 1
-    while restarts_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
-        restarts_left -= 1
-        B = H * (-1.0 / scale)
-        c, _ = _shifted_cholesky(B, shift * float(np.abs(np.diag(B)).mean()), counts)
-        x_new, h = _lbfgs_run(x, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15, gtol=1e-13,
-                              chol=c, counts=counts)
-        if not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0):
-            # no progress with this preconditioner: a plain L-BFGS run before giving up
-            x_new, h_p = _lbfgs_run(x_new, root, d, ell, mu, scale=scale, max_iter=restart_every, ftol=1e-15,
-                                    gtol=1e-13, chol=None, counts=counts)
-            h += h_p
-        hist += [("lbfgs", v) for v in h]
-        x = x_new
-        stop = not h or h[-1] - L <= 1e-10 * max(abs(L), 1.0)
-        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-        counts.hessians += 1
-        if stop:
-            break
-    return x, L, g, H, restarts_left
-
-
-def _newton_steps(
-    x: NDArray[np.float64], L: float, g: NDArray[np.float64], H: NDArray[np.float64], root: _GramRoot, d: float,
-    ell: float, mu: float, *, scale: float, newton_left: int, gtol: float, may_escape: bool,
-    hist: list[tuple[str, float]], counts: _Counts,
-) -> tuple[NDArray[np.float64], int, bool]:
-    """Stages 2 and 3 of :func:`_newton_stages` from ``x`` (with its L, gradient and Hessian).
-
-    Newton steps, or (``may_escape``) one step out of a saddle point.
-    Appends ``("newton", L)`` per step to ``hist``; returns the final X, the
-    Newton steps left and whether it left a saddle point (stage 1 is due).
+    ``p = −(M + λI)⁻¹gf`` with ``λ = unit·2^k`` (``M``: ``B = −∇²L/scale`` or its absolute value,
+    ``gf = −∇L/scale``); its rigid-motion component removed and the rest rounded to :data:`STEP_BITS` bits of
+    its largest entry; the prediction is the quadratic model's (``B``); ``k`` +2 (λ ×4) until L gains at least
+    1e-4 of it.
     """
     lapack = scipy.linalg.lapack
     n, q = x.shape
-    lam: float | None = None
-    escaped = checked = False
-    small = 0
-    while newton_left > 0:
-        B = H * (-1.0 / scale)
-        dB = float(np.abs(np.diag(B)).mean())
-        diag = np.diag_indices_from(B)
-        B[diag] += 1e-8 * dB
+    Q = _rigid_motions(x)
+    diag = np.diag_indices_from(M)
+    base = M[diag].copy()
+    while k <= _MAX_SHIFT_EXPONENT:
+        M[diag] = base + unit * 2.0**k
+        c, info = lapack.dpotrf(M, lower=1, clean=1)
+        M[diag] = base
         counts.factorisations += 1
-        _, info = lapack.dpotrf(B, lower=1, clean=1)
-        B[diag] -= 1e-8 * dB
-        if info != 0 and not checked:  # one eigenpair (≈ 2n³ flops), at most once per round
-            checked = True
-            w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
-            if w[0] < -1e-6 * dB and may_escape:
-                x_esc = _escape_saddle(x, v[:, 0], L, root, d, ell, mu, hist, counts)
-                if x_esc is not None:
-                    x, escaped = x_esc, True
-                    newton_left -= 1
-                break
-        if np.abs(g).max() <= gtol * max(abs(L), 1.0):
-            break
-        gf = g.ravel() * (-1.0 / scale)  # gradient of f = −L/scale
-        lam = 1e-8 * dB if lam is None else max(lam, 1e-14 * dB)
-        step, lam = _trust_region_step(x, L, B, gf, lam, dB, root, d, ell, mu, scale=scale, counts=counts)
-        if step is None:
-            break
-        p, rho = step
-        L_old = L
-        x = x + p.reshape(n, q)
-        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
-        counts.hessians += 1
-        counts.newton_iterations += 1
-        newton_left -= 1
-        hist.append(("newton", L))
-        lam = lam / 4.0 if rho > 0.75 else (lam * 2.0 if rho < 0.25 else lam)
-        small = small + 1 if L - L_old <= 1e-9 * abs(L) else 0
-        if L - L_old <= 1e-15 * abs(L) or small >= 3:
-            break  # gains at rounding level, or creeping along a flat direction
-    return x, newton_left, escaped
-
-
-def _trust_region_step(
-    x: NDArray[np.float64], L: float, B: NDArray[np.float64], gf: NDArray[np.float64], lam: float, dB: float,
-    root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, counts: _Counts,
-) -> tuple[tuple[NDArray[np.float64], float] | None, float]:
-    """One Levenberg–Marquardt step ``p = −(B + λI)⁻¹ gf`` of :func:`_newton_stages` (stage 2).
-
-    ``λ`` ×4 until L gains at least 1e-4 of the quadratic model's prediction
-    (giving up past 1e12·``dB``); returns ``(p, gain / prediction)`` or None,
-    and the last ``λ``.
-    """
-    lapack = scipy.linalg.lapack
-    n, q = x.shape
-    while lam <= 1e12 * dB:
-        c, lam = _shifted_cholesky(B, lam, counts)
+        if info != 0:  # M is positive semi-definite: only a shift lost to rounding
+            k += 1
+            continue
         p = -lapack.dpotrs(c, gf, lower=1)[0]
-        pred = -(gf @ p + 0.5 * p @ (B @ p))
+        p = _snap(p - Q @ (Q.T @ p), STEP_BITS)
+        pred = -float(gf @ p + 0.5 * p @ (B @ p))
+        if not pred > GAIN_RESOLUTION:
+            return None, k
+        counts.evaluations += 1
         try:
             L_new = _loglik_only(x + p.reshape(n, q), root, d, ell, mu)
         except np.linalg.LinAlgError:
             L_new = -np.inf
         gain = (L_new - L) / scale
-        if pred > 0 and gain > 1e-4 * pred:
-            return (p, gain / pred), lam
-        lam *= 4.0
-    return None, lam
+        if gain > 1e-4 * pred:
+            return (p, gain / pred), k
+        k += 2
+    return None, k
+
+
+def _lm_newton(
+    x: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *, scale: float, steps_left: int,
+    gtol: float, hist: list[tuple[str, float]], counts: _Counts,
+) -> tuple[NDArray[np.float64], float, NDArray[np.float64], NDArray[np.float64], int]:
+    """Stage 1 of :func:`_newton_stages` from ``x``: Newton steps (:func:`_lm_step`) until none gains.
+
+    Appends ``("newton", L)`` per step to ``hist``; returns the final X, its L, gradient and Hessian, and
+    the steps left.  ``λ = unit·2^k``, ``unit`` the mean |diagonal| of ``B = −∇²L/scale``, ``k`` an integer
+    in [−30, 60]: −2 after a step that gained more than 3/4 of its prediction, +1 after one that gained less
+    than 1/4.  Where ``B + λ/2`` is not positive definite (L curves up along some direction by more than
+    λ/2), λ is raised up to 2^3-fold until it is; beyond, the step is taken with ``|B|`` (its eigenvalues'
+    signs dropped, ``dsyevd``: saddle-free Newton), which moves along such a direction uphill at the
+    gradient's pace instead of letting it set λ for every other direction.
+    """
+    n, q = x.shape
+    L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+    counts.hessians += 1
+    k = 0
+    while steps_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
+        B = H * (-1.0 / scale)
+        gf = g.ravel() * (-1.0 / scale)
+        unit = float(np.abs(np.diag(B)).mean())
+        unit = unit if unit > 0 else 1.0  # a zero Hessian: every point far from all others
+        raised = next((j for j in range(k, k + _MAX_RAISE + 1) if _positive_definite(B, unit * 2.0 ** (j - 1), counts)),
+                      None)
+        if raised is not None:
+            M, k = B.copy(), raised
+        else:
+            b, V = np.linalg.eigh(B)
+            M = (V * np.abs(b)) @ V.T
+        step, k = _lm_step(x, L, M, B, gf, unit, k, root, d, ell, mu, scale=scale, counts=counts)
+        if step is None:
+            break
+        p, rho = step
+        x = x + p.reshape(n, q)
+        L, g, H = _loglik_grad_hess(x, root, d, ell, mu)
+        counts.hessians += 1
+        counts.newton_iterations += 1
+        steps_left -= 1
+        hist.append(("newton", L))
+        k = max(k - 2, _MIN_SHIFT_EXPONENT) if rho > 0.75 else (k + 1 if rho < 0.25 else k)
+    return x, L, g, H, steps_left
+
+
+def _polish_gradient(
+    x: NDArray[np.float64], L: float, g: NDArray[np.float64], H: NDArray[np.float64], root: _GramRoot, d: float,
+    ell: float, mu: float, *, scale: float, steps_left: int, gtol: float, hist: list[tuple[str, float]],
+    counts: _Counts,
+) -> NDArray[np.float64]:
+    """Newton steps past the resolution of L (stage 3 of :func:`_newton_stages`), judged by the gradient.
+
+    At a maximum along which L curves down steeply (nearly coincident points make K nearly singular), the
+    last steps gain less than the rounding level of L and :func:`_lm_step` cannot tell them from losses;
+    the gradient still can.  Levenberg–Marquardt steps as in :func:`_lm_step` (the shift from 2^-30 of the
+    mean |diagonal| up, ×4 while a step does not shrink the largest gradient entry or loses more than the
+    rounding level of L), until that entry is ≤ ``gtol``·|L| or ``steps_left`` steps.
+    """
+    n, q = x.shape
+    lapack = scipy.linalg.lapack
+    k = _MIN_SHIFT_EXPONENT
+    while steps_left > 0 and np.abs(g).max() > gtol * max(abs(L), 1.0):
+        B = H * (-1.0 / scale)
+        gf = g.ravel() * (-1.0 / scale)
+        unit = float(np.abs(np.diag(B)).mean()) or 1.0
+        Q = _rigid_motions(x)
+        diag = np.diag_indices_from(B)
+        base = B[diag].copy()
+        step = None
+        while step is None and k <= 0:
+            B[diag] = base + unit * 2.0**k
+            c, info = lapack.dpotrf(B, lower=1, clean=1)
+            counts.factorisations += 1
+            k += 2
+            if info != 0:
+                continue
+            p = -lapack.dpotrs(c, gf, lower=1)[0]
+            p = _snap(p - Q @ (Q.T @ p), STEP_BITS)
+            try:
+                new = _loglik_grad_hess(x + p.reshape(n, q), root, d, ell, mu)
+            except np.linalg.LinAlgError:
+                continue
+            counts.hessians += 1
+            if np.abs(new[1]).max() < np.abs(g).max() and new[0] >= L - GAIN_RESOLUTION * abs(L):
+                step = p, new
+        if step is None:
+            break
+        k = max(k - 4, _MIN_SHIFT_EXPONENT)  # back to the shift before the one that worked, less 2
+        x = x + step[0].reshape(n, q)
+        L, g, H = step[1]
+        counts.newton_iterations += 1
+        steps_left -= 1
+        hist.append(("newton", L))
+    return x
+
+
+def _newton_stages(
+    X0: NDArray[np.float64], root: _GramRoot, d: float, ell: float, mu: float, *, newton_iterations: int,
+    gtol: float, max_escapes: int, counts: _Counts,
+) -> tuple[NDArray[np.float64], float, list[tuple[str, float]]]:
+    """The ``newton`` method from X₀; returns the final X, the L of its start and ``(stage, L)`` per step.
+
+    0. The start X₀ is rounded to :data:`POINT_BITS` bits of its largest entry (:func:`_snap`).
+    1. Newton steps with the exact Hessian in Levenberg–Marquardt form (:func:`_lm_newton`,
+       :func:`_lm_step`): ``p = (M + λI)⁻¹∇L/s`` with ``M = −∇²L/s`` (``s`` the power of two
+       just above |L(X₀)|), or its absolute value where L curves up by more than λ/2 along some
+       direction (saddle-free Newton); λ on the ladder ``unit·2^k``; the step's rigid-motion
+       component removed and the rest rounded to :data:`STEP_BITS` bits of its largest entry;
+       accepted when L gains at least 1e-4 of the quadratic model's prediction.  Until the
+       largest gradient entry is ≤ ``gtol``·|L|, or no step is predicted to gain more than
+       :data:`GAIN_RESOLUTION`·s (the rounding level of L), or ``newton_iterations`` steps.
+    2. Saddle points: a stationary point where M is not positive semi-definite (its smallest
+       eigenvalue below −:data:`SADDLE_CURVATURE` × its mean |diagonal|, LAPACK's ``dsyevr``) is
+       left along that eigenvector (:func:`_escape_saddle`), and stage 1 resumes; at most
+       ``max_escapes`` times.
+    3. :func:`_polish_gradient`: Newton steps judged by the gradient, where L can no longer judge
+       them.  The result is a local maximum: gradient at rounding level, Hessian negative
+       semi-definite up to the rigid motions.
+
+    Why this form: see the module docstring, "Reproducibility".
+    """
+    x = _snap(X0, POINT_BITS)
+    L_start = _loglik_only(x, root, d, ell, mu)
+    counts.evaluations += 1
+    scale = float(np.ldexp(1.0, int(np.frexp(max(abs(L_start), 1.0))[1])))
+    hist: list[tuple[str, float]] = []
+    steps_left = int(newton_iterations)
+    for round_ in range(int(max_escapes) + 1):
+        x, L, g, H, steps_left = _lm_newton(x, root, d, ell, mu, scale=scale, steps_left=steps_left, gtol=gtol,
+                                            hist=hist, counts=counts)
+        v = _ascent_curvature(H, scale, counts) if round_ < int(max_escapes) and steps_left > 0 else None
+        escaped = None if v is None else _escape_saddle(x, v, L, root, d, ell, mu, scale=scale, counts=counts)
+        if escaped is None:
+            break
+        x, L_esc = escaped
+        counts.newton_iterations += 1
+        steps_left -= 1
+        hist.append(("newton", L_esc))
+    x = _polish_gradient(x, L, g, H, root, d, ell, mu, scale=scale, steps_left=min(steps_left, 10), gtol=gtol,
+                         hist=hist, counts=counts)
+    return x, L_start, hist
+
+
+def _ascent_curvature(H: NDArray[np.float64], scale: float, counts: _Counts) -> NDArray[np.float64] | None:
+    """At a stationary point: the eigenvector of the most positive curvature of L where it is a saddle
+    (smallest eigenvalue of ``M = −H/scale`` below −:data:`SADDLE_CURVATURE` × its mean |diagonal|), else None.  Its sign
+    is fixed (largest-magnitude entry positive)."""
+    lapack = scipy.linalg.lapack
+    B = H * (-1.0 / scale)
+    dB = float(np.abs(np.diag(B)).mean())
+    diag = np.diag_indices_from(B)
+    B[diag] += SADDLE_CURVATURE * dB
+    counts.factorisations += 1
+    if lapack.dpotrf(B, lower=1, clean=0)[1] == 0:
+        return None  # negative semi-definite up to SADDLE_CURVATURE of its scale: a maximum
+    B[diag] -= SADDLE_CURVATURE * dB
+    w, v = scipy.linalg.eigh(B, subset_by_index=[0, 0], driver="evr")
+    if not w[0] < -SADDLE_CURVATURE * dB:
+        return None
+    u = v[:, 0]
+    return u if u[np.abs(u).argmax()] > 0 else -u
 
 
 def _escape_saddle(
-    x: NDArray[np.float64], v: NDArray[np.float64], L: float, root: _GramRoot, d: float, ell: float, mu: float,
-    hist: list[tuple[str, float]], counts: _Counts,
-) -> NDArray[np.float64] | None:
+    x: NDArray[np.float64], v: NDArray[np.float64], L: float, root: _GramRoot, d: float, ell: float, mu: float, *,
+    scale: float, counts: _Counts,
+) -> tuple[NDArray[np.float64], float] | None:
     """Move from a saddle point along ``±v`` (a direction of positive curvature of L), the length doubled or
-    halved from 0.01ℓ while L increases; returns the new X (its L appended to ``hist``) or None."""
+    halved from 0.01ℓ while L increases, the step rounded like a Newton step; returns the new X and its L,
+    or None.  ``−v`` is taken only where it gains more than ``+v`` by more than the rounding level of L."""
     n, q = x.shape
     best: tuple[float, NDArray[np.float64]] | None = None
     for sign in (1.0, -1.0):
         u = (sign * v).reshape(n, q)
 
+        def point(a: float) -> NDArray[np.float64]:
+            return x + _snap(a * u, STEP_BITS)
+
         def value(a: float) -> float:
+            counts.evaluations += 1
             try:
-                return _loglik_only(x + a * u, root, d, ell, mu)
+                return _loglik_only(point(a), root, d, ell, mu)
             except np.linalg.LinAlgError:
                 return -np.inf
 
         a = 0.01 * ell
         La = value(a)
         if La > L:
-            while True:
+            while a <= 1e3 * ell:
                 Lb = value(2.0 * a)
-                if not Lb > La or a > 1e3 * ell:
+                if not Lb > La:
                     break
                 a, La = 2.0 * a, Lb
         else:
@@ -1294,13 +1345,9 @@ def _escape_saddle(
                 La = value(a)
                 if La > L:
                     break
-        if La > L and (best is None or La > best[0]):
-            best = (La, x + a * u)
-    if best is None:
-        return None
-    counts.newton_iterations += 1
-    hist.append(("newton", best[0]))
-    return best[1]
+        if La > L and (best is None or La > best[0] + GAIN_RESOLUTION * scale):
+            best = (La, point(a))
+    return None if best is None else (best[1], best[0])
 
 
 def _start_rule(Y: NDArray[np.float64], init_scale: str | float, ell: float) -> tuple[str, float]:
@@ -1315,51 +1362,41 @@ def _start_rule(Y: NDArray[np.float64], init_scale: str | float, ell: float) -> 
 
 def _fit_newton(
     g: NDArray[np.float64], d: float, Y: NDArray[np.float64], *, ell: float, mu: float, init_scale: str | float,
-    trial_iterations: int, restart_every: int, max_restarts: int, shift: float, newton_iterations: int, gtol: float,
-    max_escapes: int,
+    newton_iterations: int, gtol: float, max_escapes: int,
 ) -> FitResult:
-    """:func:`fit` with ``method="newton"``: the start (trials of the scale rules), then :func:`_newton_stages`."""
+    """:func:`fit` with ``method="newton"``: :func:`_newton_stages` from each start scale, the best L kept.
+
+    ``init_scale="best"``: from each rule of :data:`NEWTON_TRIAL_SCALES`, to convergence; a later
+    rule is kept only where its L exceeds the earlier one's by more than :data:`GAIN_RESOLUTION`
+    (a tie within rounding goes to the first rule, on every machine).
+    """
     root = _GramRoot(g)
     counts = _Counts()
     if isinstance(init_scale, str) and init_scale == "best":
         rules: list[tuple[str, float]] = [(r, _scale_factor(Y, r, ell)) for r in NEWTON_TRIAL_SCALES]
     else:
         rules = [_start_rule(Y, init_scale, ell)]
-    trials: dict[str, float] = {}
-    best: tuple[float, str, float, NDArray[np.float64], list[float], float] | None = None
+    runs = []
     for label, factor in rules:
-        X_start = Y * factor
-        L_start = _loglik_only(X_start, root, d, ell, mu)
-        X_t, hist = X_start, []
-        if len(rules) > 1 and trial_iterations > 0:
-            X_t, hist = _lbfgs_run(X_start, root, d, ell, mu, scale=max(abs(L_start), 1.0),
-                                   max_iter=trial_iterations, ftol=1e-15, gtol=1e-13, chol=None, counts=counts)
-        L_t = hist[-1] if hist else L_start
-        if len(rules) > 1:
-            trials[label] = L_t
-        if best is None or L_t > best[0]:
-            best = (L_t, label, factor, X_t, hist, L_start)
-    assert best is not None
-    _, label, factor, X1, hist1, L_init = best
-    trial_its = len(hist1)
-    X_fin, hist2 = _newton_stages(
-        X1, root, d, ell, mu, restart_every=restart_every, max_restarts=max_restarts, shift=shift,
-        newton_iterations=newton_iterations, gtol=gtol, max_escapes=max_escapes, counts=counts,
-    )
-    values = [L_init] + hist1 + [v for _, v in hist2]
-    stages = ["start"] + ["lbfgs"] * len(hist1) + [st for st, _ in hist2]
-    trace = list(enumerate(values))
-    L_fin = log_likelihood(X_fin, g, d, ell, mu)
+        before = counts.newton_iterations
+        X, L_start, hist = _newton_stages(Y * factor, root, d, ell, mu, newton_iterations=newton_iterations,
+                                          gtol=gtol, max_escapes=max_escapes, counts=counts)
+        L = log_likelihood(X, g, d, ell, mu)
+        runs.append((L, label, factor, X, L_start, hist, counts.newton_iterations - before))
+    best = runs[0]
+    for run in runs[1:]:
+        if run[0] > best[0] + GAIN_RESOLUTION * abs(best[0]):
+            best = run
+    L_fin, label, factor, X_fin, L_init, hist, steps = best
+    stages = ["start"] + [st for st, _ in hist]
+    trace = list(enumerate([L_init] + [v for _, v in hist]))
     trace[-1] = (trace[-1][0], L_fin)
-    res = FitResult(
-        X_fin, L_fin, trace, ell, mu, d, label, factor, L_init, 0, 0, 0, float("nan"), 0.0, 0.0,
-    )
-    res.scale_trials = trials
+    res = FitResult(X_fin, L_fin, trace, ell, mu, d, label, factor, L_init, 0, 0, 0, float("nan"), 0.0, 0.0)
+    res.scale_trials = {run[1]: run[0] for run in runs} if len(runs) > 1 else {}
     res.method, res.stages, res.hj_log_likelihood = "newton", stages, float("nan")
-    res.polish_iterations = stages.count("lbfgs")
-    res.trial_iterations = trial_its
-    res.newton_iterations = counts.newton_iterations
-    res.gradient_evaluations = counts.gradients
+    res.newton_iterations = steps
+    res.trial_iterations = counts.newton_iterations - steps
+    res.gradient_evaluations = counts.evaluations
     res.hessian_evaluations = counts.hessians
     return res
 
@@ -1526,8 +1563,7 @@ def _fit_hooke_jeeves(
 
 def _check_fit_options(
     *, method: str, max_sweeps: int, refactor_every: int, step: float | None, min_step: float | None, ell: float,
-    trial_iterations: int, restart_every: int, max_restarts: int, newton_iterations: int, max_escapes: int,
-    hessian_shift: float, newton_gtol: float,
+    newton_iterations: int, max_escapes: int, newton_gtol: float,
 ) -> tuple[float, float]:
     """Check :func:`fit`'s options (ValueError naming the first bad one); returns the search's step and min_step."""
     if method not in METHODS:
@@ -1540,14 +1576,11 @@ def _check_fit_options(
     min_step_f = ell * 1e-3 if min_step is None else float(min_step)
     if not step0 > 0 or not min_step_f > 0:
         raise ValueError("step and min_step must be > 0")
-    for name, value, low in (("trial_iterations", trial_iterations, 0), ("restart_every", restart_every, 1),
-                             ("max_restarts", max_restarts, 0), ("newton_iterations", newton_iterations, 0),
-                             ("max_escapes", max_escapes, 0)):
+    for name, value, low in (("newton_iterations", newton_iterations, 0), ("max_escapes", max_escapes, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    for name, fvalue in (("hessian_shift", hessian_shift), ("newton_gtol", newton_gtol)):
-        if not np.isfinite(float(fvalue)) or not float(fvalue) > 0:
-            raise ValueError(f"{name} must be a finite number > 0, got {fvalue!r}")
+    if not np.isfinite(float(newton_gtol)) or not float(newton_gtol) > 0:
+        raise ValueError(f"newton_gtol must be a finite number > 0, got {newton_gtol!r}")
     return step0, min_step_f
 
 
@@ -1571,11 +1604,7 @@ def fit(
     polish_iterations: int = 5000,
     polish_ftol: float = 1e-12,
     polish_gtol: float = 1e-8,
-    trial_iterations: int = 100,
-    restart_every: int = 30,
-    max_restarts: int = 200,
-    hessian_shift: float = 1e-3,
-    newton_iterations: int = 50,
+    newton_iterations: int = 2000,
     newton_gtol: float = 1e-10,
     max_escapes: int = 10,
 ) -> FitResult:
@@ -1585,16 +1614,15 @@ def fit(
     as a number).
 
     ``method="newton"`` (the default; :func:`_newton_stages`): the start is
-    :func:`pca_init` scaled by ``init_scale`` (``"best"``: every rule of
-    :data:`INIT_SCALES` runs ``trial_iterations`` plain L-BFGS iterations and
-    the one with the highest L continues); then L-BFGS preconditioned by the
-    exact Hessian, shifted by ``hessian_shift`` × its mean |diagonal| where
-    it is not positive definite and recomputed every ``restart_every``
-    iterations (at most ``max_restarts`` times); then at most
-    ``newton_iterations`` Newton (trust-region) steps until the largest
-    gradient entry is ≤ ``newton_gtol``·|L|.  The Hooke–Jeeves parameters
+    :func:`pca_init` scaled by ``init_scale`` (``"best"``: from each rule of
+    :data:`NEWTON_TRIAL_SCALES`, and the highest L is kept); from it, at most
+    ``newton_iterations`` Newton (Levenberg–Marquardt) steps with the exact
+    Hessian, until the largest gradient entry is ≤ ``newton_gtol``·|L| or no
+    step can gain above the rounding level of L, leaving at most
+    ``max_escapes`` saddle points.  The Hooke–Jeeves parameters
     (``max_sweeps``, ``seed``, …) are not used: the method has no random
-    element.
+    element, and its result is the same local maximum on every BLAS kernel
+    (module docstring, "Reproducibility").
 
     ``method="hybrid"`` / ``"hooke-jeeves"``: ``polish_*`` are L-BFGS-B's
     iteration cap and relative tolerances (hybrid only).  Initialisation: :func:`pca_init` scaled by ``init_scale``
@@ -1616,25 +1644,23 @@ def fit(
     g, d_f = _check_gram(gram, d)
     step0, min_step_f = _check_fit_options(
         method=method, max_sweeps=max_sweeps, refactor_every=refactor_every, step=step, min_step=min_step, ell=ell,
-        trial_iterations=trial_iterations, restart_every=restart_every, max_restarts=max_restarts,
-        newton_iterations=newton_iterations, max_escapes=max_escapes, hessian_shift=hessian_shift,
-        newton_gtol=newton_gtol,
+        newton_iterations=newton_iterations, max_escapes=max_escapes, newton_gtol=newton_gtol,
     )
     t0 = time.perf_counter()
     Y = pca_init(g, q)
     if method == "newton":
         res = _fit_newton(
-            g, d_f, Y, ell=ell, mu=mu, init_scale=init_scale, trial_iterations=int(trial_iterations),
-            restart_every=int(restart_every), max_restarts=int(max_restarts), shift=float(hessian_shift),
-            newton_iterations=int(newton_iterations), gtol=float(newton_gtol), max_escapes=int(max_escapes),
+            g, d_f, Y, ell=ell, mu=mu, init_scale=init_scale, newton_iterations=int(newton_iterations),
+            gtol=float(newton_gtol), max_escapes=int(max_escapes),
         )
         res.seconds = time.perf_counter() - t0
         logger.info(
-            "GPLVM fit N=%d q=%d (newton): start %s x%.3g, L %.6g -> %.6g after %d L-BFGS iterations "
-            "(%d after the start's trial, preconditioned by %d Hessians) and %d Newton steps, %d gradients, %.2f s",
+            "GPLVM fit N=%d q=%d (newton): start %s x%.3g, L %.6g -> %.6g after %d Newton steps (%d from the other "
+            "starts: %s), %d Hessians, %d evaluations of L, %.2f s",
             g.shape[0], q, res.init_scale, res.init_factor, res.initial_log_likelihood, res.log_likelihood,
-            res.polish_iterations, res.polish_iterations - res.trial_iterations, res.hessian_evaluations,
-            res.newton_iterations, res.gradient_evaluations, res.seconds,
+            res.newton_iterations, res.trial_iterations,
+            ", ".join(f"{k} {v:.6g}" for k, v in res.scale_trials.items()) or "none",
+            res.hessian_evaluations, res.gradient_evaluations, res.seconds,
         )
         return res
 

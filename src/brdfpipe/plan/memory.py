@@ -13,7 +13,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from brdfpipe.plan.outputs import closedloop_directions, curve_directions, unseen_directions
+from brdfpipe.plan.outputs import closedloop_directions, curve_directions, reconstruction_sets, unseen_directions
 from brdfpipe.spec.errors import ConfigError
 
 __all__ = [
@@ -65,6 +65,10 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "capture_closedloop": (250.0, 0.0),  # 231-251 MB measured (default config, 33 × 33 images)
     "evaluate_closedloop": (900.0, 0.0),  # 1,135 MB measured: 10 held-out materials × 8 sets (default config)
     "plot_closedloop": (157.0, 0.0),  # as plot_acquisition_figures
+    # Xu Figs. 2 and 15, a held-out material reconstructed from each figure set (a job per material): 447 MB peak measured on the tiny config (k = 26, 4 sets); at k = 269 and 5 sets one chunk
+    # of Q (36,450 × k, float32 and float64) and x̂ (3 × sets × p float64) add about 130 MB
+    "reconstruct_figure_material": (600.0, 0.0),
+    "plot_reconstruction_figures": (240.0, 0.0),  # 108 MB measured (tiny, 3 materials × 10 images of 32 × 24)
     # materials outside the training database (config unseen); see SIZE_MEMORY_MB for their number
     "evaluate_unseen_fits": (480.0, 0.0),  # as evaluate_fits (same library call, up to 4 threads)
     "capture_unseen_closedloop": (250.0, 0.0),  # as capture_closedloop, plus every material's tables
@@ -80,11 +84,15 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "measure_gplvm_candidate": (400.0, 16.8),
     "compare_spaces": (60.0, 0.0),
     "plot_manifold_figures": (204.0, 0.0),
+    "measure_lengthscales": (115.0, 0.0),  # 114 MB measured at N = 13, 95 MB at N = 100 (N × N matrices only)
     # rendering track
     "make_envmap": (116.0, 0.0),
     "prerender_materials": (350.0, 0.0),  # a batch: 248 MB for 1 material, 344 MB for 12 or 24 (4 tables cached)
     "interpolate_path_points": (250.0, 2.22),  # N = 100 only: grows with the rows read per block
     "render_path_points": (350.0, 0.0),  # as prerender_materials: several renders in one process
+    "sample_latent_materials": (250.0, 2.22),  # as interpolate_path_points: 622 MB (N = 13), 817 MB (N = 100), 11 tables
+    "render_latent_samples": (350.0, 0.0),  # as render_path_points: 385 MB (32 × 24, N = 13), 374 MB (256 × 192, N = 100)
+    "render_reconstructions": (350.0, 0.0),  # as render_path_points (306 MB measured, tiny): renders in one process
     "render_object_mask": (253.0, 0.0),  # as one render of render_path_points: one small render, not measured alone
     "bounce_shares": (110.0, 0.0),  # not measured: reads two images at a time, less than error_maps
     "error_maps": (110.0, 0.1),  # reads the I¹⁻ pre-renders too: twice error_maps' per-material share
@@ -104,8 +112,10 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
 
 #: MB per output on top of :data:`MEMORY_MB`, for rules whose jobs hold every
 #: output in memory: ``interpolate_path_points`` holds one float64 MERL table
-#: (35 MB) per path point, plus the blend of one column block.
-PER_OUTPUT_MB: dict[str, float] = {"interpolate_path_points": 36.0, "interpolate_candidate_path_points": 36.0}
+#: (35 MB) per path point, plus the blend of one column block (and
+#: ``sample_latent_materials`` one per latent sample).
+PER_OUTPUT_MB: dict[str, float] = {"interpolate_path_points": 36.0, "interpolate_candidate_path_points": 36.0,
+                                   "sample_latent_materials": 36.0}
 
 
 #: Declared / modelled peak on the first attempt (keeps declared within [1, 2] × measured).
@@ -153,13 +163,17 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     # 1,028 MB, 32 spp per pass); Mitsuba's copy of the envmap, 63 B per pixel (4096 × 2048: +529 MB)
     "prerender_materials": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_path_points": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_latent_samples": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_object_mask": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     "render_candidate_path_points": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
+    "render_reconstructions": (("render_pixels", (), 2.4e-4), ("envmap_pixels", (), 6.5e-5)),
     # readers of the renders (tiny config, 12 materials, 32 × 24 → 384 × 288: +5.6, +30, +56 and +264 MB)
     "bounce_shares": (("render_pixels", (), 6.0e-5),),
     "error_maps": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
     "measure_candidate_blends": (("render_pixels", (), 2.8e-4), ("render_pixels", ("materials",), 2.0e-6)),
     "plot_render_figures": (("render_pixels", ("materials",), 4.3e-5),),
+    # Figs. 2 and 15: up to 7 materials × 6 renders held at once, float64 RGB and the 8-bit copy shown (~1.9 kB a pixel)
+    "plot_reconstruction_figures": (("render_pixels", (), 1.9e-3),),
     "write_explorer": (("render_pixels", ("materials",), 2.0e-4),),
     # path points: an interpolated table (35 MB) and its perceptual features (53 MB) each, up to PATH_CHUNK at
     # once (tiny config, path_steps 4 → 30: +1,760 MB); the albedo map: distances and kernel values of every
@@ -365,13 +379,14 @@ UNSEEN_RULES: tuple[str, ...] = ("evaluate_unseen_fits", "capture_unseen_closedl
 
 
 def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bool, floor_check: bool,
-                  fits: bool = False, unseen: bool = False) -> list[str]:
+                  fits: bool = False, unseen: bool = False, samples: bool = False) -> list[str]:
     """The rules of :data:`MEMORY_MB` whose jobs ``config`` plans (for :func:`check_memory`).
 
     ``generated``: the run generates the synthetic database; ``fits``: it
     evaluates a database of fits (rule ``evaluate_fits`` instead of
     ``ingest_material``); ``unseen``: it has materials outside its database
-    (config ``unseen``).
+    (config ``unseen``); ``samples``: it draws latent samples (Soler Fig. 1,
+    ``render.latent_samples.count`` > 0).
     """
     skip: set[str] = set()
     if not unseen:
@@ -390,6 +405,10 @@ def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bo
         skip |= {"interpolate_path_points", "render_path_points", "error_maps"}
     if not floor_check:
         skip |= FLOOR_RULES
+    if not samples:
+        skip |= {"sample_latent_materials", "render_latent_samples"}
     if not curve_directions(config["acquisition"]):
         skip.add("evaluate_training_size")
+    if not reconstruction_sets(config["acquisition"]):
+        skip |= {"reconstruct_figure_material", "render_reconstructions", "plot_reconstruction_figures"}
     return [r for r in MEMORY_MB if r not in skip]

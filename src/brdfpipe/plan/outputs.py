@@ -11,11 +11,12 @@ and which rules a configuration runs
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from brdfpipe.core import filenames
 from brdfpipe.spec import figures as figure_specs
+from brdfpipe.spec.figures import ReconSet
 from brdfpipe.spec.acquisition import setup_fovs, setup_metrics
 
 __all__ = [
@@ -28,6 +29,10 @@ __all__ = [
     "curve_directions",
     "albedo_map_dims",
     "acquisition_figures",
+    "figure_materials",
+    "reconstruction_columns",
+    "reconstruction_sets",
+    "reconstruction_figures",
     "manifold_figures",
     "render_figures",
     "floor_check_candidates",
@@ -121,7 +126,7 @@ def albedo_map_dims(manifold: Mapping[str, Any]) -> list[int]:
 
 def _track_figures(track: str, rule: str, settings: Mapping[str, Any]) -> dict[str, list[str]]:
     """The figures of ``track`` drawn by ``rule`` that a config with the track's ``settings`` produces: key → files."""
-    return {f.key: filenames.figure_files(f.stem, table=f.table)
+    return {f.key: filenames.figure_files(f.stem, table=f.table, note=f.note)
             for f in figure_specs.track_figures(track, rule) if f.produced(settings)}
 
 
@@ -130,14 +135,78 @@ def acquisition_figures(acquisition: Mapping[str, Any]) -> dict[str, list[str]]:
     return _track_figures("acquisition", "plot_acquisition_figures", acquisition)
 
 
+def figure_materials(test_materials: Sequence[str]) -> list[str]:
+    """The held-out materials of Xu Figs. 2, 3 and 15: those of Xu's Fig. 2 that are held out, in its order.
+
+    A run that holds none of them out (another database, other
+    ``test_materials``) shows its first :data:`~brdfpipe.spec.figures.FIG02_FALLBACK_COUNT`
+    held-out materials.
+    """
+    held = list(test_materials)
+    paper = [m for m in figure_specs.FIG02_MATERIALS if m in held]
+    return paper or held[: figure_specs.FIG02_FALLBACK_COUNT]
+
+
+def reconstruction_columns(acquisition: Mapping[str, Any]) -> dict[str, list[tuple[str, ReconSet]]]:
+    """Per figure of rule plot_reconstruction_figures that the config produces: its columns, (label, set).
+
+    Xu Fig. 2: 1 image (near-field, :func:`curve_fov`, min E(S)), 5 point
+    samples of previous work (:data:`~brdfpipe.spec.figures.PREVIOUS_WORK_METRIC`),
+    2 images, 20 point samples — set sizes capped at ``n_max_images`` /
+    ``n_max_point``; the point columns only when the config optimises that
+    metric for point samples.  Xu Fig. 15: 2 images with a fixed camera
+    (``fixed_fov``), next to the 2-image near-field set.
+    """
+    fov = curve_fov(acquisition)
+    n_img, n_pt = int(acquisition["n_max_images"]), int(acquisition["n_max_point"])
+    points = "point" in acquisition["setups"] and figure_specs.PREVIOUS_WORK_METRIC in acquisition["metrics"]
+    columns: dict[str, list[tuple[str, ReconSet]]] = {}
+    for f in figure_specs.track_figures("acquisition", "plot_reconstruction_figures"):
+        if not f.produced(acquisition):
+            continue
+        if f.key == "fig02":
+            cols = []
+            for n_images, n_points in zip((1, 2), figure_specs.PREVIOUS_WORK_POINTS):
+                if n_images <= n_img:
+                    cols.append((f"{n_images} image{'s' if n_images > 1 else ''}",
+                                 ("nearfield", fov, "error", n_images)))
+                if points:
+                    n = min(n_points, n_pt)
+                    cols.append((f"{n} point{'s' if n > 1 else ''}",
+                                 ("point", 0.0, figure_specs.PREVIOUS_WORK_METRIC, n)))
+            columns[f.key] = cols
+        elif f.key == "fig15":
+            columns[f.key] = [("2 images, fixed camera", ("fixed_camera", float(acquisition["fixed_fov"]), "error", 2))]
+            if _nearfield_error(acquisition):
+                columns[f.key].append(("2 images, near-field", ("nearfield", fov, "error", 2)))
+        else:
+            raise ValueError(f"no columns for figure {f.report_key}")
+    return columns
+
+
+def _nearfield_error(acquisition: Mapping[str, Any]) -> bool:
+    return figure_specs.figure("xu-fig02").produced(acquisition)
+
+
+def reconstruction_sets(acquisition: Mapping[str, Any]) -> list[ReconSet]:
+    """Every direction set a held-out material of Figs. 2 and 15 is reconstructed from (each once, in order)."""
+    return list(dict.fromkeys(s for cols in reconstruction_columns(acquisition).values() for _, s in cols))
+
+
+def reconstruction_figures(acquisition: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Xu 2016 figures of rendered reconstructions (Figs. 2, 15) this config produces: key → files."""
+    return _track_figures("acquisition", "plot_reconstruction_figures", acquisition)
+
+
 def manifold_figures(manifold: Mapping[str, Any]) -> dict[str, list[str]]:
     """Soler 2018 figure analogues this config produces: key → files (PNG, PDF)."""
     return _track_figures("manifold", "plot_manifold_figures", manifold)
 
 
-def render_figures(n_path_points: int) -> dict[str, list[str]]:
-    """Rendering-track figures: the pre-render grid always; the path figures when there are path points."""
-    return _track_figures("rendering", "plot_render_figures", {"n_path_points": n_path_points})
+def render_figures(n_path_points: int, n_samples: int = 0) -> dict[str, list[str]]:
+    """Rendering-track figures: the pre-render grid always; the path figures when there are path points; Soler
+    Fig. 1 when there are latent samples (``render.latent_samples.count``)."""
+    return _track_figures("rendering", "plot_render_figures", {"n_path_points": n_path_points, "n_samples": n_samples})
 
 
 def floor_check_candidates(

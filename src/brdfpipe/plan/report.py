@@ -24,6 +24,7 @@ __all__ = [
     "FIGURE_NUMBERS",
     "Item",
     "report_items",
+    "figure_notes",
 ]
 
 #: Report categories: one per track, and the claims table.
@@ -82,7 +83,8 @@ def report_items(
     """Every report entry of a configuration, in report order.
 
     Figures: the PNG of each figure of ``*_figures`` (:mod:`brdfpipe.plan.outputs`; the
-    PDF next to it is the same figure); Xu Fig. 8's CSV table;
+    PDF next to it is the same figure; ``acquisition_figures``: those of both
+    Xu figure rules, shown in the registry's order); Xu Fig. 8's CSV table;
     ``errormaps``: ``(path, t, error.png)`` per rendered path point (the EXR
     maps are data: browsers cannot show them, the captions name them);
     the summary tables when the configuration writes them; the closed
@@ -97,7 +99,8 @@ def report_items(
         lab = {"figure": FIGURE_NUMBERS[key], **labels, "database": database}
         items.append(Item(key, file, category, sub, filenames.caption(caption or key), lab))
 
-    for k, files in acquisition_figures.items():
+    order = [f.key for f in figure_specs.track_figures("acquisition")]
+    for k, files in sorted(acquisition_figures.items(), key=lambda kv: order.index(kv[0])):
         add(f"xu-{k}", _png(files), ACQUISITION, "Figures")
         if k == "fig08":
             add("xu-fig08-table", next(f for f in files if f.endswith(".csv")), ACQUISITION, "Tables")
@@ -131,3 +134,20 @@ def report_items(
         add("render-floor-check-table", floor_check_table, RENDERING, "Noise-floor check")
     add("claims", filenames.claims_csv(), CLAIMS, "Claims")
     return items
+
+
+def figure_notes(
+    *,
+    acquisition_figures: Mapping[str, Sequence[str]],
+    manifold_figures: Mapping[str, Sequence[str]],
+    render_figures: Mapping[str, Sequence[str]],
+) -> dict[str, str]:
+    """Report key → the note file (``<stem>.json``) of every planned figure that writes one (its caption quotes it)."""
+    out: dict[str, str] = {}
+    for track, figures in (("acquisition", acquisition_figures), ("manifold", manifold_figures),
+                           ("rendering", render_figures)):
+        for k, files in figures.items():
+            notes = [f for f in files if f.endswith(".json")]
+            if notes:
+                out[f"{figure_specs.TRACK_PREFIX[track]}-{k}"] = notes[0]
+    return out

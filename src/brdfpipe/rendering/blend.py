@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write as _atomic_write, check_not_input
-from brdfpipe.core.exr import ExrError, read_exr, write_exr
+from brdfpipe.core.exr import ExrError, read_exr, tonemap, write_exr
 from brdfpipe.core.filenames import format_t
 from brdfpipe.core.version import full_version
 from brdfpipe.spec import tables
@@ -308,16 +308,6 @@ def write_error_map_png(
         software = f"brdfpipe {full_version()} (matplotlib {mpl.__version__})"
         _atomic_write(path, lambda fh: fig.savefig(fh, format="png", metadata={"Title": full_title,
                                                                                "Software": software}))
-
-
-def tonemap(image: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
-    """Display version of a linear RGB image: ``× 2**exposure``, clamp to [0, 1], sRGB OETF, 8 bits."""
-    x = np.asarray(image, dtype=np.float64)
-    if x.ndim != 3 or x.shape[2] != 3:
-        raise ValueError(f"image must have shape (H, W, 3), got {x.shape}")
-    x = np.clip(np.nan_to_num(x * 2.0 ** float(exposure), nan=0.0), 0.0, 1.0)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.round(srgb * 255.0).astype(np.uint8)
 
 
 # --------------------------------------------------------------------------

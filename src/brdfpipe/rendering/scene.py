@@ -768,41 +768,43 @@ def render_points(
     merl_paths: Sequence[str | os.PathLike[str]],
     *,
     outs: Sequence[Sequence[str | os.PathLike[str]]],
-    outs_one: Sequence[Sequence[str | os.PathLike[str]]],
+    outs_one: Sequence[Sequence[str | os.PathLike[str]]] | None,
     seeds: list[int],
     labels: Sequence[str],
     derived: bool = False,
+    label_key: str = "path_point",
     attrs: Mapping[str, str] | None = None,
     progress: Callable[[str], None] | None = None,
     **kwargs: Any,
 ) -> None:
-    """:func:`render_material_seeds` for many interpolated materials in one process (the path points' jobs).
+    """:func:`render_material_seeds` for many derived materials in one process (path points, reconstructions).
 
     ``merl_paths[k]`` is rendered once per seed, ``outs[k][s]`` and
-    ``outs_one[k][s]`` with ``seeds[s]``, and ``path_point = labels[k]`` in
-    the headers; the other keywords are :func:`render_material`'s.  One
-    Mitsuba start for all points (the points of a path come from one
-    interpolation job, so they change together); each image is the one the
-    point gives alone.  Every source is checked to exist before the first
-    render and, with ``derived`` (the workflow's interpolated tables), to be
-    the derived table its file name says (its provenance mark).
+    ``outs_one[k][s]`` (None: no I¹⁻ files) with ``seeds[s]``, and
+    ``label_key = labels[k]`` in the headers; the other keywords are
+    :func:`render_material`'s.  One Mitsuba start for all of them (the
+    points of a path come from one interpolation job, so they change
+    together); each image is the one the table gives alone.  Every source is
+    checked to exist before the first render and, with ``derived`` (the
+    workflow's interpolated and reconstructed tables), to be the derived
+    table its file name says (its provenance mark).
     """
     n = len(merl_paths)
     for name, values in (("outs", outs), ("outs_one", outs_one), ("labels", labels)):
-        if len(values) != n:
+        if values is not None and len(values) != n:
             raise ValueError(f"render_points: {len(values)} {name} for {n} MERL files")
-    if any(len(o) != len(seeds) for o in list(outs) + list(outs_one)):
+    if any(len(o) != len(seeds) for o in list(outs) + list(outs_one or [])):
         raise ValueError(f"render_points: every point needs one output per seed ({len(seeds)})")
     if len(set(labels)) != len(labels):
         raise ValueError("render_points: labels repeat an entry")
     provenance.check_sources([(provenance.output_name(p), p) for p in merl_paths],
-                             database="derived" if derived else None, what="interpolated MERL file")
+                             database="derived" if derived else None, what="derived MERL file")
     say = progress if progress is not None else logger.info
     start = time.perf_counter()
     for k, (src, label) in enumerate(zip(merl_paths, labels)):
-        render_material_seeds(src, list(outs[k]), outs_one=list(outs_one[k]), seeds=seeds,
-                              attrs={**(attrs or {}), "path_point": label}, progress=progress, **kwargs)
-        say(f"point {k + 1}/{n} rendered: {label} ({time.perf_counter() - start:.1f} s so far)")
+        render_material_seeds(src, list(outs[k]), outs_one=list(outs_one[k]) if outs_one is not None else None,
+                              seeds=seeds, attrs={**(attrs or {}), label_key: label}, progress=progress, **kwargs)
+        say(f"{k + 1}/{n} rendered: {label} ({time.perf_counter() - start:.1f} s so far)")
 
 
 def render_object_mask(

@@ -44,13 +44,17 @@ def _claim_item(c: Claim) -> str:
             f"**{rst_cell(c.verdict)}**: {rst_cell(c.cause)}.")
 
 
-def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequence[str] = ()) -> str:
-    """The caption of one report entry: title with database, description, its claims, the files it covers."""
+def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequence[str] = (),
+                note: str = "") -> str:
+    """The caption of one report entry: title with database, description, the figure's note (this run's
+    numbers, when it writes one), its claims, the files it covers."""
     if key not in DESCRIPTIONS:
         raise KeyError(f"no caption description for {key!r}")
     mine = [c for c in claims if key in c.figures]
     lines = [f"**{figure_specs.paper_figures()[key]}** analogue — database: **{rst.text(database)}**", "",
              _bars(DESCRIPTIONS[key]), ""]
+    if note:
+        lines += ["This run: " + rst.text(note), ""]
     if mine:
         lines += ["Claims (the paper's sentence, as checked, this run, the verdict and its cause):", ""] + [_claim_item(c) for c in mine] + [""]
     else:
@@ -66,8 +70,12 @@ def caption_rst(key: str, claims: Iterable[Claim], *, database: str, files: Sequ
     return rst.jinja_raw("\n".join(lines))
 
 
-def write_captions(items: Sequence[Mapping[str, str]], claims: Sequence[Claim], *, database: str) -> list[Path]:
-    """One caption file per distinct ``caption`` of ``items`` (dicts with ``key``, ``path``, ``caption``)."""
+def write_captions(items: Sequence[Mapping[str, str]], claims: Sequence[Claim], *, database: str,
+                   notes: Mapping[str, str] | None = None) -> list[Path]:
+    """One caption file per distinct ``caption`` of ``items`` (dicts with ``key``, ``path``, ``caption``).
+
+    ``notes``: report key → the figure's note (:func:`brdfpipe.core.notes.read_note`), quoted by its caption.
+    """
     by_caption: dict[str, tuple[str, list[str]]] = {}
     for it in items:
         key, files = by_caption.setdefault(it["caption"], (it["key"], []))
@@ -76,6 +84,7 @@ def write_captions(items: Sequence[Mapping[str, str]], claims: Sequence[Claim], 
         files.append(it["path"])
     out = []
     for cap, (key, files) in by_caption.items():
-        atomic.write_text(cap, caption_rst(key, claims, database=database, files=files))
+        atomic.write_text(cap, caption_rst(key, claims, database=database, files=files,
+                                           note=(notes or {}).get(key, "")))
         out.append(Path(cap))
     return out

@@ -339,7 +339,7 @@ def likelihood_converges(traces: Mapping[int, str | os.PathLike[str]], database:
 
 def second_bounce_share(path: str | os.PathLike[str] | None) -> Claim:
     """§5.2: "In practice we expect L2+ ≪ L1−" (the I²⁺ share of each pre-render over the object)."""
-    key, where, figs = "soler-second-bounce", "§5.2", ("render-fig01",)
+    key, where, figs = "soler-second-bounce", "§5.2", ("render-prerenders",)
     sentence = ('"In practice we expect L2+ ≪ L1−, since the measure of multiple-bounce paths for which more than one of '
                 'the bounces on ρ is expected to be small." (§5.2; not measured in the paper)')
     claim = (f"the I²⁺ share of each pre-render over the object: \"≪\" as an order of magnitude, L²⁺ ≤ L¹⁻/10, a share "

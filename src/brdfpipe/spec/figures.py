@@ -25,9 +25,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from brdfpipe.spec.acquisition import FIXED_SETUPS
+from brdfpipe.spec.acquisition import FIXED_SETUPS, METRIC_KINDS
 
 __all__ = [
+    "FIG02_MATERIALS",
+    "FIG02_FALLBACK_COUNT",
+    "PREVIOUS_WORK_METRIC",
+    "PREVIOUS_WORK_POINTS",
+    "ReconSet",
     "TRACK_PREFIX",
     "Figure",
     "ReportEntry",
@@ -39,13 +44,32 @@ __all__ = [
     "captions",
 ]
 
+#: The held-out materials Xu Fig. 2 shows (Xu §6: their nine less green fabric and silver metallic paint, "whose
+#: results are very similar to black soft plastic and two layer silver"); also Figs. 3 and 15's.
+FIG02_MATERIALS: tuple[str, ...] = (
+    "black-soft-plastic", "blue-acrylic", "light-red-paint", "pink-jasper", "specular-violet-phenolic",
+    "two-layer-silver", "white-fabric",
+)
+#: On a database that holds none of them out: Figs. 2, 3 and 15 show its first held-out materials, this many.
+FIG02_FALLBACK_COUNT: int = 4
+#: The criterion of the point-sample sets of Xu Fig. 2's "previous work" columns (Nielsen et al. 2015).
+#: ``condition`` is κ over all k components (Xu eq. 6); Nielsen's κ as released is ``condition_nielsen``.
+PREVIOUS_WORK_METRIC: str = "condition_nielsen"
+#: The point-sample counts of Xu Fig. 2's "previous work" columns: 5 beside the 1-image result, 20 beside the
+#: 2-image one (fewer when ``acquisition.n_max_point`` is smaller).
+PREVIOUS_WORK_POINTS: tuple[int, int] = (5, 20)
+
+#: A direction set whose reconstructions a figure shows (Xu Figs. 2, 15): (setup, fov, metric, n).
+ReconSet = tuple[str, float, str, int]
+
 #: Track → the prefix of its figures' report keys (``xu-fig05``, ``soler-fig10_q2``, ``render-fig01``).
 TRACK_PREFIX: dict[str, str] = {"acquisition": "xu", "manifold": "soler", "rendering": "render"}
 
 
 # -- whether a configuration produces a figure --------------------------------
 # Each takes the settings of the figure's track: the config's ``acquisition``
-# or ``manifold`` section, or ``{"n_path_points": n}`` for the rendering track.
+# or ``manifold`` section, or ``{"n_path_points": n, "n_samples": m}`` for the
+# rendering track.
 
 def _has_training_curve(acquisition: Mapping[str, Any]) -> bool:
     """Xu Fig. 7: a near-field error-metric set to draw the training-size curve with, and sizes to draw."""
@@ -59,6 +83,22 @@ def _has_nearfield(acquisition: Mapping[str, Any]) -> bool:
 
 def _has_fixed(acquisition: Mapping[str, Any]) -> bool:
     return bool(set(acquisition["setups"]) & set(FIXED_SETUPS))
+
+
+def _has_nearfield_error(acquisition: Mapping[str, Any]) -> bool:
+    """Xu Figs. 2, 3, 9: the near-field sets chosen by E(S)."""
+    return "nearfield" in acquisition["setups"] and "error" in acquisition["metrics"]
+
+
+def _has_fixed_error(acquisition: Mapping[str, Any]) -> bool:
+    """Xu Fig. 14: a fixed-camera or fixed-light set-up's sets chosen by E(S)."""
+    return _has_fixed(acquisition) and "error" in acquisition["metrics"]
+
+
+def _has_fixed_camera_pair(acquisition: Mapping[str, Any]) -> bool:
+    """Xu Fig. 15: the fixed-camera set of two images chosen by E(S)."""
+    return ("fixed_camera" in acquisition["setups"] and "error" in acquisition["metrics"]
+            and int(acquisition["n_max_images"]) >= 2)
 
 
 def _has_point(acquisition: Mapping[str, Any]) -> bool:
@@ -79,13 +119,20 @@ def _has_path_points(rendering: Mapping[str, Any]) -> bool:
     return int(rendering["n_path_points"]) > 0
 
 
+def _has_samples(rendering: Mapping[str, Any]) -> bool:
+    """Soler Fig. 1: materials at random latent points (``render.latent_samples.count`` > 0)."""
+    return int(rendering.get("n_samples", 0)) > 0
+
+
 @dataclass(frozen=True)
 class Figure:
     """One figure: ``track``, ``key`` (unique in the track), file ``stem``, ``paper`` figure, ``caption``.
 
     ``rule``: the workflow rule that draws it; ``draw``: the function of
     ``brdfpipe.<track>.figures`` that draws it.  ``table``: a CSV and a
-    Markdown table are written next to the PNG and PDF.  ``when``: whether a
+    Markdown table are written next to the PNG and PDF.  ``note``: a note
+    (``<stem>.json``: one paragraph of the run's numbers) is written next to
+    them, and the report's caption quotes it.  ``when``: whether a
     configuration produces it (the track's settings → bool; None: always,
     once its rule runs).
     """
@@ -98,6 +145,7 @@ class Figure:
     draw: str
     caption: str
     table: bool = False
+    note: bool = False
     when: Callable[[Mapping[str, Any]], bool] | None = None
 
     @property
@@ -121,6 +169,21 @@ class ReportEntry:
 
 #: Every figure, in the report's order within each track.
 FIGURES: tuple[Figure, ...] = (
+    Figure('acquisition', 'fig02', 'fig02-reconstructions', 'Xu Fig. 2', rule='plot_reconstruction_figures', draw='fig02_reconstructions', table=True, when=_has_nearfield_error,
+           caption=('Held-out materials reconstructed from 1 and from 2 near-field images (FOV 25°, else the first '
+                    'configured; min E(S)) and from 5 and 20 point samples of previous work, '
+                    f'{METRIC_KINDS[PREVIOUS_WORK_METRIC].label}, rendered in the pre-renders\' scene '
+                    '(Mitsuba 3, same settings and seed), next to the reference, the material\'s own pre-render; '
+                    'inputs: the observed pixels of each image (BRDF × cos θi, table lookup). Each panel gives the '
+                    'RMS log error of its table and the relative RMS difference of its render from the reference; '
+                    'the CSV/Markdown table next to it lists every panel.')),
+    Figure('acquisition', 'fig03', 'fig03-recon-vs-deviation', 'Xu Fig. 3', rule='plot_acquisition_figures', draw='fig03_recon_vs_deviation', table=True, when=_has_nearfield_error,
+           caption=('E_recon (eq. 12) of the 1- and 2-image near-field sets (FOV 25°, else the first configured; '
+                    'min E(S)) next to '
+                    'E_deviation (eq. 9) for each material of Fig. 2, RMS over the cells of the log-mapped BRDF; '
+                    'E_recon = √(rms_log² − E_deviation²) from errors.csv (the residual of the least-squares '
+                    'projection is orthogonal to the span of Q). The CSV/Markdown table next to it lists the '
+                    'values.')),
     Figure('acquisition', 'fig05', 'fig05-error-vs-images', 'Xu Fig. 5', rule='plot_acquisition_figures', draw='fig05_error_vs_images',
            caption=('Mean RMS error of the log-mapped BRDF over the held-out materials vs the number of near-field '
                     'images, one panel per field of view: direction sets chosen by min E(S) (eq. 15) and by min κ (Xu'
@@ -135,9 +198,23 @@ FIGURES: tuple[Figure, ...] = (
     Figure('acquisition', 'fig08', 'fig08-optimal-configurations', 'Xu Fig. 8', rule='plot_acquisition_figures', draw='fig08_optimal_configurations', table=True, when=_has_nearfield,
            caption=('The optimal near-field configurations (1 and 2 images) per FOV, optimised on all materials: '
                     'light and camera directions over the sample. The CSV/Markdown table next to it lists the angles.')),
+    Figure('acquisition', 'fig09', 'fig09-configurations-fov25', 'Xu Fig. 9', rule='plot_acquisition_figures', draw='fig09_configurations', table=True, when=_has_nearfield_error,
+           caption=('The one- and two-shot near-field configurations at FOV 25° (else the first configured) with '
+                    'which the held-out materials '
+                    'are acquired (min E(S), training split): light and camera over the sample (3-D sketch and top '
+                    'view) and their angles; the CSV/Markdown table next to it lists them in in-out and '
+                    'Rusinkiewicz coordinates.')),
     Figure('acquisition', 'fig13', 'fig13-fixed-camera-light', 'Xu Fig. 13', rule='plot_acquisition_figures', draw='fig13_fixed_camera_light', when=_has_fixed,
            caption=('Mean RMS error vs the number of images for the image setups at one FOV: near-field (both move), '
                     'fixed camera with moving lights, fixed light with moving cameras; solid min E(S), dashed min κ.')),
+    Figure('acquisition', 'fig14', 'fig14-fixed-configurations', 'Xu Fig. 14', rule='plot_acquisition_figures', draw='fig14_fixed_configurations', table=True, when=_has_fixed_error,
+           caption=('The optimal two-image configurations with a fixed camera (moving light) and with a fixed light '
+                    '(moving camera), min E(S), training split, analogous to Fig. 9; angles in in-out (θi, φi, θo, '
+                    'φo) and Rusinkiewicz (θh, θd, φd) coordinates (the CSV/Markdown table next to it).')),
+    Figure('acquisition', 'fig15', 'fig15-fixed-camera-reconstructions', 'Xu Fig. 15', rule='plot_reconstruction_figures', draw='fig15_fixed_camera_reconstructions', table=True, when=_has_fixed_camera_pair,
+           caption=('The materials of Fig. 2 reconstructed from two images with a fixed camera (min E(S)), rendered '
+                    'as in Fig. 2 next to their 2-image near-field reconstruction and the reference; inputs: the '
+                    'observed pixels of each image. The CSV/Markdown table next to it lists every panel.')),
     Figure('acquisition', 'fig18', 'fig18-per-material', 'Xu Fig. 18', rule='plot_acquisition_figures', draw='fig18_per_material', when=_has_point,
            caption=('Per held-out material RMS error of point sampling with 5 samples (or fewer when n_max_point is '
                     'smaller): min E(S) vs the previous work (red: min κ of the first n components, Nielsen 2015 as '
@@ -179,6 +256,12 @@ FIGURES: tuple[Figure, ...] = (
     Figure('manifold', 'eq7', 'manifold-eq7-bound', 'Soler eq. 7', rule='plot_manifold_figures', draw='manifold_eq7_bound',
            caption=('Actual deviation ‖z* − z_j‖ of the interpolant from the nearest training material vs the eq. 7 '
                     'bound, along the latent paths.')),
+    Figure('manifold', 'fig06', 'manifold-fig06-lengthscale', 'Soler Fig. 6', rule='plot_manifold_figures', draw='manifold_fig06_lengthscale', note=True,
+           caption=('The eq. 7 bound on the behaviour of the interpolant as the length scale ℓ shrinks: the default '
+                    "candidate's latent points kept, the kernel's ℓ scaled; along Soler Figs. 12/13's path (chrome → "
+                    'silver-paint) or the first latent path, the deviation ‖z* − z_j‖ from the nearest training '
+                    'material and its eq. 7 bound, and the distance ‖z* − z̄‖ from the mean of the materials, '
+                    'which the interpolant approaches away from the materials as ℓ → 0.')),
     Figure('manifold', 'spaces', 'manifold-spaces', 'Soler §4.1-4.3 (data spaces)', rule='plot_manifold_figures', draw='manifold_spaces',
            caption=('Every GPLVM candidate (data space, μ) measured the same way: κ(K), albedo outside [0, 1], Σ|w|, '
                     'stability near the training points, perceptual uniformity.')),
@@ -188,15 +271,27 @@ FIGURES: tuple[Figure, ...] = (
                     'least squares of Σ bᵢ(x) zᵢ against it) among the training materials; right, the relative error '
                     "of b(x*)'s reproduction of each, next to the projection on k principal components of the same "
                     'training materials (k = each q and the configured PCA sizes).')),
-    Figure('rendering', 'fig01', 'render-fig01-prerenders', 'Soler Fig. 1', rule='plot_render_figures', draw='render_fig01_prerenders',
+    Figure('rendering', 'fig01', 'render-fig01-latent-samples', 'Soler Fig. 1', rule='plot_render_figures', draw='render_fig01_latent_samples', note=True, when=_has_samples,
+           caption=('Materials at random latent points of the manifold (default GPLVM candidate, the rendering '
+                    "track's q), drawn as ``brdfpipe sample`` draws them (uniform in the convex hull of the "
+                    "materials' latent points, albedo in [0, 1]; seed ``render.latent_samples.seed``), written as "
+                    'MERL tables with a ``derived`` provenance mark and rendered in the pre-renders\' scene and '
+                    "settings, among measured materials' pre-renders (Soler's four where the database has them) at "
+                    "the paper's places.")),
+    Figure('rendering', 'prerenders', 'render-prerenders', 'Soler §5.2 (pre-renders)', rule='plot_render_figures', draw='render_prerenders',
            caption=('Global-illumination pre-renders of every material (Mitsuba 3, the ``merl`` BSDF), the images the'
                     ' blends are made of.')),
-    Figure('rendering', 'fig12', 'render-fig12-interpolation', 'Soler Fig. 12', rule='plot_render_figures', draw='render_fig12_interpolation', when=_has_path_points,
-           caption=('Interpolation along each latent path: the blend of pre-renders Σ wᵢ Iᵢ next to the true render '
-                    'of the interpolated material.')),
-    Figure('rendering', 'fig13', 'render-fig13-errors', 'Soler Fig. 13', rule='plot_render_figures', draw='render_fig13_errors', when=_has_path_points,
-           caption=('Error panel: blend, reference and their difference at each rendered path point, with the '
-                    'two-seed noise floor.')),
+    Figure('rendering', 'fig12', 'render-fig12-interpolation', 'Soler Fig. 12', rule='plot_render_figures', draw='render_fig12_interpolation', note=True, when=_has_path_points,
+           caption=("Soler Fig. 12's path, chrome → silver-paint, in the rendering track's latent space (or, on a "
+                    'database without both, the first rendered path): top, the two pre-rendered ends and between '
+                    'them the blends Σ wᵢ Iᵢ of the pre-renders with the weights b(x*) = K⁻¹k(x*) of each rendered '
+                    'point; bottom, the interpolated materials rendered (the reference). Then every other rendered '
+                    'path the same way.')),
+    Figure('rendering', 'fig13', 'render-fig13-errors', 'Soler Fig. 13', rule='plot_render_figures', draw='render_fig13_errors', note=True, when=_has_path_points,
+           caption=("Soler Fig. 13's check at the midpoint of Fig. 12's path (the rendered point nearest t = 0.5): "
+                    'the blend of pre-renders, the reference render of the interpolated material, |blend − '
+                    "reference| against the reference's second seed, and the noise floor |reference − second seed|, "
+                    'on one colour scale.')),
     Figure('rendering', 'floor-check', 'render-floor-check', 'Soler Fig. 13 (noise-floor check)', rule='plot_floor_check', draw='plot_floor_check',
            caption=("The noise-floor check: blends vs the noise floor of every checked candidate's path points, "
                     'rendered small with many samples (render.floor_check).')),

@@ -7,10 +7,12 @@ the planner, the schema (a test keeps its enums equal to
 :data:`SPACE_NAMES`), the workflow's wildcards and the science modules read
 the records here.
 
-The latent paths: :data:`SOLER_PATHS`, their names in files
+The latent paths: :data:`SOLER_PATHS` (Fig. 9), the path of Figs. 12/13
+(:data:`SOLER_FIG12_PATH`, rendered beside the configured paths when the
+database has both ends: :func:`rendered_paths`), their names in files
 (:func:`path_name`), the seeded default (:func:`default_paths`) and the
 check of a configured list (:func:`check_paths`, :class:`ConfigError` naming
-the entry).
+the entry).  The measured materials of Fig. 1 (:data:`SOLER_FIG1_MATERIALS`).
 
 Adding a data space: its :class:`DataSpace` record in :data:`DATA_SPACES`
 here and its maps in ``manifold/spaces.py`` (and its name in the schema's
@@ -38,12 +40,15 @@ __all__ = [
     "PAPER_RECIPE",
     "GplvmCandidate",
     "SOLER_PATHS",
+    "SOLER_FIG12_PATH",
+    "SOLER_FIG1_MATERIALS",
     "candidate_label",
     "is_paper_recipe",
     "describe_fit",
     "path_name",
     "default_paths",
     "check_paths",
+    "rendered_paths",
 ]
 
 
@@ -116,6 +121,20 @@ SOLER_PATHS: tuple[tuple[str, str], ...] = (
     ("blue-metallic-paint", "dark-blue-paint"),
     ("teflon", "silver-paint"),
     ("black-oxidized-steel", "color-changing-paint3"),
+)
+
+#: The path of Soler et al. 2018, Figs. 12 and 13: MERL chrome to silver-paint, "in a 5D latent space";
+#: Fig. 13 checks its midpoint.
+SOLER_FIG12_PATH: tuple[str, str] = ("chrome", "silver-paint")
+
+#: The four measured materials among Soler Fig. 1's fifteen renders, with their (row, column) there
+#: (§4.3: "row 1, column 4 (two-layer silver); row 2, column 1 (chrome-steel); row 2, column 3
+#: (gold-paint); and row 3, column 2 (brass)"; counted from 0 here).
+SOLER_FIG1_MATERIALS: tuple[tuple[str, tuple[int, int]], ...] = (
+    ("two-layer-silver", (0, 3)),
+    ("chrome-steel", (1, 0)),
+    ("gold-paint", (1, 2)),
+    ("brass", (2, 1)),
 )
 
 
@@ -205,3 +224,17 @@ def check_paths(
             raise ConfigError(f"{what}[{j}] {list(out[j])} and [{k}] {list(out[k])} share the file name {name}; "
                               "rename a material or drop one path")
     return out
+
+
+def rendered_paths(paths: Sequence[tuple[str, str]], materials: Sequence[str]) -> list[tuple[str, str]]:
+    """The latent paths the rendering track renders: ``paths`` (the configured ones), then Soler Figs. 12/13's.
+
+    :data:`SOLER_FIG12_PATH` is added when the database has both its
+    materials and ``paths`` does not already hold it (Figs. 12 and 13 show
+    it); on other databases the paths are ``paths`` alone.
+    """
+    out = [tuple(p) for p in paths]
+    known = set(materials)
+    if all(m in known for m in SOLER_FIG12_PATH) and SOLER_FIG12_PATH not in out:
+        out.append(SOLER_FIG12_PATH)
+    return out  # type: ignore[return-value]

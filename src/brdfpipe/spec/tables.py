@@ -13,10 +13,14 @@ table                                     writer                                
 ``results/evaluation/training_size.csv``  :func:`brdfpipe.acquisition.evaluation.training_size_curve`  figures, claims
 ``results/evaluation/unseen.csv``         :mod:`brdfpipe.acquisition.unseen`                           figures, claims
 ``results/manifold/unseen.csv``           :mod:`brdfpipe.manifold.unseen`                              figures
-Xu Fig. 8's table (``fig08-*.csv``)       :mod:`brdfpipe.acquisition.figures`                          claims
+Xu Fig. 8's table (``fig08-*.csv``)       :mod:`brdfpipe.acquisition.figures_configs`                  claims
+Xu Figs. 9, 14 (``fig09-*.csv``, …)       :mod:`brdfpipe.acquisition.figures_configs`                  tests, users
+Xu Fig. 3's table (``fig03-*.csv``)       :mod:`brdfpipe.acquisition.figures`                          tests, users
+Xu Figs. 2, 15 (``fig02-*.csv``, …)       :mod:`brdfpipe.acquisition.figures_recon`                    tests, users
 a GPLVM fit's ``trace.csv``               :func:`brdfpipe.manifold.gplvm.write_trace`                  figures, claims
 ``results/manifold/albedo.csv``           :mod:`brdfpipe.manifold.analysis`                            figures
 ``results/manifold/paths.csv``            :mod:`brdfpipe.manifold.analysis`                            figures, claims
+``results/manifold/lengthscales.csv``     :mod:`brdfpipe.manifold.lengthscale`                         figures
 ``results/manifold/reproduction.csv``     :mod:`brdfpipe.manifold.analysis`                            figures, claims
 ``results/manifold/spaces.csv``           :mod:`brdfpipe.manifold.fidelity`                            figures, claims
 ``results/manifold/stability.csv``        :mod:`brdfpipe.manifold.fidelity`                            figures
@@ -35,9 +39,13 @@ __all__ = [
     "UNSEEN_ERRORS",
     "MANIFOLD_UNSEEN",
     "FIG08",
+    "CONFIGURATIONS",
+    "RECON_VS_DEVIATION",
+    "RECONSTRUCTION_PANELS",
     "GPLVM_TRACE",
     "MATERIAL_ALBEDO",
     "LATENT_PATHS",
+    "LENGTHSCALES",
     "REPRODUCTION",
     "SPACES",
     "STABILITY",
@@ -63,6 +71,20 @@ FIG08: tuple[str, ...] = (
     "light_theta_deg", "light_phi_deg", "camera_theta_deg", "camera_phi_deg",
     "expected_error", "split", "database",
 )
+#: Xu Figs. 9 and 14: each image of a chosen set, in in-out (light θi, φi; camera θo, φo) and Rusinkiewicz angles.
+CONFIGURATIONS: tuple[str, ...] = (
+    "setup", "fov_deg", "n_images", "image", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg",
+    "theta_h_deg", "theta_d_deg", "phi_d_deg", "expected_error", "split", "database",
+)
+#: Xu Fig. 3: per material and direction set E_recon (eq. 12) and E_deviation (eq. 9), RMS over the cells.
+RECON_VS_DEVIATION: tuple[str, ...] = (
+    "database", "material", "setup", "fov", "metric", "n", "e_recon", "e_deviation", "rms_log",
+)
+#: Xu Figs. 2 and 15: every image panel (input, reconstruction, reference) of every material's row.
+RECONSTRUCTION_PANELS: tuple[str, ...] = (
+    "database", "material", "column", "kind", "setup", "fov", "metric", "n", "image", "file", "rms_log",
+    "render_relative_rmse",
+)
 #: A GPLVM fit's log-likelihood trace.
 GPLVM_TRACE: tuple[str, ...] = ("step", "stage", "log_likelihood")
 #: The training materials' albedo (``albedo.csv``).
@@ -71,6 +93,11 @@ MATERIAL_ALBEDO: tuple[str, ...] = ("database", "material", "r", "g", "b", "lumi
 LATENT_PATHS: tuple[str, ...] = (
     "database", "space", "q", "path", "material_a", "material_b", "step", "t", "latent_distance",
     "perceptual_a", "perceptual_b", "perceptual_ab", "nearest", "deviation", "bound",
+)
+#: The interpolant and the eq. 7 bound along one latent path per length scale (``lengthscales.csv``, Soler Fig. 6).
+LENGTHSCALES: tuple[str, ...] = (
+    "database", "space", "q", "path", "material_a", "material_b", "ell_factor", "ell", "kappa", "t", "nearest",
+    "latent_distance_nearest", "deviation", "bound", "from_mean", "sum_abs_w", "z_norm",
 )
 #: Each material's reproduction error by the GPLVM and by PCA (``reproduction.csv``).
 REPRODUCTION: tuple[str, ...] = ("database", "space", "material", "method", "k", "relative_error")
