@@ -122,7 +122,10 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     model = svd.open_model(tmp_path / "results" / "svd" / "train.zarr")
     assert model.database == "synthetic" and model.m == 27
     files = sorted((tmp_path / "results" / "directions" / "train").glob("*.json"))
-    assert len(files) == 8
+    # every set-up × metric of tiny.yaml (fov 0 for point samples), Nielsen's κ for point samples only
+    expect = [f"point-fov0-{m}.json" for m in ("error", "condition", "condition_nielsen")]
+    expect += [f"{s}-fov25-{m}.json" for s in ("nearfield", "fixed_camera", "fixed_light") for m in ("error", "condition")]
+    assert sorted(f.name for f in files) == sorted(expect)
     for f in files:
         d = optimize.read_directions(f)
         assert [s.n for s in d.sets] == list(range(1, len(d.sets) + 1))
