@@ -57,13 +57,15 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "map_logrelative": (170.0, 5.82),
     "accumulate_gram": (96.0, 2.93),
     "decompose_svd": (137.0, 5.32),
-    "optimize_directions": (131.0, 13.4),
+    # the rules whose peak grows with the near-field lattice: at 256 × 256 pixels, 100 materials (the grid study,
+    # docs/results/runs/2026-11-28-cpu/resolution/cost.csv, three seeds: the largest peak)
+    "optimize_directions": (435.0, 13.4),  # 1,665-1,772 MB (32 px: 1,436-1,451)
     "evaluate_directions": (280.0, 3.5),
     "check_directions": (136.0, 6.8),
     "evaluate_training_size": (250.0, 2.45),  # N = 100 only: slope as evaluate_directions'
     "plot_acquisition_figures": (157.0, 0.0),
-    "capture_closedloop": (250.0, 0.0),  # 231-251 MB measured (default config, 33 × 33 images)
-    "evaluate_closedloop": (900.0, 0.0),  # 1,135 MB measured: 10 held-out materials × 8 sets (default config)
+    "capture_closedloop": (940.0, 0.0),  # 825-937 MB (32 px: 242-264)
+    "evaluate_closedloop": (1560.0, 0.0),  # 1,498-1,554 MB: 10 held-out materials × 8 sets (32 px: 1,101-1,145)
     "plot_closedloop": (157.0, 0.0),  # as plot_acquisition_figures
     # Xu Figs. 2 and 15, a held-out material reconstructed from each figure set (a job per material): 447 MB peak measured on the tiny config (k = 26, 4 sets); at k = 269 and 5 sets one chunk
     # of Q (36,450 × k, float32 and float64) and x̂ (3 × sets × p float64) add about 130 MB
@@ -71,7 +73,9 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "plot_reconstruction_figures": (240.0, 0.0),  # 108 MB measured (tiny, 3 materials × 10 images of 32 × 24)
     # materials outside the training database (config unseen); see SIZE_MEMORY_MB for their number
     "evaluate_unseen_fits": (480.0, 0.0),  # as evaluate_fits (same library call, up to 4 threads)
-    "capture_unseen_closedloop": (250.0, 0.0),  # as capture_closedloop, plus every material's tables
+    # as capture_closedloop, plus every material's tables: 250 MB measured at 32 px, and at 256 px its
+    # SIZE_MEMORY_MB term's 200 B per lattice pixel and material over the 59 unseen materials (modelled, not measured)
+    "capture_unseen_closedloop": (9400.0, 0.0),
     "evaluate_unseen": (280.0, 3.5),  # as evaluate_directions: one streamed pass per unseen database
     "locate_unseen": (276.0, 3.93),  # as compute_gram: one streamed pass over the store
     "plot_unseen_errors": (157.0, 0.0),  # as plot_acquisition_figures
@@ -139,11 +143,11 @@ JOB_MEMORY_LIMIT_MB: int = 16000
 MEASURED_SIZES: dict[str, float] = {
     "render_pixels": 256 * 192,
     "envmap_pixels": 256 * 128,
-    "lattice": 32 * 32,
+    "lattice": 256 * 256,
     "albedo_points": 96 * 96,
     "path_chunk": 21,
     "q_plus": 5 + 4,
-    "captured_lattice": (1 + 2) * 4 * 32 * 32,
+    "captured_lattice": (1 + 2) * 4 * 256 * 256,
     "test_materials": 10,
     "unseen_materials": 59,
 }
@@ -178,9 +182,10 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     # path points: an interpolated table (35 MB) and its perceptual features (53 MB) each, up to PATH_CHUNK at
     # once (tiny config, path_steps 4 → 30: +1,760 MB); the albedo map: distances and kernel values of every
     # point to every material, 8·(q + 4) bytes (albedo_grid 16 → 256 at q = 5, 12 materials: +78 MB)
-    # the optimiser: transient per-configuration geometry, ~0.7 kB per lattice pixel (tiny model, 40
-    # candidates: grid 12: 309 MB, 128: 334 MB, 256: 384 MB, 512: 492 MB; 200 candidates at 256: 401 MB)
-    "optimize_directions": (("lattice", (), 7.0e-4),),
+    # the optimiser: per-configuration geometry and cells, 5.0 kB per lattice pixel on merl-nbrdf (k = 269,
+    # 500 candidates: grid 32: 1,451 MB, 128: 1,560 MB, 256: 1,772 MB; docs/results/runs/2026-11-28-cpu/
+    # resolution/cost.csv); a tiny model with 40 candidates grows 0.7 kB per pixel (12: 309 MB, 512: 492 MB)
+    "optimize_directions": (("lattice", (), 5.0e-3),),
     # the capture: one configuration's footprint rays, 8.6 kB per lattice pixel (grid 32: 254 MB, 128: 274 MB,
     # 256: 717 MB, 512: 2,493 MB), and every image of the material kept (render, photograph, SNR, saturation
     # and geometry, 170 B per pixel); the evaluation holds every kept pixel's model column and value per source
@@ -188,7 +193,9 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     "evaluate_closedloop": (("captured_lattice", ("test_materials",), 6.4e-5),),
     # the unseen materials: every observation table of a database in one job (~200 B per lattice pixel and
     # material); the streamed passes hold the unseen rows of a block (1.7 MB per material) and the cross products
-    "capture_unseen_closedloop": (("captured_lattice", ("unseen_materials",), 2.0e-4),),
+    # (a lattice or a number of unseen materials above the measured: (L·U − L₀·U₀) = (L − L₀)·U + L₀·(U − U₀))
+    "capture_unseen_closedloop": (("captured_lattice", ("unseen_materials",), 2.0e-4),
+                                  ("unseen_materials", (), 2.0e-4 * (1 + 2) * 4 * 256 * 256)),
     "evaluate_unseen": (("unseen_materials", (), 2.0),),
     "locate_unseen": (("unseen_materials", (), 2.0),),
     "analyze_manifold": (("path_chunk", (), 88.0), ("albedo_points", ("materials", "q_plus"), 1.2e-5)),
