@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import case_log
 from test_cli_hostile import latent_inputs  # noqa: F401 (a fixture: five materials, their store, a GPLVM)
 
 from brdfpipe import cli
@@ -473,6 +474,7 @@ def test_bad_input_is_one_line_naming_it(case: Case, inputs: SimpleNamespace, tm
     lines = error_lines(err)
     assert status not in (0, None) and len(lines) == 1, (status, err)
     line = lines[0]
+    case_log.record(case.id, line)
     assert line.startswith(f"{case.command}: error: "), line
     assert named in line, (named, line)
     assert "Traceback" not in line and "internal error" not in line, line

@@ -17,6 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+import case_log
 
 from brdfpipe import cli
 from brdfpipe.data import database, merl, nbrdf
@@ -135,6 +136,7 @@ def test_nbrdf_ends_a_bad_archive_in_one_line_and_writes_nothing(
     out = tmp_path / "out"
     assert cli.main(["-q", "nbrdf", str(archive), "--out", str(out)]) == 1
     err = capsys.readouterr().err.strip()
+    case_log.record(f"brdfpipe nbrdf: {case}", err)
     assert err.startswith("brdfpipe nbrdf: error: ")
     _one_line_naming(err, archive, member, words)
     assert "internal error" not in err and "Traceback" not in err
@@ -198,6 +200,7 @@ def test_zip_members_that_cannot_be_read_name_the_archive(
     out = tmp_path / "out"
     assert cli.main(["-q", "nbrdf", str(archive), "--out", str(out)]) == 1
     err = capsys.readouterr().err.strip()
+    case_log.record(f"brdfpipe nbrdf: zip member {how}", err)
     _one_line_naming(err, archive, WEIGHTS, words)
     assert not out.exists()
     with pytest.raises(database.DatabaseError) as e:
