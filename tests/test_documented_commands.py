@@ -134,6 +134,13 @@ RUNNERS: dict[str, str] = {
         " && ".join(f"snakemake -n --quiet=rules --cores 2 --configfile config/config.yaml "
                     f"{OVERLAYS}/closed-loop/overlay.yaml {OVERLAYS}/closed-loop/{o}.yaml -- "
                     "results/evaluation/closedloop.csv" for o in ("grid64", "grid128", "distant-light")),
+    "snakemake --cores 2 --configfile config/config.yaml overlay.yaml grid<G>.yaml [seed<S>.yaml] -- "
+    "results/evaluation/errors.csv results/evaluation/closedloop.csv results/directions/all/nearfield-fov25-error.json":
+        " && ".join(f"snakemake -n --quiet=rules --cores 2 --configfile config/config.yaml "
+                    f"{OVERLAYS}/resolution/overlay.yaml {OVERLAYS}/resolution/grid{g}.yaml{seed} -- "
+                    "results/evaluation/errors.csv results/evaluation/closedloop.csv "
+                    "results/directions/all/nearfield-fov25-error.json"
+                    for g, seed in ((32, ""), (256, f" {OVERLAYS}/resolution/seed2.yaml"))),
     "python -m snakemake ...": "python -m snakemake -n --quiet=rules",
     "python3 -m snakemake --cores 16 --scheduler greedy": "python3 -m snakemake -n --quiet=rules --cores 16 "
                                                           "--scheduler greedy",

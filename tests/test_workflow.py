@@ -133,8 +133,8 @@ def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.
     # evaluation: every predicted E(S) matched its direct recomputation (else the rule fails)
 
     rows = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "consistency-train.csv")[1]
-    # one row per (file, n): point 3 + three image setups x 2, for both metrics
-    assert len(rows) == 2 * (3 + 3 * 2)
+    # one row per (file, n): point 3 + three image setups x 2, for both metrics; Nielsen's κ: point only
+    assert len(rows) == 2 * (3 + 3 * 2) + 3
     assert all(float(r["rel_diff"]) <= 1e-6 for r in rows)
     errors = integrity.read_csv_rows(tmp_path / "results" / "evaluation" / "errors.csv")[1]
     assert {r["database"] for r in errors} == {"synthetic"}

@@ -488,7 +488,9 @@ if FLOOR_CANDIDATES:
             mem_mb=mem("summarize_floor_check"),
             runtime=5,
         params:
-            candidates={c: [CANDIDATES[c].space, CANDIDATES[c].mu] for c in FLOOR_CANDIDATES},
+            candidates={
+                c: [CANDIDATES[c].space, CANDIDATES[c].mu] for c in FLOOR_CANDIDATES
+            },
             default=DEFAULT_CANDIDATE,
             points=len(PATH_POINTS),
             database=DATABASE.kind,

@@ -445,14 +445,8 @@ def error_maps(
     if not paths:
         raise BlendError("no path points given")
     with_one = prerenders_one is not None
-    if prerenders_one is not None and set(prerenders_one) != set(materials):
-        extra = sorted(set(prerenders_one) - set(materials))
-        lacking = sorted(set(materials) - set(prerenders_one))
-        raise BlendError(
-            "I1- pre-renders and pre-renders name different materials"
-            + (f"; I1- only: {', '.join(extra)}" if extra else "")
-            + (f"; without an I1- pre-render: {', '.join(lacking)}" if lacking else "")
-        )
+    if prerenders_one is not None:
+        _check_same_materials(prerenders_one, materials)
     ref_keys = ("reference", "reference_seed2") + (("reference_one", "reference_one_seed2") if with_one else ())
     # validate the points and every input file up front, before any work
     points, W = _check_points(paths, materials, ref_keys)
@@ -478,7 +472,27 @@ def error_maps(
         if blends_one is not None:
             msg += f"; I1- ratio {row['ratio_one']:.3g}, vs seed 2 {row['ratio_one_seed2']:.3g}"
         _say(progress, msg)
+    _write_error_pngs(points, errs, rows, paths, database)
+    _write_summary(summary, database, points, rows)
+    return rows
 
+
+def _check_same_materials(prerenders_one: Mapping[str, Any], materials: Sequence[str]) -> None:
+    """BlendError unless the I¹⁻ pre-renders name exactly the pre-renders' materials (listing the differences)."""
+    if set(prerenders_one) == set(materials):
+        return
+    extra = sorted(set(prerenders_one) - set(materials))
+    lacking = sorted(set(materials) - set(prerenders_one))
+    raise BlendError(
+        "I1- pre-renders and pre-renders name different materials"
+        + (f"; I1- only: {', '.join(extra)}" if extra else "")
+        + (f"; without an I1- pre-render: {', '.join(lacking)}" if lacking else "")
+    )
+
+
+def _write_error_pngs(points: Sequence[tuple[str, float, str]], errs: Sequence[NDArray[np.float64]],
+                      rows: Sequence[Mapping[str, Any]], paths: Sequence[Mapping[str, Any]], database: str) -> None:
+    """Every point's false-colour error map, on one scale: the largest 99th percentile over the points."""
     vmax = max(float(np.percentile(e, 99.0)) for e in errs) or max(float(e.max()) for e in errs) or 1.0
     for (name, _, s), err, row, pt in zip(points, errs, rows, paths):
         write_error_map_png(
@@ -486,8 +500,6 @@ def error_maps(
             title=f"path {name}, t = {s}: |blended − reference|\n"
                   f"relative RMSE {row['rmse_blend']:.3g} (noise between seeds {row['rmse_noise']:.3g})",
         )
-    _write_summary(summary, database, points, rows)
-    return rows
 
 
 def _check_points(
