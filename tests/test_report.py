@@ -260,6 +260,12 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
     assert ", ".join(f"{n} {v}" for v, n in counts.items()) in front and sum(counts.values()) == 28
     assert "Our own checks (not claims of the papers)" in front
     assert sidebyside.RECORDED == {} and "(recorded run)" not in front
+    # the run's fidelity page: this run's verdict and cause per claim, from its own claims.csv
+    page = (results / "report" / "fidelity.md").read_text()
+    header = next(line for line in page.splitlines() if line.startswith("| paper |"))
+    assert header.endswith("| synthetic: verdict — cause |")
+    for row in rows:
+        assert f"{row['verdict']} — " in page and " ".join(row["cause"].split()).replace("|", "\\|") in page, row["key"]
     n_bench = len(list((workdir / "benchmarks").rglob("*.tsv")))
     assert f"over {n_bench} jobs." in front
     # two claims recomputed from the run's CSVs, independently of brdfpipe.report

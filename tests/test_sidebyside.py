@@ -143,3 +143,23 @@ def test_the_runs_recorded_with_brdfpipe_are_the_default_and_the_yes_no_ones_are
     root = Path(__file__).resolve().parents[1]
     globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["brdfpipe.report"]
     assert globs == ["recorded/*.csv"]
+
+
+def test_a_runs_own_page_puts_its_claims_first_then_the_recorded_runs(tmp_path: Path) -> None:
+    """rule write_claims: results/report/fidelity.md, this run's column (read back from its CSV) beside the others."""
+    mine = _write(tmp_path / "run", [_claim("one_shot", "θh 7.2°", claims.DIFFERS, "merl-nbrdf")])
+    other = sidebyside.recorded_runs([str(_write(tmp_path / "rec", [_claim("one_shot", "θh 11.7°", claims.WITHIN,
+                                                                             "synthetic")]))],
+                                     root=tmp_path, exclude="merl-nbrdf")
+    page = tmp_path / "fidelity.md"
+    sidebyside.write_run_page(page, claims_csv=mine, recorded=other)
+    text = page.read_text()
+    assert text.startswith(f"# {sidebyside.DEFAULT_TITLE}\n\nWritten by the run (rule `write_claims`) from its `{mine}`"
+                           " and the recorded runs of other databases")
+    assert "| merl-nbrdf: verdict — cause | synthetic: verdict — cause |" in text
+    assert ("| **differs** — a real difference: far off (θh 7.2°) | reproduces within the stated tolerance — "
+            "within 1.1× (θh 11.7°) |") in text
+    mine.write_text(mine.read_text().replace("7.2", "3.0"))  # the run's CSV is read back, its digest checked
+    with pytest.raises(claims.ClaimsInputError, match="claims.csv"):
+        sidebyside.write_run_page(tmp_path / "again.md", claims_csv=mine, recorded=other)
+    assert not (tmp_path / "again.md").exists()

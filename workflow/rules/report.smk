@@ -30,6 +30,7 @@ rule write_claims:
         json=fn.claims_json(),
         rst=fn.claims_rst(),
         front=fn.front_rst(),
+        fidelity=fn.fidelity_md(),
         captions=REPORT_CAPTIONS,
     log:
         "logs/write_claims.log",

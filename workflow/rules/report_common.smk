@@ -36,6 +36,7 @@ REPORT_FILES = [
     fn.claims_json(),
     fn.claims_rst(),
     fn.front_rst(),
+    fn.fidelity_md(),
     fn.stage_times_csv(),
     fn.stage_times_rst(),
 ] + REPORT_CAPTIONS

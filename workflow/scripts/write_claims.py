@@ -5,7 +5,7 @@ from pathlib import Path
 from brdfpipe.core import integrity
 from brdfpipe.core.logutil import log_to
 from brdfpipe.core.notes import read_note
-from brdfpipe.report import captions, claims, runinfo
+from brdfpipe.report import captions, claims, runinfo, sidebyside
 
 with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
     inp = snakemake.input
@@ -35,6 +35,7 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         rst_path=snakemake.output.rst,
         recorded=recorded,
     )
+    sidebyside.write_run_page(snakemake.output.fidelity, claims_csv=snakemake.output.claims, recorded=recorded)
     splits = integrity.read_json(inp.splits, kind="splits file")  # its digest checked
     notes = {k: read_note(f) for k, f in zip(snakemake.params.note_keys, inp.notes)}  # digests checked
     captions.write_captions(snakemake.params.entries, found,

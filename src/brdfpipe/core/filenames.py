@@ -97,6 +97,7 @@ __all__ = [
     "claims_csv",
     "claims_json",
     "claims_rst",
+    "fidelity_md",
     "front_rst",
     "stage_times_csv",
     "stage_times_rst",
@@ -528,6 +529,11 @@ def claims_json() -> str:
 def claims_rst() -> str:
     """The claims table as reStructuredText (included in the report's front page)."""
     return f"{REPORT}/claims.rst"
+
+
+def fidelity_md() -> str:
+    """The fidelity page: this run's verdict and cause per claim beside the recorded runs of other databases."""
+    return f"{REPORT}/fidelity.md"
 
 
 def front_rst() -> str:

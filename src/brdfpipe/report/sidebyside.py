@@ -34,7 +34,7 @@ from brdfpipe.report import claims as claims_mod
 from brdfpipe.report.claims import RunClaims, read_run
 
 __all__ = ["RunClaims", "read_run", "RECORDED_RUN", "RECORDED", "recorded_runs", "command_line",
-           "side_by_side_markdown", "build_parser", "main"]
+           "side_by_side_markdown", "write_run_page", "build_parser", "main"]
 
 #: The runs recorded with brdfpipe, shown beside a run's claims by default (config ``report.compare_with``:
 #: null): none of the current schema yet.  The runs of 2026-11-28 answered yes/no to claims that were not
@@ -149,6 +149,23 @@ def side_by_side_markdown(runs: Sequence[RunClaims], *, title: str = DEFAULT_TIT
     if ours:
         lines += ["", "## Our own checks (not claims of the papers)", ""] + _table(runs, ours, first)
     return "\n".join(lines) + "\n"
+
+
+def write_run_page(path: str | os.PathLike[str], *, claims_csv: str | os.PathLike[str],
+                   recorded: Sequence[RunClaims] = ()) -> None:
+    """A run's fidelity page (rule ``write_claims``): its own claims beside the ``recorded`` runs of other databases.
+
+    ``claims_csv`` (the run's ``results/report/claims.csv``, just written) is
+    read back digest-checked, so the page shows what the CSV holds.  The page
+    names the rule, not a command: it is made again by the run.
+    """
+    runs = [read_run(claims_csv, str(claims_csv)), *recorded]
+    page = side_by_side_markdown(runs)
+    note = (f"Written by the run (rule `write_claims`) from its `{_cell(str(claims_csv))}`"
+            + (" and the recorded runs of other databases (config `report.compare_with`)" if recorded else "")
+            + ".")
+    head, rest = page.split("\n", 1)
+    atomic.write_text(path, f"{head}\n\n{note}\n{rest}")
 
 
 #: The command's name in its messages.
