@@ -273,6 +273,62 @@ def test_two_shot_first_direction_exact_specular_at_15_degrees(t: Tables) -> Non
     check(claim(7.0, 60.0), D)
 
 
+def paper_directions(t: Tables, key: str, images: Sequence[tuple[float, float]], e: float,
+                     database: str = "synthetic", split: str = "all", fov: float | None = None) -> Path:
+    """paper-directions.csv: one set (θh, incidence per image, its E(S)), and another split's that must not count."""
+    fov = {"one-shot": 25.0, "two-shot": 15.0}[key] if fov is None else fov
+    base = {"database": database, "direction": key, "fov_deg": fov, "grid": 256, "n_images": len(images),
+            "theta_d_deg": 0, "phi_d_deg": 0, "expected_error": e, "matching": 1802, "evaluated": 604}
+    rows = [base | {"split": split, "image": i + 1, "chosen_by": "sentence" if i == 0 else "optimiser",
+                    "theta_h_deg": th, "light_theta_deg": ti} for i, (th, ti) in enumerate(images)]
+    rows.append(base | {"split": "train", "image": 1, "chosen_by": "sentence", "theta_h_deg": 9.0,
+                        "light_theta_deg": 9.0, "expected_error": 0.01})
+    return t(tables.PAPER_DIRECTIONS, rows)
+
+
+def test_the_paper_directions_e_is_reported_beside_the_optimum(t: Tables) -> None:
+    """Where the optimum found here is not the paper's direction, the row gives the paper's direction's E(S) and the
+    ratio to the optimum's; the verdict stays the comparison of directions."""
+    table = fig08(t, [(25, 1, 1, 7.2, 52.8), (15, 2, 1, 7.0, 60.0), (15, 2, 2, 30.0, 80.0)])
+    without = xu_setups.one_shot_optimum(table)
+    assert without.cause.endswith("the paper's direction is not evaluated by this run")
+    c = check(xu_setups.one_shot_optimum(table, paper=paper_directions(t, "one-shot", [(3.025, 54.95)], 0.36)), D)
+    finding = ("the paper's direction (θh 3.0°, incidence 55.0°: the best of the 1,802 configurations matching the "
+               "sentence, 604 evaluated: φd on the optimiser's coarsest step, the best refined) has E(S) 0.36 here, "
+               "×1.20 the optimum's 0.3")
+    assert c.cause == "a real difference: the optimum found here (E(S) 0.3) has θh 7.2° > 6.25°; " + finding
+    assert c.measured.endswith("; " + finding) and c.value == without.value and c.source.count(".csv") == 2
+    # the sentence fixes the claim's text: what "the paper's direction" is
+    assert "nearest 3° (3.025°)" in c.claim and "50 ± 5°" in c.claim and "given its best value" in c.claim
+    # the paper's direction better than the optimum: the search missed it (the method)
+    better = xu_setups.one_shot_optimum(table, paper=paper_directions(t, "one-shot", [(3.025, 54.95)], 0.25))
+    assert better.verdict == D and better.cause.startswith("the method: the search stopped above the paper's")
+    assert "×0.83 the optimum's 0.3" in better.cause
+    # two images: the first the sentence's, the second the optimiser's addition
+    two = xu_setups.two_shot_first_specular(
+        table, paper=paper_directions(t, "two-shot", [(0.469, 60.93), (35.47, 72.49)], 0.33))
+    check(two, D)
+    assert ("(θh 0.47°, incidence 60.9°: the best of the 1,802 configurations" in two.cause
+            and "with the optimiser's best addition to it (θh 35.5°, incidence 72.5°) has E(S) 0.33 here, ×1.10 the "
+                "optimum's 0.3" in two.cause)
+    assert "held" in two.claim and "60 ± 2.5°" in two.claim
+    # a verdict that holds keeps its cause; the number is still measured
+    held = xu_setups.one_shot_optimum(fig08(t, [(25, 1, 1, 3.2, 51.0)]),
+                                      paper=paper_directions(t, "one-shot", [(3.025, 50.1)], 0.3))
+    check(held, R)
+    assert held.cause == "θh 3.2°, incidence 51.0°" and "×1.00 the optimum's 0.3" in held.measured
+    # no set at the claim's FOV and split: as without the table
+    other = xu_setups.one_shot_optimum(table, paper=paper_directions(t, "one-shot", [(3.0, 50.0)], 0.3, fov=35.0))
+    assert other.cause == without.cause
+    with pytest.raises(claims.ClaimsInputError, match="database 'merl'"):
+        xu_setups.one_shot_optimum(table, paper=paper_directions(t, "one-shot", [(3.0, 50.0)], 0.3, database="merl"))
+    # through compute_claims: the input reaches both rows
+    rows = {c.key: c for c in claims.compute_claims(claims.ClaimInputs(
+        fig08_table=table, paper_directions=paper_directions(t, "one-shot", [(3.025, 54.95)], 0.36)))}
+    assert rows["xu-one-shot-optimum"].cause == c.cause
+    assert rows["xu-two-shot-first-specular"].cause.endswith("not evaluated by this run")
+
+
 def fixed_errors(t: Tables, cam2: float, cam3: float = 0.3, point2: float = 0.6) -> xu.ErrorMeans:
     return t.errors({(P, 0.0, E, 1): 0.8, (P, 0.0, E, 2): point2, (NF, 25.0, E, 1): 0.35, (NF, 25.0, E, 2): 0.25,
                      (NF, 25.0, E, 3): 0.2, ("fixed_camera", 25.0, E, 1): 0.35, ("fixed_camera", 25.0, E, 2): cam2,

@@ -300,6 +300,37 @@ def test_bad_models_raise() -> None:
         optimize(good, "nearfield", n_max=1, candidates=5, seed=0)  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize("kind", ["nearfield", "fixed_camera"])
+def test_held_configurations_start_every_set_and_never_move(kind: str) -> None:
+    """A set that must hold a stated image (the paper's directions): only the others are added and moved."""
+    model, setup = full_model(), setup_of(kind)
+    held = run(kind, n_max=1)[0].configurations
+    sets = optimize(model, setup, n_max=3, candidates=T, seed=5, log=lambda line: None, held=held)
+    assert [s.n for s in sets] == [2, 3]
+    em = ErrorModel(model.sigma, model.U, eta=40.0, beta=0.0)
+    for s in sets:
+        assert s.configurations[0] == held[0]
+        if kind == "fixed_camera":  # the shared elevation is the held image's
+            assert {c[0] for c in s.configurations} == {held[0][0]}
+        G, qsum = selection_stats(model.Q[rows_of(model, setup, s.configurations)])
+        assert s.expected_error == pytest.approx(expected_error(em, G, qsum), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "held,n_max,match",
+    [
+        (((40, 40, 40),), 1, "leaves nothing to add"),
+        (((40, 40, 40), (40, 40, 40)), 3, "given twice"),
+        (((90, 0, 0),), 2, "out of range"),
+        (((80, 10, 10),), 2, "observes no model column"),  # outside the partial model's cells
+    ],
+)
+def test_bad_held_configurations_raise(held: tuple, n_max: int, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        optimize(partial_model(), setup_of("nearfield"), n_max=n_max, candidates=5, seed=0, log=lambda line: None,
+                 held=held)
+
+
 def test_runs_out_of_configurations() -> None:
     good = full_model()
     tiny = FakeModel(good.Q[:2], good.sigma, good.U, good.cells[:2], good.mean, good.X)

@@ -138,6 +138,20 @@ def test_direction_files_of_the_default_config() -> None:
     assert fn.directions("train", "point", 0, "error").endswith("point-fov0-error.json")
 
 
+def test_paper_directions_where_the_claims_compare_them() -> None:
+    """Xu §6's stated directions are evaluated at the FOVs of their claims, where Fig. 8's near-field sets exist."""
+    assert plan.paper_directions(DEFAULT["acquisition"]) == ["one-shot", "two-shot"]  # 25° and 15°, 1 and 2 images
+    assert plan.paper_directions(TINY["acquisition"]) == ["one-shot"]  # 25° only
+    assert plan.paper_directions({**TINY["acquisition"], "fovs": [15, 35]}) == ["two-shot"]
+    assert plan.paper_directions({**DEFAULT["acquisition"], "n_max_images": 1}) == ["one-shot"]
+    no_images = {**DEFAULT["acquisition"], "setups": ["point", "fixed_camera"]}
+    assert plan.paper_directions(no_images) == []
+    rules = dict(generated=True, path_points=True, floor_check=False)
+    assert "evaluate_paper_directions" in plan.planned_rules(DEFAULT, **rules)
+    assert "evaluate_paper_directions" not in plan.planned_rules({**DEFAULT, "acquisition": no_images}, **rules)
+    assert fn.rule_of(fn.paper_directions()) == "evaluate_paper_directions"
+
+
 @pytest.mark.parametrize(
     ("acq", "expected"),
     [

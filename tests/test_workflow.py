@@ -72,6 +72,7 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("write_splits", 1), ("write_manifest", 1), ("map_logrelative", 2),
                     ("accumulate_gram", 8), ("decompose_svd", 2), ("optimize_directions", 10),
                     ("evaluate_directions", 1), ("evaluate_training_size", 1), ("check_directions", 2),
+                    ("evaluate_paper_directions", 1),  # Xu §6's one-shot direction (tiny: FOV 25° only)
                     ("plot_acquisition_figures", 1),
                     # the closed loop: one capture per held-out material, one evaluation, one figure
                     ("capture_closedloop", 3), ("evaluate_closedloop", 1), ("plot_closedloop", 1),

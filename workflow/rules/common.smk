@@ -181,6 +181,8 @@ DIRECTIONS = {split: plan.direction_files(ACQ, split) for split in PCA_SPLITS}
 # E(S) consistency checks: one per split that has direction sets.
 CHECKED_SPLITS = [split for split in PCA_SPLITS if DIRECTIONS[split]]
 CURVE_DIRECTIONS = plan.curve_directions(ACQ)
+# The near-field directions Xu §6 states in words, evaluated on the split-all model (the claims' Fig. 8 rows).
+PAPER_DIRECTIONS = plan.paper_directions(ACQ)
 # Closed-loop acquisition: the held-out materials photographed by these
 # training-split direction sets (setup, fov, metric), n images each.
 CLOSED = config["closed_loop"]

@@ -13,6 +13,7 @@ rule write_claims:
         fig08_table=[
             f for f in ACQUISITION_FIGURES.get("fig08", []) if f.endswith(".csv")
         ],
+        paper_directions=fn.paper_directions() if PAPER_DIRECTIONS else [],
         reproduction=fn.reproduction(),
         spaces=fn.spaces_csv(),
         paths=fn.paths_csv(),

@@ -14,6 +14,7 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
             errors=inp.errors,
             training_size=inp.training_size or None,
             fig08_table=inp.fig08_table[0] if inp.fig08_table else None,
+            paper_directions=inp.paper_directions or None,
             reproduction=inp.reproduction,
             spaces=inp.spaces,
             paths=inp.paths,

@@ -86,6 +86,10 @@ F64 = NDArray[np.float64]
 #      fixed_* sets also have the shared elevation as a unit of the sweep: its
 #      ±s moves re-render every image.
 #
+# Held configurations (``held``: a set that must contain them, e.g. an image a
+# paper states) start every set: n runs from len(held) + 1, and the local
+# search moves only the others (fixed_*: nor the shared elevation).
+#
 # Moves stay in the measured region: a move whose centre cell is not a model
 # column (or which observes nothing, or lands on a configuration already in
 # the set, or leaves the index range) is not evaluated.  Axis ranges: point:
@@ -613,14 +617,15 @@ class _Optimizer:
         return best[0], new_blocks, f"shared {name} {blocks[0].config[0]} -> {best[1][0][0]}"
 
     def local_search(
-        self, blocks: list[_Block], key: tuple[float, ...], steps: Sequence[int], n: int
+        self, blocks: list[_Block], key: tuple[float, ...], steps: Sequence[int], n: int, held: int = 0
     ) -> tuple[list[_Block], tuple[float, ...], int]:
+        """Moves of every configuration but the first ``held`` ones (and of the shared elevation when none is held)."""
         moves = 0
         for si, s in enumerate(steps):
             if si > 0:
                 _emit(self.log, f"n={n} step {steps[si - 1]} -> {s}: {self.fmt(key)}")
             while True:
-                units: list[int | None] = list(range(len(blocks))) + ([None] if self.fixed else [])
+                units: list[int | None] = list(range(held, len(blocks))) + ([None] if self.fixed and not held else [])
                 changed = False
                 for ui in self.rng.permutation(len(units)):
                     unit = units[int(ui)]
@@ -668,6 +673,24 @@ def _check_steps(steps: Sequence[int]) -> tuple[int, ...]:
     return tuple(int(s) for s in out)
 
 
+def _held_blocks(opt: _Optimizer, held: Sequence[Config]) -> list[_Block]:
+    """The blocks of the configurations :func:`optimize` holds; ValueError for one it cannot hold."""
+    blocks: list[_Block] = []
+    for c in held:
+        config_to_dict(opt.setup, c)  # checks it: three in-range grid indices
+        config = (int(c[0]), int(c[1]), int(c[2]))
+        if config in {b.config for b in blocks}:
+            raise ValueError(f"held configuration {config} is given twice")
+        if opt.fixed and blocks and config[0] != blocks[0].config[0]:
+            raise ValueError(f"held {opt.setup.kind} configurations must share the elevation: {config} vs "
+                             f"{blocks[0].config}")
+        cells = opt.obs(config)
+        if cells is None:
+            raise ValueError(f"held configuration {config} observes no model column")
+        blocks.append(opt.block(config, opt.rows_of(cells)))
+    return blocks
+
+
 def optimize(
     model: ModelLike,
     setup: Setup,
@@ -681,6 +704,7 @@ def optimize(
     seed: int | None = 0,
     log: Callable[[str], Any] | logging.Logger | None = None,
     evaluation: Literal["fast", "direct"] = "fast",
+    held: Sequence[Config] = (),
 ) -> list[DirectionSet]:
     """Optimal acquisition configurations for n = 1 … ``n_max`` (Xu et al. §5; see the section comment).
 
@@ -720,11 +744,16 @@ def optimize(
         path is tested against, many times slower for point sampling).  Both
         are exact; they differ by rounding (≈ 1e-13 relative), which can only
         change which of two candidates tied to that precision wins.
+    held:
+        Configurations held fixed as the first ones of every set (default
+        none): the search adds the others to them and never moves them
+        (nor, for fixed_*, their shared elevation).  Each must observe a
+        model column; fixed_* ones must share the elevation.
 
     Returns
     -------
     list[DirectionSet]
-        The sets for n = 1 … n_max, each grown from the previous one.
+        The sets for n = len(held) + 1 … n_max, each grown from the previous one.
 
     Raises
     ------
@@ -743,19 +772,23 @@ def optimize(
     if evaluation not in ("fast", "direct"):
         raise ValueError(f"evaluation must be 'fast' or 'direct', got {evaluation!r}")
     ErrorModel(np.ones(1), np.zeros((1, 1)), eta=eta, beta=beta)  # checks η and β before the model is read
+    held = tuple(held)
+    if len(held) >= int(n_max):
+        raise ValueError(f"n_max = {n_max} leaves nothing to add to {len(held)} held configuration(s)")
     opt = _Optimizer(model, setup, metric, eta, beta, np.random.default_rng(seed), log, evaluation)
+    blocks = _held_blocks(opt, held)
     _emit(log, f"optimise {setup.kind} fov {setup.fov_deg:g}° grid {setup.grid}, metric {metric}, "
-               f"n = 1..{n_max}, t = {candidates}, steps {step_list}, η = {opt.em.eta:g}, β = {opt.em.beta:g}, "
-               f"seed {seed}; model p = {opt.cells.size}, k = {opt.k}, m = {opt.em.m}")
-    blocks: list[_Block] = []
+               f"n = {len(held) + 1}..{n_max}, t = {candidates}, steps {step_list}, η = {opt.em.eta:g}, "
+               f"β = {opt.em.beta:g}, seed {seed}; model p = {opt.cells.size}, k = {opt.k}, m = {opt.em.m}"
+               + "".join(f"; held {opt.describe(b.config)}" for b in blocks))
     sets: list[DirectionSet] = []
-    for n in range(1, int(n_max) + 1):
+    for n in range(len(held) + 1, int(n_max) + 1):
         t0 = time.perf_counter()
         evals0 = opt.evaluations
         greedy, tried = opt.greedy_add(blocks, int(candidates))
         _emit(log, f"n={n} greedy add: best of {tried} candidates {opt.describe(blocks[-1].config)}, "
                    f"{sum(b.n for b in blocks)} rows: {opt.fmt(greedy)} ({time.perf_counter() - t0:.1f} s)")
-        blocks, final, moves = opt.local_search(blocks, greedy, step_list, n)
+        blocks, final, moves = opt.local_search(blocks, greedy, step_list, n, len(held))
         result = opt.summarise(blocks, greedy, final, moves)
         sets.append(result)
         kappa = result.condition_number

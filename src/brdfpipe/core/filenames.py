@@ -48,6 +48,7 @@ __all__ = [
     "errors",
     "consistency",
     "training_size",
+    "paper_directions",
     "CLOSEDLOOP_STEM",
     "closedloop_image",
     "closedloop_observations",
@@ -217,6 +218,11 @@ def consistency(split: str) -> str:
 
 def training_size() -> str:
     return f"{RESULTS}/evaluation/training_size.csv"
+
+
+def paper_directions() -> str:
+    """E(S) of the near-field directions Xu §6 states in words (:mod:`brdfpipe.acquisition.paper_directions`)."""
+    return f"{RESULTS}/evaluation/paper-directions.csv"
 
 
 # -- closed-loop acquisition ------------------------------------------------
@@ -588,6 +594,7 @@ def _producers() -> list[tuple[str, str]]:
         (errors(), "evaluate_directions"),
         (consistency(w), "check_directions"),
         (training_size(), "evaluate_training_size"),
+        (paper_directions(), "evaluate_paper_directions"),
         (closedloop_errors(), "evaluate_closedloop"),
         (unseen_observations(w), "capture_unseen_closedloop"),
         (unseen_errors(), "evaluate_unseen"),

@@ -13,7 +13,8 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from brdfpipe.plan.outputs import closedloop_directions, curve_directions, reconstruction_sets, unseen_directions
+from brdfpipe.plan.outputs import (closedloop_directions, curve_directions, paper_directions, reconstruction_sets,
+                                   unseen_directions)
 from brdfpipe.spec.errors import ConfigError
 
 __all__ = [
@@ -63,6 +64,9 @@ MEMORY_MB: dict[str, tuple[float, float]] = {
     "evaluate_directions": (280.0, 3.5),
     "check_directions": (136.0, 6.8),
     "evaluate_training_size": (250.0, 2.45),  # N = 100 only: slope as evaluate_directions'
+    # Q in memory and near-field images, then the optimiser for a second image: as optimize_directions
+    # (1,917 MB peak measured on merl-nbrdf at 256 px, N = 100, both directions)
+    "evaluate_paper_directions": (435.0, 13.4),
     "plot_acquisition_figures": (157.0, 0.0),
     "capture_closedloop": (940.0, 0.0),  # 825-937 MB (32 px: 242-264)
     "evaluate_closedloop": (1560.0, 0.0),  # 1,498-1,554 MB: 10 held-out materials × 8 sets (32 px: 1,101-1,145)
@@ -186,6 +190,7 @@ SIZE_MEMORY_MB: dict[str, tuple[tuple[str, tuple[str, ...], float], ...]] = {
     # 500 candidates: grid 32: 1,451 MB, 128: 1,560 MB, 256: 1,772 MB; docs/results/runs/2026-11-28-cpu/
     # resolution/cost.csv); a tiny model with 40 candidates grows 0.7 kB per pixel (12: 309 MB, 512: 492 MB)
     "optimize_directions": (("lattice", (), 5.0e-3),),
+    "evaluate_paper_directions": (("lattice", (), 5.0e-3),),
     # the capture: one configuration's footprint rays, 8.6 kB per lattice pixel (grid 32: 254 MB, 128: 274 MB,
     # 256: 717 MB, 512: 2,493 MB), and every image of the material kept (render, photograph, SNR, saturation
     # and geometry, 170 B per pixel); the evaluation holds every kept pixel's model column and value per source
@@ -416,6 +421,8 @@ def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bo
         skip |= {"sample_latent_materials", "render_latent_samples"}
     if not curve_directions(config["acquisition"]):
         skip.add("evaluate_training_size")
+    if not paper_directions(config["acquisition"]):
+        skip.add("evaluate_paper_directions")
     if not reconstruction_sets(config["acquisition"]):
         skip |= {"reconstruct_figure_material", "render_reconstructions", "plot_reconstruction_figures"}
     return [r for r in MEMORY_MB if r not in skip]

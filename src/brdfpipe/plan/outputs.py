@@ -17,7 +17,7 @@ from typing import Any
 from brdfpipe.core import filenames
 from brdfpipe.spec import figures as figure_specs
 from brdfpipe.spec.figures import ReconSet
-from brdfpipe.spec.acquisition import setup_fovs, setup_metrics
+from brdfpipe.spec.acquisition import PAPER_DIRECTIONS, setup_fovs, setup_metrics
 
 __all__ = [
     "direction_files",
@@ -27,6 +27,7 @@ __all__ = [
     "unseen_map_q",
     "curve_fov",
     "curve_directions",
+    "paper_directions",
     "albedo_map_dims",
     "acquisition_figures",
     "figure_materials",
@@ -117,6 +118,20 @@ def curve_directions(acquisition: Mapping[str, Any]) -> str | None:
     if figure_specs.figure("xu-fig07").produced(acquisition):  # the curve is drawn exactly when it is computed
         return filenames.directions("train", "nearfield", curve_fov(acquisition), "error")
     return None
+
+
+def paper_directions(acquisition: Mapping[str, Any]) -> list[str]:
+    """Keys of the paper's stated directions (:data:`~brdfpipe.spec.acquisition.PAPER_DIRECTIONS`) a config evaluates.
+
+    Those the claims compare with a near-field set of split ``all`` that the
+    config optimises (Xu Fig. 8's table): near-field images at the
+    direction's FOV, with sets of its size.
+    """
+    if "nearfield" not in acquisition["setups"]:
+        return []
+    fovs = {float(f) for f in acquisition["fovs"]}
+    return [d.key for d in PAPER_DIRECTIONS
+            if d.fov_deg in fovs and d.n_images <= int(acquisition["n_max_images"])]
 
 
 def albedo_map_dims(manifold: Mapping[str, Any]) -> list[int]:

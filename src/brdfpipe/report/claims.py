@@ -103,8 +103,9 @@ def _xu(inputs: ClaimInputs) -> list[Claim]:
     # without errors.csv every claim from it says so: an empty table has none of their sets
     e = read_errors(inputs.errors) if inputs.errors is not None else ErrorMeans(Path("errors.csv"), "", {}, {})
     return (xu_error_claims(e) + xu_setup_claims(e)
-            + [training_size_decreasing(inputs.training_size), one_shot_optimum(inputs.fig08_table),
-               two_shot_first_specular(inputs.fig08_table)] + xu_not_checkable())
+            + [training_size_decreasing(inputs.training_size),
+               one_shot_optimum(inputs.fig08_table, paper=inputs.paper_directions),
+               two_shot_first_specular(inputs.fig08_table, paper=inputs.paper_directions)] + xu_not_checkable())
 
 
 def _soler(inputs: ClaimInputs) -> list[Claim]:

@@ -136,6 +136,8 @@ class ClaimInputs:
     errors: str | os.PathLike[str] | None = None
     training_size: str | os.PathLike[str] | None = None
     fig08_table: str | os.PathLike[str] | None = None
+    #: ``evaluation/paper-directions.csv``: the directions Xu §6 states in words, evaluated (beside Fig. 8's optimum)
+    paper_directions: str | os.PathLike[str] | None = None
     reproduction: str | os.PathLike[str] | None = None
     spaces: str | os.PathLike[str] | None = None
     paths: str | os.PathLike[str] | None = None

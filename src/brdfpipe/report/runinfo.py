@@ -44,6 +44,7 @@ TRACKS: dict[str, tuple[str, ...]] = {
     "data": ("synthesize_material", "write_manifest", "ingest_material", "assemble_store", "write_splits"),
     "acquisition (Xu 2016)": ("map_logrelative", "accumulate_gram", "decompose_svd", "optimize_directions",
                               "evaluate_directions", "check_directions", "evaluate_training_size",
+                              "evaluate_paper_directions",
                               "plot_acquisition_figures", "reconstruct_figure_material", "plot_reconstruction_figures"),
     "manifold (Soler 2018)": ("compute_gram", "fit_gplvm", "measure_material_albedos", "analyze_manifold", "measure_gplvm_candidate",
                               "compare_spaces", "measure_lengthscales", "plot_manifold_figures"),

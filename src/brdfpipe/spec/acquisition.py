@@ -40,6 +40,9 @@ __all__ = [
     "DIRECTIONS_FORMAT",
     "setup",
     "setup_fovs",
+    "PaperDirection",
+    "PAPER_DIRECTIONS",
+    "paper_direction",
 ]
 
 
@@ -155,3 +158,47 @@ def setup_metrics(name: str, metrics: list[str] | tuple[str, ...]) -> list[str]:
     """The configured ``metrics`` that set-up ``name`` is optimised with (in their order)."""
     setup(name)
     return [m for m in metrics if name in METRIC_KINDS[m].setups]
+
+
+@dataclass(frozen=True)
+class PaperDirection:
+    """A near-field direction Xu et al. 2016 state in words (§6, Figs. 8, 9), read as a set of configurations.
+
+    The sentence fixes the first image's half angle θh and its light's angle
+    of incidence at the centre of the sample (θ of the light from the
+    normal), nothing else.  ``theta_h_rule``: ``"nearest"`` — the θh cell of
+    the MERL grid whose centre is nearest ``theta_h_deg``; ``"at_most"`` —
+    every θh cell whose centre is at most ``theta_h_deg``.  The incidence lies
+    within ``incidence_deg`` ± ``incidence_tol_deg``.  ``fov_deg``: the field
+    of view the claim reads the sentence at; ``n_images``: the set size it is
+    about (the images after the first are not stated: the optimiser adds
+    them).  ``claim``: the key of the claim row that reports it.
+    (:mod:`brdfpipe.acquisition.paper_directions` evaluates them.)
+    """
+
+    key: str
+    claim: str
+    fov_deg: float
+    n_images: int
+    theta_h_deg: float
+    theta_h_rule: str
+    incidence_deg: float
+    incidence_tol_deg: float
+
+
+#: "For one image, we capture a slightly offspecular direction (θh = 3°) at an angle of incidence of about 50°."
+#: (no FOV stated: 25°, Fig. 9's, which draws it; "about 50°" as ± 5°) and "for two images, the first direction
+#: for 15° field of view is an exact specular reflection at 60°" ("exact specular" as θh ≤ 0.5°, the first θh
+#: cells; "at 60°" as ± 2.5°: MERL's θd cells are 1° wide) — Xu et al. 2016 §6.
+PAPER_DIRECTIONS: tuple[PaperDirection, ...] = (
+    PaperDirection("one-shot", "xu-one-shot-optimum", 25.0, 1, 3.0, "nearest", 50.0, 5.0),
+    PaperDirection("two-shot", "xu-two-shot-first-specular", 15.0, 2, 0.5, "at_most", 60.0, 2.5),
+)
+
+
+def paper_direction(key: str) -> PaperDirection:
+    """The record of :data:`PAPER_DIRECTIONS` named ``key``; ValueError naming the known ones otherwise."""
+    for d in PAPER_DIRECTIONS:
+        if d.key == key:
+            return d
+    raise ValueError(f"unknown paper direction {key!r}; expected one of {', '.join(d.key for d in PAPER_DIRECTIONS)}")

@@ -14,6 +14,7 @@ table                                     writer                                
 ``results/evaluation/unseen.csv``         :mod:`brdfpipe.acquisition.unseen`                           figures, claims
 ``results/manifold/unseen.csv``           :mod:`brdfpipe.manifold.unseen`                              figures
 Xu Fig. 8's table (``fig08-*.csv``)       :mod:`brdfpipe.acquisition.figures_configs`                  claims
+``evaluation/paper-directions.csv``       :mod:`brdfpipe.acquisition.paper_directions`                 claims
 Xu Figs. 9, 14 (``fig09-*.csv``, …)       :mod:`brdfpipe.acquisition.figures_configs`                  tests, users
 Xu Fig. 3's table (``fig03-*.csv``)       :mod:`brdfpipe.acquisition.figures`                          tests, users
 Xu Figs. 2, 15 (``fig02-*.csv``, …)       :mod:`brdfpipe.acquisition.figures_recon`                    tests, users
@@ -39,6 +40,7 @@ __all__ = [
     "UNSEEN_ERRORS",
     "MANIFOLD_UNSEEN",
     "FIG08",
+    "PAPER_DIRECTIONS",
     "CONFIGURATIONS",
     "RECON_VS_DEVIATION",
     "RECONSTRUCTION_PANELS",
@@ -70,6 +72,13 @@ FIG08: tuple[str, ...] = (
     "fov_deg", "n_images", "image", "theta_h_deg", "theta_d_deg", "phi_d_deg",
     "light_theta_deg", "light_phi_deg", "camera_theta_deg", "camera_phi_deg",
     "expected_error", "split", "database",
+)
+#: The near-field directions Xu §6 states in words, evaluated (``paper-directions.csv``): one row per image of
+#: each direction's set (``chosen_by``: ``sentence`` or ``optimiser``), the set's E(S) and how many configurations
+#: match the sentence and were evaluated.
+PAPER_DIRECTIONS: tuple[str, ...] = (
+    "database", "split", "direction", "fov_deg", "grid", "n_images", "image", "chosen_by",
+    "theta_h_deg", "theta_d_deg", "phi_d_deg", "light_theta_deg", "expected_error", "matching", "evaluated",
 )
 #: Xu Figs. 9 and 14: each image of a chosen set, in in-out (light θi, φi; camera θo, φo) and Rusinkiewicz angles.
 CONFIGURATIONS: tuple[str, ...] = (
