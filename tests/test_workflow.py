@@ -333,10 +333,10 @@ def test_failed_job_console_shows_progress_error_and_log_not_records(tmp_path: P
     r = snakemake(tmp_path, "--keep-going", filenames.store(), configfile=cfg)
     out = r.stdout + r.stderr
     assert r.returncode != 0
-    assert "2 of 4 steps (50%) done" in out, out[-3000:]
+    assert "2 of 4 steps (50%) done" in out and "(Rule: ingest_material)" in out, out[-3000:]
     assert "Error in rule ingest_material:" in out and "logs/ingest_material/beta.log" in out, out[-3000:]
     assert "truncated" in out  # the log itself (show-failed-logs)
-    for record in ["reason:", "Finished jobid", "Shell command", "Snakemake version:", "brdfpipe: the run"]:
+    for record in ["reason:", "Execute 1 jobs", "Shell command", "Snakemake version:", "brdfpipe: the run"]:
         assert record not in out, f"{record!r} on the console:\n{out[-3000:]}"
     complete = "".join(p.read_text() for p in (tmp_path / ".snakemake" / "log").glob("*.snakemake.log"))
     assert "rule ingest_material:" in complete and "reason:" in complete and "Finished jobid" in complete
