@@ -132,37 +132,103 @@ def _layout_entries() -> dict[str, str]:
     return entries
 
 
-def test_layout_names_every_module_of_every_subpackage() -> None:
-    """Each subpackage's line of the README's Layout names all its modules (it omitted manifold/blendpass.py)."""
-    entries = _layout_entries()
-    for pkg in sorted(p for p in (ROOT / "src" / "brdfpipe").iterdir() if (p / "__init__.py").is_file()):
-        words = set(re.findall(r"[a-z_]+", entries.get(pkg.name, "")))
-        missing = [m.stem for m in sorted(pkg.glob("*.py")) if not m.stem.startswith("_") and m.stem not in words]
-        assert not missing, f"README's Layout line of {pkg.name}/ does not name {', '.join(missing)}"
+def unnamed_modules(entries: dict[str, str], package: Path) -> list[str]:
+    """The modules and packages of ``package`` that the Layout ``entries`` do not name.
+
+    A top-level module needs its own line (``cli.py``); a module or package inside a
+    subpackage, at any depth, is named on its subpackage's line (``manifold/`` …
+    ``blendpass``).
+    """
+    missing = []
+    for path in sorted([*package.rglob("*.py"), *(p.parent for p in package.rglob("*/*/__init__.py"))]):
+        parts = path.relative_to(package).with_suffix("").parts
+        if any(p.startswith("_") for p in parts):
+            continue
+        words = set(re.findall(r"[a-z_0-9]+", entries.get(parts[0], ""))) if parts[0] in entries else None
+        if words is None or not set(parts[1:]) <= words:
+            missing.append(str(path.relative_to(package)))
+    return missing
 
 
-def _tables_without_header(text: str) -> list[int]:
-    """Line numbers (1-based) of Markdown tables whose first row is not followed by a |---| separator."""
-    lines, bad, fenced = text.split("\n"), [], False
-    for i, line in enumerate(lines):
+def test_layout_names_every_module_and_package() -> None:
+    """The README's Layout names every module of the library (it omitted manifold/blendpass.py)."""
+    missing = unnamed_modules(_layout_entries(), ROOT / "src" / "brdfpipe")
+    assert not missing, f"README's Layout does not name src/brdfpipe/{', '.join(missing)}"
+
+
+def test_the_layout_check_sees_a_missing_module(tmp_path: Path) -> None:
+    for name in ["cli.py", "core/__init__.py", "core/atomic.py", "core/_private.py",
+                 "manifold/__init__.py", "manifold/gplvm/__init__.py", "manifold/gplvm/kernel.py"]:
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).touch()
+    entries = {"cli": "the command line", "core": "atomic", "manifold": "gplvm (kernel)"}
+    assert unnamed_modules(entries, tmp_path) == []
+    assert unnamed_modules({**entries, "manifold": "gplvm"}, tmp_path) == ["manifold/gplvm/kernel.py"]
+    assert unnamed_modules({**entries, "core": "integrity"}, tmp_path) == ["core/atomic.py"]
+    assert unnamed_modules({"core": "atomic", "manifold": "kernel"}, tmp_path) == [
+        "cli.py", "manifold/gplvm", "manifold/gplvm/kernel.py"]
+
+
+def _cells(row: str) -> int:
+    """The number of cells of a table row as GitHub splits it: at every pipe not escaped as ``\\|``.
+
+    A pipe inside a code span splits the cell too (GitHub splits rows before it
+    reads code spans): write it ``\\|`` there as well.
+    """
+    body = row.strip()
+    pipes, i = [], 0
+    while i < len(body):
+        if body[i] == "\\":
+            i += 2
+            continue
+        if body[i] == "|":
+            pipes.append(i)
+        i += 1
+    edges = (pipes[:1] == [0]) + (bool(pipes) and pipes[-1] == len(body) - 1 and len(body) > 1)
+    return len(pipes) + 1 - edges
+
+
+def table_problems(text: str) -> list[str]:
+    """``line N: why`` for every Markdown table whose header, delimiter row and rows disagree.
+
+    A table is a run of lines starting with ``|`` outside fenced code. Its first
+    row is the header; the next must be the delimiter row (``|---|:--:|``) with
+    as many cells, or GitHub renders the lines as one paragraph of pipes; every
+    row has the header's number of cells.
+    """
+    lines, bad, fenced, start = text.split("\n"), [], False, None
+    for i, line in enumerate([*text.split("\n"), ""]):
         if _FENCE.match(line.strip()):
             fenced = not fenced
-        starts = line.lstrip().startswith("|") and not (i and lines[i - 1].lstrip().startswith("|"))
-        if fenced or not starts:
+        in_table = not fenced and line.lstrip().startswith("|")
+        if in_table and start is None:
+            start = i
+        if in_table or start is None:
             continue
-        nxt = lines[i + 1] if i + 1 < len(lines) else ""
-        if not re.fullmatch(r"\s*\|(\s*:?-+:?\s*\|)+\s*", nxt):
-            bad.append(i + 1)
+        header, rows, start = start, range(start + 1, i), None
+        width = _cells(lines[header])
+        if not rows or not re.fullmatch(r"\s*\|?(\s*:?-+:?\s*\|)*\s*:?-+:?\s*\|?\s*", lines[rows[0]]):
+            bad.append(f"line {header + 2}: no delimiter row (|---|) under the header of line {header + 1}")
+            continue
+        bad += [f"line {r + 1}: {_cells(lines[r])} cells, the header has {width}"
+                for r in rows if _cells(lines[r]) != width]
     return bad
 
 
 @pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(ROOT)) for p in PAGES])
-def test_every_table_has_a_header(page: Path) -> None:
+def test_every_table_has_its_header_and_columns(page: Path) -> None:
     """A table without its header row renders as one paragraph of pipes (docs/outputs.md lost it once)."""
-    assert not _tables_without_header(page.read_text(encoding="utf-8")), (
-        f"{page.relative_to(ROOT)}: tables without a header at lines {_tables_without_header(page.read_text())}")
+    assert table_problems(page.read_text(encoding="utf-8")) == [], page.relative_to(ROOT)
 
 
-def test_the_header_check_sees_a_headless_table() -> None:
-    assert _tables_without_header("text\n\n| a | b |\n| c | d |\n") == [3]
-    assert _tables_without_header("| a | b |\n|---|:---:|\n| c | d |\n") == []
+def test_the_table_check_sees_a_broken_table() -> None:
+    assert table_problems("text\n\n| a | b |\n| c | d |\n") == [
+        "line 4: no delimiter row (|---|) under the header of line 3"]
+    assert table_problems("| a | b |\n|---|:---:|\n| c | d |\n") == []
+    assert table_problems("| a | b |\n|---|\n| c | d |\n") == ["line 2: 1 cells, the header has 2"]
+    assert table_problems("| a | b |\n|---|---|\n| c | d | e |\n| f |\n") == [
+        "line 3: 3 cells, the header has 2", "line 4: 1 cells, the header has 2"]
+    # an escaped pipe is text, also in a code span; an unescaped one in a code span splits the cell
+    assert table_problems("| a | b |\n|---|---|\n| Σ\\|w\\| | `x \\| y` |\n") == []
+    assert table_problems("| a | b |\n|---|---|\n| c | `x | y` |\n") == ["line 3: 3 cells, the header has 2"]
+    assert table_problems("```\n| a |\n| b |\n```\n| a |\n|---|\n") == []

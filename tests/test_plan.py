@@ -590,3 +590,16 @@ def test_the_gram_blocks_are_bounded_by_the_log_map_chunks() -> None:
     for n in (0, -1, plan.MAX_GRAM_BLOCKS + 1, 100_000):
         with pytest.raises(plan.ConfigError, match=rf"--set-scatter gram={n}: must be between 1 and 40"):
             plan.check_gram_blocks(n)
+
+
+def test_a_run_ends_saying_where_its_results_are(tmp_path: Path) -> None:
+    """The console's last lines (the Snakefile's onsuccess): the paths of filenames that exist, the report, the logs."""
+    lines = plan.where_results_are(tmp_path)
+    assert lines[0] == "brdfpipe: the run is complete." and len(lines) == 3
+    assert fn.report_zip() in lines[1] and "make report" in lines[1] and "logs/" in lines[2]
+    for path in [fn.claims_csv(), fn.explorer_page()]:
+        (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / path).write_text("")
+    (tmp_path / fn.FIGURES).mkdir()
+    named = [line.split()[1] for line in plan.where_results_are(tmp_path)[1:-2]]
+    assert named == [f"{fn.RESULTS}/", f"{fn.FIGURES}/", fn.claims_csv(), fn.explorer_page()]

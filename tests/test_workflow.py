@@ -308,6 +308,41 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
     shutil.rmtree(tmp_path / "results")
 
 
+def test_dry_run_console_shows_the_job_stats_not_each_jobs_record(tmp_path: Path) -> None:
+    """The console is for people (issue 34): a dry run lists the job counts, not every job's record."""
+    r = snakemake(tmp_path, "-n")
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out[-3000:]
+    assert "Job stats:" in out and "synthesize_material" in out and "This was a dry-run" in out
+    for record in ["jobid:", "    output:", "reason:", "Shell command", "Snakemake version:"]:
+        assert record not in out, f"{record!r} on the console:\n{out[:3000]}"
+    r = snakemake(tmp_path, "-n", "--verbose")  # everything, when asked
+    assert r.returncode == 0 and "jobid:" in r.stdout + r.stderr
+
+
+def test_failed_job_console_shows_progress_error_and_log_not_records(tmp_path: Path) -> None:
+    """A run's console: progress, then the failed job's error with its log path and log; records in .snakemake/log/."""
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    table = np.full(merl.SHAPE, 0.1)
+    table[:, ~merl.measured_mask()] = -1.0
+    for name in ("alpha", "beta", "gamma"):
+        merl.write_merl(folder / f"{name}.binary", table)
+    (folder / "beta.binary").write_bytes((folder / "beta.binary").read_bytes()[:1000])  # truncated
+    cfg = write_config(tmp_path / "merl.yaml", database="merl", merl_dir=str(folder), test_materials=["alpha"],
+                       manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})
+    r = snakemake(tmp_path, "--keep-going", filenames.store(), configfile=cfg)
+    out = r.stdout + r.stderr
+    assert r.returncode != 0
+    assert "2 of 4 steps (50%) done" in out and "(Rule: ingest_material)" in out, out[-3000:]
+    assert "Error in rule ingest_material:" in out and "logs/ingest_material/beta.log" in out, out[-3000:]
+    assert "truncated" in out  # the log itself (show-failed-logs)
+    for record in ["reason:", "Execute 1 jobs", "Shell command", "Snakemake version:", "brdfpipe: the run"]:
+        assert record not in out, f"{record!r} on the console:\n{out[-3000:]}"
+    complete = "".join(p.read_text() for p in (tmp_path / ".snakemake" / "log").glob("*.snakemake.log"))
+    assert "rule ingest_material:" in complete and "reason:" in complete and "Finished jobid" in complete
+
+
 def declared_outputs(configfile: Path) -> set[str]:
     """The files rule all asks for under ``configfile``, from brdfpipe.plan (as the Snakefile does)."""
     from brdfpipe import plan

@@ -188,7 +188,8 @@ def snakemake(workdir: Path, config: Path, *args: str, env: dict, timeout: int) 
     (workdir / "snakemake-run.log").write_text(text)
     if r.returncode != 0:
         raise Failed(f"snakemake failed ({r.returncode}) in {workdir}:\n{text[-4000:]}")
-    return wall, text
+    # Snakemake's complete log of the run (the console, for people, leaves out each job's record)
+    return wall, max((workdir / ".snakemake" / "log").glob("*.snakemake.log")).read_text()
 
 
 #: Files under results/ that differ between runs by nature: the report's wall times per stage.

@@ -567,6 +567,16 @@ def explorer_dir() -> str:
     return f"{RESULTS}/explorer"
 
 
+def explorer_page() -> str:
+    """The explorer's page: open it in a browser (from ``file://``, no server needed)."""
+    return f"{explorer_dir()}/index.html"
+
+
+def report_zip() -> str:
+    """The Snakemake report of a finished run (``snakemake --report``, ``make report``): not a job's output."""
+    return f"{RESULTS}/report.zip"
+
+
 # -- job stamps (brdfpipe.core.stamps) -------------------------------------
 
 

@@ -7,7 +7,7 @@ figures) and the DAG's file names (:mod:`brdfpipe.core.filenames`).  Nothing
 below it imports it.
 
 * :mod:`brdfpipe.plan.config`  – the config's parse-time checks (one :class:`ConfigError` line naming the key);
-* :mod:`brdfpipe.plan.outputs` – which direction sets, figures and unseen-material files a config produces;
+* :mod:`brdfpipe.plan.outputs` – which direction sets, figures and unseen-material files a config produces, where a run's results are;
 * :mod:`brdfpipe.plan.memory`  – the rules a config runs and the memory each job declares, checked up front;
 * :mod:`brdfpipe.plan.report`  – what the Snakemake report holds (one item per figure, table and error map).
 

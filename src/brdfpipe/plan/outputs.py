@@ -6,12 +6,14 @@ loop captures and the unseen materials are looked up with, the figures of
 each track (from :data:`brdfpipe.spec.figures.FIGURES`), the GPLVM
 candidates the floor check renders,
 and which rules a configuration runs
-(:func:`brdfpipe.plan.memory.planned_rules`).  Standard library only.
+(:func:`brdfpipe.plan.memory.planned_rules`); and where a finished run's
+results are (the console's last lines).  Standard library only.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 from brdfpipe.core import filenames
@@ -37,6 +39,7 @@ __all__ = [
     "manifold_figures",
     "render_figures",
     "floor_check_candidates",
+    "where_results_are",
 ]
 
 
@@ -239,3 +242,25 @@ def floor_check_candidates(
         return []
     labels = list(candidates)
     return labels[:1] if check["candidates"] == "default" else labels
+
+
+def where_results_are(workdir: str | Path = ".") -> list[str]:
+    """The lines a successful run ends with: where its results, claims, explorer, report and logs are.
+
+    Paths are relative to the run's working directory ``workdir``. Results,
+    figures, claims and the explorer are named where they exist there (a run of
+    some targets only may not have written them); the report is built on demand
+    (``make report``), the job logs are always there.
+    """
+    found = [
+        ("results", f"{filenames.RESULTS}/", "every file and its format: docs/outputs.md"),
+        ("figures", f"{filenames.FIGURES}/", "the papers' figures as this run draws them"),
+        ("claims", filenames.claims_csv(), "every claim of both papers and this run's verdict"),
+        ("explorer", filenames.explorer_page(), "open it in a browser, no server needed"),
+    ]
+    lines = ["brdfpipe: the run is complete."]
+    lines += [f"  {label + ':':<10}{path}  ({what})" for label, path, what in found if (Path(workdir) / path).exists()]
+    return lines + [
+        f"  {'report:':<10}make report writes {filenames.report_zip()}  (unzip it, open report/report.html)",
+        f"  {'job logs:':<10}logs/<rule>/  (one per job; Snakemake's own record of the run: .snakemake/log/)",
+    ]
