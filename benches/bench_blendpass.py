@@ -72,14 +72,14 @@ def _store(args: argparse.Namespace) -> Path:
 
 
 def _fits(st_path: Path, work: Path, space: str) -> dict[int, object]:
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import fitting, gplvm, likelihood
     from brdfpipe.manifold.gram import gram_matrix
 
     G, d, info = gram_matrix(st_path, space=space)
     fits = {}
     for q in (2, 5):
         path = work / f"{st_path.stem}-{space}-q{q}.npz"
-        res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=q, mu=1e-4, seed=1)
+        res = fitting.fit(G / likelihood.gram_scale(G, d), d, q=q, mu=1e-4, seed=1)
         gplvm.save_model(path, res, info.materials, space=space, data_digests=info.digests)
         fits[q] = gplvm.load_model(path)
     return fits
@@ -87,7 +87,7 @@ def _fits(st_path: Path, work: Path, space: str) -> dict[int, object]:
 
 def per_point(st_path: Path, hull_W: dict[int, np.ndarray], paths: list, model5) -> tuple[np.ndarray, np.ndarray]:
     """The route before issue 23: tables formed whole, a few per pass over the store."""
-    from brdfpipe.manifold import albedo, gplvm, perceptual
+    from brdfpipe.manifold import albedo, fitting, gplvm, likelihood, perceptual
 
     alb = []
     for q, W in hull_W.items():

@@ -16,7 +16,7 @@ What it does
       shard presence / size checks that every open does;
    b. ``open_store(path, verify=True)``: the same plus reading every shard
       and checking its digest (the default);
-   c. ``gplvm.write_gram(path, out)`` (the ``compute_gram`` job, raw space);
+   c. ``gram.write_gram(path, out)`` (the ``compute_gram`` job, raw space);
    d. ``logmap.write_logmap(path, out, split="all", ...)`` (the
       ``map_logrelative`` job).
 
@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from brdfpipe.data import logmap, store, synth
     from brdfpipe.data.database import folder_database
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gram
 
     work = Path(tempfile.mkdtemp(prefix="bench-verify-", dir=args.work))
     try:
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{size / 1e9 / max(cost, 1e-9):.2f} GB/s)")
 
         stages = {
-            "gplvm.write_gram (compute_gram)": lambda: gplvm.write_gram(st_path, work / "gram.npz"),
+            "gram.write_gram (compute_gram)": lambda: gram.write_gram(st_path, work / "gram.npz"),
             "logmap.write_logmap (map_logrelative)": lambda: logmap.write_logmap(
                 st_path, work / "lm.zarr", split="all", materials_train=list(st.materials)
             ),

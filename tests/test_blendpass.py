@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.data import merl, store, synth
-from brdfpipe.manifold import albedo, blendpass, gplvm, gram, perceptual
+from brdfpipe.manifold import albedo, blendpass, fitting, gplvm, gram, likelihood, perceptual
 
 N = 6
 RTOL = 1e-9
@@ -171,7 +171,7 @@ def test_path_analysis_equals_the_per_point_tables(holed: dict, tmp_path: Path) 
     from brdfpipe.manifold import analysis
 
     G, d, info = gram.gram_matrix(holed["store"], space="log")
-    res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=2, mu=1e-4, seed=1)
+    res = fitting.fit(G / likelihood.gram_scale(G, d), d, q=2, mu=1e-4, seed=1)
     gplvm.save_model(tmp_path / "m.npz", res, info.materials, space="log", data_digests=info.digests)
     model = gplvm.load_model(tmp_path / "m.npz")
     names = list(model.names)

@@ -41,7 +41,7 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 @pytest.fixture(scope="module")
 def latent_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Five synthetic materials, their store and a q = 2 GPLVM fit (as test_cli's interpolation test)."""
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gplvm, gram
 
     d = tmp_path_factory.mktemp("latent")
     synth.synthesize(d / "db", count=5, seed=3, jobs=1, progress=False)
@@ -49,7 +49,7 @@ def latent_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
     db = folder_database(d / "db")
     store.ingest(db.sources, d / "merl.zarr", database=db.kind, jobs=1)
-    gplvm.write_gram(d / "merl.zarr", d / "gram.npz")
+    gram.write_gram(d / "merl.zarr", d / "gram.npz")
     gplvm.fit_to_files(d / "gram.npz", d / "q2.npz", d / "q2-trace.csv", q=2, seed=1, max_sweeps=20)
     names = list(store.open_store(d / "merl.zarr").materials)
     return {"dir": d, "model": d / "q2.npz", "store": d / "merl.zarr", "a": names[0], "b": names[3],
@@ -415,7 +415,7 @@ def test_undecodable_input_names_the_file(
 def test_any_leaked_exception_is_one_line(
     exc: BaseException, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gplvm, gram
 
     model = tmp_path / "m.npz"
 

@@ -25,7 +25,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.notes import read_note
 from brdfpipe.core.plot import FigureInputError
-from brdfpipe.manifold import figures, gplvm, lengthscale
+from brdfpipe.manifold import figures, fitting, gplvm, gram, lengthscale
 from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
 from brdfpipe.manifold.figures import (
     ALBEDO_COLUMNS,
@@ -82,7 +82,7 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
     (root / "manifold").mkdir(parents=True, exist_ok=True)
     models, traces, fits = {}, {}, {}
     for q in QS:
-        res = gplvm.fit(G, D, q=q, max_sweeps=5, polish_iterations=60)
+        res = fitting.fit(G, D, q=q, max_sweeps=5, polish_iterations=60)
         if q == 2:  # crowd 16 of the points into a tight cluster: the latent map must zoom on it
             res.X = np.concatenate([0.02 * rng.normal(size=(16, 2)),
                                     rng.uniform(3.0, 6.0, size=(N - 16, 1)) * _directions(N - 16)])
@@ -156,10 +156,10 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
                     srows.append([database, c, space, mu, q, norm, eps, med, 2 * med, 3 * med])
     spaces_csv = _write_csv(root / "manifold" / "spaces.csv", SPACE_COLUMNS, rows)
     stability_csv = _write_csv(root / "manifold" / "spaces-stability.csv", STABILITY_COLUMNS, srows)
-    gram = root / "gplvm" / "gram-raw.npz"
-    gplvm.save_gram(gram, G, D, gplvm.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
+    gram_path = root / "gplvm" / "gram-raw.npz"
+    gram.save_gram(gram_path, G, D, gram.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
     lengthscales_csv = root / "manifold" / "lengthscales.csv"
-    lengthscale.measure_lengthscales(model=models[5], gram=gram, path=["teflon", "silver-paint"],
+    lengthscale.measure_lengthscales(model=models[5], gram=gram_path, path=["teflon", "silver-paint"],
                                      out=lengthscales_csv, database=database)
     return dict(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=maps, paths_csv=paths_csv,
                 reproduction_csv=repro_csv, spaces_csv=spaces_csv, stability_csv=stability_csv,

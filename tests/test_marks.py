@@ -420,7 +420,7 @@ def blends(synth_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
     fit = types.SimpleNamespace(X=X, ell=2.0, mu=1e-4, log_likelihood=0.0, d=1.0, trace=[(0, 0.0)], method="hybrid")
     model = tmp / "q2.npz"
     gplvm.save_model(model, fit, names, space="raw",  # type: ignore[arg-type]
-                     data_digests=gplvm.store_digests(st_path, names))  # tied to the store, as a fit on it
+                     data_digests=[int(v) for v in store.open_store(st_path).digests])  # tied to the store, as a fit on it
     out = tmp / "out"
     out.mkdir()
     common = ["--model", str(model), "--store", str(st_path)]

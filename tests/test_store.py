@@ -28,7 +28,7 @@ from brdfpipe.core.version import full_version
 from brdfpipe.data import merl, store
 from brdfpipe.data.merl import MerlFormatError, N_CELLS
 from brdfpipe.data.store import N_COLS, StoreError
-from brdfpipe.manifold import gplvm, gram
+from brdfpipe.manifold import gram
 
 N_MATERIALS = 3
 
@@ -527,7 +527,7 @@ def _flip_bit(path: Path, pos: int = 5000) -> None:
 
 @pytest.mark.parametrize("damage", ["flipped bit", "deleted shard", "truncated shard"])
 def test_damaged_shard_stops_the_gram_job(damage: str, built: Path, tmp_path: Path) -> None:
-    """gplvm.write_gram (the compute_gram job) fails naming store and material, and writes nothing."""
+    """gram.write_gram (the compute_gram job) fails naming store and material, and writes nothing."""
     bad = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
     shard = bad / "brdf" / "c" / "2" / "0"
     if damage == "flipped bit":
@@ -538,7 +538,7 @@ def test_damaged_shard_stops_the_gram_job(damage: str, built: Path, tmp_path: Pa
         shard.write_bytes(shard.read_bytes()[:-10])
     out = tmp_path / "gram.npz"
     with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*'mat-2'") as err:
-        gplvm.write_gram(bad, out)
+        gram.write_gram(bad, out)
     assert "\n" not in str(err.value)
     assert not out.exists() and _leftovers(tmp_path) == []
     with pytest.raises(StoreError, match="'mat-2'"):

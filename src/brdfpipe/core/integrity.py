@@ -227,6 +227,8 @@ def load_npz(
     kind: str = "npz file",
     error: type[Exception] = IntegrityError,
     require: bool = True,
+    fmt: str | None = None,
+    retired: Mapping[str, tuple[str, str]] | None = None,
 ) -> dict[str, NDArray[Any]]:
     """Every array of an npz file (loaded), after checking its digest; the digest entry is left out.
 
@@ -234,6 +236,8 @@ def load_npz(
     zip, a truncated or corrupt one (``BadZipFile``, bad CRC, a short
     member, pickled data), no digest (unless ``require=False``: files from
     elsewhere, e.g. a user's observations) or one that does not match.
+    ``fmt``: the scalar ``format`` entry the file must have; a format of
+    ``retired`` (format → ``(why, what to do)``) is refused saying why.
     """
     import numpy as np
 
@@ -262,6 +266,13 @@ def load_npz(
         return arrays
     if recorded.shape != () or recorded.dtype.kind != "U" or str(recorded) != npz_digest(arrays):
         raise mismatch(path, "its arrays", error=error, plural=True)
+    if fmt is not None:
+        found = str(arrays["format"]) if "format" in arrays and arrays["format"].shape == () else None
+        if retired and found in retired:
+            why, todo = retired[found]
+            raise error(f"{path}: {kind} format {found!r} is no longer supported: {why}; {todo} ({rerun_hint(path)})")
+        if found != fmt:
+            raise error(f"{path}: not a brdfpipe {kind} (format {found!r}, expected {fmt!r})")
     return arrays
 
 
