@@ -25,21 +25,23 @@ from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.notes import read_note
 from brdfpipe.core.plot import FigureInputError
-from brdfpipe.manifold import figures, fitting, gplvm, gram, lengthscale
+from brdfpipe.manifold import fitting, gplvm, gram, latent_map, lengthscale
 from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
-from brdfpipe.manifold.figures import (
+from brdfpipe.manifold.figure_inputs import (
     ALBEDO_COLUMNS,
     PATHS_COLUMNS,
     REPRODUCTION_COLUMNS,
     TRACE_COLUMNS,
-    make_manifold_figures,
-    manifold_eq7_bound,
-    manifold_fig10_latent_q2,
-    manifold_fig10_latent_q5,
     read_albedo_map,
     read_manifold_inputs,
     read_paths,
     read_trace,
+)
+from brdfpipe.manifold.figures import (
+    make_manifold_figures,
+    manifold_eq7_bound,
+    manifold_fig10_latent_q2,
+    manifold_fig10_latent_q5,
 )
 
 DB = "synthetic"
@@ -404,9 +406,9 @@ def test_latent_maps_zoom_on_crowded_points(inputs: dict[str, object], tmp_path:
 def test_zoom_chain() -> None:
     rng = np.random.default_rng(1)
     spread = rng.uniform(-5, 5, size=(30, 2))
-    assert len(figures._zoom_chain(spread, (5.0, 5.0))) == 1
+    assert len(latent_map.zoom_chain(spread, (5.0, 5.0))) == 1
     cluster = np.concatenate([spread, 1e-3 * rng.normal(size=(20, 2))])
-    views = figures._zoom_chain(cluster, (5.0, 5.0))
+    views = latent_map.zoom_chain(cluster, (5.0, 5.0))
     assert len(views) >= 2
     x0, x1, y0, y1 = views[1]
     inside = (cluster[:, 0] >= x0) & (cluster[:, 0] <= x1) & (cluster[:, 1] >= y0) & (cluster[:, 1] <= y1)

@@ -23,5 +23,7 @@ faithful it is per data space, and the track's figures.  Imports
 * :mod:`brdfpipe.manifold.samples`    – materials at random latent points, written for rendering (Fig. 1);
 * :mod:`brdfpipe.manifold.lengthscale` – the interpolant and the eq. 7 bound as the length scale shrinks (Fig. 6);
 * :mod:`brdfpipe.manifold.figures`    – the Soler et al. 2018 figure analogues;
+* :mod:`brdfpipe.manifold.figure_inputs` – the figures' inputs, read and checked;
+* :mod:`brdfpipe.manifold.latent_map` – the latent maps' zoomed views and point names;
 * :mod:`brdfpipe.manifold.lengthscale_figure` – Fig. 6, drawn for :mod:`~brdfpipe.manifold.figures`.
 """
