@@ -56,7 +56,7 @@ def _cpu_name() -> str:
 
 
 def _store(args: argparse.Namespace) -> Path:
-    from brdfpipe.data import store, synth
+    from brdfpipe.data import ingest, synth
 
     if args.store is not None:
         return args.store
@@ -67,7 +67,7 @@ def _store(args: argparse.Namespace) -> Path:
     if not out.is_dir():
         db = args.work / f"db-{args.count}"
         synth.synthesize(db, count=args.count, seed=3, jobs=os.cpu_count() or 1, progress=False)
-        store.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=os.cpu_count() or 1)
+        ingest.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=os.cpu_count() or 1)
     return out
 
 
@@ -87,7 +87,7 @@ def _fits(st_path: Path, work: Path, space: str) -> dict[int, object]:
 
 def per_point(st_path: Path, hull_W: dict[int, np.ndarray], paths: list, model5) -> tuple[np.ndarray, np.ndarray]:
     """The route before issue 23: tables formed whole, a few per pass over the store."""
-    from brdfpipe.manifold import albedo, fitting, gplvm, likelihood, perceptual
+    from brdfpipe.manifold import albedo, gplvm, perceptual
 
     alb = []
     for q, W in hull_W.items():

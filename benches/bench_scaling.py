@@ -13,7 +13,7 @@ stage               what runs
 ==================  =====================================================================
 synthesize          ``synth.generate_material`` of the N materials → MERL files (``--jobs``
                     processes; time = sum of the per-material times, cached between runs)
-ingest              ``store.ingest`` of the N files into a store (``--jobs`` processes)
+ingest              ``ingest.ingest`` of the N files into a store (``--jobs`` processes)
 logmap              ``logmap.write_logmap`` of the training split (``map_logrelative``)
 svd                 ``svd.fit``: Gram of the log-mapped rows + decomposition (Gram + ``decompose_svd``)
 optimize            ``optimize.optimize`` point, error, n = 1…``--n``, t = ``--candidates``,
@@ -152,7 +152,7 @@ def _split(args: argparse.Namespace, size: int) -> tuple[list[str], list[str]]:
 
 
 def stage_ingest(args: argparse.Namespace, size: int, work: Path) -> dict:
-    from brdfpipe.data import database, store
+    from brdfpipe.data import database, ingest
 
     files = work / "files"
     names = sorted(s.name for s in _subset(_plan(args), size))
@@ -164,7 +164,7 @@ def stage_ingest(args: argparse.Namespace, size: int, work: Path) -> dict:
             link.symlink_to(files / f"{n}.binary")
     kind = database.database_from_folder(folder).kind
     t0 = time.perf_counter()
-    store.ingest({n: folder / f"{n}.binary" for n in names}, work / f"n{size}" / "merl.zarr",
+    ingest.ingest({n: folder / f"{n}.binary" for n in names}, work / f"n{size}" / "merl.zarr",
                  database=kind, jobs=args.jobs)
     return {"seconds": time.perf_counter() - t0, "note": f"database {kind}, {args.jobs} processes"}
 
@@ -203,7 +203,7 @@ def stage_optimize(args: argparse.Namespace, size: int, work: Path) -> dict:
 
 
 def stage_gram(args: argparse.Namespace, size: int, work: Path) -> dict:
-    from brdfpipe.manifold import fitting, gplvm, gram, likelihood
+    from brdfpipe.manifold import gram
 
     t0 = time.perf_counter()
     gram.write_gram(work / f"n{size}" / "merl.zarr", work / f"n{size}" / "gram.npz", space=args.space)
@@ -211,7 +211,7 @@ def stage_gram(args: argparse.Namespace, size: int, work: Path) -> dict:
 
 
 def stage_fit_gplvm(args: argparse.Namespace, size: int, work: Path) -> dict:
-    from brdfpipe.manifold import fitting, gplvm, gram, likelihood
+    from brdfpipe.manifold import gplvm
 
     t0, c0 = time.perf_counter(), time.process_time()
     r = gplvm.fit_to_files(work / f"n{size}" / "gram.npz", work / f"n{size}" / f"q{args.q}.npz",
@@ -230,7 +230,7 @@ def stage_fit_gplvm_ref(args: argparse.Namespace, size: int, work: Path) -> dict
     import numpy as np
     import scipy.optimize
 
-    from brdfpipe.manifold import fitting, gplvm, gram, likelihood
+    from brdfpipe.manifold import fitting, gram, likelihood
 
     ours = json.loads((work / f"n{size}" / "fit.json").read_text())
     G, d, _ = gram.load_gram(work / f"n{size}" / "gram.npz")

@@ -8,7 +8,7 @@ adds < 10 % to the consuming stage.
 What it does
 ------------
 1. Generates ``--count`` synthetic materials (``brdfpipe.data.synth.synthesize``)
-   and ingests them (``brdfpipe.data.store.ingest``) under a temporary folder, or
+   and ingests them (``brdfpipe.data.ingest.ingest``) under a temporary folder, or
    reuses ``--store PATH``.  Not timed.
 2. Warms the page cache (one verified open), then per round times
 
@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", type=Path, help="folder for the generated data (default: a temporary one)")
     args = ap.parse_args(argv)
 
-    from brdfpipe.data import logmap, store, synth
+    from brdfpipe.data import ingest, logmap, store, synth
     from brdfpipe.data.database import folder_database
     from brdfpipe.manifold import gram
 
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
             synth.synthesize(work / "db", count=args.count, seed=7, jobs=os.cpu_count() or 1, progress=False)
             db = folder_database(work / "db")
             st_path = work / "merl.zarr"
-            store.ingest(db.sources, st_path, database=db.kind, jobs=os.cpu_count() or 1)
+            ingest.ingest(db.sources, st_path, database=db.kind, jobs=os.cpu_count() or 1)
             shutil.rmtree(work / "db")
             print(f"generated and ingested {args.count} synthetic materials in {time.perf_counter() - t0:.1f} s")
         else:

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from brdfpipe.acquisition import geometry, optimize, svd
 from brdfpipe.acquisition.geometry import Setup
 from brdfpipe.core import filenames
-from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.data import ingest, logmap, merl, store, synth
 from brdfpipe.data.database import folder_database
 
 
@@ -31,7 +31,7 @@ class Data:
         db = folder_database(d / "db")
         self.dir = d
         self.store = d / "merl.zarr"
-        store.ingest(db.sources, self.store, database=db.kind, jobs=1)
+        ingest.ingest(db.sources, self.store, database=db.kind, jobs=1)
         st = store.open_store(self.store)
         self.materials = list(st.materials)
         self.test = [self.materials[1], self.materials[6]]

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import ingest, merl, store, synth
 from brdfpipe.manifold import albedo, blendpass, fitting, gplvm, gram, likelihood, perceptual
 
 N = 6
@@ -30,7 +30,7 @@ def holed(tmp_path_factory: pytest.TempPathFactory) -> dict:
     t[:, 20:30, 10:40, :] = -1.0  # an unmeasured region inside the PR12 domain
     merl.write_merl(files[2], t)
     out = tmp / "merl.zarr"
-    store.ingest(files, out, database="synthetic", jobs=1)
+    ingest.ingest(files, out, database="synthetic", jobs=1)
     st = store.open_store(out)
     domain = merl.measured_mask().ravel()
     valid = np.asarray(st.valid[:], dtype=bool)

@@ -20,7 +20,7 @@ import pytest
 
 from brdfpipe import cli
 from brdfpipe.core import atomic
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import ingest, merl, store, synth
 from brdfpipe.rendering import scene
 
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -48,7 +48,7 @@ def latent_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     from brdfpipe.data.database import folder_database
 
     db = folder_database(d / "db")
-    store.ingest(db.sources, d / "merl.zarr", database=db.kind, jobs=1)
+    ingest.ingest(db.sources, d / "merl.zarr", database=db.kind, jobs=1)
     gram.write_gram(d / "merl.zarr", d / "gram.npz")
     gplvm.fit_to_files(d / "gram.npz", d / "q2.npz", d / "q2-trace.csv", q=2, seed=1, max_sweeps=20)
     names = list(store.open_store(d / "merl.zarr").materials)
@@ -415,7 +415,7 @@ def test_undecodable_input_names_the_file(
 def test_any_leaked_exception_is_one_line(
     exc: BaseException, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from brdfpipe.manifold import gplvm, gram
+    from brdfpipe.manifold import gplvm
 
     model = tmp_path / "m.npz"
 

@@ -34,7 +34,7 @@ import pytest
 from brdfpipe.acquisition import closedloop, evaluation, geometry, optimize, svd
 from brdfpipe.acquisition.geometry import Setup
 from brdfpipe.core import exr, filenames, integrity
-from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.data import ingest, logmap, merl, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.rendering import capture, render
 
@@ -170,7 +170,7 @@ class Loop:
         db = folder_database(d / "db")
         self.sources = {k: Path(v) for k, v in db.sources.items()}
         self.store = d / "merl.zarr"
-        store.ingest(db.sources, self.store, database=db.kind, jobs=1)
+        ingest.ingest(db.sources, self.store, database=db.kind, jobs=1)
         st = store.open_store(self.store)
         materials = list(st.materials)
         self.test = [materials[1], materials[6]]

@@ -9,7 +9,7 @@ import pytest
 import scipy.spatial
 
 from brdfpipe.core import integrity
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import ingest, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.manifold import albedo, analysis, fidelity, fitting, gplvm, gram, latent, likelihood
 
@@ -22,7 +22,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
     db = tmp / "db"
     synth.synthesize(db, count=N, seed=3, jobs=1, progress=False)
     st_path = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), st_path, database="synthetic", jobs=1)
+    ingest.ingest(sorted(db.glob("*.binary")), st_path, database="synthetic", jobs=1)
     st = store.open_store(st_path)
     grams, models = {}, {}
     for space in ("raw", "standardised"):

@@ -14,7 +14,7 @@ import scipy.spatial
 import scipy.stats
 
 from brdfpipe import cli
-from brdfpipe.data import merl, provenance, store, synth
+from brdfpipe.data import ingest, merl, provenance, store, synth
 from brdfpipe.manifold import albedo, analysis, gplvm, gram, latent, likelihood
 
 # --------------------------------------------------------------------------
@@ -282,7 +282,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
     db = tmp / "db"
     synth.synthesize(db, count=5, seed=3, jobs=1, progress=False)  # seed 3: its walks leave [0, 1]
     zarr_path = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
+    ingest.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
     names = list(store.open_store(zarr_path).materials)
     X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.4, 0.6]])
     return {"tmp": tmp, "store": zarr_path, "names": names, "X": X,
@@ -465,12 +465,12 @@ def fitted(tiny: dict) -> dict:
         sources[n] = plain / f"{n}.binary"
         merl.write_merl(sources[n], table)
     same = tmp / "merl.zarr"
-    store.ingest(sources, same, database="merl")
+    ingest.ingest(sources, same, database="merl")
     gram.write_gram(same, tmp / "gram-raw.npz")
     gplvm.fit_to_files(tmp / "gram-raw.npz", tmp / "q2.npz", tmp / "q2-trace.csv", q=2, seed=1, max_sweeps=10)
     a, b = names[0], names[1]
     swapped = tmp / "swapped.zarr"
-    store.ingest({**sources, a: sources[b], b: sources[a]}, swapped, database="merl")
+    ingest.ingest({**sources, a: sources[b], b: sources[a]}, swapped, database="merl")
     assert list(store.open_store(swapped).materials) == names  # the same names, in the same order
     return {"model": tmp / "q2.npz", "gram": tmp / "gram-raw.npz", "store": same, "swapped": swapped, "a": a, "b": b}
 

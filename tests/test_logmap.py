@@ -23,7 +23,7 @@ from hypothesis import strategies as hs
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
-from brdfpipe.data import logmap, merl, store, synth
+from brdfpipe.data import ingest, logmap, merl, store, synth
 from brdfpipe.data.database import folder_database
 from brdfpipe.data.logmap import EPS, LogmapError
 
@@ -39,7 +39,7 @@ def synth_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     synth.synthesize(d / "db", count=6, seed=1, noise=0.01, jobs=1, progress=False)
     db = folder_database(d / "db")
     out = d / "merl.zarr"
-    store.ingest(db.sources, out, database=db.kind, jobs=1)
+    ingest.ingest(db.sources, out, database=db.kind, jobs=1)
     return out
 
 
@@ -61,7 +61,7 @@ def const_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
         merl.write_merl(path, table.reshape(merl.SHAPE))
         sources[name] = path
     out = d / "merl.zarr"
-    store.ingest(sources, out, database="merl", jobs=1)
+    ingest.ingest(sources, out, database="merl", jobs=1)
     return out
 
 

@@ -9,7 +9,7 @@ import scipy.linalg
 
 from brdfpipe.core import integrity
 from brdfpipe.spec.errors import ConfigError
-from brdfpipe.data import merl, provenance, store, synth
+from brdfpipe.data import ingest, merl, provenance, store, synth
 from brdfpipe.manifold import albedo, analysis, gplvm, gram, likelihood
 
 
@@ -19,7 +19,7 @@ def small(tmp_path_factory: pytest.TempPathFactory) -> dict:
     db = tmp / "db"
     synth.synthesize(db, count=6, seed=3, jobs=1, progress=False)
     zarr_path = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
+    ingest.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
     gram_path = tmp / "gram.npz"
     gram.write_gram(zarr_path, gram_path)
     models = {}

@@ -130,7 +130,7 @@ def _default_model(work: Path, q: int) -> Path:
 def test_fig01_samples_are_brdfpipe_sample_s_rendered_like_the_pre_renders(work: Path, tmp_path: Path) -> None:
     from brdfpipe.core.exr import read_exr, read_exr_attrs
     from brdfpipe.data import provenance
-    from brdfpipe.manifold import gplvm, gram, latent
+    from brdfpipe.manifold import gplvm, latent
 
     cfg = _config()
     scene, res = cfg["render"]["scene"], work / "results"

@@ -20,7 +20,7 @@ import pytest
 
 from brdfpipe import plan
 from brdfpipe.core import filenames, integrity
-from brdfpipe.data import database, databases, merl, nbrdf, store
+from brdfpipe.data import database, databases, ingest, merl, nbrdf, store
 from brdfpipe.manifold import fitting, gplvm, gram, likelihood, unseen
 from brdfpipe.manifold.gram import MEAN_HANDLING, STANDARDISED_FLOOR, cross_gram, gram_matrix
 
@@ -318,7 +318,7 @@ def test_a_store_not_measured_where_the_model_is_is_refused(stores: dict[str, Pa
 
     merl.write_merl(tmp_path / "holey.binary", table, mark=provenance.fit_mark(
         database="rgl-nbrdf", name="holey", fit="spectralon_rgb", archive="x.zip", fit_sha256="0" * 64, clamped=0))
-    store.ingest({"holey": tmp_path / "holey.binary"}, tmp_path / "holey.zarr", database="rgl-nbrdf")
+    ingest.ingest({"holey": tmp_path / "holey.binary"}, tmp_path / "holey.zarr", database="rgl-nbrdf")
     with pytest.raises(ValueError, match="holey.zarr: .* cell.s. valid in every material"):
         cross_gram(stores["merl-nbrdf"], [tmp_path / "holey.zarr"], space="raw")
 
@@ -375,7 +375,7 @@ class Acq:
             merl.write_merl(sources[f"copy-{m}"], table, mark=provenance.fit_mark(
                 database="rgl-nbrdf", name=f"copy-{m}", fit=m, archive="x.zip", fit_sha256="0" * 64, clamped=0))
         self.unseen = d / "unseen.zarr"
-        store.ingest(sources, self.unseen, database="rgl-nbrdf")
+        ingest.ingest(sources, self.unseen, database="rgl-nbrdf")
 
 
 @pytest.fixture(scope="module")

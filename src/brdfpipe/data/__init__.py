@@ -11,6 +11,7 @@ reuses).  Imports only :mod:`brdfpipe.core`.
 * :mod:`brdfpipe.data.synth`    – a synthetic, physically based MERL-format database;
 * :mod:`brdfpipe.data.databases` – the registry of databases a run can use, and their labels and titles;
 * :mod:`brdfpipe.data.database` – which database a run uses (fits, a folder of MERL files, or synthetic);
-* :mod:`brdfpipe.data.store`    – the chunked Zarr store of the materials × cells matrix;
+* :mod:`brdfpipe.data.store`    – the chunked Zarr store of the materials × cells matrix: opening, checking, reading;
+* :mod:`brdfpipe.data.ingest`   – writing that store: a row store per material, then their assembly;
 * :mod:`brdfpipe.data.logmap`   – the log-relative mapping of that matrix.
 """

@@ -140,7 +140,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     file that cannot be read, a damaged provenance mark, a file marked as
     another material, a mixed folder, or a ``manifest.json`` that disagrees
     with the files.  The files' contents are validated at ingest
-    (:func:`brdfpipe.data.store.ingest_material`).
+    (:func:`brdfpipe.data.ingest.ingest_material`).
     """
     text = os.fspath(folder)
     if isinstance(text, bytes):
