@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.core import atomic
-from brdfpipe.data import database as db, merl, synth
+from brdfpipe.data import database as db, merl, synth, synthmodel
 
 COUNT, SEED = 3, 5
 
@@ -74,7 +74,7 @@ def test_watermark_cells_are_geometrically_unmeasurable() -> None:
     lowest = np.minimum(wi[:, 2], wo[:, 2])[inside]
     assert lowest.max() < -0.98
     # the lookup of such a pair is unmeasured (negative), as for any other such cell
-    table = synth._table(np.ones((3, synth._grid().cells.size)), synth._grid())
+    table = synth._table(np.ones((3, synthmodel.cell_grid().cells.size)), synthmodel.cell_grid())
     assert (merl.lookup(table, wi[inside], wo[inside]) < 0).all()
 
 
