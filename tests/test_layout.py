@@ -346,4 +346,5 @@ def test_the_module_length_check_catches_a_long_module() -> None:
     sources = module_sources()
     n = len(sources["brdfpipe.core.atomic"].splitlines())
     sources["brdfpipe.core.atomic"] += "\n".join(f"x{i} = {i}" for i in range(MAX_MODULE_LINES + 1 - n)) + "\n"
-    assert long_modules(sources) == [f"brdfpipe.core.atomic ({MAX_MODULE_LINES + 1} lines)"]
+    assert not [m for m in long_modules(module_sources()) if m.startswith("brdfpipe.core.atomic ")]
+    assert f"brdfpipe.core.atomic ({MAX_MODULE_LINES + 1} lines)" in long_modules(sources)
