@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from brdfpipe.data import ingest, logmap, store, synth
-    from brdfpipe.data.database import folder_database
+    from brdfpipe.data.database import database_from_folder
     from brdfpipe.manifold import gram
 
     work = Path(tempfile.mkdtemp(prefix="bench-verify-", dir=args.work))
@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.store is None:
             t0 = time.perf_counter()
             synth.synthesize(work / "db", count=args.count, seed=7, jobs=os.cpu_count() or 1, progress=False)
-            db = folder_database(work / "db")
+            db = database_from_folder(work / "db", key="folder")
             st_path = work / "merl.zarr"
             ingest.ingest(db.sources, st_path, database=db.kind, jobs=os.cpu_count() or 1)
             shutil.rmtree(work / "db")

@@ -45,9 +45,9 @@ def latent_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
     d = tmp_path_factory.mktemp("latent")
     synth.synthesize(d / "db", count=5, seed=3, jobs=1, progress=False)
-    from brdfpipe.data.database import folder_database
+    from brdfpipe.data.database import database_from_folder
 
-    db = folder_database(d / "db")
+    db = database_from_folder(d / "db", key="folder")
     ingest.ingest(db.sources, d / "merl.zarr", database=db.kind, jobs=1)
     gram.write_gram(d / "merl.zarr", d / "gram.npz")
     gplvm.fit_to_files(d / "gram.npz", d / "q2.npz", d / "q2-trace.csv", q=2, seed=1, max_sweeps=20)

@@ -99,8 +99,8 @@ def test_files_without_the_watermark_are_not_synthetic(tmp_path: Path) -> None:
 
 def test_synth_folder_as_merl_dir_is_synthetic(synth_dir: Path) -> None:
     names = sorted(p.stem for p in synth_dir.glob("*.binary"))
-    for call in (db.database_from_folder, db.merl_database, db.folder_database):
-        d = call(synth_dir)
+    for key in ("merl_dir", "folder"):
+        d = db.database_from_folder(synth_dir, key=key)
         assert d.kind == "synthetic" and d.materials == names
     manifest = json.loads((synth_dir / "manifest.json").read_text())
     assert db.database_from_folder(synth_dir).default_test == tuple(manifest["test_materials"])

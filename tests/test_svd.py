@@ -24,7 +24,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
 from brdfpipe.data import ingest, logmap, merl, provenance, synth
-from brdfpipe.data.database import folder_database
+from brdfpipe.data.database import database_from_folder
 
 # --------------------------------------------------------------------------
 # Fixtures
@@ -35,7 +35,7 @@ from brdfpipe.data.database import folder_database
 def data(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("svd")
     synth.synthesize(d / "db", count=6, seed=5, noise=0.01, jobs=1, progress=False)
-    db = folder_database(d / "db")
+    db = database_from_folder(d / "db", key="folder")
     st_path = d / "merl.zarr"
     ingest.ingest(db.sources, st_path, database=db.kind, jobs=1)
     lm_path = d / "all.zarr"
@@ -253,7 +253,7 @@ def test_decompose_errors() -> None:
 
 def test_duplicate_material_is_rank_deficient(data: dict[str, Path], tmp_path: Path) -> None:
     """Four materials, one a byte copy of another: the centred 12 × p matrix has rank 8."""
-    db = folder_database(data["db"])
+    db = database_from_folder(data["db"], key="folder")
     names = db.materials[:3]
     sources = {n: db.sources[n] for n in names}
     sources["twin"] = tmp_path / "twin.binary"
