@@ -292,6 +292,8 @@ class LatentPath:
 
 @dataclass(frozen=True)
 class PathTable:
+    """The latent paths of ``paths.csv`` (:func:`read_paths`), in file order."""
+
     path: Path
     database: str
     paths: tuple[LatentPath, ...]
