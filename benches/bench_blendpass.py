@@ -56,7 +56,7 @@ def _cpu_name() -> str:
 
 
 def _store(args: argparse.Namespace) -> Path:
-    from brdfpipe.data import store, synth
+    from brdfpipe.data import ingest, synth
 
     if args.store is not None:
         return args.store
@@ -67,19 +67,19 @@ def _store(args: argparse.Namespace) -> Path:
     if not out.is_dir():
         db = args.work / f"db-{args.count}"
         synth.synthesize(db, count=args.count, seed=3, jobs=os.cpu_count() or 1, progress=False)
-        store.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=os.cpu_count() or 1)
+        ingest.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=os.cpu_count() or 1)
     return out
 
 
 def _fits(st_path: Path, work: Path, space: str) -> dict[int, object]:
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import fitting, gplvm, likelihood
     from brdfpipe.manifold.gram import gram_matrix
 
     G, d, info = gram_matrix(st_path, space=space)
     fits = {}
     for q in (2, 5):
         path = work / f"{st_path.stem}-{space}-q{q}.npz"
-        res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=q, mu=1e-4, seed=1)
+        res = fitting.fit(G / likelihood.gram_scale(G, d), d, q=q, mu=1e-4, seed=1)
         gplvm.save_model(path, res, info.materials, space=space, data_digests=info.digests)
         fits[q] = gplvm.load_model(path)
     return fits

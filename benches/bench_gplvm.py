@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Fit time and final log-likelihood of the GPLVM (Soler et al. 2018 §3).
 
-Targets: :func:`brdfpipe.manifold.gplvm.fit` for N = 100, q = 5 takes ≤ 2 s
+Targets: :func:`brdfpipe.manifold.fitting.fit` for N = 100, q = 5 takes ≤ 2 s
 on one core (the paper: 122 s for q = 2) and reaches a log-likelihood, under
 our objective, at least that of GPy's GPLVM with the same fixed kernel from
 the same start (the GPLVM issue); and (issue 23) at least 10× faster than
@@ -17,7 +17,7 @@ What it does
 ------------
 1. Data: ``--gram PATH`` (default results/gplvm/gram-raw.npz when it exists:
    the centred Gram matrix of the default synthetic store, N = 100, read with
-   :func:`brdfpipe.manifold.gplvm.load_gram`); otherwise a seeded random structured
+   :func:`brdfpipe.manifold.gram.load_gram`); otherwise a seeded random structured
    Gram matrix (said so in the output).  ``--scaling`` (default ``all``;
    ``--normalise`` = ``normalised`` only): ``raw``; ``normalised`` divides G
    by tr(G)/N (unit average row variance), since in raw units the trace
@@ -34,7 +34,7 @@ What it does
    to max|grad|.
 3. For q in ``--q`` (default 2 5):
 
-   * ours: ``gplvm.fit(G, d, q=q, seed=0)`` (default ``method="newton"``,
+   * ours: ``fitting.fit(G, d, q=q, seed=0)`` (default ``method="newton"``,
      ``init_scale="best"``), best of ``--repeats`` wall times, final L,
      gradient and Hessian evaluations; ``method="hybrid"`` (the default
      before issue 23) and ``"hooke-jeeves"`` (the paper) the same way;
@@ -69,7 +69,7 @@ What it does
    land in different local maxima from the same start (the objective is
    multimodal), so "ours L ≥ …" can fail by a few per cent either way on
    another data set; see the module docstring of
-   :mod:`brdfpipe.manifold.gplvm`.  Exit status 0 either way: benches
+   :mod:`brdfpipe.manifold.newton`.  Exit status 0 either way: benches
    report, they do not gate CI.
 
 Single-threaded: OPENBLAS_NUM_THREADS / OMP_NUM_THREADS / MKL_NUM_THREADS
@@ -108,7 +108,7 @@ import scipy.optimize  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from brdfpipe.manifold import gplvm  # noqa: E402
+from brdfpipe.manifold import fitting, gram, likelihood  # noqa: E402
 
 ELL = 1.0
 MU = 1e-4
@@ -127,7 +127,7 @@ RTOL = 1e-9
 
 def loglik_and_grad(X: np.ndarray, G: np.ndarray, d: float, ell: float = ELL, mu: float = MU) -> tuple[float, np.ndarray]:
     """L(X) and dL/dX: the library's analytic gradient (checked against finite differences below)."""
-    return gplvm.log_likelihood_grad(X, G, d, ell, mu)
+    return likelihood.log_likelihood_grad(X, G, d, ell, mu)
 
 
 def gradient_check(seed: int = 1) -> float:
@@ -139,7 +139,7 @@ def gradient_check(seed: int = 1) -> float:
     d = float(r)
     X = 0.7 * rng.standard_normal((n, q))
     L0, g = loglik_and_grad(X, G, d)
-    L_ref = gplvm.log_likelihood(X, G, d, ELL, MU)
+    L_ref = likelihood.log_likelihood(X, G, d, ELL, MU)
     assert abs(L0 - L_ref) <= 1e-10 * max(abs(L_ref), 1.0), (L0, L_ref)
     fd = np.zeros_like(X)
     h = 1e-6
@@ -306,7 +306,7 @@ def main() -> None:
           f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}, load {os.getloadavg()[0]:.2f}")
     gpath = args.gram if args.gram is not None else (DEFAULT_GRAM if DEFAULT_GRAM.exists() else None)
     if gpath is not None:
-        G_raw, d, info = gplvm.load_gram(gpath)
+        G_raw, d, info = gram.load_gram(gpath)
         print(f"data: {gpath} (space {info.space}, N = {G_raw.shape[0]}, d = {d}, {info.mean_handling})")
     else:
         d = 4_000_000
@@ -334,12 +334,12 @@ def main() -> None:
         X0s: dict[int, np.ndarray] = {}
         for q in args.q:
             t = time.perf_counter()
-            t_ours, res = best_of(lambda: gplvm.fit(G, d, q=q, seed=0), args.repeats)
+            t_ours, res = best_of(lambda: fitting.fit(G, d, q=q, seed=0), args.repeats)
             part_times[f"{scaling} ours q={q}"] = time.perf_counter() - t
             ours[q] = (t_ours, res.log_likelihood)
-            X0 = gplvm.pca_init(G, q) * res.init_factor
+            X0 = fitting.pca_init(G, q) * res.init_factor
             X0s[q] = X0
-            L0 = gplvm.log_likelihood(X0, G, d, ELL, MU)
+            L0 = likelihood.log_likelihood(X0, G, d, ELL, MU)
             rows.append(("ref: all points coincide (L∞)", q, None, L_inf, "closed form, centred G"))
             rows.append(("start: pca_init × init_factor", q, None, L0, f"rule {res.init_scale}, factor {res.init_factor:.4g}"))
             rows.append((f"ours (fit, {res.method})", q, t_ours, res.log_likelihood,
@@ -348,14 +348,14 @@ def main() -> None:
                          f"{res.newton_iterations} Newton steps; trials "
                          + ", ".join(f"{k} {v:.4g}" for k, v in res.scale_trials.items())))
             t = time.perf_counter()
-            t_hy, res_hy = best_of(lambda: gplvm.fit(G, d, q=q, seed=0, method="hybrid"), args.repeats)
+            t_hy, res_hy = best_of(lambda: fitting.fit(G, d, q=q, seed=0, method="hybrid"), args.repeats)
             part_times[f"{scaling} hybrid q={q}"] = time.perf_counter() - t
             rows.append(("hybrid (HJ + L-BFGS, before issue 23)", q, t_hy, res_hy.log_likelihood,
                          f"{res_hy.sweeps} sweeps, {res_hy.evaluations} evals, {res_hy.polish_iterations} L-BFGS its, "
                          f"start {res_hy.init_scale}"))
             verdicts.append(f"INFO  [{scaling}] q = {q}: ours {t_ours:.3f} s vs hybrid {t_hy:.3f} s: "
                             f"{t_hy / t_ours:.1f}x faster; L rel. gap {(res.log_likelihood - res_hy.log_likelihood) / abs(res_hy.log_likelihood):+.2e}")
-            t_hj, res_hj = best_of(lambda: gplvm.fit(G, d, q=q, seed=0, method="hooke-jeeves"), args.repeats)
+            t_hj, res_hj = best_of(lambda: fitting.fit(G, d, q=q, seed=0, method="hooke-jeeves"), args.repeats)
             rows.append(("ours (Hooke-Jeeves only, the paper)", q, t_hj, res_hj.log_likelihood,
                          f"{res_hj.sweeps} sweeps, {res_hj.evaluations} evals"))
             if q == 5:
@@ -364,13 +364,13 @@ def main() -> None:
             t = time.perf_counter()
             t_lb, (Xlb, info) = best_of(lambda: run_lbfgs(X0, G, d), args.repeats)
             part_times[f"{scaling} L-BFGS q={q}"] = time.perf_counter() - t
-            L_lb = gplvm.log_likelihood(Xlb, G, d, ELL, MU)
+            L_lb = likelihood.log_likelihood(Xlb, G, d, ELL, MU)
             rows.append(("scipy L-BFGS-B (analytic grad)", q, t_lb, L_lb,
                          f"nit {info.nit}, nfev {info.nfev}, {info.message if isinstance(info.message, str) else info.message.decode()}"))
             t = CLOCK()
             Xpol, ipol = run_lbfgs(res.X, G, d)
             t_pol = CLOCK() - t
-            rows.append(("L-BFGS polish of ours (1 run)", q, t_pol, gplvm.log_likelihood(Xpol, G, d, ELL, MU),
+            rows.append(("L-BFGS polish of ours (1 run)", q, t_pol, likelihood.log_likelihood(Xpol, G, d, ELL, MU),
                          f"nit {ipol.nit}, nfev {ipol.nfev}, time excludes ours"))
             ok = res.log_likelihood >= L_lb - RTOL * abs(L_lb)
             verdicts.append(f"{'PASS' if ok else 'FAIL'}  [{scaling}] q = {q}: ours L {res.log_likelihood:.6g} ≥ L-BFGS L {L_lb:.6g} (to {RTOL:g})"
@@ -388,7 +388,7 @@ def main() -> None:
                 for key, label in (("Y_scaled", "GPy GPLVM (Z·√(r/d): our objective)"),
                                    ("Y_plain", "GPy GPLVM (Z, D = r: its objective)")):
                     o = gpy_out[f"{key}_{q}"]
-                    L_g = gplvm.log_likelihood(o["X"], G, d, ELL, MU)
+                    L_g = likelihood.log_likelihood(o["X"], G, d, ELL, MU)
                     rows.append((label, q, o["seconds"], L_g, f"status {o['status']}, fevals {o['funct_eval']}"))
                     ok = ours[q][1] >= L_g - RTOL * abs(L_g)
                     verdicts.append(f"{'PASS' if ok else 'FAIL'}  [{scaling}] q = {q}: ours L {ours[q][1]:.6g} ≥ {label} L {L_g:.6g} (to {RTOL:g})"

@@ -16,9 +16,9 @@ What it does
    round, times
 
    a. a sequential ``np.fromfile`` of all files (the reference);
-   b. ``store.ingest(..., jobs=N)`` with N = number of cores (how Snakemake
+   b. ``ingest.ingest(..., jobs=N)`` with N = number of cores (how Snakemake
       spreads it: one job per material, then one assembly job);
-   c. ``store.ingest(..., jobs=1)``;
+   c. ``ingest.ingest(..., jobs=1)``;
    d. sha256 of all files, sequential (a lower bound of what the ingest must
       do: the store records every source's sha256).
 
@@ -123,10 +123,10 @@ def _sha_all(paths: Sequence[Path]) -> float:
 
 
 def _ingest(paths: Sequence[Path], out: Path, jobs: int) -> float:
-    from brdfpipe.data import store
+    from brdfpipe.data import ingest
 
     t0 = time.perf_counter()
-    store.ingest({p.stem: p for p in paths}, out, database="synthetic", jobs=jobs)
+    ingest.ingest({p.stem: p for p in paths}, out, database="synthetic", jobs=jobs)
     return time.perf_counter() - t0
 
 
@@ -138,11 +138,11 @@ def measure(paths: list[Path], jobs: int, rounds: int, cold: bool, work: Path) -
     """All timings, in this (fresh) process.  Returns a JSON-able dict."""
     import multiprocessing
 
-    from brdfpipe.data import store
+    from brdfpipe.data import ingest, store
 
-    # Fork the workers from this process (store.ingest would use a forkserver once this
+    # Fork the workers from this process (ingest.ingest would use a forkserver once this
     # process has threads), so that their CPU time and RSS show up in RUSAGE_CHILDREN.
-    store._mp_context = lambda: multiprocessing.get_context("fork")  # type: ignore[attr-defined]
+    ingest._mp_context = lambda: multiprocessing.get_context("fork")  # type: ignore[attr-defined]
     out = work / "merl.zarr"
     res: dict[str, object] = {"n": len(paths), "jobs": jobs, "rounds": rounds}
     for p in paths:  # warm the page cache: both contenders read from memory
@@ -205,8 +205,8 @@ def report(res: dict[str, object], source: str, cold: bool) -> None:
     r = best("read")
     rows = [
         ("(a) np.fromfile, sequential", "read"),
-        (f"(b) store.ingest, jobs={jobs}", "ingest"),
-        ("(c) store.ingest, jobs=1", "ingest1"),
+        (f"(b) ingest.ingest, jobs={jobs}", "ingest"),
+        ("(c) ingest.ingest, jobs=1", "ingest1"),
         ("(d) sha256 of all files, 1 core", "sha"),
     ]
     for label, key in rows:

@@ -13,19 +13,19 @@ stage               what runs
 ==================  =====================================================================
 synthesize          ``synth.generate_material`` of the N materials → MERL files (``--jobs``
                     processes; time = sum of the per-material times, cached between runs)
-ingest              ``store.ingest`` of the N files into a store (``--jobs`` processes)
+ingest              ``ingest.ingest`` of the N files into a store (``--jobs`` processes)
 logmap              ``logmap.write_logmap`` of the training split (``map_logrelative``)
 svd                 ``svd.fit``: Gram of the log-mapped rows + decomposition (Gram + ``decompose_svd``)
 optimize            ``optimize.optimize`` point, error, n = 1…``--n``, t = ``--candidates``,
                     model load included (``optimize_directions``)
-gram                ``gplvm.write_gram``, the workflow's space (``compute_gram``)
+gram                ``gram.write_gram``, the workflow's space (``compute_gram``)
 fit_gplvm           ``gplvm.fit_to_files`` q = ``--q``, normalised, the default method
                     (``newton``; ``fit_gplvm``)
 ==================  =====================================================================
 
 At the largest size (unless ``--no-gplvm-reference``) a reference fit runs
 after ``fit_gplvm`` in its own process: scipy's L-BFGS-B on the analytic
-gradient (:func:`brdfpipe.manifold.gplvm.log_likelihood_grad`) from the same
+gradient (:func:`brdfpipe.manifold.likelihood.log_likelihood_grad`) from the same
 start as ours (``pca_init`` × the factor ours chose), to convergence (ftol
 1e-13, gtol 1e-10 on −L/|L₀|): the plain first-order method that the
 ``newton`` method accelerates.  Printed: both times, their ratio and the
@@ -152,7 +152,7 @@ def _split(args: argparse.Namespace, size: int) -> tuple[list[str], list[str]]:
 
 
 def stage_ingest(args: argparse.Namespace, size: int, work: Path) -> dict:
-    from brdfpipe.data import database, store
+    from brdfpipe.data import database, ingest
 
     files = work / "files"
     names = sorted(s.name for s in _subset(_plan(args), size))
@@ -164,7 +164,7 @@ def stage_ingest(args: argparse.Namespace, size: int, work: Path) -> dict:
             link.symlink_to(files / f"{n}.binary")
     kind = database.database_from_folder(folder).kind
     t0 = time.perf_counter()
-    store.ingest({n: folder / f"{n}.binary" for n in names}, work / f"n{size}" / "merl.zarr",
+    ingest.ingest({n: folder / f"{n}.binary" for n in names}, work / f"n{size}" / "merl.zarr",
                  database=kind, jobs=args.jobs)
     return {"seconds": time.perf_counter() - t0, "note": f"database {kind}, {args.jobs} processes"}
 
@@ -203,10 +203,10 @@ def stage_optimize(args: argparse.Namespace, size: int, work: Path) -> dict:
 
 
 def stage_gram(args: argparse.Namespace, size: int, work: Path) -> dict:
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gram
 
     t0 = time.perf_counter()
-    gplvm.write_gram(work / f"n{size}" / "merl.zarr", work / f"n{size}" / "gram.npz", space=args.space)
+    gram.write_gram(work / f"n{size}" / "merl.zarr", work / f"n{size}" / "gram.npz", space=args.space)
     return {"seconds": time.perf_counter() - t0, "note": f"space {args.space}"}
 
 
@@ -230,19 +230,19 @@ def stage_fit_gplvm_ref(args: argparse.Namespace, size: int, work: Path) -> dict
     import numpy as np
     import scipy.optimize
 
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import fitting, gram, likelihood
 
     ours = json.loads((work / f"n{size}" / "fit.json").read_text())
-    G, d, _ = gplvm.load_gram(work / f"n{size}" / "gram.npz")
-    G = G / gplvm.gram_scale(G, d)
+    G, d, _ = gram.load_gram(work / f"n{size}" / "gram.npz")
+    G = G / likelihood.gram_scale(G, d)
     t0, c0 = time.perf_counter(), time.process_time()
-    X0 = gplvm.pca_init(G, args.q) * ours["init_factor"]
+    X0 = fitting.pca_init(G, args.q) * ours["init_factor"]
     n, q = X0.shape
-    scale = abs(gplvm.log_likelihood(X0, G, d))
+    scale = abs(likelihood.log_likelihood(X0, G, d))
 
     def f(x: np.ndarray) -> tuple[float, np.ndarray]:
         try:
-            L, g = gplvm.log_likelihood_grad(x.reshape(n, q), G, d)
+            L, g = likelihood.log_likelihood_grad(x.reshape(n, q), G, d)
         except np.linalg.LinAlgError:
             return np.inf, np.zeros_like(x)
         return -L / scale, -g.ravel() / scale
@@ -250,7 +250,7 @@ def stage_fit_gplvm_ref(args: argparse.Namespace, size: int, work: Path) -> dict
     res = scipy.optimize.minimize(f, X0.ravel(), jac=True, method="L-BFGS-B",
                                   options={"maxiter": 20000, "maxfun": 100000, "ftol": 1e-13, "gtol": 1e-10})
     sec, cpu = time.perf_counter() - t0, time.process_time() - c0
-    L = gplvm.log_likelihood(res.x.reshape(n, q), G, d)
+    L = likelihood.log_likelihood(res.x.reshape(n, q), G, d)
     return {"seconds": sec, "cpu": cpu, "log_likelihood": L, "ours_seconds": ours["seconds"], "ours_cpu": ours["cpu"],
             "ours_L": ours["log_likelihood"],
             "note": f"L-BFGS-B from ours' start: L {L:.8g}, {res.nit} iterations, {res.nfev} evaluations"}

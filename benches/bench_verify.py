@@ -8,7 +8,7 @@ adds < 10 % to the consuming stage.
 What it does
 ------------
 1. Generates ``--count`` synthetic materials (``brdfpipe.data.synth.synthesize``)
-   and ingests them (``brdfpipe.data.store.ingest``) under a temporary folder, or
+   and ingests them (``brdfpipe.data.ingest.ingest``) under a temporary folder, or
    reuses ``--store PATH``.  Not timed.
 2. Warms the page cache (one verified open), then per round times
 
@@ -16,7 +16,7 @@ What it does
       shard presence / size checks that every open does;
    b. ``open_store(path, verify=True)``: the same plus reading every shard
       and checking its digest (the default);
-   c. ``gplvm.write_gram(path, out)`` (the ``compute_gram`` job, raw space);
+   c. ``gram.write_gram(path, out)`` (the ``compute_gram`` job, raw space);
    d. ``logmap.write_logmap(path, out, split="all", ...)`` (the
       ``map_logrelative`` job).
 
@@ -67,18 +67,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", type=Path, help="folder for the generated data (default: a temporary one)")
     args = ap.parse_args(argv)
 
-    from brdfpipe.data import logmap, store, synth
-    from brdfpipe.data.database import folder_database
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.data import ingest, logmap, store, synth
+    from brdfpipe.data.database import database_from_folder
+    from brdfpipe.manifold import gram
 
     work = Path(tempfile.mkdtemp(prefix="bench-verify-", dir=args.work))
     try:
         if args.store is None:
             t0 = time.perf_counter()
             synth.synthesize(work / "db", count=args.count, seed=7, jobs=os.cpu_count() or 1, progress=False)
-            db = folder_database(work / "db")
+            db = database_from_folder(work / "db", key="folder")
             st_path = work / "merl.zarr"
-            store.ingest(db.sources, st_path, database=db.kind, jobs=os.cpu_count() or 1)
+            ingest.ingest(db.sources, st_path, database=db.kind, jobs=os.cpu_count() or 1)
             shutil.rmtree(work / "db")
             print(f"generated and ingested {args.count} synthetic materials in {time.perf_counter() - t0:.1f} s")
         else:
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{size / 1e9 / max(cost, 1e-9):.2f} GB/s)")
 
         stages = {
-            "gplvm.write_gram (compute_gram)": lambda: gplvm.write_gram(st_path, work / "gram.npz"),
+            "gram.write_gram (compute_gram)": lambda: gram.write_gram(st_path, work / "gram.npz"),
             "logmap.write_logmap (map_logrelative)": lambda: logmap.write_logmap(
                 st_path, work / "lm.zarr", split="all", materials_train=list(st.materials)
             ),

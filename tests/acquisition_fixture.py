@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 from brdfpipe.acquisition import geometry, optimize, svd
 from brdfpipe.acquisition.geometry import Setup
 from brdfpipe.core import filenames
-from brdfpipe.data import logmap, merl, store, synth
-from brdfpipe.data.database import folder_database
+from brdfpipe.data import ingest, logmap, merl, store, synth
+from brdfpipe.data.database import database_from_folder
 
 
 class Data:
@@ -28,10 +28,10 @@ class Data:
 
     def __init__(self, d: Path) -> None:
         synth.synthesize(d / "db", count=8, seed=11, noise=0.01, jobs=1, progress=False)
-        db = folder_database(d / "db")
+        db = database_from_folder(d / "db", key="folder")
         self.dir = d
         self.store = d / "merl.zarr"
-        store.ingest(db.sources, self.store, database=db.kind, jobs=1)
+        ingest.ingest(db.sources, self.store, database=db.kind, jobs=1)
         st = store.open_store(self.store)
         self.materials = list(st.materials)
         self.test = [self.materials[1], self.materials[6]]

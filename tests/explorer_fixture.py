@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from brdfpipe.core import exr, integrity
-from brdfpipe.manifold import gplvm
+from brdfpipe.manifold import fitting, gplvm, likelihood
 
 
 def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, qs: tuple[int, ...] = (2, 5),
@@ -43,10 +43,10 @@ def make_inputs(root: Path, *, n: int = 12, width: int = 48, height: int = 36, q
     Z = rng.standard_normal((n, 4)) @ rng.standard_normal((4, 400)) + 0.1 * rng.standard_normal((n, 400))
     Z -= Z.mean(axis=0)
     G = Z @ Z.T
-    s = gplvm.gram_scale(G, 400)
+    s = likelihood.gram_scale(G, 400)
     models = []
     for q in qs:
-        res = gplvm.fit(G / s, 400, q=q, mu=1e-4, seed=seed, max_sweeps=20, method="hooke-jeeves")
+        res = fitting.fit(G / s, 400, q=q, mu=1e-4, seed=seed, max_sweeps=20, method="hooke-jeeves")
         path = root / f"q{q}.npz"
         gplvm.save_model(path, res, names, space=space, gram_scale=s)
         models.append(str(path))

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe.data import store, synth
+from brdfpipe.data import ingest, store, synth
 from brdfpipe.data.merl import N_CELLS
 
 
@@ -21,7 +21,7 @@ def small_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     db = tmp / "db"
     synth.synthesize(db, count=6, seed=1, jobs=1, progress=False)
     out = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=1)
+    ingest.ingest(sorted(db.glob("*.binary")), out, database="synthetic", jobs=1)
     return out
 
 

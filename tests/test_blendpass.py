@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfpipe.data import merl, store, synth
-from brdfpipe.manifold import albedo, blendpass, gplvm, gram, perceptual
+from brdfpipe.data import ingest, merl, store, synth
+from brdfpipe.manifold import albedo, blendpass, fitting, gplvm, gram, likelihood, perceptual
 
 N = 6
 RTOL = 1e-9
@@ -30,7 +30,7 @@ def holed(tmp_path_factory: pytest.TempPathFactory) -> dict:
     t[:, 20:30, 10:40, :] = -1.0  # an unmeasured region inside the PR12 domain
     merl.write_merl(files[2], t)
     out = tmp / "merl.zarr"
-    store.ingest(files, out, database="synthetic", jobs=1)
+    ingest.ingest(files, out, database="synthetic", jobs=1)
     st = store.open_store(out)
     domain = merl.measured_mask().ravel()
     valid = np.asarray(st.valid[:], dtype=bool)
@@ -171,7 +171,7 @@ def test_path_analysis_equals_the_per_point_tables(holed: dict, tmp_path: Path) 
     from brdfpipe.manifold import analysis
 
     G, d, info = gram.gram_matrix(holed["store"], space="log")
-    res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=2, mu=1e-4, seed=1)
+    res = fitting.fit(G / likelihood.gram_scale(G, d), d, q=2, mu=1e-4, seed=1)
     gplvm.save_model(tmp_path / "m.npz", res, info.materials, space="log", data_digests=info.digests)
     model = gplvm.load_model(tmp_path / "m.npz")
     names = list(model.names)

@@ -13,7 +13,7 @@ import pytest
 
 from brdfpipe import plan
 from brdfpipe.core import integrity
-from brdfpipe.manifold import gplvm, gram
+from brdfpipe.manifold import fitting, gplvm, gram, likelihood
 from brdfpipe.spec import manifold as man_spec
 from brdfpipe.spec.errors import ConfigError
 
@@ -59,7 +59,7 @@ def _gram_file(tmp_path: Path) -> tuple[Path, np.ndarray, int]:
     G = gram.centre_gram(raw)
     info = gram.GramInfo(tuple(f"m{i:02d}" for i in range(12)), "raw", Z.sum(axis=1), raw)
     path = tmp_path / "gram-raw.npz"
-    gplvm.save_gram(path, G, Z.shape[1], info)
+    gram.save_gram(path, G, Z.shape[1], info)
     return path, G, Z.shape[1]
 
 
@@ -79,15 +79,15 @@ def test_the_candidates_options_reach_the_fit(tmp_path: Path) -> None:
     assert man_spec.candidate_label(m.space, m.mu, m.normalised, m.method, m.init) == paper.label
     assert set(_stages(tmp_path / "paper.csv")) == {"hooke-jeeves"}
     assert res.init_factor == 1.0 and res.initial_log_likelihood == pytest.approx(
-        gplvm.log_likelihood(gplvm.pca_init(G, 2), G, d, 1.0, paper.mu), rel=1e-12)  # the PCA scores themselves
-    assert m.log_likelihood == pytest.approx(gplvm.log_likelihood(m.X, G, d, 1.0, paper.mu), rel=1e-8)  # raw units
+        likelihood.log_likelihood(fitting.pca_init(G, 2), G, d, 1.0, paper.mu), rel=1e-12)  # the PCA scores themselves
+    assert m.log_likelihood == pytest.approx(likelihood.log_likelihood(m.X, G, d, 1.0, paper.mu), rel=1e-8)  # raw units
     # the standard fit: normalised Gram, newton from the best-scaled start
     std = gplvm.fit_to_files(path, tmp_path / "std.npz", tmp_path / "std.csv", q=2, mu=1e-4)
     m = gplvm.load_model(tmp_path / "std.npz")
-    s = gplvm.gram_scale(G, d)
+    s = likelihood.gram_scale(G, d)
     assert (m.normalised, m.method, m.init, m.gram_scale) == (True, "newton", "best", s) and s > 100
-    assert "hooke-jeeves" not in _stages(tmp_path / "std.csv") and std.init_scale in gplvm.NEWTON_TRIAL_SCALES
-    assert m.log_likelihood == pytest.approx(gplvm.log_likelihood(m.X, G / s, d, 1.0, 1e-4), rel=1e-8)
+    assert "hooke-jeeves" not in _stages(tmp_path / "std.csv") and std.init_scale in fitting.NEWTON_TRIAL_SCALES
+    assert m.log_likelihood == pytest.approx(likelihood.log_likelihood(m.X, G / s, d, 1.0, 1e-4), rel=1e-8)
 
 
 def test_a_model_of_the_previous_format_is_refused(tmp_path: Path) -> None:

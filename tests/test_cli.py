@@ -86,14 +86,14 @@ def test_missing_folder_and_store_are_clear_errors(
 
 
 def test_interpolate_between_and_at(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gplvm, gram
 
     out = tmp_path / "db"
     assert cli.main(["-q", "synth", "--count", "5", "--seed", "3", "--out", str(out), "--jobs", "2"]) == 0
     zarr_path = tmp_path / "merl.zarr"
     assert cli.main(["-q", "ingest", str(out), "--out", str(zarr_path), "--jobs", "2"]) == 0
     gram_path, model_path = tmp_path / "gram.npz", tmp_path / "q2.npz"
-    gplvm.write_gram(zarr_path, gram_path)
+    gram.write_gram(zarr_path, gram_path)
     gplvm.fit_to_files(gram_path, model_path, tmp_path / "q2-trace.csv", q=2, seed=1, max_sweeps=20)
     st = store.open_store(zarr_path)
     a, b = st.materials[0], st.materials[3]

@@ -20,7 +20,7 @@ import pytest
 
 from brdfpipe import cli
 from brdfpipe.core import atomic
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import ingest, merl, store, synth
 from brdfpipe.rendering import scene
 
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -41,15 +41,15 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 @pytest.fixture(scope="module")
 def latent_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Five synthetic materials, their store and a q = 2 GPLVM fit (as test_cli's interpolation test)."""
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gplvm, gram
 
     d = tmp_path_factory.mktemp("latent")
     synth.synthesize(d / "db", count=5, seed=3, jobs=1, progress=False)
-    from brdfpipe.data.database import folder_database
+    from brdfpipe.data.database import database_from_folder
 
-    db = folder_database(d / "db")
-    store.ingest(db.sources, d / "merl.zarr", database=db.kind, jobs=1)
-    gplvm.write_gram(d / "merl.zarr", d / "gram.npz")
+    db = database_from_folder(d / "db", key="folder")
+    ingest.ingest(db.sources, d / "merl.zarr", database=db.kind, jobs=1)
+    gram.write_gram(d / "merl.zarr", d / "gram.npz")
     gplvm.fit_to_files(d / "gram.npz", d / "q2.npz", d / "q2-trace.csv", q=2, seed=1, max_sweeps=20)
     names = list(store.open_store(d / "merl.zarr").materials)
     return {"dir": d, "model": d / "q2.npz", "store": d / "merl.zarr", "a": names[0], "b": names[3],

@@ -34,8 +34,8 @@ import pytest
 from brdfpipe.acquisition import closedloop, evaluation, geometry, optimize, svd
 from brdfpipe.acquisition.geometry import Setup
 from brdfpipe.core import exr, filenames, integrity
-from brdfpipe.data import logmap, merl, store, synth
-from brdfpipe.data.database import folder_database
+from brdfpipe.data import ingest, logmap, merl, store, synth
+from brdfpipe.data.database import database_from_folder
 from brdfpipe.rendering import capture, render
 
 
@@ -167,10 +167,10 @@ class Loop:
 
     def __init__(self, d: Path) -> None:
         synth.synthesize(d / "db", count=8, seed=11, noise=0.01, jobs=1, progress=False)
-        db = folder_database(d / "db")
+        db = database_from_folder(d / "db", key="folder")
         self.sources = {k: Path(v) for k, v in db.sources.items()}
         self.store = d / "merl.zarr"
-        store.ingest(db.sources, self.store, database=db.kind, jobs=1)
+        ingest.ingest(db.sources, self.store, database=db.kind, jobs=1)
         st = store.open_store(self.store)
         materials = list(st.materials)
         self.test = [materials[1], materials[6]]

@@ -18,7 +18,7 @@ def _touch_merl(folder: Path, names: list[str]) -> None:
 def test_merl_folder_lists_binary_files(tmp_path: Path) -> None:
     _touch_merl(tmp_path, ["b-mat", "a-mat"])
     (tmp_path / "notes.txt").write_text("not a material")
-    d = db.merl_database(tmp_path)
+    d = db.database_from_folder(tmp_path)
     assert d.kind == "merl"
     assert d.materials == ["a-mat", "b-mat"]
     assert d.sources["a-mat"] == (tmp_path / "a-mat.binary").resolve()
@@ -26,20 +26,20 @@ def test_merl_folder_lists_binary_files(tmp_path: Path) -> None:
 
 def test_merl_folder_errors_name_the_folder(tmp_path: Path) -> None:
     with pytest.raises(db.DatabaseError, match="does not exist") as e:
-        db.merl_database(tmp_path / "nope")
+        db.database_from_folder(tmp_path / "nope")
     assert "nope" in str(e.value)
     (tmp_path / "file").write_text("x")
     with pytest.raises(db.DatabaseError, match="not a folder"):
-        db.merl_database(tmp_path / "file")
+        db.database_from_folder(tmp_path / "file")
     (tmp_path / "empty").mkdir()
     with pytest.raises(db.DatabaseError, match="no MERL files"):
-        db.merl_database(tmp_path / "empty")
+        db.database_from_folder(tmp_path / "empty")
 
 
 def test_real_merl_default_test_set_is_xu2016_plus_one(tmp_path: Path) -> None:
     names = [*db.XU2016_TEST_MATERIALS, db.EXTRA_TEST_MATERIAL, "gold-paint", "teflon"]
     _touch_merl(tmp_path, names)
-    d = db.merl_database(tmp_path)
+    d = db.database_from_folder(tmp_path)
     test = db.resolve_test_materials(None, d)
     assert len(test) == 10
     assert set(db.XU2016_TEST_MATERIALS) <= set(test)
@@ -48,7 +48,7 @@ def test_real_merl_default_test_set_is_xu2016_plus_one(tmp_path: Path) -> None:
 
 def test_unknown_test_material_is_named(tmp_path: Path) -> None:
     _touch_merl(tmp_path, ["a", "b", "c"])
-    d = db.merl_database(tmp_path)
+    d = db.database_from_folder(tmp_path)
     with pytest.raises(db.DatabaseError, match="unknown material.*zzz"):
         db.resolve_test_materials(["a", "zzz"], d)
     with pytest.raises(db.DatabaseError, match="more than once"):

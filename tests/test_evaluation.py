@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from acquisition_fixture import Data, dense_coef
+from pspace_reference import direct_training_error
 from brdfpipe.acquisition import evaluation as acq_evaluation
 from brdfpipe.acquisition import metrics, optimize, svd
 from brdfpipe.acquisition.evaluation import (
@@ -164,11 +165,11 @@ def test_consistency_check_passes(data: Data, tmp_path: Path) -> None:
     with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
         back = list(csv.reader(fh))
     assert tuple(back[0]) == CONSISTENCY_COLUMNS and len(back) == 1 + len(rows)
-    # The Gram-style direct value equals metrics.direct_training_error in p-space.
+    # The Gram-style direct value equals direct_training_error in p-space.
     m = data.model
     for r in rows:
         path = data.dirs[r["setup"]]
-        direct = metrics.direct_training_error(data.Q, m.U, m.sigma, m.mean, data.X, data.rows_of(path, r["n"]))
+        direct = direct_training_error(data.Q, m.U, m.sigma, m.mean, data.X, data.rows_of(path, r["n"]))
         assert r["direct"] == pytest.approx(direct, rel=1e-9)
         assert r["predicted"] == pytest.approx(direct, rel=1e-6)
     # With noise β > 0 the recorded E includes β‖Q(Q̃ᵀQ̃ + ηI)⁻¹Q̃ᵀ1‖, and so does the direct value.

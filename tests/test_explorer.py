@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from explorer_fixture import make_inputs  # noqa: E402
 
 from brdfpipe.core import exr, integrity  # noqa: E402
-from brdfpipe.manifold import gplvm, latent  # noqa: E402
+from brdfpipe.manifold import fitting, gplvm, latent  # noqa: E402
 from brdfpipe.rendering import blend  # noqa: E402
 from brdfpipe.explorer import chromium, export  # noqa: E402
 
@@ -147,7 +147,7 @@ def test_without_a_summary_the_fallback_target_and_a_q1_model(inputs: dict, tmp_
     names = list(gplvm.load_model(inputs["models"][0]).names)
     rng = np.random.default_rng(2)
     g = rng.normal(size=(len(names), 30))
-    fit = gplvm.fit(g @ g.T / 30, 30, q=1, mu=1e-4, seed=0, max_sweeps=5, method="hooke-jeeves")
+    fit = fitting.fit(g @ g.T / 30, 30, q=1, mu=1e-4, seed=0, max_sweeps=5, method="hooke-jeeves")
     q1 = tmp_path / "q1.npz"
     gplvm.save_model(q1, fit, names, space="log")
     out = tmp_path / "explorer"

@@ -9,9 +9,9 @@ import pytest
 import scipy.spatial
 
 from brdfpipe.core import integrity
-from brdfpipe.data import merl, store, synth
+from brdfpipe.data import ingest, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.manifold import albedo, analysis, fidelity, gplvm, gram, latent
+from brdfpipe.manifold import albedo, analysis, fidelity, fitting, gplvm, gram, latent, likelihood
 
 N = 8
 
@@ -22,16 +22,16 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
     db = tmp / "db"
     synth.synthesize(db, count=N, seed=3, jobs=1, progress=False)
     st_path = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), st_path, database="synthetic", jobs=1)
+    ingest.ingest(sorted(db.glob("*.binary")), st_path, database="synthetic", jobs=1)
     st = store.open_store(st_path)
     grams, models = {}, {}
     for space in ("raw", "standardised"):
         G, d, info = gram.gram_matrix(st_path, space=space)
         grams[space] = tmp / f"gram-{space}.npz"
-        gplvm.save_gram(grams[space], G, d, info)
+        gram.save_gram(grams[space], G, d, info)
     for q in (2, 3):
-        G, d, info = gplvm.load_gram(grams["standardised"])
-        res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=q, mu=1e-6, seed=1, max_sweeps=30)
+        G, d, info = gram.load_gram(grams["standardised"])
+        res = fitting.fit(G / likelihood.gram_scale(G, d), d, q=q, mu=1e-6, seed=1, max_sweeps=30)
         models[q] = tmp / f"q{q}.npz"
         gplvm.save_model(models[q], res, info.materials, space="standardised", data_digests=info.digests)
     brdf = np.asarray(st.brdf[:], dtype=np.float64).reshape(st.n_materials, 3 * N_CELLS)
@@ -60,7 +60,7 @@ def test_smooth_weights_match_gplvm_weights_off_the_training_points(setup: dict)
     for p, w in zip(P, W):  # one point at a time, through the model's own weights
         assert np.allclose(w, gplvm.blend_weights(gplvm.weights(m, p)), atol=1e-10)
     # at a training point the smooth weights differ from e_i by μK⁻¹e_i (no δ term)
-    K = gplvm.kernel_matrix(m.X, m.ell, m.mu)
+    K = likelihood.kernel_matrix(m.X, m.ell, m.mu)
     b = np.eye(N)[0] - m.mu * np.linalg.solve(K, np.eye(N)[0])
     assert np.allclose(fidelity.smooth_weights(m, m.X[:1])[0], gplvm.blend_weights(b), atol=1e-8)
 
@@ -91,7 +91,7 @@ def test_albedo_outside_equals_the_albedo_of_the_interpolated_tables(setup: dict
 def test_stability_equals_direct_table_differences(setup: dict) -> None:
     """‖z(xᵢ+εu) − zᵢ‖/‖zᵢ‖ from the Gram matrix equals the norm of the difference of the raw rows."""
     m = _model(setup, 3)
-    _, _, info = gplvm.load_gram(setup["grams"]["raw"])
+    _, _, info = gram.load_gram(setup["grams"]["raw"])
     eps = (1e-6, 1e-2)
     res = fidelity.stability(m, info.raw_gram, epsilons=eps, rng=np.random.default_rng(5))
     rng = np.random.default_rng(5)  # the same directions
@@ -109,7 +109,7 @@ def test_stability_equals_direct_table_differences(setup: dict) -> None:
 def test_nearest_neighbour_spread_against_a_kd_tree() -> None:
     X = np.array([[0.0, 0.0], [0.0, 1e-6], [1.0, 0.0], [3.0, 0.0]])
     m = gplvm.GplvmModel(tuple("abcd"), X, 0.5, 1e-4, "raw", gram.MEAN_HANDLING,
-                         np.linalg.cholesky(gplvm.kernel_matrix(X, 0.5, 1e-4)), 0.0, 10.0, np.zeros((0, 2)))
+                         np.linalg.cholesky(likelihood.kernel_matrix(X, 0.5, 1e-4)), 0.0, 10.0, np.zeros((0, 2)))
     got = fidelity.nearest_neighbour_spread(m)
     dist, _ = scipy.spatial.cKDTree(X / 0.5).query(X / 0.5, k=2)
     assert got["nn_median"] == pytest.approx(np.median(dist[:, 1]))
@@ -139,13 +139,13 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
     assert [r["q"] for r in rows] == [2, 3]
     for r, q in zip(rows, (2, 3)):
         m = _model(setup, q)
-        assert r["kappa"] == pytest.approx(np.linalg.cond(gplvm.kernel_matrix(m.X, m.ell, m.mu)), rel=1e-6)
+        assert r["kappa"] == pytest.approx(np.linalg.cond(likelihood.kernel_matrix(m.X, m.ell, m.mu)), rel=1e-6)
         assert 0.0 <= r["albedo_bad_hull"] <= 1.0 and r["hull_points"] == fidelity.HULL_POINTS
         assert r["sum_abs_w_hull_median"] >= 1.0 - 1e-9
         assert (r["normalise"], r["method"], r["init"]) == (True, "newton", "best")  # how the fixture was fitted
         # eq. 6 without the normalisation: the fit's L is that of G/s, another number
-        Gc, d, _ = gplvm.load_gram(setup["grams"]["standardised"])
-        assert r["log_likelihood_eq6"] == pytest.approx(gplvm.log_likelihood(m.X, Gc, d, m.ell, m.mu), rel=1e-12)
+        Gc, d, _ = gram.load_gram(setup["grams"]["standardised"])
+        assert r["log_likelihood_eq6"] == pytest.approx(likelihood.log_likelihood(m.X, Gc, d, m.ell, m.mu), rel=1e-12)
         assert r["log_likelihood"] == m.log_likelihood != pytest.approx(r["log_likelihood_eq6"], rel=1e-3)
         assert r["albedo_clamped_points"] == fidelity.CLAMPED_HULL_POINTS and 0 <= r["albedo_clamped_bad_hull"] <= 1
         assert r["jump_nn_median_1e-6"] <= r["jump_nn_p90_1e-6"] <= r["jump_nn_max_1e-6"]
@@ -210,10 +210,10 @@ def test_log_candidate_measures_its_blends_in_two_passes(setup: dict, monkeypatc
     tmp = setup["tmp"]
     G, d, info = gram.gram_matrix(setup["store"], space="log")
     grams = {"raw": setup["grams"]["raw"], "log": tmp / "gram-log.npz"}
-    gplvm.save_gram(grams["log"], G, d, info)
+    gram.save_gram(grams["log"], G, d, info)
     models = {}
     for q in (2, 3):
-        res = gplvm.fit(G / gplvm.gram_scale(G, d), d, q=q, mu=1e-4, seed=1)
+        res = fitting.fit(G / likelihood.gram_scale(G, d), d, q=q, mu=1e-4, seed=1)
         models[q] = tmp / f"log-q{q}.npz"
         gplvm.save_model(models[q], res, info.materials, space="log", data_digests=info.digests)
     passes, given = [], {}
@@ -322,7 +322,7 @@ def test_jump_next_to_a_material_is_the_table_brdfpipe_interpolate_writes(setup:
     same command gives the material back (reproduction_max), the fidelity a measure at the points alone reports."""
     m = _model(setup, 3)
     jump, nn = fidelity.nearest_neighbour_jump(setup["store"], m)
-    _, _, info = gplvm.load_gram(setup["grams"]["raw"])
+    _, _, info = gram.load_gram(setup["grams"]["raw"])
     repro = fidelity.reproduction_at_points(m, info.raw_gram)
     Z = setup["brdf"][:, setup["valid"]]
     norms = np.linalg.norm(Z, axis=1)

@@ -25,21 +25,23 @@ from brdfpipe.core import integrity
 from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.notes import read_note
 from brdfpipe.core.plot import FigureInputError
-from brdfpipe.manifold import figures, gplvm, lengthscale
+from brdfpipe.manifold import fitting, gplvm, gram, latent_map, lengthscale
 from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
-from brdfpipe.manifold.figures import (
+from brdfpipe.manifold.figure_inputs import (
     ALBEDO_COLUMNS,
     PATHS_COLUMNS,
     REPRODUCTION_COLUMNS,
     TRACE_COLUMNS,
-    make_manifold_figures,
-    manifold_eq7_bound,
-    manifold_fig10_latent_q2,
-    manifold_fig10_latent_q5,
     read_albedo_map,
     read_manifold_inputs,
     read_paths,
     read_trace,
+)
+from brdfpipe.manifold.figures import (
+    make_manifold_figures,
+    manifold_eq7_bound,
+    manifold_fig10_latent_q2,
+    manifold_fig10_latent_q5,
 )
 
 DB = "synthetic"
@@ -82,7 +84,7 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
     (root / "manifold").mkdir(parents=True, exist_ok=True)
     models, traces, fits = {}, {}, {}
     for q in QS:
-        res = gplvm.fit(G, D, q=q, max_sweeps=5, polish_iterations=60)
+        res = fitting.fit(G, D, q=q, max_sweeps=5, polish_iterations=60)
         if q == 2:  # crowd 16 of the points into a tight cluster: the latent map must zoom on it
             res.X = np.concatenate([0.02 * rng.normal(size=(16, 2)),
                                     rng.uniform(3.0, 6.0, size=(N - 16, 1)) * _directions(N - 16)])
@@ -156,10 +158,10 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
                     srows.append([database, c, space, mu, q, norm, eps, med, 2 * med, 3 * med])
     spaces_csv = _write_csv(root / "manifold" / "spaces.csv", SPACE_COLUMNS, rows)
     stability_csv = _write_csv(root / "manifold" / "spaces-stability.csv", STABILITY_COLUMNS, srows)
-    gram = root / "gplvm" / "gram-raw.npz"
-    gplvm.save_gram(gram, G, D, gplvm.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
+    gram_path = root / "gplvm" / "gram-raw.npz"
+    gram.save_gram(gram_path, G, D, gram.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
     lengthscales_csv = root / "manifold" / "lengthscales.csv"
-    lengthscale.measure_lengthscales(model=models[5], gram=gram, path=["teflon", "silver-paint"],
+    lengthscale.measure_lengthscales(model=models[5], gram=gram_path, path=["teflon", "silver-paint"],
                                      out=lengthscales_csv, database=database)
     return dict(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=maps, paths_csv=paths_csv,
                 reproduction_csv=repro_csv, spaces_csv=spaces_csv, stability_csv=stability_csv,
@@ -404,9 +406,9 @@ def test_latent_maps_zoom_on_crowded_points(inputs: dict[str, object], tmp_path:
 def test_zoom_chain() -> None:
     rng = np.random.default_rng(1)
     spread = rng.uniform(-5, 5, size=(30, 2))
-    assert len(figures._zoom_chain(spread, (5.0, 5.0))) == 1
+    assert len(latent_map.zoom_chain(spread, (5.0, 5.0))) == 1
     cluster = np.concatenate([spread, 1e-3 * rng.normal(size=(20, 2))])
-    views = figures._zoom_chain(cluster, (5.0, 5.0))
+    views = latent_map.zoom_chain(cluster, (5.0, 5.0))
     assert len(views) >= 2
     x0, x1, y0, y1 = views[1]
     inside = (cluster[:, 0] >= x0) & (cluster[:, 0] <= x1) & (cluster[:, 1] >= y0) & (cluster[:, 1] <= y1)

@@ -14,8 +14,8 @@ import scipy.spatial
 import scipy.stats
 
 from brdfpipe import cli
-from brdfpipe.data import merl, provenance, store, synth
-from brdfpipe.manifold import albedo, analysis, gplvm, gram, latent
+from brdfpipe.data import ingest, merl, provenance, store, synth
+from brdfpipe.manifold import albedo, analysis, gplvm, gram, latent, likelihood
 
 # --------------------------------------------------------------------------
 # hull_contains
@@ -153,12 +153,18 @@ def test_sample_in_hull_is_deterministic_given_the_seed() -> None:
 # --------------------------------------------------------------------------
 
 
+def _row_digests(path: Path, names: Sequence[str]) -> tuple[int, ...]:
+    """The digests of the store rows of ``names`` (what a fit on that store records)."""
+    st = store.open_store(path)
+    return tuple(int(st.digests[i]) for i in store.material_indices(st, names, "materials"))
+
+
 def _model(X: np.ndarray, names: Sequence[str], ell: float = 1.0, mu: float = 1e-4, space: str = "raw",
            store: Path | None = None) -> gplvm.GplvmModel:
     """A hand-placed model; with ``store``, tied to its rows (as a fit on that store would be)."""
     X = np.asarray(X, dtype=np.float64)
-    chol = np.linalg.cholesky(gplvm.kernel_matrix(X, ell, mu))
-    digests = gplvm.store_digests(store, names) if store is not None else ()
+    chol = np.linalg.cholesky(likelihood.kernel_matrix(X, ell, mu))
+    digests = _row_digests(store, names) if store is not None else ()
     return gplvm.GplvmModel(tuple(names), X, ell, mu, space, gram.MEAN_HANDLING, chol, 0.0, 1.0, np.zeros((0, 2)),
                             data_digests=digests)
 
@@ -276,7 +282,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
     db = tmp / "db"
     synth.synthesize(db, count=5, seed=3, jobs=1, progress=False)  # seed 3: its walks leave [0, 1]
     zarr_path = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
+    ingest.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
     names = list(store.open_store(zarr_path).materials)
     X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.4, 0.6]])
     return {"tmp": tmp, "store": zarr_path, "names": names, "X": X,
@@ -315,7 +321,7 @@ def model_file(tiny: dict) -> Path:
                                 trace=[(0, 0.0)], method="hybrid")
     path = tiny["tmp"] / "q2.npz"
     gplvm.save_model(path, fit, tiny["names"], space="raw",  # type: ignore[arg-type]
-                     data_digests=gplvm.store_digests(tiny["store"], tiny["names"]))
+                     data_digests=_row_digests(tiny["store"], tiny["names"]))
     return path
 
 
@@ -459,12 +465,12 @@ def fitted(tiny: dict) -> dict:
         sources[n] = plain / f"{n}.binary"
         merl.write_merl(sources[n], table)
     same = tmp / "merl.zarr"
-    store.ingest(sources, same, database="merl")
-    gplvm.write_gram(same, tmp / "gram-raw.npz")
+    ingest.ingest(sources, same, database="merl")
+    gram.write_gram(same, tmp / "gram-raw.npz")
     gplvm.fit_to_files(tmp / "gram-raw.npz", tmp / "q2.npz", tmp / "q2-trace.csv", q=2, seed=1, max_sweeps=10)
     a, b = names[0], names[1]
     swapped = tmp / "swapped.zarr"
-    store.ingest({**sources, a: sources[b], b: sources[a]}, swapped, database="merl")
+    ingest.ingest({**sources, a: sources[b], b: sources[a]}, swapped, database="merl")
     assert list(store.open_store(swapped).materials) == names  # the same names, in the same order
     return {"model": tmp / "q2.npz", "gram": tmp / "gram-raw.npz", "store": same, "swapped": swapped, "a": a, "b": b}
 
@@ -506,10 +512,10 @@ def test_latent_tools_refuse_a_store_with_other_rows(tiny: dict, fitted: dict, t
 
 
 def test_a_gram_file_is_tied_to_its_store(fitted: dict) -> None:
-    _, _, info = gplvm.load_gram(fitted["gram"])
+    _, _, info = gram.load_gram(fitted["gram"])
     with pytest.raises(ValueError, match=re.escape(f"{fitted['gram']}: material {fitted['a']!r} of the store "
                                                    f"{fitted['swapped']} is not the data the Gram matrix")):
-        gplvm.check_gram_store(info, fitted["swapped"], fitted["gram"])
+        gram.check_gram_store(info, fitted["swapped"], fitted["gram"])
 
 
 @pytest.mark.parametrize("damage", ["truncated", "not a zip", "edited"])

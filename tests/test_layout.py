@@ -326,3 +326,25 @@ def test_the_length_check_catches_a_long_function() -> None:
     sources["brdfpipe.core.atomic"] += f"\n\ndef too_long():\n{body}\n"
     assert long_functions(sources) == [f"brdfpipe.core.atomic.too_long ({MAX_FUNCTION_LINES + 1} lines, "
                                        f"line {sources['brdfpipe.core.atomic'].count(chr(10)) - MAX_FUNCTION_LINES})"]
+
+
+#: The longest a library module may be (lines of its file, docstring included): a module is one concept (issue 34).
+MAX_MODULE_LINES = 1000
+
+
+def long_modules(sources: dict[str, str], limit: int = MAX_MODULE_LINES) -> list[str]:
+    """``module (N lines)`` for every module of ``sources`` longer than ``limit`` lines."""
+    return [f"{name} ({n} lines)" for name, source in sources.items() if (n := len(source.splitlines())) > limit]
+
+
+def test_no_library_module_is_over_1000_lines() -> None:
+    """Modules are cut along their seams, or lose the code no caller needs: none over :data:`MAX_MODULE_LINES`."""
+    assert long_modules(module_sources()) == []
+
+
+def test_the_module_length_check_catches_a_long_module() -> None:
+    sources = module_sources()
+    n = len(sources["brdfpipe.core.atomic"].splitlines())
+    sources["brdfpipe.core.atomic"] += "\n".join(f"x{i} = {i}" for i in range(MAX_MODULE_LINES + 1 - n)) + "\n"
+    assert not [m for m in long_modules(module_sources()) if m.startswith("brdfpipe.core.atomic ")]
+    assert f"brdfpipe.core.atomic ({MAX_MODULE_LINES + 1} lines)" in long_modules(sources)

@@ -17,7 +17,7 @@ import pytest
 from brdfpipe.core import integrity
 from brdfpipe.core.notes import read_note
 from brdfpipe.core.plot import FigureInputError
-from brdfpipe.manifold import gplvm, lengthscale
+from brdfpipe.manifold import fitting, gplvm, gram, lengthscale, likelihood
 from brdfpipe.manifold.lengthscale_figure import manifold_fig06_lengthscale, read_lengthscales
 
 N, D = 9, 40
@@ -33,8 +33,8 @@ def fitted(tmp_path_factory: pytest.TempPathFactory) -> tuple[gplvm.GplvmModel, 
     G = Z @ Z.T
     folder = tmp_path_factory.mktemp("lengthscale")
     mpath, gpath = folder / "q2.npz", folder / "gram.npz"
-    gplvm.save_model(mpath, gplvm.fit(G, D, q=2, mu=1e-4, max_sweeps=5, polish_iterations=40), NAMES)
-    gplvm.save_gram(gpath, G, D, gplvm.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
+    gplvm.save_model(mpath, fitting.fit(G, D, q=2, mu=1e-4, max_sweeps=5, polish_iterations=40), NAMES)
+    gram.save_gram(gpath, G, D, gram.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
     return gplvm.load_model(mpath), Z, mpath, gpath
 
 
@@ -50,8 +50,8 @@ def test_deviation_bound_and_mean_distance_are_those_of_the_blended_data(fitted)
     for r in rows:
         ell = r["ell_factor"] * model.ell
         x = (1 - r["t"]) * model.X[0] + r["t"] * model.X[5]
-        K = gplvm.kernel_matrix(model.X, ell, model.mu)
-        b = np.linalg.solve(K, gplvm.kernel_vector(model.X, x, ell, model.mu))
+        K = likelihood.kernel_matrix(model.X, ell, model.mu)
+        b = np.linalg.solve(K, likelihood.kernel_vector(model.X, x, ell, model.mu))
         w = b + (1 - b.sum()) / N
         z = w @ Z  # the interpolated (centred) data themselves
         j = NAMES.index(r["nearest"])
@@ -109,6 +109,6 @@ def test_workflow_entry_writes_the_table_and_the_figure_its_note(fitted, tmp_pat
         read_lengthscales(tmp_path / "bad.csv")
     with pytest.raises(ValueError, match="differ"):
         other = tmp_path / "gram2.npz"
-        gplvm.save_gram(other, G, D, gplvm.GramInfo(NAMES[::-1], "raw", Z.sum(axis=1), G, "mean subtracted"))
+        gram.save_gram(other, G, D, gram.GramInfo(NAMES[::-1], "raw", Z.sum(axis=1), G, "mean subtracted"))
         lengthscale.measure_lengthscales(model=mpath, gram=other, path=["m2", "m7"], out=tmp_path / "x.csv",
                                          database="synthetic")

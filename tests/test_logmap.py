@@ -23,8 +23,8 @@ from hypothesis import strategies as hs
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
-from brdfpipe.data import logmap, merl, store, synth
-from brdfpipe.data.database import folder_database
+from brdfpipe.data import ingest, logmap, merl, store, synth
+from brdfpipe.data.database import database_from_folder
 from brdfpipe.data.logmap import EPS, LogmapError
 
 # --------------------------------------------------------------------------
@@ -37,9 +37,9 @@ def synth_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A store of six synthetic materials (one per family and one more)."""
     d = tmp_path_factory.mktemp("synth")
     synth.synthesize(d / "db", count=6, seed=1, noise=0.01, jobs=1, progress=False)
-    db = folder_database(d / "db")
+    db = database_from_folder(d / "db", key="folder")
     out = d / "merl.zarr"
-    store.ingest(db.sources, out, database=db.kind, jobs=1)
+    ingest.ingest(db.sources, out, database=db.kind, jobs=1)
     return out
 
 
@@ -61,7 +61,7 @@ def const_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
         merl.write_merl(path, table.reshape(merl.SHAPE))
         sources[name] = path
     out = d / "merl.zarr"
-    store.ingest(sources, out, database="merl", jobs=1)
+    ingest.ingest(sources, out, database="merl", jobs=1)
     return out
 
 

@@ -9,8 +9,8 @@ import scipy.linalg
 
 from brdfpipe.core import integrity
 from brdfpipe.spec.errors import ConfigError
-from brdfpipe.data import merl, provenance, store, synth
-from brdfpipe.manifold import albedo, analysis, gplvm
+from brdfpipe.data import ingest, merl, provenance, store, synth
+from brdfpipe.manifold import albedo, analysis, gplvm, gram, likelihood
 
 
 @pytest.fixture(scope="module")
@@ -19,9 +19,9 @@ def small(tmp_path_factory: pytest.TempPathFactory) -> dict:
     db = tmp / "db"
     synth.synthesize(db, count=6, seed=3, jobs=1, progress=False)
     zarr_path = tmp / "merl.zarr"
-    store.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
+    ingest.ingest(sorted(db.glob("*.binary")), zarr_path, database="synthetic", jobs=1)
     gram_path = tmp / "gram.npz"
-    gplvm.write_gram(zarr_path, gram_path)
+    gram.write_gram(zarr_path, gram_path)
     models = {}
     for q in (2, 3):
         models[q] = tmp / f"q{q}.npz"
@@ -87,7 +87,7 @@ def test_material_albedo_file_round_trips_and_refuses_another_store(small: dict,
 
 
 def test_deviation_is_exact_norm_of_the_blend_difference(small: dict) -> None:
-    G, _, _ = gplvm.load_gram(small["gram"])
+    G, _, _ = gram.load_gram(small["gram"])
     cols = np.flatnonzero(np.tile(small["valid"], 3))
     Z = small["brdf"][:, cols]
     w = np.array([0.5, 0.3, -0.1, 0.2, 0.0, 0.1])
@@ -97,7 +97,7 @@ def test_deviation_is_exact_norm_of_the_blend_difference(small: dict) -> None:
 
 def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
     model = gplvm.load_model(small["models"][3])
-    G, _, _ = gplvm.load_gram(small["gram"])
+    G, _, _ = gram.load_gram(small["gram"])
     a, b = small["names"][0], small["names"][4]
     rows = analysis.path_analysis(small["store"], model, G, a, b, steps=4)
     assert [r["step"] for r in rows] == list(range(5)) and rows[-1]["t"] == 1.0
@@ -121,7 +121,7 @@ def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pyte
     import tracemalloc
 
     model = gplvm.load_model(small["models"][3])
-    G, _, _ = gplvm.load_gram(small["gram"])
+    G, _, _ = gram.load_gram(small["gram"])
     a, b = small["names"][0], small["names"][4]
     whole = analysis.path_analysis(small["store"], model, G, a, b, steps=12)
     from brdfpipe.manifold import blendpass
@@ -174,7 +174,7 @@ def test_albedo_map_is_the_weighted_albedo(small: dict) -> None:
 
 
 def test_reproduction_errors(small: dict) -> None:
-    G, _, info = gplvm.load_gram(small["gram"])
+    G, _, info = gram.load_gram(small["gram"])
     models = {q: gplvm.load_model(p) for q, p in small["models"].items()}
     res = {(m, k): e for m, k, e in analysis.reproduction_errors(G, info.raw_gram, models, ks=(1, 5))}
     assert set(res) == {("pca", 1), ("pca", 2), ("pca", 3), ("pca", 5), ("gplvm", 2), ("gplvm", 3)}
@@ -263,7 +263,7 @@ def _reproduction_bound(m: gplvm.GplvmModel, a: int) -> np.ndarray:
     Kinv = scipy.linalg.cho_solve((C, True), np.eye(n))
     b = gplvm.weights(m, m.X[a])
     arg = ((m.X - m.X[a]) ** 2).sum(axis=1) / (2 * m.ell**2)
-    dk = (2 * _gamma(q + 2) * arg + 4 * U) * gplvm.kernel_vector(m.X, m.X[a], m.ell, m.mu)
+    dk = (2 * _gamma(q + 2) * arg + 4 * U) * likelihood.kernel_vector(m.X, m.X[a], m.ell, m.mu)
     db = np.abs(Kinv) @ (dk + _gamma(3 * n + 1) * (np.abs(C) @ (np.abs(C.T) @ np.abs(b))))
     return 2 * (db + db.sum() / n) + 4 * _gamma(n) * (1 + np.abs(b).sum())
 

@@ -21,7 +21,7 @@ import pytest
 
 from brdfpipe import cli
 from brdfpipe.data import database as db
-from brdfpipe.data import merl, provenance, store, synth
+from brdfpipe.data import ingest, merl, provenance, store, synth
 from brdfpipe.data.provenance import MARK_CELLS, Mark, ProvenanceError
 from brdfpipe.manifold import analysis, gplvm
 
@@ -114,7 +114,7 @@ def test_mark_values_are_exact_and_negative(tmp_path: Path) -> None:
     assert np.array_equal(raw[other], merl.read_merl_raw(plain).reshape(3, -1)[other])
     # readers see unmeasured cells there, and the store leaves them out of `valid`
     st_path = tmp_path / "s.zarr"
-    store.ingest({"m": path}, st_path, database="derived", jobs=1)
+    ingest.ingest({"m": path}, st_path, database="derived", jobs=1)
     assert not store.open_store(st_path).valid[MARK_CELLS].any()
 
 
@@ -336,9 +336,9 @@ def test_legacy_synthetic_files_stay_synthetic(tmp_path: Path, synth_dir: Path) 
     d = db.database_from_folder(folder)
     assert d.kind == "synthetic" and len(d.materials) == COUNT
     f = sorted(folder.glob("*.binary"))[0]
-    store.ingest_material(f, tmp_path / "row.zarr", name=f.stem, expect={"database": "synthetic"})
+    ingest.ingest_material(f, tmp_path / "row.zarr", name=f.stem, expect={"database": "synthetic"})
     with pytest.raises(ProvenanceError, match="records no 'count'.*regenerate"):
-        store.ingest_material(f, tmp_path / "row2.zarr", name=f.stem,
+        ingest.ingest_material(f, tmp_path / "row2.zarr", name=f.stem,
                               expect={"database": "synthetic", "count": COUNT, "seed": SEED})
 
 
@@ -352,10 +352,10 @@ def test_ingest_refuses_a_synthetic_file_under_another_name(tmp_path: Path, synt
     src = tmp_path / f"{a}.binary"
     shutil.copyfile(synth_dir / f"{b}.binary", src)  # B's file copied over A's
     row = tmp_path / "row.zarr"
-    store.ingest_material(synth_dir / f"{a}.binary", row, name=a)
+    ingest.ingest_material(synth_dir / f"{a}.binary", row, name=a)
     before = sorted(p.relative_to(row) for p in row.rglob("*"))
     with pytest.raises(ProvenanceError) as e:
-        store.ingest_material(src, row, name=a, expect={"database": "synthetic"})
+        ingest.ingest_material(src, row, name=a, expect={"database": "synthetic"})
     _one_line(e.value, str(src), repr(a), repr(b))
     assert sorted(p.relative_to(row) for p in row.rglob("*")) == before  # the earlier row is kept
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
@@ -375,32 +375,32 @@ def test_ingest_checks_the_expected_database_and_configuration(
 ) -> None:
     spec = synth.plan_database(COUNT, SEED)[0]
     with pytest.raises(ProvenanceError) as e:
-        store.ingest_material(synth_dir / f"{spec.name}.binary", tmp_path / "row.zarr", name=spec.name, expect=expect)
+        ingest.ingest_material(synth_dir / f"{spec.name}.binary", tmp_path / "row.zarr", name=spec.name, expect=expect)
     _one_line(e.value, spec.name, problem)
     ok = {"database": "synthetic", "count": COUNT, "seed": SEED, "noise": NOISE}
-    store.ingest_material(synth_dir / f"{spec.name}.binary", tmp_path / "row.zarr", name=spec.name, expect=ok)
+    ingest.ingest_material(synth_dir / f"{spec.name}.binary", tmp_path / "row.zarr", name=spec.name, expect=ok)
 
 
 def test_an_unmarked_file_replacing_a_synthetic_one_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "metal-gold-000.binary"
     merl.write_merl(path, _measured_table())
     with pytest.raises(ProvenanceError, match="is an unmarked MERL file .*belongs to the synthetic database"):
-        store.ingest_material(path, tmp_path / "row.zarr", name="metal-gold-000", expect={"database": "synthetic"})
+        ingest.ingest_material(path, tmp_path / "row.zarr", name="metal-gold-000", expect={"database": "synthetic"})
 
 
 def test_assembly_refuses_rows_of_another_label(tmp_path: Path) -> None:
     merl.write_merl(tmp_path / "d.binary", _measured_table(), mark=_derived("d"))
     merl.write_merl(tmp_path / "m.binary", _measured_table(0.3))
     rows = [tmp_path / "d.zarr", tmp_path / "m.zarr"]
-    store.ingest_material(tmp_path / "d.binary", rows[0], name="d")
-    store.ingest_material(tmp_path / "m.binary", rows[1], name="m")
+    ingest.ingest_material(tmp_path / "d.binary", rows[0], name="d")
+    ingest.ingest_material(tmp_path / "m.binary", rows[1], name="m")
     for label in ("merl", "derived"):
         with pytest.raises(store.StoreError) as e:
-            store.assemble_store(rows, tmp_path / "s.zarr", database=label)
+            ingest.assemble_store(rows, tmp_path / "s.zarr", database=label)
         _one_line(e.value, "one kind per store")
     assert not (tmp_path / "s.zarr").exists()
     with pytest.raises(ProvenanceError, match="d.binary: is derived material 'd' .*belongs to the merl database"):
-        store.ingest({"d": tmp_path / "d.binary", "m": tmp_path / "m.binary"}, tmp_path / "s.zarr", database="merl")
+        ingest.ingest({"d": tmp_path / "d.binary", "m": tmp_path / "m.binary"}, tmp_path / "s.zarr", database="merl")
 
 
 # --------------------------------------------------------------------------
@@ -414,13 +414,13 @@ def blends(synth_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
     tmp = tmp_path_factory.mktemp("marks-blends")
     st_path = tmp / "merl.zarr"
     d = db.database_from_folder(synth_dir)
-    store.ingest(d.sources, st_path, database=d.kind, jobs=1)
+    ingest.ingest(d.sources, st_path, database=d.kind, jobs=1)
     names = list(store.open_store(st_path).materials)
     X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.4, 0.6]])
     fit = types.SimpleNamespace(X=X, ell=2.0, mu=1e-4, log_likelihood=0.0, d=1.0, trace=[(0, 0.0)], method="hybrid")
     model = tmp / "q2.npz"
     gplvm.save_model(model, fit, names, space="raw",  # type: ignore[arg-type]
-                     data_digests=gplvm.store_digests(st_path, names))  # tied to the store, as a fit on it
+                     data_digests=[int(v) for v in store.open_store(st_path).digests])  # tied to the store, as a fit on it
     out = tmp / "out"
     out.mkdir()
     common = ["--model", str(model), "--store", str(st_path)]

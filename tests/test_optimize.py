@@ -22,9 +22,10 @@ import pytest
 from numpy.typing import NDArray
 
 from brdfpipe.core import integrity
+from pspace_reference import direct_training_error
 from brdfpipe.acquisition.geometry import config_to_dict, observation_cells, Setup
-from brdfpipe.acquisition.metrics import (ErrorModel, condition_number, condition_number_first_n, direct_training_error,
-                                          expected_error, selection_stats)
+from brdfpipe.acquisition.metrics import (ErrorModel, condition_number, condition_number_first_n, expected_error,
+                                          selection_stats)
 from brdfpipe.acquisition.optimize import DIRECTIONS_FORMAT, DirectionSet, optimize, read_directions, write_directions
 from brdfpipe.core import filenames
 from brdfpipe.data import merl

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.core import atomic
-from brdfpipe.data import database as db, merl, synth
+from brdfpipe.data import database as db, merl, synth, synthmodel
 
 COUNT, SEED = 3, 5
 
@@ -74,7 +74,7 @@ def test_watermark_cells_are_geometrically_unmeasurable() -> None:
     lowest = np.minimum(wi[:, 2], wo[:, 2])[inside]
     assert lowest.max() < -0.98
     # the lookup of such a pair is unmeasured (negative), as for any other such cell
-    table = synth._table(np.ones((3, synth._grid().cells.size)), synth._grid())
+    table = synth._table(np.ones((3, synthmodel.cell_grid().cells.size)), synthmodel.cell_grid())
     assert (merl.lookup(table, wi[inside], wo[inside]) < 0).all()
 
 
@@ -99,8 +99,8 @@ def test_files_without_the_watermark_are_not_synthetic(tmp_path: Path) -> None:
 
 def test_synth_folder_as_merl_dir_is_synthetic(synth_dir: Path) -> None:
     names = sorted(p.stem for p in synth_dir.glob("*.binary"))
-    for call in (db.database_from_folder, db.merl_database, db.folder_database):
-        d = call(synth_dir)
+    for key in ("merl_dir", "folder"):
+        d = db.database_from_folder(synth_dir, key=key)
         assert d.kind == "synthetic" and d.materials == names
     manifest = json.loads((synth_dir / "manifest.json").read_text())
     assert db.database_from_folder(synth_dir).default_test == tuple(manifest["test_materials"])

@@ -19,7 +19,7 @@ from brdfpipe.acquisition import reconstruct
 from brdfpipe.acquisition.reconstruct import ObservationError
 from brdfpipe.cli import main as cli_main
 from brdfpipe.data import logmap, merl, provenance, store
-from brdfpipe.data.database import folder_database
+from brdfpipe.data.database import database_from_folder
 
 
 # --------------------------------------------------------------------------
@@ -172,7 +172,7 @@ def test_reconstructions_are_derived_and_ingest_as_derived(data: Data, tmp_path:
     files, _, _ = _observation_files(data, tmp_path)
     folder = tmp_path / "recs"
     reconstruct.write_reconstruction(data.model_path, files["npz-dirs"], folder / "rec.binary")
-    source = folder_database(data.dir / "db").sources[data.test[0]]
+    source = database_from_folder(data.dir / "db", key="folder").sources[data.test[0]]
     reconstruct.write_reconstruction(data.model_path, files["csv-angles"], folder / "captured.binary", material=source)
     mark = provenance.read_mark(folder / "captured.binary")
     assert mark.fields["operation"] == "capture-reconstruct"

@@ -170,12 +170,12 @@ def test_fig01_samples_are_brdfpipe_sample_s_rendered_like_the_pre_renders(work:
 
 @pytest.mark.slow
 def test_fig06_follows_the_paper_s_path_and_its_limit(work: Path) -> None:
-    from brdfpipe.manifold import gplvm
+    from brdfpipe.manifold import gplvm, gram
     from brdfpipe.manifold.lengthscale_figure import read_lengthscales
 
     tab = read_lengthscales(work / filenames.lengthscales_csv())
     assert (tab.material_a, tab.material_b, tab.q, tab.space) == ("chrome", "silver-paint", 5, "standardised")
-    G, _, info = gplvm.load_gram(work / filenames.gram("standardised"))
+    G, _, info = gram.load_gram(work / filenames.gram("standardised"))
     model = gplvm.load_model(_default_model(work, 5))
     names = list(model.names)
     z = math.sqrt(np.trace(G))

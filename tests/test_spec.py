@@ -119,7 +119,7 @@ def test_each_shared_table_has_one_column_declaration() -> None:
     from brdfpipe.acquisition import evaluation
     from brdfpipe.acquisition import figures as acq_figures
     from brdfpipe.acquisition import unseen as acq_unseen
-    from brdfpipe.manifold import figures as man_figures
+    from brdfpipe.manifold import figure_inputs as man_figures
     from brdfpipe.manifold import unseen as man_unseen
     from brdfpipe.report import claims
     from brdfpipe.spec import tables

@@ -25,10 +25,10 @@ from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.zgroup import COMPLETE_ATTR
 from brdfpipe.core.version import full_version
-from brdfpipe.data import merl, store
+from brdfpipe.data import ingest, merl, store
 from brdfpipe.data.merl import MerlFormatError, N_CELLS
 from brdfpipe.data.store import N_COLS, StoreError
-from brdfpipe.manifold import gplvm, gram
+from brdfpipe.manifold import gram
 
 N_MATERIALS = 3
 
@@ -72,7 +72,7 @@ def expected(sources: dict[str, Path]) -> NDArray[np.float32]:
 def built(sources: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A store made by ``ingest`` with two worker processes."""
     out = tmp_path_factory.mktemp("built") / "merl.zarr"
-    store.ingest(sources, out, database="merl", jobs=2)
+    ingest.ingest(sources, out, database="merl", jobs=2)
     return out
 
 
@@ -83,7 +83,7 @@ def rows(sources: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> 
     paths = []
     for name, src in sources.items():
         row = d / f"{name}.zarr"
-        store.ingest_material(src, row, name=name)
+        ingest.ingest_material(src, row, name=name)
         paths.append(row)
     return paths
 
@@ -149,7 +149,7 @@ def test_store_is_plain_zarr(built: Path, expected: NDArray[np.float32]) -> None
 def test_row_shard_bytes_equal_zarrs(rows: list[Path], expected: NDArray[np.float32], tmp_path: Path) -> None:
     """The hand-written shard is byte-identical to what Zarr writes for the same row."""
     group = zarr.open_group(tmp_path / "ref.zarr", mode="w", zarr_format=3)
-    arr = store._create_brdf_array(group, 1)
+    arr = ingest._create_brdf_array(group, 1)
     arr[0, :] = expected[0]
     ours = (rows[0] / "brdf" / "c" / "0" / "0").read_bytes()
     assert (tmp_path / "ref.zarr" / "brdf" / "c" / "0" / "0").read_bytes() == ours
@@ -197,18 +197,6 @@ def test_iter_column_blocks_rows(
     np.testing.assert_array_equal(got, expected[want])
 
 
-def test_iter_valid_blocks(built: Path, expected: NDArray[np.float32]) -> None:
-    st = store.open_store(built)
-    valid_cols = np.flatnonzero(np.tile(st.valid[:], 3))
-    cols_seen = []
-    for cols, block in store.iter_valid_blocks(st):
-        assert block.shape == (N_MATERIALS, cols.size)
-        assert (block >= 0).all()
-        np.testing.assert_array_equal(block, expected[:, cols])
-        cols_seen.append(cols)
-    np.testing.assert_array_equal(np.concatenate(cols_seen), valid_cols)
-
-
 # --------------------------------------------------------------------------
 # Bad inputs and failures
 # --------------------------------------------------------------------------
@@ -249,19 +237,19 @@ def test_bad_file_fails_and_leaves_nothing(
     bad = damage(sources["mat-0"], tmp_path / "bad.binary")  # type: ignore[operator]
     out = tmp_path / "out" / "row.zarr"
     with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
-        store.ingest_material(bad, out, name="bad")
+        ingest.ingest_material(bad, out, name="bad")
     assert not out.exists() and _leftovers(out.parent) == []
     # An earlier row store at `out` is kept exactly as it was (no data lost).
     shutil.copytree(rows[0], out)
     before = _tree(out)
     with pytest.raises(MerlFormatError):
-        store.ingest_material(bad, out, name="bad")
+        ingest.ingest_material(bad, out, name="bad")
     assert _tree(out) == before and _leftovers(out.parent) == []
 
 
 def test_missing_file_fails(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="nope.binary"):
-        store.ingest_material(tmp_path / "nope.binary", tmp_path / "row.zarr", name="x")
+        ingest.ingest_material(tmp_path / "nope.binary", tmp_path / "row.zarr", name="x")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -270,7 +258,7 @@ def test_ingest_with_a_bad_file_fails(sources: dict[str, Path], tmp_path: Path) 
     out = tmp_path / "store" / "merl.zarr"
     srcs = {"a": sources["mat-0"], "bad": bad, "c": sources["mat-2"]}
     with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
-        store.ingest(srcs, out, database="merl", jobs=2)
+        ingest.ingest(srcs, out, database="merl", jobs=2)
     assert not out.exists() and _leftovers(out.parent) == []
 
 
@@ -331,14 +319,14 @@ def test_assemble_bad_row_fails_and_leaves_nothing(
     out = tmp_path / "out" / "merl.zarr"
     for link in (False, True):
         with pytest.raises(StoreError, match=message) as err:
-            store.assemble_store(copies, out, database="merl", link=link)
+            ingest.assemble_store(copies, out, database="merl", link=link)
         assert str(bad) in str(err.value)
         assert not out.exists() and _leftovers(out.parent) == []
 
 
 def test_assemble_copies_and_verifies(rows: list[Path], expected: NDArray[np.float32], tmp_path: Path) -> None:
     out = tmp_path / "merl.zarr"
-    store.assemble_store(list(reversed(rows)), out, database="merl")
+    ingest.assemble_store(list(reversed(rows)), out, database="merl")
     st = store.open_store(out, verify=True)
     assert st.materials == ("mat-2", "mat-1", "mat-0") and st.database == "merl"
     np.testing.assert_array_equal(st.brdf[0, :], expected[2])
@@ -362,7 +350,7 @@ def test_assemble_copies_and_verifies(rows: list[Path], expected: NDArray[np.flo
 
 def test_assemble_rejects_unknown_database(rows: list[Path], tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="database"):
-        store.assemble_store(rows, tmp_path / "merl.zarr", database="mystery")
+        ingest.assemble_store(rows, tmp_path / "merl.zarr", database="mystery")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -401,9 +389,9 @@ def test_open_store_refuses_inconsistent(built: Path, tmp_path: Path) -> None:
 
 def test_rerun_replaces_existing(sources: dict[str, Path], expected: NDArray[np.float32], tmp_path: Path) -> None:
     out = tmp_path / "merl.zarr"
-    store.ingest(list(sources.values()), out, database="merl", jobs=1)
+    ingest.ingest(list(sources.values()), out, database="merl", jobs=1)
     assert store.open_store(out).materials == ("mat-0", "mat-1", "mat-2")
-    store.ingest({"only": sources["mat-2"]}, out, database="merl", jobs=1)
+    ingest.ingest({"only": sources["mat-2"]}, out, database="merl", jobs=1)
     st = store.open_store(out, verify=True)
     assert st.materials == ("only",) and st.database == "merl"
     np.testing.assert_array_equal(st.brdf[:, :], expected[2:3])
@@ -412,7 +400,7 @@ def test_rerun_replaces_existing(sources: dict[str, Path], expected: NDArray[np.
 
 def test_ingest_keeps_rows_in_workdir(sources: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "merl.zarr"
-    store.ingest(sources, out, database="merl", jobs=1, workdir=tmp_path / "rows")
+    ingest.ingest(sources, out, database="merl", jobs=1, workdir=tmp_path / "rows")
     kept = sorted(p.name for p in (tmp_path / "rows").iterdir())
     assert kept == ["0000-mat-0.zarr", "0001-mat-1.zarr", "0002-mat-2.zarr"]
     assert (out / "brdf" / "c" / "0" / "0").stat().st_nlink == 1  # kept rows are copied, not linked
@@ -444,14 +432,14 @@ def test_writers_refuse_a_foreign_output_before_any_work(
     def no_work(path: Path) -> None:
         raise AssertionError("a source was read before the output was checked")
 
-    monkeypatch.setattr(store, "_encode_source", no_work)
-    monkeypatch.setattr(store, "_open_row", no_work)
+    monkeypatch.setattr(ingest, "_encode_source", no_work)
+    monkeypatch.setattr(ingest, "_open_row", no_work)
     calls = [
-        lambda: store.ingest(sources, out, database="merl", jobs=1),
-        lambda: store.assemble_store(rows, out, database="merl"),
+        lambda: ingest.ingest(sources, out, database="merl", jobs=1),
+        lambda: ingest.assemble_store(rows, out, database="merl"),
     ]
     if kind != "row store":
-        calls.append(lambda: store.ingest_material(sources["mat-0"], out, name="x"))
+        calls.append(lambda: ingest.ingest_material(sources["mat-0"], out, name="x"))
     for call in calls:
         with pytest.raises(OutputError, match=re.escape(str(out)) + ".*refusing to replace"):
             call()
@@ -466,21 +454,21 @@ def test_failed_reingest_keeps_the_old_store(
     before = _tree(out)
     bad = _with_nan(sources["mat-1"], tmp_path / "bad.binary")
     with pytest.raises(MerlFormatError, match=re.escape(str(bad))):
-        store.ingest({"a": sources["mat-0"], "bad": bad}, out, database="merl", jobs=2)
+        ingest.ingest({"a": sources["mat-0"], "bad": bad}, out, database="merl", jobs=2)
     assert _tree(out) == before and _leftovers(tmp_path) == []
     copies = _copy_rows(rows, tmp_path / "rows")
     (copies[2] / "brdf" / "c" / "0" / "0").unlink()
     with pytest.raises(StoreError, match="missing"):
-        store.assemble_store(copies, out, database="merl")
+        ingest.assemble_store(copies, out, database="merl")
     assert _tree(out) == before and _leftovers(tmp_path) == []
 
     # An interrupt (Ctrl-C) in the middle of the assembly.
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(store, "_warn_removals", interrupted)
+    monkeypatch.setattr(ingest, "_warn_removals", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        store.ingest(sources, out, database="merl", jobs=1)
+        ingest.ingest(sources, out, database="merl", jobs=1)
     assert _tree(out) == before and _leftovers(tmp_path) == []
     store.open_store(out)
 
@@ -495,15 +483,15 @@ def test_stale_siblings_of_dead_runs_are_removed(sources: dict[str, Path], tmp_p
         (d / "sub" / "junk").write_bytes(b"x" * 100)
     alive = tmp_path / f".merl.zarr.tmp-{os.getpid()}-00000001"  # a live writer's: left alone
     alive.mkdir()
-    store.ingest({"only": sources["mat-0"]}, out, database="merl", jobs=1)
+    ingest.ingest({"only": sources["mat-0"]}, out, database="merl", jobs=1)
     assert sorted(os.listdir(tmp_path)) == sorted([alive.name, "merl.zarr"])
 
 
 def test_same_sources_give_the_same_bytes(sources: dict[str, Path], tmp_path: Path) -> None:
     """Determinism: two ingests (different worker counts) write byte-identical stores."""
     a, b = tmp_path / "a.zarr", tmp_path / "b.zarr"
-    store.ingest(sources, a, database="merl", jobs=1)
-    store.ingest(sources, b, database="merl", jobs=2)
+    ingest.ingest(sources, a, database="merl", jobs=1)
+    ingest.ingest(sources, b, database="merl", jobs=2)
 
     def tree(root: Path) -> dict[str, bytes]:
         return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
@@ -527,7 +515,7 @@ def _flip_bit(path: Path, pos: int = 5000) -> None:
 
 @pytest.mark.parametrize("damage", ["flipped bit", "deleted shard", "truncated shard"])
 def test_damaged_shard_stops_the_gram_job(damage: str, built: Path, tmp_path: Path) -> None:
-    """gplvm.write_gram (the compute_gram job) fails naming store and material, and writes nothing."""
+    """gram.write_gram (the compute_gram job) fails naming store and material, and writes nothing."""
     bad = Path(shutil.copytree(built, tmp_path / "merl.zarr"))
     shard = bad / "brdf" / "c" / "2" / "0"
     if damage == "flipped bit":
@@ -538,7 +526,7 @@ def test_damaged_shard_stops_the_gram_job(damage: str, built: Path, tmp_path: Pa
         shard.write_bytes(shard.read_bytes()[:-10])
     out = tmp_path / "gram.npz"
     with pytest.raises(StoreError, match=re.escape(str(bad)) + ".*'mat-2'") as err:
-        gplvm.write_gram(bad, out)
+        gram.write_gram(bad, out)
     assert "\n" not in str(err.value)
     assert not out.exists() and _leftovers(tmp_path) == []
     with pytest.raises(StoreError, match="'mat-2'"):
@@ -642,7 +630,7 @@ def test_file_without_measured_cells_is_refused(tmp_path: Path) -> None:
     src = tmp_path / "empty.binary"
     merl.write_merl(src, np.full(merl.SHAPE, -1.0))
     with pytest.raises(MerlFormatError, match=re.escape(str(src)) + ".*no measured cell"):
-        store.ingest_material(src, tmp_path / "row.zarr", name="empty")
+        ingest.ingest_material(src, tmp_path / "row.zarr", name="empty")
     assert sorted(os.listdir(tmp_path)) == ["empty.binary"]
 
 
@@ -654,12 +642,12 @@ def test_file_removing_many_cells_is_warned(
     table[2, measured[: measured.size // 20]] = -1.0  # 5 % of the measured cells
     holey = tmp_path / "holey.binary"
     merl.write_merl(holey, table.reshape(merl.SHAPE))
-    with caplog.at_level(logging.WARNING, logger="brdfpipe.data.store"):
-        store.ingest({"a": sources["mat-0"], "holey": holey, "c": sources["mat-2"]},
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.data.ingest"):
+        ingest.ingest({"a": sources["mat-0"], "holey": holey, "c": sources["mat-2"]},
                      tmp_path / "merl.zarr", database="merl", jobs=1)
     warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warned) == 1 and re.match(r"holey\.binary: material 'holey' leaves .* \(5\.\d%\)", warned[0])
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="brdfpipe.data.store"):
-        store.ingest(sources, tmp_path / "fine.zarr", database="merl", jobs=1)
+    with caplog.at_level(logging.WARNING, logger="brdfpipe.data.ingest"):
+        ingest.ingest(sources, tmp_path / "fine.zarr", database="merl", jobs=1)
     assert not [r for r in caplog.records if r.levelno == logging.WARNING]  # 2000 of ~1 M cells: 0.2 %

@@ -23,8 +23,8 @@ from brdfpipe.acquisition.svd import ModelError
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import OutputError
 from brdfpipe.core.version import full_version
-from brdfpipe.data import logmap, merl, provenance, store, synth
-from brdfpipe.data.database import folder_database
+from brdfpipe.data import ingest, logmap, merl, provenance, synth
+from brdfpipe.data.database import database_from_folder
 
 # --------------------------------------------------------------------------
 # Fixtures
@@ -35,9 +35,9 @@ from brdfpipe.data.database import folder_database
 def data(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("svd")
     synth.synthesize(d / "db", count=6, seed=5, noise=0.01, jobs=1, progress=False)
-    db = folder_database(d / "db")
+    db = database_from_folder(d / "db", key="folder")
     st_path = d / "merl.zarr"
-    store.ingest(db.sources, st_path, database=db.kind, jobs=1)
+    ingest.ingest(db.sources, st_path, database=db.kind, jobs=1)
     lm_path = d / "all.zarr"
     logmap.write_logmap(st_path, lm_path, split="all", materials_train=db.materials)
     return {"db": d / "db", "store": st_path, "logmap": lm_path, "dir": d}
@@ -253,7 +253,7 @@ def test_decompose_errors() -> None:
 
 def test_duplicate_material_is_rank_deficient(data: dict[str, Path], tmp_path: Path) -> None:
     """Four materials, one a byte copy of another: the centred 12 × p matrix has rank 8."""
-    db = folder_database(data["db"])
+    db = database_from_folder(data["db"], key="folder")
     names = db.materials[:3]
     sources = {n: db.sources[n] for n in names}
     sources["twin"] = tmp_path / "twin.binary"
@@ -264,7 +264,7 @@ def test_duplicate_material_is_rank_deficient(data: dict[str, Path], tmp_path: P
     provenance.stamp(raw, provenance.Mark("synthetic", {**mark.fields, "name": "twin"}))
     sources["twin"].write_bytes(np.asarray(merl.DIMS, dtype="<i4").tobytes() + raw.astype("<f8").tobytes())
     st_path = tmp_path / "merl.zarr"
-    store.ingest(sources, st_path, database="synthetic", jobs=1)
+    ingest.ingest(sources, st_path, database="synthetic", jobs=1)
     lm_path = tmp_path / "lm.zarr"
     logmap.write_logmap(st_path, lm_path, split="all", materials_train=list(sources))
     out = tmp_path / "model.zarr"

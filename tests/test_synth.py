@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from brdfpipe.core.version import full_version
-from brdfpipe.data import merl, provenance, synth
+from brdfpipe.data import merl, provenance, synth, synthmodel
 
 SEED = 11
 NOISE = 0.01
@@ -147,15 +147,15 @@ def test_fresnel_terms() -> None:
     rs = (c - eta * cos_t) / (c + eta * cos_t)
     rp = (eta * c - cos_t) / (eta * c + cos_t)
     ref = 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
-    np.testing.assert_allclose(synth._fresnel_conductor(n, k, c), ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(synthmodel._fresnel_conductor(n, k, c), ref, rtol=1e-10, atol=1e-12)
     f0 = ((n - 1) ** 2 + k**2) / ((n + 1) ** 2 + k**2)
-    np.testing.assert_allclose(synth._fresnel_conductor(n, k, np.ones(1))[:, 0], f0, rtol=1e-12)
+    np.testing.assert_allclose(synthmodel._fresnel_conductor(n, k, np.ones(1))[:, 0], f0, rtol=1e-12)
     eta_d = 1.5
     cos_t = np.sqrt(1.0 - (1.0 - c**2) / eta_d**2)
     rs = (c - eta_d * cos_t) / (c + eta_d * cos_t)
     rp = (eta_d * c - cos_t) / (eta_d * c + cos_t)
     np.testing.assert_allclose(
-        synth._fresnel_dielectric(eta_d, c), 0.5 * (rs**2 + rp**2), rtol=1e-10, atol=1e-12
+        synthmodel._fresnel_dielectric(eta_d, c), 0.5 * (rs**2 + rp**2), rtol=1e-10, atol=1e-12
     )
 
 
@@ -164,7 +164,7 @@ def test_fresnel_terms() -> None:
 def test_microfacet_distributions_are_normalised(dist: str, alpha: float) -> None:
     u = (np.arange(200_000) + 0.5) / 200_000  # θ = u² π/2: dense near the peak
     theta = u * u * np.pi / 2
-    d = synth._ndf(dist, alpha, np.cos(theta))
+    d = synthmodel._ndf(dist, alpha, np.cos(theta))
     integral = np.sum(d * np.cos(theta) * np.sin(theta) * 2 * np.pi * np.pi * u / u.size)
     assert integral == pytest.approx(1.0, rel=1e-4)
 
@@ -174,21 +174,21 @@ def test_evaluate_is_reciprocal_finite_and_non_negative(spec: synth.MaterialSpec
     rng = np.random.default_rng(spec.seed)
     wi = _random_directions(rng, 2000)
     wo = _random_directions(rng, 2000)
-    f = synth.evaluate(spec, wi, wo)
+    f = synthmodel.evaluate(spec, wi, wo)
     assert f.shape == (2000, 3)
     assert np.isfinite(f).all() and (f >= 0.0).all()
-    np.testing.assert_allclose(synth.evaluate(spec, wo, wi), f, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(synthmodel.evaluate(spec, wo, wi), f, rtol=1e-12, atol=0.0)
     # params alone work as well as the spec; below the horizon the BRDF is 0
-    np.testing.assert_array_equal(synth.evaluate(spec.params, wi, wo), f)
+    np.testing.assert_array_equal(synthmodel.evaluate(spec.params, wi, wo), f)
     below = wo * np.array([1.0, 1.0, -1.0])
-    assert (synth.evaluate(spec, wi, below) == 0.0).all()
+    assert (synthmodel.evaluate(spec, wi, below) == 0.0).all()
 
 
 def test_evaluate_rejects_bad_input(specs5) -> None:
     with pytest.raises(ValueError, match="family"):
-        synth.evaluate({"family": "wood"}, [0, 0, 1], [0, 0, 1])
+        synthmodel.evaluate({"family": "wood"}, [0, 0, 1], [0, 0, 1])
     with pytest.raises(ValueError, match="shape"):
-        synth.evaluate(specs5[0], np.zeros((3, 2)), np.zeros((3, 2)))
+        synthmodel.evaluate(specs5[0], np.zeros((3, 2)), np.zeros((3, 2)))
 
 
 # --------------------------------------------------------------------------
@@ -230,7 +230,7 @@ def test_albedo_at_most_one(generated, specs5) -> None:
 def test_grid_values_equal_the_analytic_model(specs5) -> None:
     """Without deviations and noise, a table is evaluate() at the cell centres."""
     rng = np.random.default_rng(5)
-    cells = rng.choice(synth._grid().cells, 20_000, replace=False)
+    cells = rng.choice(synthmodel.cell_grid().cells, 20_000, replace=False)
     wi, wo = merl.cell_directions(cells)
     for spec in specs5:
         dev = spec.params["deviation"]
@@ -242,7 +242,7 @@ def test_grid_values_equal_the_analytic_model(specs5) -> None:
         bare = replace(spec, params={**spec.params, "deviation": flat})
         table, record = synth.generate_material(bare, 0.0)
         got = table.reshape(3, -1)[:, cells].T
-        want = synth.evaluate(bare, wi, wo) * record["energy_scale"]
+        want = synthmodel.evaluate(bare, wi, wo) * record["energy_scale"]
         np.testing.assert_allclose(got, want, rtol=1e-9, err_msg=spec.name)
 
 
@@ -250,8 +250,8 @@ def test_deviations_are_smooth_and_moderate(generated, specs5, mask) -> None:
     """The deviation is a smooth factor of moderate size, not a different material."""
     for spec in specs5:
         table, record = generated[spec.name]
-        grid = synth._grid()
-        model = np.asarray(synth._model(spec.params, grid.geom)) * record["energy_scale"]
+        grid = synthmodel.cell_grid()
+        model = np.asarray(synthmodel._model(spec.params, grid.geom)) * record["energy_scale"]
         ok = model > 1e-12
         log_ratio = np.log(table.reshape(3, -1)[:, grid.cells][ok] / model[ok])
         assert 0.02 < log_ratio.std() < 1.0, spec.name

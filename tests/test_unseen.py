@@ -20,8 +20,8 @@ import pytest
 
 from brdfpipe import plan
 from brdfpipe.core import filenames, integrity
-from brdfpipe.data import database, databases, merl, nbrdf, store
-from brdfpipe.manifold import gplvm, unseen
+from brdfpipe.data import database, databases, ingest, merl, nbrdf, store
+from brdfpipe.manifold import fitting, gplvm, gram, likelihood, unseen
 from brdfpipe.manifold.gram import MEAN_HANDLING, STANDARDISED_FLOOR, cross_gram, gram_matrix
 
 RESULTS = "results"
@@ -170,11 +170,11 @@ class Toy:
         self.mean = self.Z.mean(axis=0)
         self.Y = self.Z - self.mean
         self.G = self.Y @ self.Y.T
-        scale = gplvm.gram_scale(self.G, 60)
-        res = gplvm.fit(self.G / scale, 60, q=q, mu=mu, method="newton")
+        scale = likelihood.gram_scale(self.G, 60)
+        res = fitting.fit(self.G / scale, 60, q=q, mu=mu, method="newton")
         names = [f"m{i:02d}" for i in range(12)]
         self.model = gplvm.GplvmModel(tuple(names), res.X, res.ell, res.mu, "raw", MEAN_HANDLING,
-                                      np.linalg.cholesky(gplvm.kernel_matrix(res.X, res.ell, res.mu)),
+                                      np.linalg.cholesky(likelihood.kernel_matrix(res.X, res.ell, res.mu)),
                                       res.log_likelihood, 60.0, np.zeros((0, 2)), scale, res.method)
 
     def objective(self, z: np.ndarray) -> unseen.Objective:
@@ -220,10 +220,10 @@ def test_the_likelihood_is_the_fit_objective_gained_by_adding_the_material(toy: 
     obj = toy.objective(z)
     s = toy.model.gram_scale
     Yplus = np.vstack([toy.Y, z - toy.mean])
-    base = gplvm.log_likelihood(toy.model.X, toy.G / s, 60, toy.model.ell, toy.model.mu)
+    base = likelihood.log_likelihood(toy.model.X, toy.G / s, 60, toy.model.ell, toy.model.mu)
     values = []
     for x in (toy.model.X[3] + 0.05, toy.model.X[8] - 0.2, np.array([3.0, -2.0])):
-        joint = gplvm.log_likelihood(np.vstack([toy.model.X, x]), Yplus @ Yplus.T / s, 60, toy.model.ell,
+        joint = likelihood.log_likelihood(np.vstack([toy.model.X, x]), Yplus @ Yplus.T / s, 60, toy.model.ell,
                                      toy.model.mu)
         values.append((joint - base, obj.log_likelihood(x)))
     diffs = [a - b for a, b in values]
@@ -277,7 +277,7 @@ def test_cross_gram_equals_a_dense_computation(stores: dict[str, Path]) -> None:
 
 
 def test_unseen_csv_of_the_manifold(stores: dict[str, Path], tmp_path: Path) -> None:
-    gplvm.write_gram(stores["merl-nbrdf"], tmp_path / "gram.npz", space="standardised")
+    gram.write_gram(stores["merl-nbrdf"], tmp_path / "gram.npz", space="standardised")
     models = {}
     for q in (1, 2):
         models[q] = tmp_path / f"q{q}.npz"
@@ -303,8 +303,8 @@ def test_unseen_csv_of_the_manifold(stores: dict[str, Path], tmp_path: Path) -> 
         # PCA with more components reproduces better
         assert float(by[(m, "pca", 5)]["relative_error"]) <= float(by[(m, "pca", 1)]["relative_error"])
     # a Gram matrix of another space: the materials would be mapped to the wrong space
-    gplvm.write_gram(stores["merl-nbrdf"], tmp_path / "gram-raw.npz", space="raw")
-    G_raw, _, _ = gplvm.load_gram(tmp_path / "gram-raw.npz")
+    gram.write_gram(stores["merl-nbrdf"], tmp_path / "gram-raw.npz", space="raw")
+    G_raw, _, _ = gram.load_gram(tmp_path / "gram-raw.npz")
     cross = cross_gram(stores["merl-nbrdf"], [stores["rgl-nbrdf"]], space="standardised")
     with pytest.raises(ValueError, match="differs from the models'"):
         unseen.unseen_rows(cross, {2: gplvm.load_model(models[2])}, gram=G_raw, model_database="merl-nbrdf")
@@ -318,7 +318,7 @@ def test_a_store_not_measured_where_the_model_is_is_refused(stores: dict[str, Pa
 
     merl.write_merl(tmp_path / "holey.binary", table, mark=provenance.fit_mark(
         database="rgl-nbrdf", name="holey", fit="spectralon_rgb", archive="x.zip", fit_sha256="0" * 64, clamped=0))
-    store.ingest({"holey": tmp_path / "holey.binary"}, tmp_path / "holey.zarr", database="rgl-nbrdf")
+    ingest.ingest({"holey": tmp_path / "holey.binary"}, tmp_path / "holey.zarr", database="rgl-nbrdf")
     with pytest.raises(ValueError, match="holey.zarr: .* cell.s. valid in every material"):
         cross_gram(stores["merl-nbrdf"], [tmp_path / "holey.zarr"], space="raw")
 
@@ -375,7 +375,7 @@ class Acq:
             merl.write_merl(sources[f"copy-{m}"], table, mark=provenance.fit_mark(
                 database="rgl-nbrdf", name=f"copy-{m}", fit=m, archive="x.zip", fit_sha256="0" * 64, clamped=0))
         self.unseen = d / "unseen.zarr"
-        store.ingest(sources, self.unseen, database="rgl-nbrdf")
+        ingest.ingest(sources, self.unseen, database="rgl-nbrdf")
 
 
 @pytest.fixture(scope="module")
@@ -531,7 +531,7 @@ def test_unseen_claims_do_not_change_the_runs_database_side_by_side(tmp_path: Pa
 def test_a_training_material_as_unseen_sits_at_its_own_latent_point(stores: dict[str, Path], acq: Acq,
                                                                      tmp_path: Path) -> None:
     """Real tables: a copy of a training material (another store, another label) is placed on its own x_i."""
-    gplvm.write_gram(stores["merl-nbrdf"], tmp_path / "gram.npz", space="standardised")
+    gram.write_gram(stores["merl-nbrdf"], tmp_path / "gram.npz", space="standardised")
     gplvm.fit_to_files(tmp_path / "gram.npz", tmp_path / "q2.npz", tmp_path / "q2.csv", q=2, mu=1e-4)
     out = unseen.write_unseen(tmp_path / "unseen.csv", store=stores["merl-nbrdf"], gram=tmp_path / "gram.npz",
                               models={2: tmp_path / "q2.npz"}, unseen_stores=[acq.unseen], pca_ks=[5])

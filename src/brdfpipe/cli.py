@@ -208,13 +208,13 @@ def _cmd_nbrdf(args: argparse.Namespace) -> int:
 
 
 def _cmd_ingest(args: argparse.Namespace) -> int:
-    from brdfpipe.data import database, store
+    from brdfpipe.data import database, ingest
 
     _check_jobs(args.jobs)
     db = database.database_from_folder(args.folder, key="folder")
     check_not_input(args.out, [args.folder, *db.sources.values()])
     check_writable(args.out)
-    store.ingest(
+    ingest.ingest(
         {name: db.sources[name] for name in db.materials},
         args.out,
         database=db.kind,

@@ -685,9 +685,9 @@ def check_consistency(
     from its own observations, ``c̄_i = (Q̃ᵀQ̃ + ηI)⁻¹ Q̃ᵀ S(x_i − μ)`` with the
     file's η, and ``direct = mean_i ‖x_i − μ − Q c̄_i‖ (+ β‖Q(Q̃ᵀQ̃ + ηI)⁻¹Q̃ᵀ1‖
     when the file's β > 0)``, by the Gram identity with QᵀQ, QᵀY and ‖y_i‖²
-    from one streamed pass over the log-map and Q (the p-space error of
-    :func:`brdfpipe.acquisition.metrics.direct_training_error`, without assuming
-    y_i = Q u_i).  ``rel_diff = |direct − predicted|/|predicted|`` with
+    from one streamed pass over the log-map and Q (the p-space error, without
+    assuming y_i = Q u_i; the tests check it against a literal p-space
+    computation).  ``rel_diff = |direct − predicted|/|predicted|`` with
     ``predicted`` the file's ``expected_error``.
 
     Writes the rows (:data:`CONSISTENCY_COLUMNS`) to ``out`` when given —

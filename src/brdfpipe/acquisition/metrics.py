@@ -3,11 +3,12 @@ Sampling for Two-Shot Near-Field Reflectance Acquisition").
 
 How good a selection of MERL cells is for reconstructing a BRDF from the
 principal components of :mod:`brdfpipe.acquisition.svd`: the expected error
-of a selection (the paper's eq. 15), its fast sufficient-statistics form, the
-literal p-space formula it is checked against, the condition-number baseline
-of eq. 6 and Nielsen et al. 2015's released variant of it, many candidate selections evaluated against
-one factored base selection (:class:`FactoredSelection`, for the optimiser),
-and the regularised reconstruction of eq. 4.  Which cells an acquisition
+of a selection (the paper's eq. 15) in its fast sufficient-statistics form
+(the tests check it against the literal p-space formula), the
+condition-number baseline of eq. 6 and Nielsen et al. 2015's released variant
+of it, many candidate selections evaluated against one factored base
+selection (:class:`FactoredSelection`, for the optimiser), and the
+regularised reconstruction of eq. 4.  Which cells an acquisition
 configuration observes is :mod:`brdfpipe.acquisition.geometry`; the search
 over configurations is :mod:`brdfpipe.acquisition.optimize`.
 
@@ -17,8 +18,9 @@ Notation (paper §3)
 column per cell; ``μ`` its column mean.  ``X − μ̂ = U Σ Vᵀ`` (thin SVD, ``k``
 components kept), ``Q = V Σ`` (p × k), so ``QᵀQ = Σ²`` and the training
 residuals are ``y_i = x_i − μ = Q u_i`` with ``u_i`` row *i* of ``U``
-(exactly so when ``k`` is the rank of the centred ``X``; see
-:func:`direct_training_error` for a truncated ``k``).
+(exactly so when ``k`` is the rank of the centred ``X``; for a truncated
+``k`` the training rows' own reconstruction error also holds the part of
+``x_i`` outside the column space of ``Q``).
 
 A *selection* ``S`` (n × p) picks ``n`` rows of ``Q`` – observations, a cell
 may be observed more than once – giving ``Q̃ = S Q`` (n × k).  Its regularised
@@ -31,9 +33,9 @@ statistics** (:func:`selection_stats`)::
     qsum = Q̃ᵀ 1  = Σ_rows q        (k,)
 
 Both are sums over the selected rows, so adding or removing a block of rows
-(one near-field image, one point direction) is an O(n_block·k²) update
-(:func:`add_rows`, :func:`remove_rows`); an optimiser keeps ``(G, qsum)`` for
-its current selection and evaluates candidates from them.
+(one near-field image, one point direction) is an O(n_block·k²) update; the
+optimiser evaluates its candidates against its current selection
+(:class:`FactoredSelection`).
 
 Conventions: all arithmetic is float64 whatever the input dtype (the model
 stores ``Q`` as float32); functions never modify their arguments; invalid
@@ -44,8 +46,8 @@ OpenBLAS, each with its own thread pool.  Alternating calls into the two
 (e.g. a numpy ``Bᵀ @ B`` then a scipy Cholesky, as an optimiser loop would)
 makes the idle pool's spinning threads compete with the active one (each
 evaluation is slower; measured: ``docs/results/acquisition.md``).  The
-per-candidate functions here (:func:`selection_stats`, :func:`add_rows`,
-:func:`remove_rows`, :func:`expected_error`, :func:`condition_number`)
+per-candidate functions here (:func:`selection_stats`,
+:func:`expected_error`, :func:`condition_number`)
 therefore use scipy's BLAS/LAPACK only (``dsyrk``, ``dgemm``,
 ``cho_factor``/``cho_solve``, ``eigvalsh``, ``svdvals``).  Multithreaded
 OpenBLAS is also erratic on a loaded machine; an optimiser there is better
@@ -72,18 +74,14 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "DEFAULT_ETA",
     "ErrorModel",
-    "add_rows",
     "condition_number",
     "condition_number_first_n",
-    "direct_training_error",
     "empty_stats",
     "expected_error",
     "FactoredSelection",
     "RowBlock",
-    "expected_error_literal",
     "expected_error_terms",
     "reconstruct_coefficients",
-    "remove_rows",
     "selection_stats",
     "DOWNDATE_TOL",
     "block_stats",
@@ -93,37 +91,6 @@ F64 = NDArray[np.float64]
 
 #: The paper's Tikhonov regularisation weight (§3, eq. 4): "we set η = 40".
 DEFAULT_ETA: float = 40.0
-
-#: Rows of ``Q`` processed at a time by the p-space functions (bounds memory to
-#: a few × block·max(k, m) float64 values).
-_P_BLOCK: int = 32_768
-
-
-# Derivation of the fast form of eq. 15 (also in ErrorModel's docstring)
-# ----------------------------------------------------------------------
-# Let Q = VΣ with VᵀV = I, so QᵀQ = Σ² and Q⁺ = Σ⁻¹Vᵀ (Σ⁺ where σ = 0), and
-# let y_i = Q u_i.  With Q̃ = SQ, G = Q̃ᵀQ̃, M = G + ηI (symmetric positive
-# definite for η > 0):
-#
-#   Q⁺ y_i             = Σ⁻¹VᵀVΣ u_i           = u_i        (σ > 0)
-#   (SQ)⁺_η S y_i      = M⁻¹ Q̃ᵀ (S Q u_i)      = M⁻¹ G u_i
-#   (Q⁺ − (SQ)⁺_η S) y_i = (I − M⁻¹G) u_i = M⁻¹(M − G) u_i = η M⁻¹ u_i
-#
-# and, for any k-vector w, ‖Q w‖² = wᵀQᵀQw = wᵀΣ²w = ‖Σ w‖², so
-#
-#   ‖Q (Q⁺ − (SQ)⁺_η S) y_i‖ = η ‖Σ M⁻¹ u_i‖.
-#
-# Noise term: S O = 1 (n ones), so (SQ)⁺_η S O = M⁻¹ Q̃ᵀ 1 = M⁻¹ qsum and
-#
-#   ‖Q (SQ)⁺_η S O‖ = ‖Σ M⁻¹ qsum‖.
-#
-# Hence E(S) = (η/m) Σ_i ‖Σ M⁻¹ u_i‖ + β ‖Σ M⁻¹ qsum‖, which depends on S only
-# through (G, qsum) and costs one Cholesky factorisation of M (k³/3) plus a
-# solve with m + 1 right-hand sides (2k²(m + 1)): no p-dimensional vector.
-# Components with σ_j = 0 (the direction removed by centring when k = m) need
-# no special case: column j of Q is zero, so G has a zero row/column j, and
-# the factor σ_j = 0 removes it from both norms – the same as Q⁺ = Σ⁺Vᵀ.
-
 
 @dataclass(frozen=True, eq=False)
 class ErrorModel:
@@ -253,19 +220,17 @@ def check_eta(eta: float) -> float:
     return eta
 
 
-def _as_rows(Qrows: ArrayLike, k: int | None = None, name: str = "Qrows") -> F64:
+def _as_rows(Qrows: ArrayLike) -> F64:
     """A 2-D float64 (n, k) view/copy of a block of Q rows (1-D = one row)."""
     B = np.asarray(Qrows, dtype=np.float64)
     if B.ndim == 1:
         B = B[None, :]
     if B.ndim != 2:
-        raise ValueError(f"{name} must be an (n, k) array of Q rows, got shape {B.shape}")
-    if k is not None and B.shape[1] != k:
-        raise ValueError(f"{name} has {B.shape[1]} columns, expected k = {k}")
+        raise ValueError(f"Qrows must be an (n, k) array of Q rows, got shape {B.shape}")
     if B.shape[1] == 0:
-        raise ValueError(f"{name} must have k ≥ 1 columns")
+        raise ValueError("Qrows must have k ≥ 1 columns")
     if not np.all(np.isfinite(B)):
-        raise ValueError(f"{name} must be finite")
+        raise ValueError("Qrows must be finite")
     return B
 
 
@@ -320,30 +285,6 @@ def selection_stats(Qrows: ArrayLike) -> tuple[F64, F64]:
     return _gram(B), B.sum(axis=0)
 
 
-def add_rows(G: ArrayLike, qsum: ArrayLike, Qrows: ArrayLike) -> tuple[F64, F64]:
-    """Statistics after adding a block of rows: ``(G + BᵀB, qsum + Bᵀ1)``.
-
-    Returns new arrays; ``G`` and ``qsum`` are not modified.  Adding a row
-    that is already selected counts it twice (a repeated observation).
-    """
-    G, qsum = _check_stats(G, qsum)
-    B = _as_rows(Qrows, G.shape[0])
-    return G + _gram(B), qsum + B.sum(axis=0)
-
-
-def remove_rows(G: ArrayLike, qsum: ArrayLike, Qrows: ArrayLike) -> tuple[F64, F64]:
-    """Statistics after removing a block of rows: ``(G − BᵀB, qsum − Bᵀ1)``.
-
-    The rows must have been added before (this is not checked: ``(G, qsum)``
-    do not remember which rows they came from).  Long add/remove sequences
-    accumulate rounding error of order ε·‖G‖ per update; an optimiser should
-    recompute :func:`selection_stats` from its current rows now and then.
-    """
-    G, qsum = _check_stats(G, qsum)
-    B = _as_rows(Qrows, G.shape[0])
-    return G - _gram(B), qsum - B.sum(axis=0)
-
-
 def _cho_M(G: F64, eta: float) -> tuple[F64, bool]:
     """Cholesky factor of ``M = G + ηI`` (ValueError if not positive definite)."""
     M = G + eta * np.eye(G.shape[0])
@@ -381,15 +322,14 @@ def expected_error(model: ErrorModel, G: ArrayLike, qsum: ArrayLike) -> float:
         Training coefficients, Σ, η and β (:class:`ErrorModel`).
     G, qsum:
         ``Q̃ᵀQ̃`` (k, k) and ``Q̃ᵀ1`` (k,) of the selection
-        (:func:`selection_stats`, :func:`add_rows`); ``qsum`` is only used
+        (:func:`selection_stats`); ``qsum`` is only used
         when ``β > 0``.
 
     Returns
     -------
     float
         ``(η/m) Σ_i ‖Σ M⁻¹ u_i‖ + β ‖Σ M⁻¹ qsum‖`` with ``M = G + ηI``, equal
-        to the p-space formula (:func:`expected_error_literal`) in exact
-        arithmetic.  Cost O(k³/3 + 2k²m): one Cholesky factorisation of ``M``
+        to the literal p-space formula of eq. 15 in exact arithmetic.  Cost O(k³/3 + 2k²m): one Cholesky factorisation of ``M``
         (``scipy.linalg.cho_factor``) and one solve with m (+1) right-hand
         sides; about a millisecond at k = m = 270.  For many selections that
         differ from one base by a few rows (an optimiser's candidates),
@@ -1057,298 +997,3 @@ def condition_number_first_n(Qrows: ArrayLike) -> float:
     if n == 1:
         return float("inf") if A[0, 0] == 0 else float(1.0 / abs(A[0, 0]))
     return condition_number(A[:, :n], method="svd")
-
-
-# ---------------------------------------------------------------------------
-# p-space reference computations (tests, benches, acceptance checks)
-# ---------------------------------------------------------------------------
-
-
-def _as_q(Q: ArrayLike) -> NDArray[np.floating]:
-    Qa = np.asarray(Q)
-    if Qa.ndim != 2 or Qa.shape[0] == 0 or Qa.shape[1] == 0:
-        raise ValueError(f"Q must be a non-empty (p, k) array, got shape {Qa.shape}")
-    if not np.issubdtype(Qa.dtype, np.floating):
-        Qa = Qa.astype(np.float64)
-    return Qa
-
-
-def _as_selection(S_rows: ArrayLike, p: int) -> NDArray[np.intp]:
-    idx = np.asarray(S_rows)
-    if idx.ndim != 1:
-        raise ValueError(f"S_rows must be a 1-D array of row (cell column) indices, got shape {idx.shape}")
-    if idx.size and not np.issubdtype(idx.dtype, np.integer):
-        raise ValueError(f"S_rows must hold integers, got dtype {idx.dtype}")
-    idx = idx.astype(np.intp)
-    if idx.size and (idx.min() < 0 or idx.max() >= p):
-        raise ValueError(f"S_rows out of range [0, {p})")
-    return idx
-
-
-def _blocks(p: int, block: int) -> range:
-    if block < 1:
-        raise ValueError(f"block must be ≥ 1, got {block}")
-    return range(0, p, block)
-
-
-def expected_error_literal(
-    Q: ArrayLike,
-    U_or_Y: ArrayLike,
-    S_rows: ArrayLike,
-    eta: float = DEFAULT_ETA,
-    beta: float = 0.0,
-    mean: ArrayLike | None = None,
-    *,
-    kind: Literal["auto", "coefficients", "residuals"] = "auto",
-    block: int = _P_BLOCK,
-    return_terms: bool = False,
-) -> float | tuple[float, float]:
-    """E(S) of eq. 15 evaluated literally, with p-dimensional vectors.
-
-    For tests and benchmarks only: cost O(m·p·k + p·k²) time — ≈ 8e10 flops
-    at p = 1.1M, k = m = 270 — where :func:`expected_error` needs O(k³).
-    Memory is bounded by processing ``block`` rows of ``Q`` at a time.
-
-    The steps follow the formula as written, in p-space:
-
-    1. ``Q⁺ = (QᵀQ)⁺ Qᵀ`` — the Moore–Penrose pseudo-inverse of ``Q``
-       (``= Σ⁻¹Vᵀ`` for ``Q = VΣ``), with ``QᵀQ`` accumulated from the rows of
-       ``Q`` and pseudo-inverted by ``numpy.linalg.pinv`` (so zero singular
-       values are dropped, as in a pseudo-inverse);
-    2. ``(SQ)⁺_η = (Q̃ᵀQ̃ + ηI)⁻¹ Q̃ᵀ`` with ``Q̃ = Q[S_rows]`` (``numpy.linalg.solve``);
-    3. for every material, the p-vector ``r_i = Q (Q⁺ y_i − (SQ)⁺_η (S y_i))``,
-       ``S y_i = y_i[S_rows]``, and its Euclidean norm;
-    4. the p-vector ``Q (SQ)⁺_η 1`` (``S O = 1``) and its norm;
-
-    and returns ``mean_i ‖r_i‖ + β ‖Q (SQ)⁺_η 1‖``.
-
-    Parameters
-    ----------
-    Q:
-        (p, k) principal components ``VΣ`` (float32 or float64).
-    U_or_Y:
-        Either (m, k) coefficients ``u_i`` (then ``y_i = Q u_i`` is formed in
-        p-space), or (m, p) residuals ``y_i`` — or raw rows ``x_i`` when
-        ``mean`` is given (``y_i = x_i − mean``).
-    S_rows:
-        (n,) integer row indices into ``Q`` (cells; repeats allowed, n ≥ 0).
-    eta, beta:
-        η > 0 and β ≥ 0 of eq. 15.
-    mean:
-        (p,) mean ``μ`` to subtract from (m, p) rows; only with residual input.
-    kind:
-        How to read ``U_or_Y``: ``"coefficients"`` (m, k), ``"residuals"``
-        (m, p), or ``"auto"`` (by its width; ambiguous, hence an error, when
-        p = k).
-    block:
-        Rows of ``Q`` per block.
-    return_terms:
-        Return ``(E_recon, E_noise/β)`` — the reconstruction term and the
-        noise term for unit β, as :func:`expected_error_terms` — instead of
-        ``E_recon + β·E_noise/β`` (one pass gives E for every β).
-
-    Notes
-    -----
-    With coefficient input this equals :func:`expected_error` in exact
-    arithmetic for any ``Q``.  With residual input it does so only if every
-    ``y_i`` lies in the column space of ``Q`` (``k`` = rank of the centred
-    training matrix); for a truncated ``k`` the out-of-subspace part of
-    ``y_i`` enters ``S y_i`` and the two differ.
-    """
-    eta = check_eta(eta)
-    beta = float(beta)
-    if not np.isfinite(beta) or beta < 0:
-        raise ValueError(f"beta must be finite and ≥ 0, got {beta!r}")
-    Qa = _as_q(Q)
-    p, k = Qa.shape
-    Z = np.asarray(U_or_Y)
-    if Z.ndim != 2 or Z.shape[0] == 0:
-        raise ValueError(f"U_or_Y must be a non-empty 2-D array, got shape {Z.shape}")
-    kind = _literal_kind(Z, p, k, kind, mean is not None)
-    mu: F64 | None = None
-    if mean is not None:
-        mu = np.asarray(mean, dtype=np.float64)
-        if mu.shape != (p,):
-            raise ValueError(f"mean must have shape ({p},), got {mu.shape}")
-    idx = _as_selection(S_rows, p)
-    Zc = np.asarray(Z, dtype=np.float64) if kind == "coefficients" else None
-
-    # 1. Q⁺ = (QᵀQ)⁺ Qᵀ.
-    qtq_pinv = _literal_qtq_pinv(Qa, block)
-    # 2. (SQ)⁺_η.
-    Qt = np.asarray(Qa[idx], dtype=np.float64).reshape(idx.size, k)
-    reg_inv = np.linalg.solve(Qt.T @ Qt + eta * np.eye(k), Qt.T)  # (k, n)
-    # 3. coefficients Q⁺ y_i (a p-space product) and (SQ)⁺_η S y_i, per material.
-    diff = _literal_coefficient_gap(Qa, Z, Zc, mu, idx, Qt, qtq_pinv, reg_inv, block)
-    noise_c = reg_inv @ np.ones(idx.size)
-    # 4. p-space error vectors and their norms.
-    recon, noise = _literal_norms(Qa, diff, noise_c, block)
-    if return_terms:
-        return recon, noise
-    return recon + beta * noise
-
-
-def _literal_kind(
-    Z: NDArray[np.generic], p: int, k: int, kind: str, has_mean: bool
-) -> Literal["coefficients", "residuals"]:
-    """How :func:`expected_error_literal` reads ``U_or_Y`` (resolving ``"auto"``), its width checked."""
-    if kind == "auto":
-        if p == k:
-            raise ValueError("U_or_Y is ambiguous when p == k: pass kind='coefficients' or 'residuals'")
-        if Z.shape[1] == k:
-            kind = "coefficients"
-        elif Z.shape[1] == p:
-            kind = "residuals"
-        else:
-            raise ValueError(f"U_or_Y must have k = {k} or p = {p} columns, got {Z.shape}")
-    if kind == "coefficients":
-        if Z.shape[1] != k:
-            raise ValueError(f"coefficients must have shape (m, {k}), got {Z.shape}")
-        if has_mean:
-            raise ValueError("mean applies to (m, p) rows, not to coefficients")
-        return "coefficients"
-    if kind == "residuals":
-        if Z.shape[1] != p:
-            raise ValueError(f"residuals must have shape (m, {p}), got {Z.shape}")
-        return "residuals"
-    raise ValueError(f"kind must be 'auto', 'coefficients' or 'residuals', got {kind!r}")
-
-
-def _literal_y_block(
-    Qa: NDArray[np.floating], Z: NDArray[np.generic], Zc: F64 | None, mu: F64 | None, a: int, b: int
-) -> F64:
-    """Residuals y_i over rows a:b of Q, as an (m, b − a) array (from coefficients ``Zc`` or rows ``Z``)."""
-    if Zc is not None:
-        return Zc @ np.asarray(Qa[a:b], dtype=np.float64).T
-    yb = np.asarray(Z[:, a:b], dtype=np.float64)
-    return yb - mu[a:b] if mu is not None else yb
-
-
-def _literal_qtq_pinv(Qa: NDArray[np.floating], block: int) -> F64:
-    """Step 1 of :func:`expected_error_literal`: ``(QᵀQ)⁺``, ``QᵀQ`` accumulated ``block`` rows at a time."""
-    p, k = Qa.shape
-    qtq = np.zeros((k, k))
-    for a in _blocks(p, block):
-        Qb = np.asarray(Qa[a : a + block], dtype=np.float64)
-        qtq += Qb.T @ Qb
-    return np.linalg.pinv(qtq, hermitian=True)
-
-
-def _literal_coefficient_gap(
-    Qa: NDArray[np.floating],
-    Z: NDArray[np.generic],
-    Zc: F64 | None,
-    mu: F64 | None,
-    idx: NDArray[np.intp],
-    Qt: F64,
-    qtq_pinv: F64,
-    reg_inv: F64,
-    block: int,
-) -> F64:
-    """Step 3 of :func:`expected_error_literal`: ``Q⁺ y_i − (SQ)⁺_η S y_i`` for every material, as (k, m)."""
-    p, k = Qa.shape
-    m = Z.shape[0]
-    c_full = np.zeros((k, m))
-    for a in _blocks(p, block):
-        b = min(a + block, p)
-        q_pinv_block = qtq_pinv @ np.asarray(Qa[a:b], dtype=np.float64).T  # columns a:b of Q⁺
-        c_full += q_pinv_block @ _literal_y_block(Qa, Z, Zc, mu, a, b).T
-    if Zc is not None:
-        s_y = Zc @ Qt.T  # (m, n): y_i at the selected rows
-    else:
-        s_y = np.asarray(Z[:, idx], dtype=np.float64).reshape(m, idx.size)
-        if mu is not None:
-            s_y = s_y - mu[idx]
-    c_bar = reg_inv @ s_y.T
-    return c_full - c_bar
-
-
-def _literal_norms(Qa: NDArray[np.floating], diff: F64, noise_c: F64, block: int) -> tuple[float, float]:
-    """Step 4 of :func:`expected_error_literal`: ``mean_i ‖Q diff_i‖`` and ``‖Q noise_c‖``, block by block."""
-    p = Qa.shape[0]
-    sq = np.zeros(diff.shape[1])
-    noise_sq = 0.0
-    for a in _blocks(p, block):
-        Qb = np.asarray(Qa[a : a + block], dtype=np.float64)
-        r = Qb @ diff  # (block, m): rows a:b of every r_i
-        sq += np.einsum("ij,ij->j", r, r)
-        v = Qb @ noise_c
-        noise_sq += float(v @ v)
-    return float(np.mean(np.sqrt(sq))), float(np.sqrt(noise_sq))
-
-
-def direct_training_error(
-    Q: ArrayLike,
-    U: ArrayLike,
-    sigma: ArrayLike,
-    mean: ArrayLike,
-    X_train: ArrayLike,
-    S_rows: ArrayLike,
-    eta: float = DEFAULT_ETA,
-    *,
-    block: int = _P_BLOCK,
-) -> float:
-    """Mean reconstruction error of the training rows, recomputed directly in p-space.
-
-    Each training row ``x_i`` is reconstructed from its own observations at
-    the selected cells exactly as an acquisition would: ``ỹ = S(x_i − μ)``,
-    ``c̄_i = (Q̃ᵀQ̃ + ηI)⁻¹ Q̃ᵀ ỹ`` (eq. 4, :func:`reconstruct_coefficients`),
-    and the result is ``(1/m) Σ_i ‖y_i − Q c̄_i‖`` with ``y_i = x_i − μ``.
-    Nothing of the SVD but ``Q`` enters the computation: it is the acceptance
-    check of :func:`expected_error`, which it equals (β = 0) when the
-    training rows lie in the column space of ``Q`` — i.e. ``k`` is the rank of
-    the centred training matrix, up to the precision ``Q``, ``μ`` and
-    ``X_train`` are stored in.  With a truncated ``k`` it is larger in
-    general: it also contains the deviation error of eq. 9 and the effect of
-    the out-of-subspace part of ``x_i`` on its observations.
-
-    Parameters
-    ----------
-    Q:
-        (p, k) principal components.
-    U, sigma:
-        (m, k) and (k,) of the same SVD; only checked for consistent shapes
-        (``m`` rows of ``X_train``, ``k`` columns of ``Q``).
-    mean:
-        (p,) column mean ``μ`` of the training matrix.
-    X_train:
-        (m, p) log-mapped training rows ``x_i`` (float32 or float64).
-    S_rows:
-        (n,) selected row (cell column) indices, repeats allowed.
-    eta:
-        Tikhonov weight η > 0.
-    block:
-        Columns processed at a time (memory bound).
-
-    Cost O(m·p·k); memory O(block·(m + k)) beyond the inputs.
-    """
-    eta = check_eta(eta)
-    Qa = _as_q(Q)
-    p, k = Qa.shape
-    Ua = np.asarray(U)
-    sa = np.asarray(sigma)
-    X = np.asarray(X_train)
-    if sa.shape != (k,):
-        raise ValueError(f"sigma must have shape ({k},) to match Q, got {sa.shape}")
-    if X.ndim != 2 or X.shape[1] != p or X.shape[0] == 0:
-        raise ValueError(f"X_train must have shape (m, {p}), got {X.shape}")
-    m = X.shape[0]
-    if Ua.shape != (m, k):
-        raise ValueError(f"U must have shape ({m}, {k}) to match X_train and Q, got {Ua.shape}")
-    mu = np.asarray(mean, dtype=np.float64)
-    if mu.shape != (p,):
-        raise ValueError(f"mean must have shape ({p},), got {mu.shape}")
-    idx = _as_selection(S_rows, p)
-    Qt = np.asarray(Qa[idx], dtype=np.float64).reshape(idx.size, k)
-    y_obs = (np.asarray(X[:, idx], dtype=np.float64).reshape(m, idx.size) - mu[idx]).T  # (n, m)
-    if idx.size == 0:
-        c_bar = np.zeros((k, m))
-    else:
-        c_bar = reconstruct_coefficients(Qt, y_obs, eta)  # (k, m)
-    sq = np.zeros(m)
-    for a in _blocks(p, block):
-        b = min(a + block, p)
-        yb = np.asarray(X[:, a:b], dtype=np.float64) - mu[a:b]  # (m, b − a)
-        r = yb - (np.asarray(Qa[a:b], dtype=np.float64) @ c_bar).T
-        sq += np.einsum("ij,ij->i", r, r)
-    return float(np.mean(np.sqrt(sq)))

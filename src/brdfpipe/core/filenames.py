@@ -35,7 +35,6 @@ __all__ = [
     "format_t",
     "path_name",
     "synthetic_binary",
-    "fit_binary",
     "synthetic_record",
     "manifest",
     "ingest_row",
@@ -169,11 +168,6 @@ def synthetic_record(material: str) -> str:
 
 def manifest() -> str:
     return f"{SYNTHETIC}/{layouts.SYNTHETIC_MANIFEST}"
-
-
-def fit_binary(database: str, material: str) -> str:
-    """A table evaluated from an NBRDF fit of a database of fits (rule evaluate_fits)."""
-    return f"{RESULTS}/nbrdf/{database}/{layouts.merl_file(material)}"
 
 
 def ingest_row(material: str) -> str:

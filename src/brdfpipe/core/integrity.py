@@ -84,7 +84,6 @@ import threading
 import zipfile
 import zlib
 from collections.abc import Iterable, Mapping, Sequence
-from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -95,6 +94,7 @@ if TYPE_CHECKING:  # NumPy is imported by the functions that use it: the Snakefi
 
 from brdfpipe.core import atomic
 from brdfpipe.core.filenames import BATCH_RULE_FAMILIES, rule_of
+from brdfpipe.core.threads import run_threads
 
 __all__ = [
     "DIGEST_KEY",
@@ -227,6 +227,8 @@ def load_npz(
     kind: str = "npz file",
     error: type[Exception] = IntegrityError,
     require: bool = True,
+    fmt: str | None = None,
+    retired: Mapping[str, tuple[str, str]] | None = None,
 ) -> dict[str, NDArray[Any]]:
     """Every array of an npz file (loaded), after checking its digest; the digest entry is left out.
 
@@ -234,6 +236,8 @@ def load_npz(
     zip, a truncated or corrupt one (``BadZipFile``, bad CRC, a short
     member, pickled data), no digest (unless ``require=False``: files from
     elsewhere, e.g. a user's observations) or one that does not match.
+    ``fmt``: the scalar ``format`` entry the file must have; a format of
+    ``retired`` (format → ``(why, what to do)``) is refused saying why.
     """
     import numpy as np
 
@@ -262,6 +266,13 @@ def load_npz(
         return arrays
     if recorded.shape != () or recorded.dtype.kind != "U" or str(recorded) != npz_digest(arrays):
         raise mismatch(path, "its arrays", error=error, plural=True)
+    if fmt is not None:
+        found = str(arrays["format"]) if "format" in arrays and arrays["format"].shape == () else None
+        if retired and found in retired:
+            why, todo = retired[found]
+            raise error(f"{path}: {kind} format {found!r} is no longer supported: {why}; {todo} ({rerun_hint(path)})")
+        if found != fmt:
+            raise error(f"{path}: not a brdfpipe {kind} (format {found!r}, expected {fmt!r})")
     return arrays
 
 
@@ -401,21 +412,6 @@ def _crc_file(path: Path) -> int:
             crc = google_crc32c.extend(crc, block)
 
 
-def _run(fn: Any, items: Sequence[Any], threads: int) -> None:
-    if threads <= 1 or len(items) <= 1:
-        for it in items:
-            fn(it)
-        return
-    with ThreadPoolExecutor(max_workers=threads) as ex:
-        futures = [ex.submit(fn, it) for it in items]
-        wait(futures, return_when=FIRST_EXCEPTION)
-        for f in futures:
-            f.cancel()
-        for f in futures:
-            if not f.cancelled():
-                f.result()
-
-
 def seal_group(folder: str | os.PathLike[str], attrs: Mapping[str, Any], *,
                threads: int = VERIFY_THREADS) -> dict[str, Any]:
     """The :data:`ZARR_ATTR` record of the finished group at ``folder`` whose other attributes will be ``attrs``.
@@ -435,7 +431,7 @@ def seal_group(folder: str | os.PathLike[str], attrs: Mapping[str, Any], *,
         with lock:
             crcs[rel] = crc
 
-    _run(one, names, threads)
+    run_threads(one, names, threads)
     return {
         "algorithm": ZARR_ALGORITHM,
         "files": {rel: [crcs[rel], sizes[rel]] for rel in names},
@@ -487,7 +483,7 @@ class GroupDigests:
             with self._lock:
                 self._verified.add(rel)
 
-        _run(one, todo, threads)
+        run_threads(one, todo, threads)
 
     def verify_array(self, name: str, *, threads: int = VERIFY_THREADS) -> None:
         """Check every file of array ``name`` (its metadata and chunks)."""

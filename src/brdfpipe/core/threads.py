@@ -12,6 +12,9 @@ the libraries listed in ``/proc/self/maps``; the symbol names of the numpy
 and scipy wheels, ``scipy_openblas*``, and of a plain OpenBLAS).  Where
 neither works (no OpenBLAS, not Linux) it does nothing and says so in the
 log, once.
+
+:func:`run_threads` runs work items on a few threads (reading and checking
+files: CRC-32C and the file reads release the GIL).
 """
 
 from __future__ import annotations
@@ -19,10 +22,12 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from pathlib import Path
+from typing import Any
 
-__all__ = ["blas_threads", "openblas_libraries", "current_blas_threads"]
+__all__ = ["blas_threads", "openblas_libraries", "current_blas_threads", "run_threads"]
 
 logger = logging.getLogger("brdfpipe.core.threads")
 
@@ -103,3 +108,20 @@ def blas_threads(n: int | None) -> Iterator[None]:
     finally:
         for set_fn, old in before:
             set_fn(old)
+
+
+def run_threads(fn: Callable[[Any], None], items: Iterable[Any], threads: int) -> None:
+    """Run ``fn(item)`` for all items on up to ``threads`` threads; re-raise the first error."""
+    items = list(items)
+    if threads <= 1 or len(items) <= 1:
+        for it in items:
+            fn(it)
+        return
+    with ThreadPoolExecutor(max_workers=threads) as ex:
+        futures = [ex.submit(fn, it) for it in items]
+        wait(futures, return_when=FIRST_EXCEPTION)
+        for f in futures:
+            f.cancel()
+        for f in futures:
+            if not f.cancelled():
+                f.result()  # re-raises the first error in submission order

@@ -7,10 +7,10 @@ library code differs write different versions, and the same code always
 writes the same one (no clock, no git needed: an installed wheel gives the
 same digest as the checkout it was built from).
 
-:func:`code_digest` is the digest of the modules one piece of code actually
-runs: the named modules and, transitively, every ``brdfpipe`` module they
-import (found by reading the source, never by importing it).  The workflow
-passes it to each rule as a parameter, so Snakemake's ``params`` rerun
+:func:`script_digest` is the digest of a workflow script and of the modules
+it actually runs: every ``brdfpipe`` module it imports, transitively (found
+by reading the source, never by importing it).  The workflow passes it to
+each rule as a parameter, so Snakemake's ``params`` rerun
 trigger reruns exactly the jobs whose library code changed, and what depends
 on them.  Standard library only: the Snakefile calls it at parse time.
 """
@@ -25,7 +25,7 @@ from pathlib import Path
 
 from brdfpipe import __version__
 
-__all__ = ["PACKAGE_DIR", "module_closure", "code_digest", "script_digest", "full_version"]
+__all__ = ["PACKAGE_DIR", "module_closure", "script_digest", "full_version"]
 
 #: The folder of the installed package (its ``*.py`` files, subpackages
 #: included, are what is hashed); this module lives in its ``core`` subpackage.
@@ -135,11 +135,6 @@ def _digest(files: Iterable[tuple[str, Path]]) -> str:
         h.update(f"{name}\0{len(data)}\0".encode())
         h.update(data)
     return h.hexdigest()
-
-
-def code_digest(modules: Iterable[str]) -> str:
-    """sha256 (hex) of the source of :func:`module_closure` ``(modules)``."""
-    return _digest((m, _module_file(m)) for m in module_closure(modules))  # type: ignore[misc]
 
 
 @lru_cache(maxsize=1)

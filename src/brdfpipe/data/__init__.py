@@ -9,8 +9,10 @@ reuses).  Imports only :mod:`brdfpipe.core`.
 * :mod:`brdfpipe.data.provenance` – provenance marks: measured, synthetic or derived, and from what;
 * :mod:`brdfpipe.data.nbrdf`    – published neural fits of measured materials (Sztrajman et al. 2021) on the MERL grid;
 * :mod:`brdfpipe.data.synth`    – a synthetic, physically based MERL-format database;
+* :mod:`brdfpipe.data.synthmodel` – the analytic BRDF models of its five families;
 * :mod:`brdfpipe.data.databases` – the registry of databases a run can use, and their labels and titles;
 * :mod:`brdfpipe.data.database` – which database a run uses (fits, a folder of MERL files, or synthetic);
-* :mod:`brdfpipe.data.store`    – the chunked Zarr store of the materials × cells matrix;
+* :mod:`brdfpipe.data.store`    – the chunked Zarr store of the materials × cells matrix: opening, checking, reading;
+* :mod:`brdfpipe.data.ingest`   – writing that store: a row store per material, then their assembly;
 * :mod:`brdfpipe.data.logmap`   – the log-relative mapping of that matrix.
 """

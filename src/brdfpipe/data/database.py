@@ -43,12 +43,10 @@ __all__ = [
     "RESERVED_NAMES",
     "check_material_name",
     "database_from_folder",
-    "merl_database",
     "synthetic_database",
     "fits_database",
     "configured_database",
     "spread_test_materials",
-    "folder_database",
     "default_test_count",
     "select_materials",
     "resolve_test_materials",
@@ -140,7 +138,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     file that cannot be read, a damaged provenance mark, a file marked as
     another material, a mixed folder, or a ``manifest.json`` that disagrees
     with the files.  The files' contents are validated at ingest
-    (:func:`brdfpipe.data.store.ingest_material`).
+    (:func:`brdfpipe.data.ingest.ingest_material`).
     """
     text = os.fspath(folder)
     if isinstance(text, bytes):
@@ -220,20 +218,6 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
         raise DatabaseError(f"{key} {manifest_path}: 'test_materials' is not a list")
     test = tuple(n for n in test_raw if n in sources)
     return Database("synthetic", sources, test)
-
-
-def merl_database(folder: str | os.PathLike[str]) -> Database:
-    """Same as :func:`database_from_folder` (kept for callers of the old name).
-
-    The label comes from the files: a synthetic folder is ``"synthetic"``
-    even when it is configured as ``merl_dir``.
-    """
-    return database_from_folder(folder)
-
-
-def folder_database(folder: str | os.PathLike[str], *, key: str = "folder") -> Database:
-    """Same as :func:`database_from_folder` with ``key="folder"`` (kept for callers of the old name)."""
-    return database_from_folder(folder, key=key)
 
 
 def synthetic_database(out_dir: str | os.PathLike[str], count: int, seed: int) -> Database:

@@ -635,7 +635,7 @@ def evaluate_to_files(
     to its fit's name in ``archive``.  Each fit is evaluated on the MERL grid
     and written as a marked MERL file (:func:`write_fit`); with ``rows``,
     that file is also ingested into its one-row store
-    (:func:`brdfpipe.data.store.ingest_material`, which checks that its mark
+    (:func:`brdfpipe.data.ingest.ingest_material`, which checks that its mark
     is of ``database`` and names the material).  ``threads`` materials are
     processed at once (NumPy releases the GIL in the network's products and
     in the writes).  One process instead of one job per material: the
@@ -645,7 +645,7 @@ def evaluate_to_files(
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from brdfpipe.data import store
+    from brdfpipe.data import ingest
 
     materials = list(fits)
     if len(binaries) != len(materials) or (rows is not None and len(rows) != len(materials)):
@@ -663,7 +663,7 @@ def evaluate_to_files(
         m = materials[k]
         result = write_fit(loaded[m], binaries[k], name=m)
         if rows is not None:
-            store.ingest_material(binaries[k], rows[k], name=m, expect={"database": database})
+            ingest.ingest_material(binaries[k], rows[k], name=m, expect={"database": database})
         return m, result.clamped
 
     _grid()  # once, before the threads share it
@@ -733,7 +733,7 @@ def evaluate_to_store(
     (:func:`albedo_rows`; CSV, :data:`ALBEDO_COLUMNS`).  Returns the clamped
     count per material.
     """
-    from brdfpipe.data import store
+    from brdfpipe.data import ingest, store
 
     store_out = Path(store_out)
     atomic.check_replaceable(store_out, replaceable=store.is_store)
@@ -745,7 +745,7 @@ def evaluate_to_store(
         rows = [work / f"{i:04d}.zarr" for i in range(len(binaries))]
         clamped = evaluate_to_files(archive=archive, fits=fits, binaries=binaries, rows=rows, database=database,
                                     threads=threads)
-        store.assemble_store(rows, store_out, database=database, threads=max(1, int(threads)), link=True)
+        ingest.assemble_store(rows, store_out, database=database, threads=max(1, int(threads)), link=True)
     finally:
         atomic.remove_tree(work)
     rows_a = albedo_rows(dict(zip(fits, binaries)), database)

@@ -5,7 +5,7 @@ A MERL ``.binary`` file has no metadata, so a table written by this project
 would otherwise look exactly like a measurement.  Every such file carries a
 *mark* inside the table itself, in cells that no measurement can fill, and
 the one folder labeller (:func:`brdfpipe.data.database.database_from_folder`)
-and every ingest (:func:`brdfpipe.data.store.ingest_material`) read it.
+and every ingest (:func:`brdfpipe.data.ingest.ingest_material`) read it.
 
 Kinds
 -----

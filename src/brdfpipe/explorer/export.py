@@ -27,7 +27,7 @@ Weights
 Each model is exported as its latent points ``X`` (N × q), ℓ, μ and the
 lower Cholesky factor ``L`` of ``K`` exactly as saved by
 :func:`brdfpipe.manifold.gplvm.save_model` (float64, little-endian).  The page solves
-``b = L⁻ᵀ(L⁻¹k)`` with ``k`` of :func:`brdfpipe.manifold.gplvm.kernel_vector` (μ added
+``b = L⁻ᵀ(L⁻¹k)`` with ``k`` of :func:`brdfpipe.manifold.likelihood.kernel_vector` (μ added
 where the point equals a training point exactly) and blends with
 ``w = b + (1 − Σb)/N`` (:func:`brdfpipe.manifold.gplvm.blend_weights`): the same
 arithmetic as :func:`brdfpipe.manifold.gplvm.weights` in float64.

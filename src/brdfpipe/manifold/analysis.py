@@ -67,6 +67,7 @@ from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, open_store
 from brdfpipe.manifold import blendpass, derivation, gplvm, latent
 from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
+from brdfpipe.manifold.gram import check_gram_store, load_gram
 
 __all__ = [
     "SOLER_PATHS",
@@ -375,8 +376,8 @@ def analyze_manifold(
     checked against the store); None computes them here.
     """
     st = open_store(store)
-    G, d, info = gplvm.load_gram(gram)
-    gplvm.check_gram_store(info, st, gram)
+    G, d, info = load_gram(gram)
+    check_gram_store(info, st, gram)
     fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
     names = list(info.materials)
     for q, m in fits.items():

@@ -90,7 +90,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, blendpass, gplvm, latent
-from brdfpipe.manifold.gram import LINEAR_SPACES
+from brdfpipe.manifold.gram import LINEAR_SPACES, check_gram_store, load_gram
+from brdfpipe.manifold.likelihood import log_likelihood
 from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
 from brdfpipe.spec.manifold import candidate_label
 from brdfpipe.spec import tables
@@ -345,7 +346,7 @@ def measure_model(
     A = np.asarray(albedos, dtype=np.float64)
     n, q = model.X.shape
     row: dict[str, Any] = {"q": q, "log_likelihood": model.log_likelihood}
-    row["log_likelihood_eq6"] = gplvm.log_likelihood(model.X, centred_gram, model.d, model.ell, model.mu)
+    row["log_likelihood_eq6"] = log_likelihood(model.X, centred_gram, model.d, model.ell, model.mu)
     K = model.chol @ model.chol.T
     row["kappa"] = float(np.linalg.cond(K))
     linear = model.space in LINEAR_SPACES
@@ -473,7 +474,7 @@ def measure_candidate(
 ) -> list[dict[str, Any]]:
     """The workflow's ``measure_gplvm_candidate`` job: every measure for one candidate's fits.
 
-    ``grams``: data space → Gram file (:func:`brdfpipe.manifold.gplvm.save_gram`):
+    ``grams``: data space → Gram file (:func:`brdfpipe.manifold.gram.save_gram`):
     the ``raw`` one (raw-unit stability and continuity) and the candidate's own space;
     ``models``: {q: model file} of the candidate (:func:`candidate_label` of
     its space, μ, normalisation, optimiser and start must give ``candidate``;
@@ -493,9 +494,9 @@ def measure_candidate(
     if "raw" not in grams:
         raise ValueError("measure_candidate needs the raw Gram matrix (stability in raw units)")
     st = open_store(store)
-    loaded = {s: gplvm.load_gram(p) for s, p in grams.items()}
+    loaded = {s: load_gram(p) for s, p in grams.items()}
     for s, (_, _, info) in loaded.items():
-        gplvm.check_gram_store(info, st, grams[s])
+        check_gram_store(info, st, grams[s])
     names = list(loaded["raw"][2].materials)
     raw_gram = loaded["raw"][2].raw_gram
     pairs = check_paths(paths, names) if paths else default_paths(names, seed)

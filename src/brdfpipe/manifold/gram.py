@@ -39,23 +39,37 @@ Where each part lives: the spaces' names and records (linear or not) in
 :data:`brdfpipe.spec.manifold.DATA_SPACES`; their maps — the per-cell maps
 computed once over the materials used, and the map of a block of values — in
 :mod:`brdfpipe.manifold.spaces`; this module streams the store's cell blocks
-through them.  The Gram file (:func:`brdfpipe.manifold.gplvm.save_gram`,
-:func:`brdfpipe.manifold.gplvm.load_gram`, with the digests of the store rows
-it was computed from), the fit and the interpolation (which maps a ``log``
-blend back) are the GPLVM's: :mod:`brdfpipe.manifold.gplvm`.
+through them.  The fit and the interpolation (which maps a ``log`` blend
+back) are the GPLVM's: :mod:`brdfpipe.manifold.fitting`,
+:mod:`brdfpipe.manifold.gplvm`.
+
+The Gram file
+-------------
+:func:`save_gram` writes an npz that carries its own digest
+(:func:`brdfpipe.core.integrity.save_npz`; :func:`load_gram` checks it, so a
+truncated, corrupt or edited file is one :class:`GramFileError` naming it)
+and the digests of the store rows it was computed from (the store's
+name-bound CRC-32C per row, :func:`brdfpipe.data.store.shard_digest`;
+``row_digests``), which a fit carries into its model.  A use of the Gram
+matrix with a store checks them (:func:`check_gram_store`), so a store of
+the same names whose rows differ is a :class:`DataMismatchError` naming the
+file, the store and the material.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.data.store import BrdfStore, iter_cell_blocks, material_indices, open_store
+from brdfpipe.core import integrity
+from brdfpipe.data.store import DIGEST_ALGORITHM, BrdfStore, iter_cell_blocks, material_indices, open_store
 from brdfpipe.manifold import spaces
 from brdfpipe.spec import manifold as manifold_spec
 
@@ -72,7 +86,18 @@ __all__ = [
     "gram_matrix",
     "cross_gram",
     "centre_gram",
+    "GRAM_FORMAT",
+    "GramFileError",
+    "DataMismatchError",
+    "digest_array",
+    "save_gram",
+    "load_gram",
+    "write_gram",
+    "check_rows",
+    "check_gram_store",
 ]
+
+logger = logging.getLogger("brdfpipe.manifold.gram")
 
 #: Data spaces of :func:`gram_matrix` (see the module docstring; records: :data:`brdfpipe.spec.manifold.DATA_SPACES`).
 SPACES: Final = manifold_spec.SPACE_NAMES
@@ -85,6 +110,21 @@ STANDARDISED_FLOOR: Final = spaces.STANDARDISED_FLOOR
 MEAN_HANDLING: Final = "mean subtracted"
 #: Cells mapped to float64 at a time within a cell block of the store.
 _SUB_COLS: Final = 16384
+#: /2: the digests of the store rows (``row_digests``) and the file's digest.
+GRAM_FORMAT: Final = "brdfpipe.manifold.gplvm.gram/2"
+#: Earlier formats: refused with (why, what to do).
+_RETIRED_GRAM_FORMATS: Final = {
+    "brdfpipe.manifold.gplvm.gram/1": ("it records no digests of the store rows it was computed from",
+                                       "compute it again"),
+}
+
+
+class GramFileError(ValueError):
+    """A Gram file is missing, damaged, of another format or inconsistent; names the file."""
+
+
+class DataMismatchError(ValueError):
+    """A Gram file or GPLVM model used with a store whose rows are not the data it was computed from (fitted on)."""
 
 
 def check_space(space: str) -> str:
@@ -290,3 +330,115 @@ def centre_gram(G: ArrayLike) -> NDArray[np.float64]:
     c = g.mean(axis=0, keepdims=True)
     out = g - r - c + g.mean()
     return 0.5 * (out + out.T)
+
+
+# --------------------------------------------------------------------------
+# The Gram file
+# --------------------------------------------------------------------------
+
+
+def digest_array(path: str | os.PathLike[str], digests: Sequence[int], n: int, what: str) -> NDArray[np.uint32]:
+    """``digests`` (one 32-bit store-row digest per material, or none) as the uint32 array a file records.
+
+    ValueError naming ``path`` and ``what`` for another count or a value out of range.
+    """
+    d = np.asarray(list(digests), dtype=np.int64)
+    if d.size and (d.shape != (n,) or d.min() < 0 or d.max() >= 2**32):
+        raise ValueError(f"{path}: {what} must give one 32-bit digest per material ({n}), got shape {d.shape}")
+    return d.astype(np.uint32)
+
+
+def save_gram(path: str | os.PathLike[str], gram: ArrayLike, d: int, info: GramInfo) -> None:
+    """Write a Gram matrix, ``d`` and its :class:`GramInfo` (with the store rows' digests) to an npz, atomically.
+
+    The file carries its own digest (:func:`brdfpipe.core.integrity.save_npz`).
+    """
+    integrity.save_npz(Path(path), {
+        "format": np.array(GRAM_FORMAT),
+        "gram": np.asarray(gram, dtype=np.float64),
+        "d": np.array(int(d)),
+        "materials": np.array(info.materials, dtype=str),
+        "space": np.array(info.space),
+        "mean_handling": np.array(info.mean_handling),
+        "row_sums": info.row_sums,
+        "raw_gram": info.raw_gram,
+        "row_digests": digest_array(path, info.digests, len(info.materials), "the row digests"),
+        "digest_algorithm": np.array(DIGEST_ALGORITHM),
+    })
+
+
+def load_gram(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], int, GramInfo]:
+    """Read what :func:`save_gram` wrote, its digest checked.
+
+    :class:`GramFileError` (a ValueError) naming the file and what to rerun
+    for a missing, truncated, corrupt, unverifiable or edited file, another
+    format or inconsistent arrays.
+    """
+    z = integrity.load_npz(path, kind="GPLVM Gram file", error=GramFileError, fmt=GRAM_FORMAT,
+                           retired=_RETIRED_GRAM_FORMATS)
+    try:
+        materials = tuple(str(m) for m in z["materials"])
+        digests = tuple(int(v) for v in z["row_digests"])
+        if str(z["digest_algorithm"]) != DIGEST_ALGORITHM or (digests and len(digests) != len(materials)):
+            raise ValueError("row digests of another kind or count")
+        info = GramInfo(materials, str(z["space"]), z["row_sums"], z["raw_gram"], str(z["mean_handling"]),
+                        digests=digests)
+        gram, d = z["gram"], int(z["d"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise GramFileError(f"{path}: inconsistent GPLVM Gram file ({type(exc).__name__}: {exc})") from None
+    if gram.shape != (len(materials), len(materials)):
+        raise GramFileError(f"{path}: Gram matrix of shape {gram.shape} for {len(materials)} materials")
+    return gram, d, info
+
+
+def write_gram(store_path: str | os.PathLike[str], out: str | os.PathLike[str], *, space: str = "raw") -> None:
+    """Stream the centred Gram matrix of every material of a store and save it (one pass, float64).
+
+    The workflow's ``compute_gram`` job: every GPLVM fit of that data space
+    shares this one file.
+    """
+    gram, d, info = gram_matrix(store_path, space=space)
+    save_gram(out, gram, d, info)
+    logger.info("Gram matrix of %d materials over %d columns (%s space) -> %s", gram.shape[0], d, space, out)
+
+
+def check_rows(label: str, kind: str, names: Sequence[str], digests: Sequence[int], st: BrdfStore, hint: str) -> None:
+    """Check that the rows of ``names`` in store ``st`` have the ``digests`` a file recorded for them.
+
+    :class:`DataMismatchError` naming ``label`` (the file), the store and the
+    material, ending in ``hint`` (what to do), for no recorded digests, a
+    material not in the store or a row whose digest differs.
+    """
+    if not digests:
+        raise DataMismatchError(
+            f"{label}: the {kind} records no digests of the store rows it was fitted on, so it cannot be checked "
+            f"against the store {st.path}; {hint}"
+        )
+    index = {m: i for i, m in enumerate(st.materials)}
+    missing = [m for m in names if m not in index]
+    if missing:
+        raise DataMismatchError(
+            f"{label}: material(s) {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} of the {kind} "
+            f"are not in the store {st.path}; use the store it was fitted on, or {hint}"
+        )
+    for name, digest in zip(names, digests):
+        if int(st.digests[index[name]]) != int(digest):
+            raise DataMismatchError(
+                f"{label}: material {name!r} of the store {st.path} is not the data the {kind} was fitted on "
+                f"(the row's digest differs: the store was ingested from other files, or its rows were "
+                f"swapped); use the store it was fitted on, or {hint}"
+            )
+
+
+def check_gram_store(info: GramInfo, store: BrdfStore | str | os.PathLike[str],
+                     path: str | os.PathLike[str] | None = None) -> BrdfStore:
+    """Check that ``store`` holds the rows a Gram file was computed from (:func:`check_rows`); returns it opened.
+
+    ``path`` names the file in messages.
+    """
+    st = store if isinstance(store, BrdfStore) else open_store(store)
+    label = str(path) if path is not None else "the Gram matrix"
+    hint = (f"compute it again ({integrity.rerun_hint(path)})" if path is not None
+            else "compute it again from this store")
+    check_rows(label, "Gram matrix", info.materials, info.digests, st, hint)
+    return st

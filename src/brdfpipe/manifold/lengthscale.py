@@ -14,7 +14,7 @@ nothing), so :func:`lengthscale_rows` keeps a fitted model's latent points
 and scales its ℓ by the factors :data:`LENGTH_SCALE_FACTORS`; for each it
 forms ``K(ℓ) = μI + exp(−‖xᵢ − xⱼ‖²/2ℓ²)`` (eq. 5, the model's μ), the
 weights ``w = b + (1 − Σb)/N`` with ``b = K⁻¹k(x*)`` (the δ convention of
-:func:`brdfpipe.manifold.gplvm.kernel_vector`: at a training point itself
+:func:`brdfpipe.manifold.likelihood.kernel_vector`: at a training point itself
 the weights are that material's) at :data:`PROFILE_STEPS` + 1 points of a
 latent path, and from the centred Gram matrix ``G_c`` of the data (exact, no
 table formed):
@@ -48,6 +48,8 @@ from numpy.typing import ArrayLike, NDArray
 from brdfpipe.core import integrity
 from brdfpipe.manifold import gplvm
 from brdfpipe.manifold.analysis import deviation
+from brdfpipe.manifold.gram import load_gram
+from brdfpipe.manifold.likelihood import kernel_matrix, kernel_vector
 from brdfpipe.spec import tables
 from brdfpipe.spec.manifold import check_paths, path_name
 
@@ -71,7 +73,7 @@ LENGTHSCALE_COLUMNS: Final = tables.LENGTHSCALES
 
 def _kernel_factor(X: NDArray[np.float64], ell: float, mu: float) -> tuple[tuple[NDArray[np.float64], bool], float]:
     """Cholesky factor of K(ℓ) (eq. 5) and its 2-norm condition number."""
-    K = gplvm.kernel_matrix(X, ell, mu)
+    K = kernel_matrix(X, ell, mu)
     lam = np.linalg.eigvalsh(K)
     return scipy.linalg.cho_factor(K, lower=True), float(lam[-1] / lam[0])
 
@@ -111,7 +113,7 @@ def lengthscale_rows(
         ell = float(f) * float(model.ell)
         cf, kappa = _kernel_factor(X, ell, float(model.mu))
         for t, x, j in zip(ts, pts, nearest):
-            bvec = scipy.linalg.cho_solve(cf, gplvm.kernel_vector(X, x, ell, float(model.mu)))
+            bvec = scipy.linalg.cho_solve(cf, kernel_vector(X, x, ell, float(model.mu)))
             w = gplvm.blend_weights(bvec)
             dist = float(np.linalg.norm(x - X[j]))
             rows.append({
@@ -142,7 +144,7 @@ def measure_lengthscales(
     run's database label (a column of the CSV).  Returns the rows.
     """
     m = gplvm.load_model(model)
-    G, _, info = gplvm.load_gram(gram)
+    G, _, info = load_gram(gram)
     if tuple(info.materials) != tuple(m.names) or info.space != m.space:
         raise ValueError(f"{gram}: its materials or data space ({info.space}) differ from those of {model} "
                          f"({m.space})")

@@ -68,7 +68,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data.store import open_store
 from brdfpipe.manifold import gplvm
-from brdfpipe.manifold.gram import CrossGram, cross_gram
+from brdfpipe.manifold.gram import CrossGram, cross_gram, load_gram
 from brdfpipe.spec import tables
 
 __all__ = [
@@ -315,7 +315,7 @@ def write_unseen(
     several-fold by idle BLAS threads spinning on a loaded machine).
     """
     t0 = time.perf_counter()
-    G, d, info = gplvm.load_gram(gram)
+    G, d, info = load_gram(gram)
     fits = {int(q): gplvm.load_model(p) for q, p in models.items()}
     st = open_store(store)
     for fit in fits.values():

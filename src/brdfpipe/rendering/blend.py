@@ -60,7 +60,6 @@ __all__ = [
     "tonemap",
     "error_maps",
     "error_maps_from_files",
-    "SUMMARY_ONE_COLUMNS",
     "ratio_standard_error",
     "SHARE_COLUMNS",
     "bounce_shares",
@@ -74,8 +73,6 @@ logger = logging.getLogger("brdfpipe.rendering.blend")
 #: columns: the same for the I¹⁻ images; they and the isolated reference's ratio are
 #: empty when no I¹⁻ images are given).
 SUMMARY_COLUMNS: Final = tables.ERROR_MAP_SUMMARY
-#: The I¹⁻ columns of :data:`SUMMARY_COLUMNS`.
-SUMMARY_ONE_COLUMNS: Final = SUMMARY_COLUMNS[9:15] + ("ratio_one_seed2_se",)
 #: Columns of the I²⁺ share CSV written by :func:`bounce_shares`, in order.
 SHARE_COLUMNS: Final = tables.BOUNCE_SHARES
 

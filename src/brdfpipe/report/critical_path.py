@@ -24,7 +24,7 @@ from __future__ import annotations
 import csv
 import os
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -327,13 +327,3 @@ def report(run: Run, *, top_rules: int = 20, path_rows: int = 40) -> str:
         lines.append(f"  {sum(r.cpu for r in rest):8.1f} {sum(r.wall for r in rest):8.1f} {'':8} "
                      f"{sum(r.jobs for r in rest):5d}  ({len(rest)} more rules)")
     return "\n".join(lines)
-
-
-def summarize(paths: Sequence[str | os.PathLike[str]]) -> str:  # pragma: no cover - thin convenience
-    """:func:`report` of each run log (or working directory) in ``paths``."""
-    out = []
-    for p in paths:
-        p = Path(p)
-        log = latest_log(p) if p.is_dir() else p
-        out.append(report(read_run(log)))
-    return "\n\n".join(out)
