@@ -254,18 +254,19 @@ def check_tiny_report(workdir: Path, snakemake: Callable[..., subprocess.Complet
         assert " ".join(row["measured"].split()) in front, row["key"]
     for needle in ("Claims", "Versions", "Wall time per stage", "Database: synthetic", "0.1.0+src."):
         assert needle in front, needle
-    # the verdict counts of the papers' claims head the table (our own checks apart); no recorded column: brdfpipe
-    # ships no recorded run of the four-verdict schema yet (config report.compare_with: null)
+    # the verdict counts of the papers' claims head the table (our own checks apart); beside this run's column, the
+    # recorded run of the other database brdfpipe ships (config report.compare_with: null; its own one left out)
     counts = claims.verdict_counts(rows)
     assert ", ".join(f"{n} {v}" for v, n in counts.items()) in front and sum(counts.values()) == 28
     assert "Our own checks (not claims of the papers)" in front
-    assert sidebyside.RECORDED == {} and "(recorded run)" not in front
+    assert "merl-nbrdf (recorded run)" in front and "synthetic (recorded run)" not in front
     # the run's fidelity page: this run's verdict and cause per claim, from its own claims.csv
     page = (results / "report" / "fidelity.md").read_text()
     header = next(line for line in page.splitlines() if line.startswith("| paper |"))
-    assert header.endswith("| synthetic: verdict — cause |")
+    assert header.endswith("| synthetic: verdict — cause | merl-nbrdf: verdict — cause |")
     for row in rows:
-        assert f"{row['verdict']} — " in page and " ".join(row["cause"].split()).replace("|", "\\|") in page, row["key"]
+        mark = f"**{row['verdict']}**" if row["verdict"] == claims.DIFFERS else row["verdict"]  # a difference stands out
+        assert f"{mark} — " in page and " ".join(row["cause"].split()).replace("|", "\\|") in page, row["key"]
     n_bench = len(list((workdir / "benchmarks").rglob("*.tsv")))
     assert f"over {n_bench} jobs." in front
     # two claims recomputed from the run's CSVs, independently of brdfpipe.report

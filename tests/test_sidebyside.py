@@ -122,16 +122,22 @@ def test_the_report_table_shows_recorded_runs_beside_this_run(tmp_path: Path) ->
 
 
 def test_the_runs_recorded_with_brdfpipe_are_the_default_and_the_yes_no_ones_are_superseded(tmp_path: Path) -> None:
-    """report.compare_with: null shows the shipped recorded runs: none of the four-verdict schema yet.
+    """report.compare_with: null shows the shipped recorded runs: one per database, each headed by its own CSV's.
 
     The yes/no runs of 2026-11-28 were superseded by issue 32: a file of that schema given in
     report.compare_with is refused, naming the key and saying why.
     """
     import tomllib
 
-    assert sidebyside.RECORDED == {}
+    assert sorted(sidebyside.RECORDED) == ["merl-nbrdf", "synthetic"]
+    for db, path in sidebyside.RECORDED.items():
+        assert path.name == f"{sidebyside.RECORDED_RUN}-{db}.csv"
+        run = sidebyside.read_run(path)  # digest-checked, of the current schema
+        assert run.database == db and {r["verdict"] for r in run.rows.values()} <= set(claims.VERDICTS)
     for exclude in ("merl-nbrdf", "synthetic", "rgl-nbrdf"):
-        assert sidebyside.recorded_runs(None, root=Path("/nonexistent"), exclude=exclude) == []
+        shown = sidebyside.recorded_runs(None, root=Path("/nonexistent"), exclude=exclude)
+        assert [r.database for r in shown] == [db for db in ("merl-nbrdf", "synthetic") if db != exclude]
+        assert all(r.source == f"brdfpipe's recorded run {sidebyside.RECORDED_RUN} ({r.database})" for r in shown)
     assert sidebyside.recorded_runs([], root=Path("/nonexistent"), exclude="synthetic") == []
     old = tmp_path / "old.csv"
     integrity.write_csv(old, "key,paper,where,claim,paper_value,measured,value,holds,database,source\n"
@@ -139,7 +145,7 @@ def test_the_runs_recorded_with_brdfpipe_are_the_default_and_the_yes_no_ones_are
     with pytest.raises(claims.ClaimsInputError, match=r"compare_with\[0\] = 'old.csv': not a run's claims.csv: .*"
                                                       r"yes/no schema before issue 32.*superseded"):
         sidebyside.recorded_runs(["old.csv"], root=tmp_path, exclude="synthetic")
-    # the package data would ship recorded runs (an installed, non-editable brdfpipe has them too)
+    # the package data ships the recorded runs (an installed, non-editable brdfpipe has them too)
     root = Path(__file__).resolve().parents[1]
     globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["brdfpipe.report"]
     assert globs == ["recorded/*.csv"]

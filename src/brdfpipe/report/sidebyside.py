@@ -36,13 +36,16 @@ from brdfpipe.report.claims import RunClaims, read_run
 __all__ = ["RunClaims", "read_run", "RECORDED_RUN", "RECORDED", "recorded_runs", "command_line",
            "side_by_side_markdown", "write_run_page", "build_parser", "main"]
 
-#: The runs recorded with brdfpipe, shown beside a run's claims by default (config ``report.compare_with``:
-#: null): none of the current schema yet.  The runs of 2026-11-28 answered yes/no to claims that were not
-#: checked as the papers state them; issue 32 superseded them (``docs/results/claims.md`` keeps their table
-#: as a record).  Record a run as ``recorded/<tag>-<database>.csv`` in this package and list it here, its
-#: tag in :data:`RECORDED_RUN`.
-RECORDED_RUN: str = ""
-RECORDED: dict[str, Path] = {}
+#: The recorded runs' tag (date and machine): the default workflow on each database on the 2-core
+#: development machine, 2026-11-29, with 256-px images: merl-nbrdf at commit eb6130c, synthetic at
+#: 55163f0 (docs/results/runs/2026-11-29-cpu/ keeps their configs; docs/results/fidelity.md shows their
+#: claims side by side).  Shown beside a run's claims by default (config ``report.compare_with``: null).
+RECORDED_RUN: str = "2026-11-29-cpu"
+#: The runs recorded with brdfpipe: each one's claims.csv, shipped in the package so that a copied
+#: workflow or an installed library finds them.
+RECORDED: dict[str, Path] = {
+    db: Path(__file__).resolve().parent / "recorded" / f"{RECORDED_RUN}-{db}.csv" for db in ("merl-nbrdf", "synthetic")
+}
 
 
 def recorded_runs(entries: Sequence[str] | None, *, root: Path, exclude: str) -> list[RunClaims]:
