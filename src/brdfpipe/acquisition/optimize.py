@@ -75,7 +75,7 @@ F64 = NDArray[np.float64]
 #      in the set, uniformly over the valid ones (centre cell a model column,
 #      ≥ 1 observation row; for fixed_* with n > 1 the shared elevation is the
 #      set's); evaluate each from the current statistics (G, qsum) +
-#      add_rows(its observation rows) and add the best;
+#      its observation rows (selection_stats) and add the best;
 #   2. local search: for step s in ``steps`` (3, 2, 1): sweep over the
 #      configurations in a random order (seeded); for each, evaluate the
 #      moves by ±s grid units along each of its axes and the combined
