@@ -135,7 +135,7 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
     rows = fidelity.measure_candidate(
         store=setup["store"], grams=setup["grams"], models=setup["models"], candidate="standardised-mu1e-06",
         default="standardised-mu1e-06", paths=paths, path_q=3, seed=4, steps=4, albedo_grid=12,
-        spaces_out=out_s, stability_out=out_t)
+        clamped_hull_points=300, spaces_out=out_s, stability_out=out_t)
     assert [r["q"] for r in rows] == [2, 3]
     for r, q in zip(rows, (2, 3)):
         m = _model(setup, q)
@@ -147,7 +147,7 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
         Gc, d, _ = gram.load_gram(setup["grams"]["standardised"])
         assert r["log_likelihood_eq6"] == pytest.approx(likelihood.log_likelihood(m.X, Gc, d, m.ell, m.mu), rel=1e-12)
         assert r["log_likelihood"] == m.log_likelihood != pytest.approx(r["log_likelihood_eq6"], rel=1e-3)
-        assert r["albedo_clamped_points"] == fidelity.CLAMPED_HULL_POINTS and 0 <= r["albedo_clamped_bad_hull"] <= 1
+        assert r["albedo_clamped_points"] == 300 and 0 <= r["albedo_clamped_bad_hull"] <= 1
         assert r["jump_nn_median_1e-6"] <= r["jump_nn_p90_1e-6"] <= r["jump_nn_max_1e-6"]
         assert r["jump_nn_worst"].count(">") == 1 and r["reproduction_max"] < 1e-6
     assert np.isnan(rows[1]["albedo_bad_map"]) and not np.isnan(rows[0]["albedo_bad_map"])
@@ -229,13 +229,12 @@ def test_log_candidate_measures_its_blends_in_two_passes(setup: dict, monkeypatc
 
     monkeypatch.setattr(blendpass, "measure_blends", counted)
     monkeypatch.setattr(fidelity, "measure_model", spied)
-    monkeypatch.setattr(fidelity, "CLAMPED_HULL_POINTS", 12)
     names = setup["names"]
     paths = [[names[0], names[5]], [names[3], names[1]]]
     rows = fidelity.measure_candidate(
         store=setup["store"], grams=grams, models=models, candidate="log-mu0.0001", default="log-mu0.0001",
-        paths=paths, path_q=3, seed=4, steps=4, albedo_grid=6, spaces_out=tmp / "log.csv",
-        stability_out=tmp / "log-stab.csv")
+        paths=paths, path_q=3, seed=4, steps=4, albedo_grid=6, clamped_hull_points=12,
+        spaces_out=tmp / "log.csv", stability_out=tmp / "log-stab.csv")
     assert passes == [True, False] and [r["q"] for r in rows] == [2, 3]
     for q, row in zip((2, 3), rows):  # the albedo of each hull point's table, formed whole
         m = gplvm.load_model(models[q])

@@ -150,6 +150,7 @@ rule measure_gplvm_candidate:
         seed=MAN["seed"],
         steps=MAN["path_steps"],
         albedo_grid=MAN["albedo_grid"],
+        clamped_hull_points=MAN["clamped_hull_points"],
         code=code("measure_gplvm_candidate.py"),
     script:
         "../scripts/measure_gplvm_candidate.py"

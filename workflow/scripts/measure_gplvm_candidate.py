@@ -15,6 +15,7 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         seed=snakemake.params.seed,
         steps=snakemake.params.steps,
         albedo_grid=snakemake.params.albedo_grid,
+        clamped_hull_points=snakemake.params.clamped_hull_points,
         albedos=snakemake.input.albedos,
         spaces_out=snakemake.output.spaces,
         stability_out=snakemake.output.stability,

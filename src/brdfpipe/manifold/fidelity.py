@@ -17,7 +17,8 @@ Measures
 --------
 * ``albedo_clamped_bad_hull``: share of latent points, drawn uniformly inside
   the convex hull of the training points (:func:`brdfpipe.manifold.latent.sample_in_hull`;
-  the first :data:`CLAMPED_HULL_POINTS` of them, ``albedo_clamped_points``),
+  the first ``manifold.clamped_hull_points`` of them, default
+  :data:`CLAMPED_HULL_POINTS`, ``albedo_clamped_points``),
   whose interpolated table *as a renderer receives it* — negative values
   clamped to 0, exactly the table :func:`brdfpipe.manifold.gplvm.interpolate_tables`
   and ``brdfpipe interpolate`` write — has a white-sky albedo (Soler §4.2's
@@ -467,6 +468,7 @@ def measure_candidate(
     seed: int,
     steps: int = 20,
     albedo_grid: int = 96,
+    clamped_hull_points: int = CLAMPED_HULL_POINTS,
     perceptual_paths: bool = True,
     albedos: str | os.PathLike[str] | None = None,
     spaces_out: str | os.PathLike[str],
@@ -483,7 +485,10 @@ def measure_candidate(
     and ``stability_out`` (:data:`STABILITY_COLUMNS`).  ``albedos``: the
     materials' albedos (:func:`brdfpipe.manifold.albedo.write_material_albedos`,
     checked against the store); None computes them here.  The random hull
-    points and directions are seeded by (``seed``, q, ``candidate``).
+    points and directions are seeded by (``seed``, q, ``candidate``);
+    ``clamped_hull_points``: how many of the :data:`HULL_POINTS` hull points
+    (the first drawn) have their clamped table's albedo measured
+    (config ``manifold.clamped_hull_points``).
     The clamped tables' albedos of every q are measured in one pass over the
     store (:func:`clamped_albedos`), the latent paths' points and the tables
     next to each material of every q in another (:func:`_table_pass`).
@@ -493,6 +498,8 @@ def measure_candidate(
 
     if "raw" not in grams:
         raise ValueError("measure_candidate needs the raw Gram matrix (stability in raw units)")
+    if not 1 <= clamped_hull_points <= HULL_POINTS:
+        raise ValueError(f"clamped_hull_points must be in [1, {HULL_POINTS}], got {clamped_hull_points}")
     st = open_store(store)
     loaded = {s: load_gram(p) for s, p in grams.items()}
     for s, (_, _, info) in loaded.items():
@@ -519,14 +526,14 @@ def measure_candidate(
         if perceptual_paths and int(path_q) in fits else []
     # the clamped tables at the first hull points of every q, and at the map's sub-grid (q = 2): one pass
     maps = {q: _map_points(m.X, albedo_grid, CLAMPED_MAP_STRIDE) for q, m in fits.items() if q == 2}
-    picks = {q: np.vstack([hulls[q][:CLAMPED_HULL_POINTS], maps.get(q, np.empty((0, q)))]) for q in fits}
+    picks = {q: np.vstack([hulls[q][:clamped_hull_points], maps.get(q, np.empty((0, q)))]) for q in fits}
     clamped = clamped_albedos(st, fits, picks)
     distances, jumps = _table_pass(st, fits, lp)
     rows: list[dict[str, Any]] = []
     stab: list[dict[str, Any]] = []
     for q, model in fits.items():
         centred, _, info = loaded[model.space]
-        k = min(CLAMPED_HULL_POINTS, hulls[q].shape[0])
+        k = min(clamped_hull_points, hulls[q].shape[0])
         row, srows = measure_model(model, albedos=A, raw_gram=raw_gram, space_gram=info.raw_gram,
                                    centred_gram=centred, paths=pairs, steps=steps, rng=rngs[q],
                                    clamped_albedo=clamped[q][:k], clamped_map_albedo=clamped[q][k:] if q in maps
