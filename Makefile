@@ -15,6 +15,10 @@ SLURM_PLUGINS := $(VENV)/slurm-plugins
 SLURM_STAMP   := $(SLURM_PLUGINS)/.installed
 CONFIG ?= config/config.yaml
 CORES  ?= all
+# Every workflow job is its own Python process: let them keep the library's
+# compiled bytecode (some environments set this variable, and then each job
+# compiles every module it imports again).
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: run test bench setup llvm chromium dryrun lint clean slurm-test slurm-plugins report
 
@@ -72,7 +76,7 @@ report: setup
 	$(SMK) --configfile $(CONFIG) --report results/report.zip
 
 test: setup lint chromium $(SLURM_STAMP)
-	$(PY) -m pytest -q -n 2 --durations=20
+	$(PY) -m pytest -q -n 2 --maxschedchunk 2 --durations=20
 
 bench: setup
 	$(PY) benches/run_all.py

@@ -1,12 +1,21 @@
-"""Test-suite wide settings.
+"""Test-suite wide settings: the order the tests start in.
 
-The Slurm run (tests/test_slurm.py) takes minutes, nearly all of them waiting
-on Slurm's queue: it runs in the background, beside the suite.  The test that
-starts it is moved to the front of the collection, so that under pytest-xdist
-(`make test` runs `-n 2`) it starts at once; the test that waits for it and
-compares it with the session's shared local run of tiny-point
-(tests/shared_runs.py) is moved to the end, after the other test that reads
-that run, so that both find their runs built rather than wait for them.
+`make test` runs pytest under xdist (`-n 2 --maxschedchunk 2`): each worker
+takes the next two tests of the collection whenever it runs short, so the
+collection's order is the order the tests start in.  The suite is
+CPU-bound on two cores; it ends soonest when the long tests start first and
+the short ones fill in at the end, and when no worker waits on a shared run
+another is building (tests/shared_runs.py).  So:
+
+* The test that starts the Slurm run (tests/test_slurm.py), which takes
+  minutes of waiting on Slurm's queue, comes first: the run goes on beside
+  the suite.
+* Then the tests that build the session's shared runs and the long
+  workflow tests (:data:`EARLY`, in that order): the first two build
+  different runs (tiny-nbrdf and tiny), so neither worker waits on the other.
+* Last, the test that waits for the Slurm run and compares it with the
+  shared run of tiny-point, after the other test that reads that run, so
+  that both find their runs built rather than wait for them (:data:`LAST`).
 """
 
 from __future__ import annotations
@@ -14,6 +23,16 @@ from __future__ import annotations
 import pytest
 
 FIRST = ("tests/test_slurm.py::test_slurm_takes_the_workflows_jobs",)
+#: Node-id prefixes of the long tests, started in this order after FIRST.
+EARLY = ("tests/test_documented_commands.py::test_the_report_commands",
+         "tests/test_resume.py::test_candidates_config_change_interrupted_and_resumed",
+         "tests/test_workflow.py::test_other_dag_shapes_run_end_to_end[tiny-nearfield]",
+         "tests/test_resume.py::",
+         "tests/test_documented_commands.py::",
+         "tests/test_workflow.py::",
+         "tests/test_marks_workflow.py::",
+         "tests/test_unseen.py::",
+         "tests/test_solerfigs.py::")
 LAST = ("tests/test_workflow.py::test_other_dag_shapes_run_end_to_end[tiny-point]",
         "tests/test_slurm.py::test_workflow_on_slurm_matches_local_run")
 
@@ -23,7 +42,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if item.nodeid in FIRST:
             return 0, 0
         if item.nodeid in LAST:
-            return 2, LAST.index(item.nodeid)
-        return 1, 0
+            return 3, LAST.index(item.nodeid)
+        for i, prefix in enumerate(EARLY):
+            if item.nodeid.startswith(prefix):
+                return 1, i
+        return 2, 0
 
     items.sort(key=rank)
