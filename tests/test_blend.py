@@ -15,7 +15,6 @@ import pytest
 from brdfpipe.core import filenames, integrity
 from brdfpipe.rendering import blend
 from brdfpipe.rendering.blend import (
-    SUMMARY_COLUMNS,
     BlendError,
     blend_exr,
     error_map,
@@ -27,6 +26,7 @@ from brdfpipe.rendering.blend import (
 )
 from brdfpipe.core.exr import ExrError, read_exr, read_exr_attrs, write_exr
 from brdfpipe.core.notes import read_note
+from brdfpipe.spec import tables
 
 H, W = 6, 8
 MATERIALS = ("alum-bronze", "chrome", "silver-paint")
@@ -245,7 +245,7 @@ def test_error_maps_end_to_end(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     assert sorted(out.iterdir()) == sorted([summary, *_output_files(points)])
     with io.StringIO(integrity.read_csv_text(summary), newline="") as fh:
         table = list(csv.reader(fh))
-    assert tuple(table[0]) == SUMMARY_COLUMNS
+    assert tuple(table[0]) == tables.ERROR_MAP_SUMMARY
     assert [r[:3] for r in table[1:]] == [["synthetic", "chrome-to-silver", "0.25"], ["synthetic", "chrome-to-silver", "0.5"]]
     assert float(table[2][3]) == pytest.approx(rows[1]["rmse_blend"], rel=1e-8)
     # reruns give the same bytes
@@ -491,7 +491,7 @@ def test_isolated_reference_differs_from_the_blend_by_the_l2_paths_alone(tmp_pat
 
 
 def test_bounce_shares(tmp_path: Path) -> None:
-    from brdfpipe.rendering.blend import SHARE_COLUMNS, bounce_shares
+    from brdfpipe.rendering.blend import bounce_shares
 
     rng = np.random.default_rng(3)
     mask = np.zeros((H, W, 3), np.float32)
@@ -514,7 +514,7 @@ def test_bounce_shares(tmp_path: Path) -> None:
         assert row["object_pixels"] == (H // 2) * W
     with io.StringIO(integrity.read_csv_text(tmp_path / "s.csv"), newline="") as fh:
         table = list(csv.reader(fh))
-    assert tuple(table[0]) == SHARE_COLUMNS and [r[1] for r in table[1:]] == list(MATERIALS)
+    assert tuple(table[0]) == tables.BOUNCE_SHARES and [r[1] for r in table[1:]] == list(MATERIALS)
     write_exr(tmp_path / "empty.exr", np.zeros((H, W, 3), np.float32))
     with pytest.raises(BlendError, match="empty.exr"):
         bounce_shares(images=images, ones=ones, mask=tmp_path / "empty.exr", out=tmp_path / "s.csv",
@@ -562,7 +562,7 @@ def test_floor_check_table_joins_every_candidate(tmp_path: Path) -> None:
     rows = blend.floor_check_table(**inp, default="standardised-mu1e-06", out=out, database="synthetic")
     with io.StringIO(integrity.read_csv_text(out), newline="") as fh:
         table = list(csv.DictReader(fh))
-    assert list(table[0]) == list(blend.FLOOR_CHECK_COLUMNS) and len(table) == len(rows) == 4
+    assert list(table[0]) == list(tables.FLOOR_CHECK) and len(table) == len(rows) == 4
     assert [(r["candidate"], r["default"], r["t"]) for r in table] == [
         ("standardised-mu1e-06", "1", "0.25"), ("standardised-mu1e-06", "1", "0.5"),
         ("raw-mu0.0001", "0", "0.25"), ("raw-mu0.0001", "0", "0.5")]

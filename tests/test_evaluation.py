@@ -21,13 +21,12 @@ from brdfpipe.acquisition import evaluation as acq_evaluation
 from brdfpipe.acquisition import metrics, optimize, svd
 from brdfpipe.acquisition.evaluation import (
     CONSISTENCY_COLUMNS,
-    ERROR_COLUMNS,
-    TRAINING_SIZE_COLUMNS,
     ConsistencyError,
 )
 from brdfpipe.acquisition.geometry import Setup
 from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl
+from brdfpipe.spec import tables
 
 
 # --------------------------------------------------------------------------
@@ -111,8 +110,8 @@ def test_evaluation_rows_are_tidy(data: Data, evaluation: list[dict[str, Any]], 
     path = acq_evaluation.write_errors(tmp_path / "evaluation" / "errors.csv", evaluation)
     with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
         rows = list(csv.reader(fh))
-    assert tuple(rows[0]) == ERROR_COLUMNS
-    body = [dict(zip(ERROR_COLUMNS, r)) for r in rows[1:]]
+    assert tuple(rows[0]) == tables.ERRORS
+    body = [dict(zip(tables.ERRORS, r)) for r in rows[1:]]
     n_sets = 3 + 2
     per = len(data.test) * 3 + 1
     assert len(body) == (1 + 2 * n_sets) * per
@@ -240,10 +239,10 @@ def test_training_size_curve(data: Data, evaluation: list[dict[str, Any]], tmp_p
     np.testing.assert_allclose(got, rms, rtol=1e-7)
     assert _value(rows, n_train=3, material="mean") == pytest.approx(rms.mean(), rel=1e-7)
     # Tidy CSV.
-    path = acq_evaluation.write_errors(tmp_path / "training_size.csv", rows, TRAINING_SIZE_COLUMNS)
+    path = acq_evaluation.write_errors(tmp_path / "training_size.csv", rows, tables.TRAINING_SIZE)
     with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
         back = list(csv.reader(fh))
-    assert tuple(back[0]) == TRAINING_SIZE_COLUMNS and len(back) == 1 + 2 * (3 * len(data.test) + 1)
+    assert tuple(back[0]) == tables.TRAINING_SIZE and len(back) == 1 + 2 * (3 * len(data.test) + 1)
     assert {r[2] for r in back[1:]} == {"5"} and {r[5] for r in back[1:]} == {"rms_log"}
 
 
@@ -251,7 +250,7 @@ def test_training_size_over_several_orders_is_each_orders_curve(data: Data, tmp_
     """orders = 3: the curves of seeds 5, 6 and 7, one after the other, each equal to its single-order curve."""
     out = acq_evaluation.write_training_size(data.store, data.logmap, data.dirs["nearfield"], tmp_path / "t.csv",
                                              test_materials=data.test, sizes=(3, 6), order_seed=5, orders=3)
-    _, rows = integrity.read_csv_rows(out, required=TRAINING_SIZE_COLUMNS)
+    _, rows = integrity.read_csv_rows(out, required=tables.TRAINING_SIZE)
     assert [r["order_seed"] for r in rows][:: len(rows) // 3] == ["5", "6", "7"]
     for seed in (5, 6, 7):
         single = acq_evaluation.training_size_curve(data.store, data.logmap, data.dirs["nearfield"],
@@ -283,18 +282,18 @@ def test_evaluation_functions_write_one_file_each(data: Data, evaluation: list[d
                                               test_materials=data.test, sizes=(2, 6)) == curve_out
     # Exactly the three files given, no temporary or other file left anywhere under out.
     assert sorted(p for p in out.rglob("*") if p.is_file()) == sorted([errors_out, consistency_out, curve_out])
-    tables = {}
-    for path, cols in ((errors_out, ERROR_COLUMNS), (consistency_out, CONSISTENCY_COLUMNS),
-                       (curve_out, TRAINING_SIZE_COLUMNS)):
+    read_back = {}
+    for path, cols in ((errors_out, tables.ERRORS), (consistency_out, CONSISTENCY_COLUMNS),
+                       (curve_out, tables.TRAINING_SIZE)):
         with io.StringIO(integrity.read_csv_text(path), newline="") as fh:
-            tables[path] = list(csv.reader(fh))
-        assert tuple(tables[path][0]) == cols
+            read_back[path] = list(csv.reader(fh))
+        assert tuple(read_back[path][0]) == cols
     # The errors CSV is the evaluation, written by write_errors.
     ref = acq_evaluation.write_errors(tmp_path / "ref" / "errors.csv", evaluation)
     assert errors_out.read_text() == ref.read_text()
-    assert len(tables[consistency_out]) == 1 + len(consistency)
+    assert len(read_back[consistency_out]) == 1 + len(consistency)
     # The curve uses the given directions file and sizes: N = 2 and N = 6 (all training materials).
-    curve = tables[curve_out]
-    n_col = TRAINING_SIZE_COLUMNS.index("n_train")
+    curve = read_back[curve_out]
+    n_col = tables.TRAINING_SIZE.index("n_train")
     assert sorted({int(r[n_col]) for r in curve[1:]}) == [2, 6]
     assert len(curve) == 1 + 2 * (3 * len(data.test) + 1)

@@ -25,7 +25,6 @@ from brdfpipe.core import filenames, integrity
 from brdfpipe.core.plot import figure_stem, FigureInputError
 from brdfpipe.data.databases import title as database_label
 from brdfpipe.acquisition.figures import (
-    FIG08_COLUMNS,
     fig05_error_vs_images,
     fig08_optimal_configurations,
     fig18_per_material,
@@ -36,6 +35,7 @@ from brdfpipe.acquisition.geometry import config_to_dict, Setup
 from brdfpipe.acquisition.optimize import DirectionSet, read_directions, write_directions
 from brdfpipe.core.filenames import FIGURE_STEMS
 from brdfpipe.spec import figures as fig_spec
+from brdfpipe.spec import tables
 
 DB = "synthetic"
 MATERIALS = ("blue-acrylic", "gold-metallic-paint", "white-fabric")
@@ -54,7 +54,7 @@ def _value(setup: str, fov: float, metric: str, n: int, mi: int, ch: int) -> flo
 
 
 def write_errors(path: Path, database: str = DB, drop: str | None = None) -> Path:
-    cols = [c for c in figures.ERRORS_COLUMNS if c != drop]
+    cols = [c for c in tables.ERRORS if c != drop]
     rows = []
     for (setup, fov), _ in SETUPS.items():
         for metric in ("error", "condition", "condition_nielsen"):
@@ -84,7 +84,7 @@ def write_errors(path: Path, database: str = DB, drop: str | None = None) -> Pat
     w = csv.writer(fh)
     w.writerow(cols)
     for r in rows:
-        rec = dict(zip(figures.ERRORS_COLUMNS, r))
+        rec = dict(zip(tables.ERRORS, r))
         w.writerow([f"{rec[c]:g}" if isinstance(rec[c], float) and c == "fov" else rec[c] for c in cols])
     integrity.write_csv(path, fh.getvalue())  # as the workflow writes it: with its digest line
     return path
@@ -93,7 +93,7 @@ def write_errors(path: Path, database: str = DB, drop: str | None = None) -> Pat
 def write_training(path: Path, database: str = DB) -> Path:
     fh = io.StringIO()
     w = csv.writer(fh)
-    w.writerow(figures.TRAINING_COLUMNS)
+    w.writerow(tables.TRAINING_SIZE)
     for seed in (0, 1):
         for n_train in range(5, 30, 5):
             vals = []
@@ -227,7 +227,7 @@ def test_database_taken_from_input(tmp_path: Path) -> None:
 def test_fig08_table_matches_directions(inputs: dict[str, Path], outputs: tuple[Path, list[Path]]) -> None:
     out, _ = outputs
     rows = integrity.read_csv_rows(out / "fig08-optimal-configurations.csv")[1]
-    assert tuple(rows[0].keys()) == FIG08_COLUMNS
+    assert tuple(rows[0].keys()) == tables.FIG08
     assert len(rows) == 2 * (1 + 2)  # 2 FOVs × (1 + 2 images)
     for fov, path in ((15.0, inputs["dir15"]), (25.0, inputs["dir25"])):
         d = read_directions(path)
@@ -338,17 +338,17 @@ def test_empty_missing_and_malformed_inputs(inputs: dict[str, Path], tmp_path: P
     with pytest.raises(FigureInputError, match=r"empty\.csv.*empty"):
         read_errors(empty)
     header_only = tmp_path / "header.csv"
-    integrity.write_csv(header_only, ",".join(figures.ERRORS_COLUMNS) + "\n")
+    integrity.write_csv(header_only, ",".join(tables.ERRORS) + "\n")
     with pytest.raises(FigureInputError, match=r"header\.csv.*no data rows"):
         read_errors(header_only)
     with pytest.raises(FileNotFoundError, match=r"absent\.csv"):
         read_errors(tmp_path / "absent.csv")
     badnum = tmp_path / "badnum.csv"
-    integrity.write_csv(badnum, ",".join(figures.ERRORS_COLUMNS) + "\nsynthetic,train,point,0,error,x,mean,all,rms_log,1\n")
+    integrity.write_csv(badnum, ",".join(tables.ERRORS) + "\nsynthetic,train,point,0,error,x,mean,all,rms_log,1\n")
     with pytest.raises(FigureInputError, match=r"badnum\.csv: line 3.*'n'"):
         read_errors(badnum)
     two_db = tmp_path / "twodb.csv"
-    integrity.write_csv(two_db, ",".join(figures.ERRORS_COLUMNS) + "\nA,train,point,0,error,1,mean,all,rms_log,1\n"
+    integrity.write_csv(two_db, ",".join(tables.ERRORS) + "\nA,train,point,0,error,1,mean,all,rms_log,1\n"
                       "B,train,point,0,error,2,mean,all,rms_log,1\n")
     with pytest.raises(FigureInputError, match=r"twodb\.csv.*more than one database"):
         read_errors(two_db)

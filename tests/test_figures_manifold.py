@@ -26,12 +26,7 @@ from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.notes import read_note
 from brdfpipe.core.plot import FigureInputError
 from brdfpipe.manifold import fitting, gplvm, gram, latent_map, lengthscale
-from brdfpipe.manifold.fidelity import SPACE_COLUMNS, STABILITY_COLUMNS
 from brdfpipe.manifold.figure_inputs import (
-    ALBEDO_COLUMNS,
-    PATHS_COLUMNS,
-    REPRODUCTION_COLUMNS,
-    TRACE_COLUMNS,
     read_albedo_map,
     read_manifold_inputs,
     read_paths,
@@ -43,6 +38,7 @@ from brdfpipe.manifold.figures import (
     manifold_fig10_latent_q2,
     manifold_fig10_latent_q5,
 )
+from brdfpipe.spec import tables
 
 DB = "synthetic"
 N = 24
@@ -96,7 +92,7 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
 
     rgb = _albedo(rng)
     lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
-    albedo_csv = _write_csv(root / "manifold" / "albedo.csv", ALBEDO_COLUMNS,
+    albedo_csv = _write_csv(root / "manifold" / "albedo.csv", tables.MATERIAL_ALBEDO,
                             [[database, n, *map(repr, c.tolist()), repr(float(v))] for n, c, v in zip(NAMES, rgb, lum)])
 
     maps = {}
@@ -134,7 +130,7 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
             nearest = a if t < 0.5 else b
             rows.append([database, "raw", q, pid, a, b, s, repr(t), repr(t * dist), repr(pab * t ** 0.8),
                          repr(pab * (1 - t) ** 1.2), repr(pab), nearest, repr(dev), repr(bound)])
-    paths_csv = _write_csv(root / "manifold" / "paths.csv", PATHS_COLUMNS, rows)
+    paths_csv = _write_csv(root / "manifold" / "paths.csv", tables.LATENT_PATHS, rows)
 
     rows = []
     for i, n in enumerate(NAMES):
@@ -143,21 +139,21 @@ def write_inputs(root: Path, *, database: str = DB) -> dict[str, object]:
             rows.append([database, "raw", n, "pca", k, repr(base * (40.0 / (k + 2)) ** 0.6 / 10)])
         for q in QS:
             rows.append([database, "raw", n, "gplvm", q, repr(0.0 if i % 3 == 0 else (i % 5 + 1) * 1e-16)])
-    repro_csv = _write_csv(root / "manifold" / "reproduction.csv", REPRODUCTION_COLUMNS, rows)
+    repro_csv = _write_csv(root / "manifold" / "reproduction.csv", tables.REPRODUCTION, rows)
     rows, srows = [], []
     for c, (space, mu) in {"standardised-mu1e-06": ("standardised", 1e-6), "raw-mu0.0001": ("raw", 1e-4)}.items():
         for q in QS:
-            r = {k: 0.5 for k in SPACE_COLUMNS}
+            r = {k: 0.5 for k in tables.SPACES}
             r.update(database=database, candidate=c, space=space, mu=mu, q=q, default=str(space != "raw").lower(),
                      kappa=1e4 if space != "raw" else 1e6, albedo_bad_hull=0.001 if space != "raw" else 0.2,
                      albedo_bad_map=0.01 if q == 2 else float("nan"))
-            rows.append([r[k] for k in SPACE_COLUMNS])
+            rows.append([r[k] for k in tables.SPACES])
             for norm in ("raw", "space"):
                 for eps in (1e-9, 1e-6, 1e-3):
                     med = (1e-5 if space != "raw" else 0.08) + eps
                     srows.append([database, c, space, mu, q, norm, eps, med, 2 * med, 3 * med])
-    spaces_csv = _write_csv(root / "manifold" / "spaces.csv", SPACE_COLUMNS, rows)
-    stability_csv = _write_csv(root / "manifold" / "spaces-stability.csv", STABILITY_COLUMNS, srows)
+    spaces_csv = _write_csv(root / "manifold" / "spaces.csv", tables.SPACES, rows)
+    stability_csv = _write_csv(root / "manifold" / "spaces-stability.csv", tables.STABILITY, srows)
     gram_path = root / "gplvm" / "gram-raw.npz"
     gram.save_gram(gram_path, G, D, gram.GramInfo(NAMES, "raw", Z.sum(axis=1), G, "mean subtracted"))
     lengthscales_csv = root / "manifold" / "lengthscales.csv"
@@ -312,7 +308,7 @@ def test_bad_headers(inputs: dict[str, object], tmp_path: Path) -> None:
     empty = tmp_path / "empty-albedo.csv"
     integrity.write_csv(empty, "")
     _expect_error(inputs, tmp_path, r"empty-albedo\.csv.*empty", albedo_csv=empty)
-    assert TRACE_COLUMNS == ("step", "stage", "log_likelihood")
+    assert tables.GPLVM_TRACE == ("step", "stage", "log_likelihood")
 
 
 def test_nan_and_bad_values(inputs: dict[str, object], tmp_path: Path) -> None:
@@ -325,7 +321,7 @@ def test_nan_and_bad_values(inputs: dict[str, object], tmp_path: Path) -> None:
     with io.StringIO(integrity.read_csv_text(inputs["paths_csv"]), newline="") as fh:  # type: ignore[arg-type]
         recs = list(csv.DictReader(fh))
     recs[5]["perceptual_a"] = "NaN"
-    nan_paths = _write_csv(tmp_path / "nan-paths.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
+    nan_paths = _write_csv(tmp_path / "nan-paths.csv", tables.LATENT_PATHS, [[r[c] for c in tables.LATENT_PATHS] for r in recs])
     _expect_error(inputs, tmp_path, r"nan-paths\.csv: line 8.*perceptual_a", paths_csv=nan_paths)
 
     arrays = integrity.load_npz(inputs["albedo_maps"][2])  # type: ignore[index]
@@ -379,7 +375,7 @@ def test_merl_and_optional_parts(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     kw = write_inputs(tmp_path / "in", database="merl")
     with io.StringIO(integrity.read_csv_text(kw["paths_csv"]), newline="") as fh:  # type: ignore[arg-type]
         recs = [r for r in csv.DictReader(fh) if r["q"] == "2"]
-    paths = _write_csv(tmp_path / "paths-q2.csv", PATHS_COLUMNS, [[r[c] for c in PATHS_COLUMNS] for r in recs])
+    paths = _write_csv(tmp_path / "paths-q2.csv", tables.LATENT_PATHS, [[r[c] for c in tables.LATENT_PATHS] for r in recs])
     with caplog.at_level(logging.WARNING, logger="brdfpipe"):
         files = make_manifold_figures(**{**kw, "models": {2: kw["models"][2]}, "traces": {}, "albedo_maps": {},  # type: ignore[index]
                                          "paths_csv": paths}, figures=figure_map(tmp_path / "out"))

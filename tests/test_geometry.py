@@ -14,8 +14,10 @@ import numpy as np
 import pytest
 
 from brdfpipe.acquisition import geometry
-from brdfpipe.acquisition.geometry import DEFAULT_GRID, SETUP_KINDS, Setup, centre_directions, config_from_dict, config_to_dict, observation_cells, pixel_directions
+from brdfpipe.acquisition.geometry import DEFAULT_GRID, Setup, centre_directions, config_from_dict, config_to_dict, observation_cells, pixel_directions
 from brdfpipe.data import merl
+from brdfpipe.spec.acquisition import SETUP_NAMES
+from brdfpipe.spec import nearfield
 
 MEASURED = merl.measured_mask()
 MEASURED_CELLS = np.flatnonzero(MEASURED.ravel())
@@ -60,7 +62,7 @@ def test_setup_valid_and_normalised() -> None:
     assert Setup("point") == Setup("point", 0.0, 32) == Setup("point", 0, 1)
     assert Setup("point").grid == 1 and not Setup("point").is_image
     assert Setup("fixed_light", 25.0).grid == DEFAULT_GRID
-    assert set(SETUP_KINDS) == {"point", "nearfield", "fixed_camera", "fixed_light"}
+    assert set(SETUP_NAMES) == {"point", "nearfield", "fixed_camera", "fixed_light"}
     with pytest.raises(AttributeError):
         s.fov_deg = 30.0  # type: ignore[misc]  # frozen
 
@@ -93,7 +95,7 @@ def test_bad_setups_raise(args: tuple) -> None:
 
 @pytest.mark.parametrize("config", [(90, 0, 0), (0, 90, 0), (0, 0, 180), (-1, 0, 0), (1, 2), (1, 2, 3, 4),
                                     (1.0, 2, 3), (True, 2, 3), "abc", 5])
-@pytest.mark.parametrize("kind", SETUP_KINDS)
+@pytest.mark.parametrize("kind", SETUP_NAMES)
 def test_bad_configs_raise(kind: str, config: object) -> None:
     setup = Setup(kind, 0.0 if kind == "point" else 25.0)
     with pytest.raises(ValueError):
@@ -150,7 +152,7 @@ def test_nearfield_zenith_pixel_count_and_centre(grid: int) -> None:
     wi, wo = centre_directions(setup, ZENITH_CONFIG)
     assert angle_deg(wo, np.array([0.0, 0.0, 1.0])) < 0.2
     cells = observation_cells(setup, ZENITH_CONFIG)
-    radius_px = setup.nu / geometry.pixel_pitch(25.0, grid)  # the disk's radius in pixels
+    radius_px = setup.nu / nearfield.pixel_pitch(25.0, grid)  # the disk's radius in pixels
     # lattice points in a disk of radius r: their unit squares lie within r ± √2/2
     assert math.pi * (radius_px - 0.5**0.5) ** 2 <= cells.size <= math.pi * (radius_px + 0.5**0.5) ** 2
     assert cells.size <= math.pi / 4 * grid * grid  # the disk no longer fills the image
@@ -173,7 +175,7 @@ def test_nearfield_exact_zenith_disk_fills_image() -> None:
     _, po = pixel_directions(setup, (0, 40, 0))
     # lattice points (a, b) ∈ [−16, 15]² with (a² + b²)·Δ² ≤ ν², Δ = 2h/31
     assert po.shape[0] == 717
-    step = geometry.pixel_pitch(25.0, grid)
+    step = nearfield.pixel_pitch(25.0, grid)
     angles = angle_deg(po, np.array([0.0, 0.0, 1.0]))
     assert angles.max() <= 12.5 + 1e-9
     assert angles.max() >= math.degrees(math.atan(math.tan(math.radians(12.5)) - step))  # the rim is imaged
@@ -188,9 +190,9 @@ def test_image_frames_the_whole_disk(fov: float, grid: int) -> None:
     the disk at oblique views; the half-width h = ν/√(1 − ν²) clips nothing.
     """
     nu = math.tan(math.radians(fov) / 2)
-    h = geometry.image_half_width(fov)
+    h = nearfield.image_half_width(fov)
     assert math.isclose(h, math.tan(math.asin(nu)))
-    step = geometry.pixel_pitch(fov, grid)
+    step = nearfield.pixel_pitch(fov, grid)
     lo, hi = -(grid // 2 + 0.5) * step, (grid - 1 - grid // 2 + 0.5) * step
     assert lo <= -h * (1 - 1e-12) and hi >= h * (1 - 1e-12)
     rng = np.random.default_rng(5)
@@ -213,7 +215,7 @@ def test_image_frames_the_whole_disk(fov: float, grid: int) -> None:
 
 def test_lattice_position_in_a_symmetric_image() -> None:
     for grid in (1, 7, 8, 32):
-        size, offset = geometry.lattice_shape_in_image(grid)
+        size, offset = nearfield.image_frame(grid)
         assert size % 2 == 1 and size - grid in (0, 1)
         # the centre pixel (a = b = ⌊grid/2⌋) is the image's centre
         assert offset + grid // 2 == size // 2
@@ -380,7 +382,7 @@ def test_rotation_about_z_does_not_change_the_cells() -> None:
 # ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kind", SETUP_KINDS)
+@pytest.mark.parametrize("kind", SETUP_NAMES)
 def test_config_dict_round_trip(kind: str) -> None:
     setup = Setup(kind, 0.0 if kind == "point" else 25.0)
     for c in random_configs(kind, 30, seed=5):

@@ -9,6 +9,7 @@ import pytest
 
 from brdfpipe.data import logmap, merl, store
 from brdfpipe.manifold import gram
+from brdfpipe.spec.manifold import SPACE_NAMES
 from gram_fixture import dense, small_store  # noqa: F401 (pytest fixtures)
 
 
@@ -25,7 +26,7 @@ from gram_fixture import dense, small_store  # noqa: F401 (pytest fixtures)
 # --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("space", gram.SPACES)
+@pytest.mark.parametrize("space", SPACE_NAMES)
 def test_gram_matrix_equals_dense_computation(small_store: Path, dense: dict, space: str) -> None:
     G, d, info = gram.gram_matrix(small_store, space=space)
     data = dense["data"].astype(np.float64)

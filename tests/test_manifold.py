@@ -11,6 +11,7 @@ from brdfpipe.core import integrity
 from brdfpipe.spec.errors import ConfigError
 from brdfpipe.data import ingest, merl, provenance, store, synth
 from brdfpipe.manifold import albedo, analysis, gplvm, gram, likelihood
+from brdfpipe.spec import tables
 
 
 @pytest.fixture(scope="module")
@@ -205,7 +206,7 @@ def test_analyze_manifold_writes_everything(small: dict) -> None:
     assert written == sorted([outputs["albedo_out"], *outputs["albedo_maps_out"].values(), outputs["paths_out"],
                               outputs["reproduction_out"]])
     rows = integrity.read_csv_rows(outputs["paths_out"])[1]
-    assert len(rows) == 3 and tuple(rows[0]) == analysis.PATH_COLUMNS and rows[0]["database"] == "synthetic"
+    assert len(rows) == 3 and tuple(rows[0]) == tables.LATENT_PATHS and rows[0]["database"] == "synthetic"
     rep = integrity.read_csv_rows(outputs["reproduction_out"])[1]
     assert {(r["method"], r["k"]) for r in rep} == {("pca", "2"), ("pca", "3"), ("gplvm", "2"), ("gplvm", "3")}
     for q, target in outputs["albedo_maps_out"].items():

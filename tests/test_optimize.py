@@ -26,9 +26,10 @@ from pspace_reference import direct_training_error
 from brdfpipe.acquisition.geometry import config_to_dict, observation_cells, Setup
 from brdfpipe.acquisition.metrics import (ErrorModel, condition_number, condition_number_first_n, expected_error,
                                           selection_stats)
-from brdfpipe.acquisition.optimize import DIRECTIONS_FORMAT, DirectionSet, optimize, read_directions, write_directions
+from brdfpipe.acquisition.optimize import DirectionSet, optimize, read_directions, write_directions
 from brdfpipe.core import filenames
 from brdfpipe.data import merl
+from brdfpipe.spec.acquisition import DIRECTIONS_FORMAT
 
 T = 40  # candidates per greedy add (the paper's 500 is the default; small here for speed)
 

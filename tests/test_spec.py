@@ -84,7 +84,6 @@ def test_the_figures_a_config_produces_follow_the_when_predicates() -> None:
 def test_setup_records_drive_the_geometry_and_the_optimiser() -> None:
     from brdfpipe.acquisition import geometry
 
-    assert geometry.SETUP_KINDS == acq_spec.SETUP_NAMES
     assert geometry.FIXED_KINDS == frozenset(n for n, s in acq_spec.SETUPS.items() if s.shared)
     for name, rec in acq_spec.SETUPS.items():
         s = geometry.Setup(name, fov_deg=25.0 if rec.images else 0.0)
@@ -97,10 +96,7 @@ def test_setup_records_drive_the_geometry_and_the_optimiser() -> None:
 
 
 def test_data_space_records_drive_the_manifold() -> None:
-    from brdfpipe.manifold import gram
-
-    assert gram.SPACES == man_spec.SPACE_NAMES
-    assert gram.LINEAR_SPACES == tuple(n for n, s in man_spec.DATA_SPACES.items() if s.linear)
+    assert man_spec.LINEAR_SPACES == tuple(n for n, s in man_spec.DATA_SPACES.items() if s.linear)
     assert man_spec.candidate_label("standardised", 1e-6) == "standardised-mu1e-06"
     with pytest.raises(ValueError, match="unknown data space"):
         man_spec.candidate_label("lab", 1e-4)
@@ -114,32 +110,62 @@ def test_every_data_space_has_its_maps() -> None:
         spaces.space_maps("lab")
 
 
+def _aliases(module: Path) -> list[str]:
+    """Module-level names of ``module`` bound to a name of another brdfpipe module (``X = tables.ERRORS``,
+    ``X = ERRORS`` after ``from brdfpipe.spec.tables import ERRORS``, ``import … as`` another name)."""
+    import brdfpipe
+
+    package = Path(brdfpipe.__file__).parent.parent
+    tree = ast.parse(module.read_text(encoding="utf-8"))
+    imported = set()
+    bad = []
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("brdfpipe"):
+            for a in node.names:
+                imported.add(a.asname or a.name)
+                where = package.joinpath(*node.module.split("."), a.name)
+                is_module = where.with_suffix(".py").is_file() or where.is_dir()
+                if a.asname and a.asname != a.name and not is_module:  # a module may be named for its role
+                    bad.append(f"line {node.lineno}: imports {a.name} as {a.asname}")
+    for node in tree.body:
+        value = node.value if isinstance(node, (ast.Assign, ast.AnnAssign)) else None
+        if ((isinstance(value, ast.Attribute) and isinstance(value.value, ast.Name) and value.value.id in imported)
+                or (isinstance(value, ast.Name) and value.id in imported)):
+            bad.append(f"line {node.lineno}: {ast.unparse(node).splitlines()[0]}")
+    return bad
+
+
+def test_no_module_rebinds_a_name_of_another() -> None:
+    """A name is read where it is declared (a spec record, a constant, a function): no library module binds
+    it again under a name of its own.
+
+    An alias hides which list a caller reads, and a test that patches one copy
+    leaves the others (issue 34 counted 28 re-bound spec names in 13 modules
+    before they went).  ``from brdfpipe.spec import manifold as manifold_spec``
+    names a module, not one of its names, and stays.
+    """
+    import brdfpipe
+
+    root = Path(brdfpipe.__file__).parent
+    found = {m.relative_to(root).as_posix(): bad for m in sorted(root.rglob("*.py")) if (bad := _aliases(m))}
+    assert found == {}
+
+
+def test_the_alias_check_sees_an_alias(tmp_path: Path) -> None:
+    module = tmp_path / "m.py"
+    module.write_text("from brdfpipe.spec import tables\nfrom brdfpipe.spec.manifold import SPACE_NAMES\n"
+                      "from brdfpipe.manifold.gram import gram_matrix as gm\n"
+                      "COLUMNS: tuple = tables.ERRORS\nSPACES = SPACE_NAMES\nOTHER = len(tables.ERRORS)\n")
+    assert [b.split(":")[0] for b in _aliases(module)] == ["line 3", "line 4", "line 5"]
+
+
 def test_each_shared_table_has_one_column_declaration() -> None:
-    """The writers and readers of the tables in brdfpipe.spec.tables use its tuples, not copies."""
-    from brdfpipe.acquisition import evaluation
-    from brdfpipe.acquisition import figures as acq_figures
-    from brdfpipe.acquisition import unseen as acq_unseen
+    """The readers of the tables in brdfpipe.spec.tables use its tuples, not copies."""
     from brdfpipe.manifold import figure_inputs as man_figures
-    from brdfpipe.manifold import unseen as man_unseen
     from brdfpipe.report import claims
     from brdfpipe.spec import tables
 
-    assert evaluation.ERROR_COLUMNS is tables.ERRORS and acq_figures.ERRORS_COLUMNS is tables.ERRORS
-    assert evaluation.TRAINING_SIZE_COLUMNS is tables.TRAINING_SIZE and acq_figures.TRAINING_COLUMNS is tables.TRAINING_SIZE
-    assert acq_unseen.UNSEEN_COLUMNS is tables.UNSEEN_ERRORS and acq_figures.UNSEEN_COLUMNS is tables.UNSEEN_ERRORS
-    assert man_unseen.UNSEEN_COLUMNS is tables.MANIFOLD_UNSEEN and man_figures.UNSEEN_COLUMNS is tables.MANIFOLD_UNSEEN
-    from brdfpipe.data import nbrdf
-    from brdfpipe.manifold import analysis, fidelity
-    from brdfpipe.rendering import blend
-
-    assert acq_figures.FIG08_COLUMNS is tables.FIG08
-    assert analysis.PATH_COLUMNS is tables.LATENT_PATHS and man_figures.PATHS_COLUMNS is tables.LATENT_PATHS
-    assert analysis.REPRODUCTION_COLUMNS is tables.REPRODUCTION and man_figures.REPRODUCTION_COLUMNS is tables.REPRODUCTION
-    assert analysis.ALBEDO_COLUMNS is tables.MATERIAL_ALBEDO and man_figures.ALBEDO_COLUMNS is tables.MATERIAL_ALBEDO
-    assert fidelity.SPACE_COLUMNS is tables.SPACES and fidelity.STABILITY_COLUMNS is tables.STABILITY
     assert set(man_figures.SPACES_FIGURE_COLUMNS) <= set(tables.SPACES)
-    assert man_figures.TRACE_COLUMNS is tables.GPLVM_TRACE
-    assert nbrdf.ALBEDO_COLUMNS is tables.FIT_ALBEDO and blend.SHARE_COLUMNS is tables.BOUNCE_SHARES
     # the claims name no column tuple of their own: every table they read is its owner's (or a checked subset)
     modules = sorted(Path(claims.__file__).parent.glob("claims*.py"))
     assert {m.stem for m in modules} == {"claims", "claims_base", "claims_xu", "claims_setups", "claims_soler",
@@ -164,10 +190,8 @@ def test_a_reader_cannot_name_a_column_its_table_lacks() -> None:
 
 
 def test_the_directions_format_has_one_tag() -> None:
-    from brdfpipe.acquisition import optimize
     from brdfpipe.rendering import capture
 
-    assert optimize.DIRECTIONS_FORMAT == acq_spec.DIRECTIONS_FORMAT
     assert "brdfpipe.directions" not in inspect.getsource(capture)
 
 

@@ -22,7 +22,9 @@ from brdfpipe import plan
 from brdfpipe.core import filenames, integrity
 from brdfpipe.data import database, databases, ingest, merl, nbrdf, store
 from brdfpipe.manifold import fitting, gplvm, gram, likelihood, unseen
-from brdfpipe.manifold.gram import MEAN_HANDLING, STANDARDISED_FLOOR, cross_gram, gram_matrix
+from brdfpipe.manifold.gram import MEAN_HANDLING, cross_gram, gram_matrix
+from brdfpipe.manifold.spaces import STANDARDISED_FLOOR
+from brdfpipe.spec import tables
 
 RESULTS = "results"
 
@@ -138,7 +140,7 @@ def test_unseen_store_albedos_and_labels(stores: dict[str, Path]) -> None:
     np.testing.assert_array_equal(st.brdf[1], table.reshape(-1).astype(np.float32))
     _, albedo_rows = integrity.read_csv_rows(stores["rgl-nbrdf-albedo"])  # written with its digest
     rows = {r["material"]: r for r in albedo_rows}
-    assert list(next(iter(rows.values()))) == list(nbrdf.ALBEDO_COLUMNS)
+    assert list(next(iter(rows.values()))) == list(tables.FIT_ALBEDO)
     spec = rows["spectralon-rgb"]
     assert spec["database"] == "rgl-nbrdf" and float(spec["theta_i_deg"]) == 0.0
     # an independent evaluation of the same integral: the directional albedo of the table at θi = 0
@@ -285,7 +287,7 @@ def test_unseen_csv_of_the_manifold(stores: dict[str, Path], tmp_path: Path) -> 
     out = unseen.write_unseen(tmp_path / "unseen.csv", store=stores["merl-nbrdf"], gram=tmp_path / "gram.npz",
                               models=models, unseen_stores=[stores["rgl-nbrdf"]], pca_ks=[3, 20])
     _, rows = integrity.read_csv_rows(out)  # written with its digest
-    assert list(rows[0]) == list(unseen.UNSEEN_COLUMNS)
+    assert list(rows[0]) == list(tables.MANIFOLD_UNSEEN)
     assert {r["database"] for r in rows} == {"rgl-nbrdf"} and {r["model_database"] for r in rows} == {"merl-nbrdf"}
     assert {r["space"] for r in rows} == {"standardised"}
     by = {(r["material"], r["method"], int(r["k"])): r for r in rows}
@@ -398,8 +400,8 @@ def test_unseen_csv_columns_labels_and_the_held_out_identity(acq: Acq, tmp_path:
 
     out = acq_unseen.write_unseen(tmp_path / "unseen.csv", stores={"rgl-nbrdf": acq.unseen}, model=acq.model,
                                   directions=acq.dirs)
-    header, rows = integrity.read_csv_rows(out, required=acq_unseen.UNSEEN_COLUMNS)
-    assert tuple(header) == acq_unseen.UNSEEN_COLUMNS == ("database", "model_database", *evaluation.ERROR_COLUMNS[1:])
+    header, rows = integrity.read_csv_rows(out, required=tables.UNSEEN_ERRORS)
+    assert tuple(header) == tables.UNSEEN_ERRORS == ("database", "model_database", *tables.ERRORS[1:])
     assert {r["database"] for r in rows} == {"rgl-nbrdf"}  # the material's own database, never merl
     assert {r["model_database"] for r in rows} == {"merl-nbrdf"} and {r["split"] for r in rows} == {"train"}
     assert {r["material"] for r in rows} == {"paper-red-rgb", "spectralon-rgb", "copy-gold-paint", "copy-teflon",
@@ -457,7 +459,7 @@ def check_tiny_nbrdf_run(work: Path) -> None:
 
     res = work / "results"
     # the table lookup and the closed loop of both materials, with the MERL-trained model
-    _, rows = integrity.read_csv_rows(res / "evaluation" / "unseen.csv", required=acq_unseen.UNSEEN_COLUMNS)
+    _, rows = integrity.read_csv_rows(res / "evaluation" / "unseen.csv", required=tables.UNSEEN_ERRORS)
     assert {(r["database"], r["material"]) for r in rows if r["material"] != "mean"} == {
         ("rgl-nbrdf", "spectralon-rgb"), ("nielsen-nbrdf", "glossyredpaper")}
     assert {r["model_database"] for r in rows} == {"merl-nbrdf"}
@@ -466,7 +468,7 @@ def check_tiny_nbrdf_run(work: Path) -> None:
     assert {r["setup"] for r in rows if r["kind"] == "rms_log"} == {"point", "nearfield"}
     assert all(math.isfinite(float(r["value"])) for r in rows)
     # the manifold: both ways of placing each material, and PCA
-    _, mrows = integrity.read_csv_rows(res / "manifold" / "unseen.csv", required=unseen.UNSEEN_COLUMNS)
+    _, mrows = integrity.read_csv_rows(res / "manifold" / "unseen.csv", required=tables.MANIFOLD_UNSEEN)
     assert {r["method"] for r in mrows} == {"gplvm-likelihood", "gplvm-least-squares", "pca"}
     assert {r["database"] for r in mrows} == {"rgl-nbrdf", "nielsen-nbrdf"}
     # the radiometric check holds on the spectralon fit, and each unseen database has its claim
@@ -496,7 +498,7 @@ def test_spectralon_claim(tmp_path: Path) -> None:
 
     def albedo_csv(name: str, database: str, material: str, lum: float) -> Path:
         path = tmp_path / name
-        integrity.write_csv(path, [list(nbrdf.ALBEDO_COLUMNS), [database, material, 0.0, lum, lum, lum, lum]])
+        integrity.write_csv(path, [list(tables.FIT_ALBEDO), [database, material, 0.0, lum, lum, lum, lum]])
         return path
 
     ok = claims.spectralon_albedo([albedo_csv("a.csv", "rgl-nbrdf", "spectralon-rgb", 0.958)])

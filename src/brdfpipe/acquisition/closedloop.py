@@ -49,7 +49,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.acquisition import geometry
-from brdfpipe.acquisition.evaluation import CHANNELS, ERROR_COLUMNS, write_errors
+from brdfpipe.acquisition.evaluation import CHANNELS, write_errors
 from brdfpipe.acquisition.metrics import DEFAULT_ETA, reconstruct_coefficients
 from brdfpipe.acquisition.optimize import read_directions
 from brdfpipe.acquisition.svd import Model, open_model
@@ -57,6 +57,7 @@ from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import material_indices, open_store
+from brdfpipe.spec import tables
 
 __all__ = [
     "CLOSEDLOOP_KINDS",
@@ -289,7 +290,7 @@ def write_closedloop(
     if not len(noiseless) == len(observations) == len(keys):
         raise ValueError(f"closed loop: need {len(keys)} observation tables of each kind, "
                          f"got {len(noiseless)} and {len(observations)}")
-    tables = {k: (a, b) for k, a, b in zip(keys, noiseless, observations)}
-    rows = evaluate_closedloop(store_path, model_path, directions, tables,
+    observed = {k: (a, b) for k, a, b in zip(keys, noiseless, observations)}
+    rows = evaluate_closedloop(store_path, model_path, directions, observed,
                                materials=materials, n_images=n_images, eta=eta)
-    return write_errors(out, rows, ERROR_COLUMNS)
+    return write_errors(out, rows, tables.ERRORS)

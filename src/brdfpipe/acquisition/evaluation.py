@@ -120,14 +120,12 @@ from brdfpipe.data import logmap, merl
 from brdfpipe.data.logmap import Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
-from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
+from brdfpipe.data.store import CHUNK_COLS
 from brdfpipe.spec import tables
 
 __all__ = [
     "CHANNELS",
-    "ERROR_COLUMNS",
     "CONSISTENCY_COLUMNS",
-    "TRAINING_SIZE_COLUMNS",
     "DEFAULT_SIZES",
     "CONSISTENCY_RTOL",
     "ConsistencyError",
@@ -148,12 +146,8 @@ F64 = NDArray[np.float64]
 
 #: Channel names of the rows 3·i + c.
 CHANNELS: Final = ("R", "G", "B")
-#: Columns of ``errors.csv``.
-ERROR_COLUMNS: Final = tables.ERRORS
 #: Columns of ``consistency.csv``.
 CONSISTENCY_COLUMNS: Final = ("setup", "fov", "metric", "n", "predicted", "direct", "rel_diff")
-#: Columns of ``training_size.csv``.
-TRAINING_SIZE_COLUMNS: Final = tables.TRAINING_SIZE
 #: Default training-set sizes of the training-size curve (capped at the number of training materials).
 DEFAULT_SIZES: Final = (10, 20, 30, 40, 50, 60, 70, 80, 90)
 #: Largest accepted relative difference between recorded and recomputed E(S).
@@ -197,7 +191,7 @@ class _StoreColumns:
 
     def _block(self, start: int) -> NDArray[np.float32]:
         if start != self._start or self._data is None:
-            stop = min(start + STORE_CHUNK_COLS, N_CELLS)
+            stop = min(start + CHUNK_COLS, N_CELLS)
             raw = np.empty((self.sorted.size, 3, stop - start), dtype=np.float32)
             for c in range(3):
                 k = 0
@@ -212,8 +206,8 @@ class _StoreColumns:
         out = np.empty((self.sorted.size, 3, b - a), dtype=np.float32)
         j = 0
         while j < cells.size:
-            start = int(cells[j]) // STORE_CHUNK_COLS * STORE_CHUNK_COLS
-            j1 = int(np.searchsorted(cells, start + STORE_CHUNK_COLS))
+            start = int(cells[j]) // CHUNK_COLS * CHUNK_COLS
+            j1 = int(np.searchsorted(cells, start + CHUNK_COLS))
             out[:, :, j:j1] = self._block(start)[:, :, cells[j:j1] - start]
             j = j1
         return out if self.identity else out[self.inverse]
@@ -410,7 +404,7 @@ def evaluate(
     Returns
     -------
     list of dict
-        Rows with keys :data:`ERROR_COLUMNS` (see the module docstring),
+        Rows with keys :data:`~brdfpipe.spec.tables.ERRORS` (see the module docstring),
         ready for :func:`write_errors`.
     """
     mdl = as_model(model_path)
@@ -779,7 +773,7 @@ def training_size_curve(
     the ``train`` optimisation).  Approximations (see the module docstring):
     the ``train`` log-mapping's ρ_ref and the ``train`` directions for every N.
 
-    Returns rows with keys :data:`TRAINING_SIZE_COLUMNS` (kind ``rms_log``,
+    Returns rows with keys :data:`~brdfpipe.spec.tables.TRAINING_SIZE` (kind ``rms_log``,
     per material-channel and ``mean``/``all``).
     """
     eta = metrics.check_eta(eta)
@@ -890,7 +884,7 @@ def _fmt(value: Any) -> str:
 
 
 def write_errors(
-    path: str | os.PathLike[str], rows: Sequence[dict[str, Any]], columns: Sequence[str] = ERROR_COLUMNS
+    path: str | os.PathLike[str], rows: Sequence[dict[str, Any]], columns: Sequence[str] = tables.ERRORS
 ) -> Path:
     """Write ``rows`` (dicts with at least ``columns``) as a CSV with a header line, atomically.
 
@@ -950,4 +944,4 @@ def write_training_size(
     curve = [row for k in range(int(orders))
              for row in training_size_curve(store_path, logmap_path, directions_path, test_materials=test_materials,
                                             sizes=sizes, order_seed=order_seed + k, eta=eta)]
-    return write_errors(out, curve, TRAINING_SIZE_COLUMNS)
+    return write_errors(out, curve, tables.TRAINING_SIZE)

@@ -22,8 +22,6 @@ from brdfpipe.core.plot import FigureInputError, parse_float, parse_int, read_cs
 from brdfpipe.spec import tables
 
 __all__ = [
-    "ERRORS_COLUMNS",
-    "TRAINING_COLUMNS",
     "FOV_TOL",
     "ErrorTable",
     "TrainingTable",
@@ -31,10 +29,6 @@ __all__ = [
     "read_training_size",
 ]
 
-#: Required columns of ``errors.csv`` (extra columns are ignored).
-ERRORS_COLUMNS: tuple[str, ...] = tables.ERRORS
-#: Required columns of ``training_size.csv``.
-TRAINING_COLUMNS: tuple[str, ...] = tables.TRAINING_SIZE
 #: Two fields of view closer than this (degrees) are the same.
 FOV_TOL = 1e-6
 _FOV_TOL = FOV_TOL
@@ -82,7 +76,7 @@ class ErrorTable:
 
 def read_errors(path: str | os.PathLike[str]) -> ErrorTable:
     """Read and check ``errors.csv`` (:class:`FigureInputError` naming the file if it is malformed)."""
-    p, rows = read_csv(path, ERRORS_COLUMNS)
+    p, rows = read_csv(path, tables.ERRORS)
     values: dict[tuple[str, str, float, str, int, str, str, str], float] = {}
     for r in rows:
         i = int(r["__line__"])
@@ -92,7 +86,7 @@ def read_errors(path: str | os.PathLike[str]) -> ErrorTable:
         key = (r["split"], r["setup"], parse_float(p, i, "fov", r["fov"]), r["metric"],
                parse_int(p, i, "n", r["n"]), r["material"], r["channel"], r["kind"])
         if key in values:
-            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(ERRORS_COLUMNS[1:9], key))}")
+            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(tables.ERRORS[1:9], key))}")
         values[key] = parse_float(p, i, "value", r["value"])
     return ErrorTable(p, single_database(p, (r["database"] for r in rows)), values)
 
@@ -117,7 +111,7 @@ class TrainingTable:
 
 def read_training_size(path: str | os.PathLike[str]) -> TrainingTable:
     """Read and check ``training_size.csv`` (:class:`FigureInputError` naming the file if it is malformed)."""
-    p, rows = read_csv(path, TRAINING_COLUMNS)
+    p, rows = read_csv(path, tables.TRAINING_SIZE)
     values: dict[tuple[int, str, str, str, str], float] = {}
     for r in rows:
         i = int(r["__line__"])
@@ -126,6 +120,6 @@ def read_training_size(path: str | os.PathLike[str]) -> TrainingTable:
                 raise FigureInputError(f"{p}: line {i}: empty {c!r}")
         key = (parse_int(p, i, "n_train", r["n_train"]), r["order_seed"], r["material"], r["channel"], r["kind"])
         if key in values:
-            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(TRAINING_COLUMNS[1:6], key))}")
+            raise FigureInputError(f"{p}: line {i}: duplicate row for {dict(zip(tables.TRAINING_SIZE[1:6], key))}")
         values[key] = parse_float(p, i, "value", r["value"])
     return TrainingTable(p, single_database(p, (r["database"] for r in rows)), values)

@@ -76,9 +76,7 @@ import numpy as np
 from matplotlib.ticker import LogFormatter, MaxNLocator
 
 from brdfpipe.acquisition.figure_inputs import (
-    ERRORS_COLUMNS,
     FOV_TOL,
-    TRAINING_COLUMNS,
     ErrorTable,
     TrainingTable,
     read_errors,
@@ -90,7 +88,6 @@ from brdfpipe.acquisition.figures_recon import (
     make_reconstruction_figures,
 )
 from brdfpipe.acquisition.figures_configs import (
-    FIG08_COLUMNS,
     fig08_optimal_configurations,
     fig09_configurations,
     fig14_fixed_configurations,
@@ -98,7 +95,7 @@ from brdfpipe.acquisition.figures_configs import (
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.filenames import FIGURE_STEMS
-from brdfpipe.data.databases import title as database_label
+from brdfpipe.data import databases
 from brdfpipe.spec import acquisition as acquisition_spec
 from brdfpipe.spec import figures as figure_specs
 from brdfpipe.spec import tables
@@ -120,18 +117,14 @@ from brdfpipe.core.plot import (
 )
 
 __all__ = [
-    "ERRORS_COLUMNS",
-    "TRAINING_COLUMNS",
     "FIGURE_STEMS",
     "ErrorTable",
     "TrainingTable",
     "read_errors",
     "read_training_size",
-    "FIG08_COLUMNS",
     "fig02_reconstructions",
     "fig15_fixed_camera_reconstructions",
     "make_reconstruction_figures",
-    "RECON_VS_DEVIATION_COLUMNS",
     "recon_vs_deviation",
     "fig03_recon_vs_deviation",
     "fig05_error_vs_images",
@@ -144,7 +137,6 @@ __all__ = [
     "fig18_per_material",
     "fig19_error_vs_n",
     "make_acquisition_figures",
-    "UNSEEN_COLUMNS",
     "read_unseen",
     "plot_unseen",
 ]
@@ -162,7 +154,6 @@ _KIND_LABEL = {
     "deviation": "E_deviation (log-mapped BRDF)",
 }
 _SETUP_LABEL = {name: s.label for name, s in acquisition_spec.SETUPS.items()}
-_FOV_TOL = FOV_TOL
 
 
 # ---------------------------------------------------------------------------
@@ -237,7 +228,7 @@ def fig05_error_vs_images(errors_csv: str | os.PathLike[str], stem: str | os.Pat
     fov_list = list(fovs) if fovs is not None else table.fovs(split, "nearfield", kind=kind)
     present = []
     for fov in fov_list:
-        if any(abs(fov - f) < _FOV_TOL for f in table.fovs(split, "nearfield", kind=kind)):
+        if any(abs(fov - f) < FOV_TOL for f in table.fovs(split, "nearfield", kind=kind)):
             present.append(float(fov))
         else:
             warn(f"no near-field rows for FOV {_fov_text(fov)} (split {split}, kind {kind}); panel skipped")
@@ -271,7 +262,7 @@ def fig05_error_vs_images(errors_csv: str | os.PathLike[str], stem: str | os.Pat
                 ax.set_ylabel(f"mean {_KIND_LABEL.get(kind, kind)}")
             if used[0].get_legend_handles_labels()[0]:
                 used[0].legend(loc="best")
-        title = f"Near-field error vs number of images ({database_label(table.database)})"
+        title = f"Near-field error vs number of images ({databases.title(table.database)})"
         return finish(fig, stem, title, "Xu 2016 Fig. 5 analogue: directions optimised with E(S) vs with the "
                        f"condition number; mean over {_split_text(split)}", table.database, warn)
 
@@ -331,7 +322,7 @@ def fig06_fov_vs_point(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
         else:
             no_data(ax, "no near-field or point rows")
         ax.set_title("near-field images vs point samples")
-        title = f"Near-field acquisition per field of view vs point sampling ({database_label(table.database)})"
+        title = f"Near-field acquisition per field of view vs point sampling ({databases.title(table.database)})"
         return finish(fig, stem, title, f"Xu 2016 Fig. 6 analogue; mean over {_split_text(split)}",
                        table.database, warn)
 
@@ -376,7 +367,7 @@ def fig13_fixed_camera_light(errors_csv: str | os.PathLike[str], stem: str | os.
             no_data(ax, f"no fixed-camera/light, near-field or point rows at {_fov_text(fov)}")
         ax.set_title(f"image setups at FOV {_fov_text(fov)}; solid: min E(S), dashed: min κ")
         title = (f"Fixed camera / fixed light vs near-field and point sampling "
-                 f"({database_label(table.database)})")
+                 f"({databases.title(table.database)})")
         return finish(fig, stem, title, f"Xu 2016 Fig. 13 analogue; mean over {_split_text(split)}",
                        table.database, warn)
 
@@ -433,7 +424,7 @@ def fig19_error_vs_n(errors_csv: str | os.PathLike[str], stem: str | os.PathLike
         else:
             no_data(ax, "no point-sampling rows")
         ax.set_title("point sampling")
-        title = f"Point-sampling error vs number of samples ({database_label(table.database)})"
+        title = f"Point-sampling error vs number of samples ({databases.title(table.database)})"
         return finish(fig, stem, title, f"Xu 2016 Fig. 19 analogue; mean over {_split_text(split)}",
                        table.database, warn)
 
@@ -487,7 +478,7 @@ def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
             ax.grid(axis="x", visible=False)
             fig.legend(loc="outside lower center", ncols=3)  # under the plot, clear of the bars
         ax.set_title(f"point sampling, n = {n}, per material")
-        title = f"Per-material error of {n} point samples ({database_label(table.database)})"
+        title = f"Per-material error of {n} point samples ({databases.title(table.database)})"
         return finish(fig, stem, title, f"Xu 2016 Fig. 18 analogue, with the E_deviation floor; {_split_text(split)}",
                        table.database, warn)
 
@@ -496,8 +487,6 @@ def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
 # Fig. 3 (E_recon vs E_deviation)
 # ---------------------------------------------------------------------------
 
-#: Columns of Fig. 3's table (CSV and Markdown).
-RECON_VS_DEVIATION_COLUMNS: tuple[str, ...] = tables.RECON_VS_DEVIATION
 
 
 def recon_vs_deviation(table: ErrorTable, materials: Sequence[str], *, split: str, setup: str, fov: float,
@@ -541,7 +530,7 @@ def fig03_recon_vs_deviation(errors_csv: str | os.PathLike[str], stem: str | os.
 
     ``materials``: those of Fig. 2 (None: every held-out material with
     rows).  The values are :func:`recon_vs_deviation`'s; writes them to
-    ``<stem>.csv`` (:data:`RECON_VS_DEVIATION_COLUMNS`, one row per material
+    ``<stem>.csv`` (:data:`~brdfpipe.spec.tables.RECON_VS_DEVIATION`, one row per material
     and set size) and ``<stem>.md``.
     """
     table = read_errors(errors_csv)
@@ -555,12 +544,12 @@ def fig03_recon_vs_deviation(errors_csv: str | os.PathLike[str], stem: str | os.
                                                          metric=metric, n=n, warn=warn)]
     stem = Path(stem)
     csv_path, md_path = stem.with_name(stem.name + ".csv"), stem.with_name(stem.name + ".md")
-    integrity.write_csv(csv_path, [RECON_VS_DEVIATION_COLUMNS,
+    integrity.write_csv(csv_path, [tables.RECON_VS_DEVIATION,
                                    *([f"{r[c]:.17g}" if isinstance(r[c], float) else str(r[c])
-                                      for c in RECON_VS_DEVIATION_COLUMNS] for r in rows)])
+                                      for c in tables.RECON_VS_DEVIATION] for r in rows)])
     shown = [m for m in mats if any(r["material"] == m for r in rows)]
     dominant = {n: sum(r["e_recon"] > r["e_deviation"] for r in rows if r["n"] == n) for n in sizes}
-    lines = [f"# E_recon vs E_deviation (Xu 2016 Fig. 3 analogue), {database_label(table.database)}", "",
+    lines = [f"# E_recon vs E_deviation (Xu 2016 Fig. 3 analogue), {databases.title(table.database)}", "",
              f"Near-field FOV {_fov_text(fov)}, directions min E(S); RMS over the model's cells of the log-mapped "
              "BRDF, mean over R, G, B. E_recon = √(rms_log² − E_deviation²).", "",
              "| material | images | E_recon | E_deviation | rms_log |", "|:---|---:|---:|---:|---:|"]
@@ -589,7 +578,7 @@ def fig03_recon_vs_deviation(errors_csv: str | os.PathLike[str], stem: str | os.
             ax.legend(loc="best")
         ax.set_title(f"near-field, FOV {_fov_text(fov)}, min E(S): E_recon > E_deviation for "
                      + ", ".join(f"{dominant[n]} of {len(shown)} ({n} image{'s' if n > 1 else ''})" for n in sizes))
-        title = f"Reconstruction vs deviation error per material ({database_label(table.database)})"
+        title = f"Reconstruction vs deviation error per material ({databases.title(table.database)})"
         return finish(fig, stem, title, f"Xu 2016 Fig. 3 analogue; {_split_text(split)}", table.database, warn,
                       extra=(csv_path, md_path))
 
@@ -641,7 +630,7 @@ def fig07_training_size(training_csv: str | os.PathLike[str], stem: str | os.Pat
             _integer_x(ax)
             ax.legend(loc="best")
         ax.set_title(f"{n_images}-image near-field acquisition, FOV {_fov_text(fov)}")
-        title = f"Error vs number of training materials ({database_label(table.database)})"
+        title = f"Error vs number of training materials ({databases.title(table.database)})"
         return finish(fig, stem, title, "Xu 2016 Fig. 7 analogue; mean over the held-out materials; "
                        "training materials added in random order", table.database, warn)
 
@@ -773,7 +762,7 @@ def plot_closedloop(closedloop_csv: str | os.PathLike[str], files: Sequence[str 
             right.set_ylabel("disk pixels not used (%)")
             right.set_title("per material")
             right.legend(loc="best", fontsize=6)
-        title = f"Closed-loop vs table-lookup reconstruction ({database_label(table.database)})"
+        title = f"Closed-loop vs table-lookup reconstruction ({databases.title(table.database)})"
         return finish(fig, stem, title, f"{_split_text(split)}, photographed by the optimised set-ups (Mitsuba 3, "
                       "merl BSDF, point light, sensor model) and reconstructed from the images", table.database, warn)
 
@@ -782,8 +771,6 @@ def plot_closedloop(closedloop_csv: str | os.PathLike[str], files: Sequence[str 
 # Materials outside the training database (config unseen)
 # ---------------------------------------------------------------------------
 
-#: Required columns of ``unseen.csv`` (those of errors.csv and the model's database).
-UNSEEN_COLUMNS: tuple[str, ...] = tables.UNSEEN_ERRORS
 _UNSEEN_COLOURS = ("#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
 
 
@@ -793,7 +780,7 @@ def read_unseen(path: str | os.PathLike[str]) -> tuple[str, dict[str, ErrorTable
     :class:`FigureInputError` naming the file for rows of several model
     databases, an empty label, a duplicate row or a bad number.
     """
-    p, rows = read_csv(path, UNSEEN_COLUMNS)
+    p, rows = read_csv(path, tables.UNSEEN_ERRORS)
     model_db = single_database(p, (r["model_database"] for r in rows))
     by_db: dict[str, dict[tuple[str, str, float, str, int, str, str, str], float]] = {}
     for r in rows:
@@ -807,7 +794,7 @@ def read_unseen(path: str | os.PathLike[str]) -> tuple[str, dict[str, ErrorTable
         values = by_db.setdefault(r["database"], {})
         if key in values:
             raise FigureInputError(f"{p}: line {i}: duplicate row for {r['database']} "
-                                   f"{dict(zip(ERRORS_COLUMNS[1:9], key))}")
+                                   f"{dict(zip(tables.ERRORS[1:9], key))}")
         values[key] = parse_float(p, i, "value", r["value"])
     return model_db, {db: ErrorTable(p, db, v) for db, v in sorted(by_db.items())}
 
@@ -903,8 +890,8 @@ def plot_unseen(errors_csv: str | os.PathLike[str], unseen_csv: str | os.PathLik
         used = [a for a in axes if a.lines]
         if used and allv:
             _auto_log_y(used, allv)
-        names = ", ".join(f"{database_label(db)}" for db in unseen)
-        title = (f"Materials never seen by the model vs held-out materials (model: {database_label(model_db)})")
+        names = ", ".join(f"{databases.title(db)}" for db in unseen)
+        title = (f"Materials never seen by the model vs held-out materials (model: {databases.title(model_db)})")
         subtitle = (f"Xu 2016 Figs. 5/6 layout; unseen: {names}; model and directions from the {model_db} training "
                     "split; means over each database's materials")
         return finish(fig, stem, title, subtitle, model_db, warn)

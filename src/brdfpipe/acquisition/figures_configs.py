@@ -36,20 +36,17 @@ from brdfpipe.acquisition.figure_inputs import FOV_TOL
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.plot import FigureInputError, FigureOutput, Warnings, finish, new_figure, no_data, style
-from brdfpipe.data.databases import title as database_label
+from brdfpipe.data import databases
 from brdfpipe.spec import acquisition as acquisition_spec
 from brdfpipe.spec import tables
 
 __all__ = [
-    "FIG08_COLUMNS",
-    "CONFIGURATION_COLUMNS",
     "fig08_optimal_configurations",
     "configurations_figure",
     "fig09_configurations",
     "fig14_fixed_configurations",
 ]
 
-_FOV_TOL = FOV_TOL
 _IMAGE_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
 _SETUP_LABEL = {name: s.label for name, s in acquisition_spec.SETUPS.items()}
 
@@ -58,8 +55,6 @@ def _fov_text(fov: float) -> str:
     return f"{fov:g}°"
 
 
-#: Columns of the Fig. 8 table (CSV and Markdown).
-FIG08_COLUMNS: tuple[str, ...] = tables.FIG08
 
 
 def _spherical_deg(v: Sequence[float]) -> tuple[float, float]:
@@ -112,12 +107,12 @@ def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Seq
             raise FigureInputError(f"{path}: directions file not found")
         loaded.append((path, read_directions(path)))  # ValueError naming the file if malformed
     rows: list[_ConfigRow] = []
-    databases: dict[str, Path] = {}
+    seen_databases: dict[str, Path] = {}
     for fov in fovs:
         found = None
         for split in splits:
             found = next(((p, d) for p, d in loaded if d.split == split and d.setup.kind == setup
-                          and d.metric == metric and abs(d.setup.fov_deg - float(fov)) <= _FOV_TOL), None)
+                          and d.metric == metric and abs(d.setup.fov_deg - float(fov)) <= FOV_TOL), None)
             if found is not None:
                 break
         if found is None:
@@ -127,7 +122,7 @@ def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Seq
         path, d = found
         if not d.database:
             raise FigureInputError(f"{path}: empty 'database'")
-        databases.setdefault(d.database, path)
+        seen_databases.setdefault(d.database, path)
         by_n = {s.n: s for s in d.sets}
         for n in n_images:
             s = by_n.get(n)
@@ -142,16 +137,16 @@ def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Seq
                     light=tuple(float(c) for c in rec["light"]),  # type: ignore[arg-type]
                     camera=tuple(float(c) for c in rec["camera"]),  # type: ignore[arg-type]
                     expected_error=s.expected_error, split=d.split, database=d.database, setup=setup))
-    if len(databases) > 1:
+    if len(seen_databases) > 1:
         raise FigureInputError("directions files from different databases: "
-                               + "; ".join(f"{db!r} ({p})" for db, p in sorted(databases.items())))
-    return rows, next(iter(databases), "")
+                               + "; ".join(f"{db!r} ({p})" for db, p in sorted(seen_databases.items())))
+    return rows, next(iter(seen_databases), "")
 
 
 def _markdown(rows: Sequence[_ConfigRow], database: str, setup: str, metric: str) -> str:
     lines = [
         f"# Optimal {'- and '.join(sorted({str(r.n_images) for r in rows})) or '1- and 2'}-image "
-        f"{_SETUP_LABEL.get(setup, setup)} configurations (Xu 2016 Fig. 8 analogue), {database_label(database)}",
+        f"{_SETUP_LABEL.get(setup, setup)} configurations (Xu 2016 Fig. 8 analogue), {databases.title(database)}",
         "",
         f"Directions optimised with {'E(S) (eq. 15)' if metric == 'error' else 'the condition number'}; "
         "angles in degrees at the centre of the sample (θh, θd, φd: Rusinkiewicz half/difference angles; "
@@ -225,7 +220,7 @@ def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], s
     ``directions``: the direction files to choose from; for each FOV the
     first of ``splits`` with a ``setup``/``metric`` file at that FOV is used
     (``all``, the full database, as Xu's Fig. 8; else ``train``).  Writes
-    ``<stem>.csv`` (columns :data:`FIG08_COLUMNS`, one row per image),
+    ``<stem>.csv`` (columns :data:`~brdfpipe.spec.tables.FIG08`, one row per image),
     ``<stem>.md`` and the sketch ``<stem>.png``/``.pdf`` (one 3-D panel per
     FOV and set size: the hemisphere, the sample disk, light arrows L and
     camera positions C with their viewing cones).
@@ -237,7 +232,7 @@ def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], s
     csv_path = stem.with_name(stem.name + ".csv")
     md_path = stem.with_name(stem.name + ".md")
 
-    integrity.write_csv(csv_path, [FIG08_COLUMNS, *(r.csv_values() for r in rows)])  # with its digest line
+    integrity.write_csv(csv_path, [tables.FIG08, *(r.csv_values() for r in rows)])  # with its digest line
     md = _markdown(rows, database, setup, metric)
     atomic_write(md_path, lambda fh: fh.write(md), binary=False)
 
@@ -271,7 +266,7 @@ def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], s
                                handletextpad=0.3, borderaxespad=0.0,
                                title="L: light, C: camera as (θ, φ); angles in degrees", title_fontsize=7.5)
         title = (f"Optimal {_SETUP_LABEL.get(setup, setup)} configurations per field of view "
-                 f"({database_label(database) if database else 'no directions files found'})")
+                 f"({databases.title(database) if database else 'no directions files found'})")
         splits_used = sorted({r.split for r in rows})
         subtitle = ("Xu 2016 Figs. 8-9 analogue; arrows L: light, squares C: camera with its view cone "
                     f"to the sample disk; directions from split {', '.join(splits_used) or '-'}")
@@ -282,8 +277,6 @@ def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], s
 # Figs. 9 and 14: chosen sets at one field of view, angles in in-out and Rusinkiewicz coordinates
 # ---------------------------------------------------------------------------
 
-#: Columns of the Fig. 9 and Fig. 14 tables (CSV and Markdown).
-CONFIGURATION_COLUMNS: tuple[str, ...] = tables.CONFIGURATIONS
 
 
 def _configuration_values(r: _ConfigRow) -> list[str]:
@@ -336,25 +329,25 @@ def configurations_figure(directions: Sequence[str | os.PathLike[str]], stem: st
     The 3-D sketch is Fig. 8's (hemisphere, sample disk, light arrows L,
     cameras C with their view cones); under it the top view (θ radial, φ
     round) and the angles of each image.  Writes ``<stem>.csv``
-    (:data:`CONFIGURATION_COLUMNS`, one row per image) and ``<stem>.md``.
+    (:data:`~brdfpipe.spec.tables.CONFIGURATIONS`, one row per image) and ``<stem>.md``.
     ``database``: the run's, named when no directions file holds a set.
     ``title`` (ASCII: it is the PDF's Title too) is followed by the database's name.
     """
     warn = Warnings(Path(stem).name)
     panels: list[tuple[tuple[str, float, int], list[_ConfigRow]]] = []
-    databases: set[str] = set()
+    seen_databases: set[str] = set()
     for setup, fov, n in sets:
         rows, found = _load_configurations(directions, [float(fov)], [int(n)], setup, metric, [split], warn)
         panels.append(((setup, float(fov), int(n)), rows))
-        databases |= {found} if found else set()
-    if len(databases) > 1:
-        raise FigureInputError(f"directions files from different databases: {', '.join(sorted(databases))}")
-    database = next(iter(databases), database)
-    title = f"{title} ({database_label(database) if database else 'no directions files found'})"
+        seen_databases |= {found} if found else set()
+    if len(seen_databases) > 1:
+        raise FigureInputError(f"directions files from different databases: {', '.join(sorted(seen_databases))}")
+    database = next(iter(seen_databases), database)
+    title = f"{title} ({databases.title(database) if database else 'no directions files found'})"
     rows_all = [r for _, rows in panels for r in rows]
     stem = Path(stem)
     csv_path, md_path = stem.with_name(stem.name + ".csv"), stem.with_name(stem.name + ".md")
-    integrity.write_csv(csv_path, [CONFIGURATION_COLUMNS, *(_configuration_values(r) for r in rows_all)])
+    integrity.write_csv(csv_path, [tables.CONFIGURATIONS, *(_configuration_values(r) for r in rows_all)])
     md = _configurations_markdown(rows_all, title, metric)
     atomic_write(md_path, lambda fh: fh.write(md), binary=False)
     with style():

@@ -12,7 +12,7 @@ luminance at 0.8).
 
 Each figure writes ``<stem>.png``/``.pdf`` and a table of its panels
 (``<stem>.csv`` with its digest line, ``<stem>.md``; columns
-:data:`PANEL_COLUMNS`): per reconstruction the RMS log error of its table
+:data:`~brdfpipe.spec.tables.RECONSTRUCTION_PANELS`): per reconstruction the RMS log error of its table
 (``errors.csv``'s ``rms_log``, mean over R, G, B) and the relative RMS
 difference of its render from the reference.  A missing or corrupt input
 raises :class:`~brdfpipe.core.plot.FigureInputError` naming it.
@@ -47,14 +47,13 @@ from brdfpipe.core.plot import (
     no_data,
     style,
 )
-from brdfpipe.data.databases import title as database_label
+from brdfpipe.data import databases
 from brdfpipe.spec import acquisition as acquisition_spec
 from brdfpipe.spec import figures as figure_specs
 from brdfpipe.spec.figures import ReconSet
 from brdfpipe.spec import tables
 
 __all__ = [
-    "PANEL_COLUMNS",
     "Panel",
     "render_difference",
     "reconstruction_panels",
@@ -63,8 +62,6 @@ __all__ = [
     "make_reconstruction_figures",
 ]
 
-#: Columns of the panels' table (CSV and Markdown).
-PANEL_COLUMNS: tuple[str, ...] = tables.RECONSTRUCTION_PANELS
 
 _LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 _INPUT_PERCENTILE = 95.0
@@ -168,7 +165,7 @@ def _table_rows(rows: Sequence[Sequence[Panel]], images: Mapping[Path, NDArray[n
 
 def _write_tables(stem: Path, table: Sequence[Mapping[str, str]], title: str) -> tuple[Path, Path]:
     csv_path, md_path = stem.with_name(stem.name + ".csv"), stem.with_name(stem.name + ".md")
-    integrity.write_csv(csv_path, [PANEL_COLUMNS, *([r[c] for c in PANEL_COLUMNS] for r in table)])
+    integrity.write_csv(csv_path, [tables.RECONSTRUCTION_PANELS, *([r[c] for c in tables.RECONSTRUCTION_PANELS] for r in table)])
     lines = [f"# {title}", "", "Every panel, row by row. rms_log: RMS error of the reconstructed table in the "
              "log-mapped space (errors.csv, mean over R, G, B); render Δ: ‖render − reference‖ / ‖reference‖ over "
              "the image (same scene, settings and seed).", "",
@@ -217,7 +214,7 @@ def _reconstruction_figure(errors_csv: str | os.PathLike[str], stem: Path, rows:
     errors = read_errors(errors_csv)
     images = {p.file: _read(p.file) for row in rows for p in row}
     table = _table_rows(rows, images, errors, split, warn)
-    title = f"{title} ({database_label(errors.database)})"
+    title = f"{title} ({databases.title(errors.database)})"
     extra = _write_tables(stem, table, title)
     with style():
         if not rows:

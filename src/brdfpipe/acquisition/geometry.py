@@ -27,7 +27,6 @@ from brdfpipe.spec import nearfield
 from brdfpipe.data import merl
 
 __all__ = [
-    "SETUP_KINDS",
     "DEFAULT_GRID",
     "Config",
     "Setup",
@@ -41,9 +40,6 @@ __all__ = [
     "FIXED_KINDS",
     "cell_config",
     "centre_cells",
-    "image_half_width",
-    "pixel_pitch",
-    "lattice_shape_in_image",
 ]
 
 F64 = NDArray[np.float64]
@@ -124,8 +120,6 @@ F64 = NDArray[np.float64]
 # cell centre above the horizon); the optimiser passes the model's columns.
 
 
-#: The acquisition setups (their records: :data:`brdfpipe.spec.acquisition.SETUPS`).
-SETUP_KINDS: tuple[str, ...] = acquisition_spec.SETUP_NAMES
 #: Default pixel lattice (grid × grid) of an image setup.
 DEFAULT_GRID: int = 32
 _MAX_GRID: int = 4096
@@ -148,7 +142,7 @@ FIXED_KINDS = frozenset(acquisition_spec.FIXED_SETUPS)
 class Setup:
     """An acquisition setup: kind, field of view (degrees) and pixel lattice.
 
-    ``kind`` ∈ :data:`SETUP_KINDS`.  Image setups (``nearfield``,
+    ``kind`` ∈ :data:`~brdfpipe.spec.acquisition.SETUP_NAMES`.  Image setups (``nearfield``,
     ``fixed_camera``, ``fixed_light``) need ``0 < fov_deg < 90`` (an image
     can frame the whole disk from every camera direction only if ν < 1) and a
     ``grid`` ≥ 1 (the image is a ``grid × grid`` lattice); ``point`` needs
@@ -161,8 +155,8 @@ class Setup:
     grid: int = DEFAULT_GRID
 
     def __post_init__(self) -> None:
-        if self.kind not in SETUP_KINDS:
-            raise ValueError(f"setup kind must be one of {SETUP_KINDS}, got {self.kind!r}")
+        if self.kind not in acquisition_spec.SETUP_NAMES:
+            raise ValueError(f"setup kind must be one of {acquisition_spec.SETUP_NAMES}, got {self.kind!r}")
         if isinstance(self.fov_deg, (bool, np.bool_)) or not isinstance(
             self.fov_deg, (int, float, np.integer, np.floating)
         ):
@@ -278,16 +272,10 @@ def centre_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
     return wi[0], wo[0]
 
 
-#: Re-exported from :mod:`brdfpipe.spec.nearfield` (the capture frames the same image).
-image_half_width = nearfield.image_half_width
-pixel_pitch = nearfield.pixel_pitch
-lattice_shape_in_image = nearfield.image_frame
-
-
 @functools.lru_cache(maxsize=16)
 def _lattice(fov_deg: float, grid: int) -> tuple[F64, F64, int]:
     """Tangent-plane pixel coordinates (u, v) of the axis-centred lattice and the centre pixel's index."""
-    step = pixel_pitch(fov_deg, grid)
+    step = nearfield.pixel_pitch(fov_deg, grid)
     j = np.arange(grid) - grid // 2
     a, b = np.meshgrid(j, j, indexing="ij")
     u = a.ravel() * step

@@ -56,7 +56,6 @@ from brdfpipe.acquisition.metrics import (
 )
 
 __all__ = [
-    "DIRECTIONS_FORMAT",
     "DirectionSet",
     "Directions",
     "optimize",
@@ -139,9 +138,6 @@ F64 = NDArray[np.float64]
 
 logger = logging.getLogger("brdfpipe.acquisition.optimize")
 
-#: Format tag of the directions JSON file.
-DIRECTIONS_FORMAT: str = acquisition_spec.DIRECTIONS_FORMAT
-_METRICS = acquisition_spec.METRICS
 _REL_IMPROVE: float = 1e-12
 _CELL_CACHE_MAX: int = 10_000 * 1024  # observed cells cached over all configurations (int32: ≤ ~40 MB at any grid)
 _EVAL_CHUNK_ROWS: int = 4096  # distinct candidate rows gathered from Q at a time (≤ ~9 MB as float64)
@@ -762,8 +758,8 @@ def optimize(
     """
     if not isinstance(setup, Setup):
         raise ValueError(f"setup must be a Setup, got {type(setup).__name__}")
-    if metric not in _METRICS:
-        raise ValueError(f"metric must be one of {_METRICS}, got {metric!r}")
+    if metric not in acquisition_spec.METRICS:
+        raise ValueError(f"metric must be one of {acquisition_spec.METRICS}, got {metric!r}")
     if isinstance(n_max, bool) or not isinstance(n_max, (int, np.integer)) or n_max < 1:
         raise ValueError(f"n_max must be a positive integer, got {n_max!r}")
     if isinstance(candidates, bool) or not isinstance(candidates, (int, np.integer)) or candidates < 1:
@@ -836,8 +832,8 @@ def write_directions(
     """
     if not isinstance(setup, Setup):
         raise ValueError(f"setup must be a Setup, got {type(setup).__name__}")
-    if metric not in _METRICS:
-        raise ValueError(f"metric must be one of {_METRICS}, got {metric!r}")
+    if metric not in acquisition_spec.METRICS:
+        raise ValueError(f"metric must be one of {acquisition_spec.METRICS}, got {metric!r}")
     eta = check_eta(eta)
     beta = float(beta)
     if not np.isfinite(beta) or beta < 0:
@@ -855,7 +851,7 @@ def write_directions(
             "n_observations": int(s.n_observations),
         })
     doc = {
-        "format": DIRECTIONS_FORMAT,
+        "format": acquisition_spec.DIRECTIONS_FORMAT,
         "setup": setup.kind,
         "fov": _json_number(setup.fov_deg),
         "grid": setup.grid,
@@ -885,12 +881,12 @@ def read_directions(path: str | os.PathLike[str]) -> Directions:
     """
     path = Path(path)
     doc = integrity.read_json(path, kind="directions file")  # its digest checked
-    if doc.get("format") != DIRECTIONS_FORMAT:
+    if doc.get("format") != acquisition_spec.DIRECTIONS_FORMAT:
         raise ValueError(f"{path}: not a directions file (format {doc.get('format')!r})")
     try:
         setup = Setup(doc["setup"], doc["fov"], doc["grid"])
         metric = doc["metric"]
-        if metric not in _METRICS:
+        if metric not in acquisition_spec.METRICS:
             raise ValueError(f"unknown metric {metric!r}")
         sets = []
         for entry in doc["sets"]:

@@ -65,7 +65,6 @@ from brdfpipe.data.store import open_store
 from brdfpipe.spec import tables
 
 __all__ = [
-    "UNSEEN_COLUMNS",
     "MANY_FORMAT",
     "ObservationTable",
     "read_many_observations",
@@ -77,8 +76,6 @@ logger = logging.getLogger("brdfpipe.acquisition.unseen")
 
 F64 = NDArray[np.float64]
 
-#: Columns of ``unseen.csv``: those of ``errors.csv`` with ``model_database`` after ``database``.
-UNSEEN_COLUMNS: Final = tables.UNSEEN_ERRORS
 #: Format of the capture's many-material observation file (written by brdfpipe.rendering.capture, which
 #: this layer may not import: the value is the same string there).
 MANY_FORMAT: Final = "brdfpipe.capture.observations-many/1"
@@ -287,7 +284,7 @@ def evaluate_unseen(
     n_images: Sequence[int] = (),
     eta: float = DEFAULT_ETA,
 ) -> list[dict[str, Any]]:
-    """Rows of ``unseen.csv`` (:data:`UNSEEN_COLUMNS`) for the materials of every store (module docstring).
+    """Rows of ``unseen.csv`` (:data:`~brdfpipe.spec.tables.UNSEEN_ERRORS`) for the materials of every store (module docstring).
 
     ``stores``: unseen database label → its store (each store must carry that
     label and be of another database than the model); ``model``: the
@@ -336,7 +333,7 @@ def write_unseen(
     eta: float = DEFAULT_ETA,
     threads: int | None = 1,
 ) -> Path:
-    """:func:`evaluate_unseen`, written to ``out`` (``unseen.csv``, :data:`UNSEEN_COLUMNS`) atomically.
+    """:func:`evaluate_unseen`, written to ``out`` (``unseen.csv``, :data:`~brdfpipe.spec.tables.UNSEEN_ERRORS`) atomically.
 
     ``threads``: BLAS threads (the many small solves are slowed by idle BLAS threads spinning).
     """
@@ -344,4 +341,4 @@ def write_unseen(
         rows = evaluate_unseen(stores=stores, model=model, directions=directions,
                                closedloop_directions=closedloop_directions, observations=observations,
                                n_images=n_images, eta=eta)
-    return write_errors(out, rows, UNSEEN_COLUMNS)
+    return write_errors(out, rows, tables.UNSEEN_ERRORS)

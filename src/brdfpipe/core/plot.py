@@ -36,7 +36,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from brdfpipe.core import integrity
-from brdfpipe.core.atomic import atomic_write as _atomic_write
+from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.notes import write_note
 from brdfpipe.core.version import full_version
 
@@ -240,9 +240,9 @@ def _save(fig: Figure, stem: str | os.PathLike[str], title: str) -> tuple[tuple[
     png = stem.with_name(stem.name + ".png")
     pdf = stem.with_name(stem.name + ".pdf")
     software = f"brdfpipe {full_version()} (matplotlib {mpl.__version__})"
-    _atomic_write(png, lambda fh: fig.savefig(fh, format="png", dpi=DPI,
+    atomic_write(png, lambda fh: fig.savefig(fh, format="png", dpi=DPI,
                                               metadata={"Title": title, "Software": software}))
-    _atomic_write(pdf, lambda fh: fig.savefig(fh, format="pdf", dpi=DPI,
+    atomic_write(pdf, lambda fh: fig.savefig(fh, format="pdf", dpi=DPI,
                                               metadata={"Title": title, "Creator": software,
                                                         "CreationDate": None, "ModDate": None}))
     w, h = fig.get_size_inches()

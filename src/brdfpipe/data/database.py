@@ -57,7 +57,6 @@ __all__ = [
     "write_splits",
 ]
 
-MERL_SUFFIX = layouts.MERL_SUFFIX
 _SHOWN = 8  # files named in one error message
 @dataclass(frozen=True)
 class Database:
@@ -154,21 +153,21 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
         entries = sorted(path.iterdir())
     except OSError as err:
         raise DatabaseError(f"{key} {path}: cannot list the folder ({err.strerror or err})") from None
-    other_case = [e for e in entries if e.name.lower().endswith(MERL_SUFFIX) and not e.name.endswith(MERL_SUFFIX)]
+    other_case = [e for e in entries if e.name.lower().endswith(layouts.MERL_SUFFIX) and not e.name.endswith(layouts.MERL_SUFFIX)]
     if other_case:
         raise DatabaseError(
-            f"{key} {path}: {_listing(other_case)}: suffix is not exactly '{MERL_SUFFIX}' "
-            f"(lower case); rename the file(s) to end in {MERL_SUFFIX} or move them away"
+            f"{key} {path}: {_listing(other_case)}: suffix is not exactly '{layouts.MERL_SUFFIX}' "
+            f"(lower case); rename the file(s) to end in {layouts.MERL_SUFFIX} or move them away"
         )
-    files = [e for e in entries if e.name.endswith(MERL_SUFFIX)]
+    files = [e for e in entries if e.name.endswith(layouts.MERL_SUFFIX)]
     if not files:
-        raise DatabaseError(f"{key} {path}: no MERL files (*{MERL_SUFFIX}) in the folder")
+        raise DatabaseError(f"{key} {path}: no MERL files (*{layouts.MERL_SUFFIX}) in the folder")
     not_files = [e for e in files if not e.is_file()]
     if not_files:
         raise DatabaseError(f"{key} {path}: {_listing(not_files)}: not a file (a folder or a broken link)")
     by_label: dict[str, list[Path]] = {}
     for f in files:
-        stem = f.name[: -len(MERL_SUFFIX)]
+        stem = f.name[: -len(layouts.MERL_SUFFIX)]
         check_material_name(stem, f"{key} {f}")
         try:
             mark = provenance.check_source(f, name=stem)
@@ -182,7 +181,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
         kinds = " with ".join(f"{provenance.kind_title(label)} ({_listing(by_label[label])})" for label in order)
         raise DatabaseError(f"{key} {path}: mixes {kinds}; keep one kind per folder")
     (label,) = by_label
-    sources = {f.name[: -len(MERL_SUFFIX)]: f.resolve() for f in files}
+    sources = {f.name[: -len(layouts.MERL_SUFFIX)]: f.resolve() for f in files}
     manifest_path = path / layouts.SYNTHETIC_MANIFEST
     manifest = _read_manifest(manifest_path)
     says_synthetic = manifest is not None and manifest.get("kind") == "synthetic"
@@ -210,7 +209,7 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
     if unlisted:
         raise DatabaseError(
             f"{key} {manifest_path}: does not list the synthetic file(s) "
-            f"{_listing([n + MERL_SUFFIX for n in unlisted])} of this folder; the manifest belongs "
+            f"{_listing([n + layouts.MERL_SUFFIX for n in unlisted])} of this folder; the manifest belongs "
             "to another database"
         )
     test_raw = manifest.get("test_materials", [])

@@ -98,9 +98,8 @@ from brdfpipe.core.atomic import atomic_dir, check_replaceable
 from brdfpipe.core.version import full_version
 from brdfpipe.core.integrity import GroupDigests
 from brdfpipe.core.zgroup import COMPLETE_ATTR, create_array, finish_group, format_predicate, open_sealed_group
-from brdfpipe.data import merl
+from brdfpipe.data import merl, store
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.data.store import CHUNK_COLS as STORE_CHUNK_COLS
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, material_indices, open_store
 
 __all__ = [
@@ -136,7 +135,7 @@ PRODUCT_FLOOR: Final = 0.01
 #: Splits: ``all`` = every material is a training material; ``train`` = all minus the test materials.
 SPLITS: Final = ("all", "train")
 #: Columns per chunk of ``X`` (a quarter of the store's chunk width).
-CHUNK_COLS: Final = STORE_CHUNK_COLS // 4  # 36,450
+CHUNK_COLS: Final = store.CHUNK_COLS // 4  # 36,450
 LOGMAP_FORMAT: Final = "brdfpipe.logmap/1"
 #: Columns per float64 working sub-block while mapping.
 _SUB_COLS: Final = 8192

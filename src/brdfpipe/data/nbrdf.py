@@ -94,7 +94,6 @@ __all__ = [
     "write_fit",
     "write_fits",
     "evaluate_to_files",
-    "ALBEDO_COLUMNS",
     "albedo_rows",
     "evaluate_to_store",
 ]
@@ -675,14 +674,12 @@ def evaluate_to_files(
     return clamped
 
 
-#: Columns of an unseen database's albedo CSV (:func:`evaluate_to_store`).
-ALBEDO_COLUMNS: Final = tables.FIT_ALBEDO
 _LUMA: Final = (0.2126, 0.7152, 0.0722)
 
 
 def albedo_rows(binaries: Mapping[str, str | os.PathLike[str]], database: str,
                 theta_i_deg: float = 0.0) -> list[dict[str, Any]]:
-    """Directional albedo ``∫ ρ cos θo dωo`` at incidence ``theta_i_deg`` of each table (:data:`ALBEDO_COLUMNS`).
+    """Directional albedo ``∫ ρ cos θo dωo`` at incidence ``theta_i_deg`` of each table (:data:`~brdfpipe.spec.tables.FIT_ALBEDO`).
 
     ``binaries`` maps material → MERL file; computed with
     :func:`brdfpipe.data.merl.directional_albedo` (MERL's θh grid, 360 φh
@@ -730,7 +727,7 @@ def evaluate_to_store(
     assembled into the store ``store_out`` (label ``database``: a store has
     one label, so each unseen database has its own), and the directional
     albedo of each table at normal incidence written to ``albedo_out``
-    (:func:`albedo_rows`; CSV, :data:`ALBEDO_COLUMNS`).  Returns the clamped
+    (:func:`albedo_rows`; CSV, :data:`~brdfpipe.spec.tables.FIT_ALBEDO`).  Returns the clamped
     count per material.
     """
     from brdfpipe.data import ingest, store
@@ -749,7 +746,7 @@ def evaluate_to_store(
     finally:
         atomic.remove_tree(work)
     rows_a = albedo_rows(dict(zip(fits, binaries)), database)
-    integrity.write_csv(albedo_out, _csv_text(ALBEDO_COLUMNS, rows_a))
+    integrity.write_csv(albedo_out, _csv_text(tables.FIT_ALBEDO, rows_a))
     logger.info("%d %s tables -> %s; directional albedo at normal incidence -> %s", len(binaries), database,
                 store_out, albedo_out)
     return clamped

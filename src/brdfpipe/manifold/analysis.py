@@ -71,9 +71,6 @@ from brdfpipe.manifold.gram import check_gram_store, load_gram
 
 __all__ = [
     "SOLER_PATHS",
-    "PATH_COLUMNS",
-    "REPRODUCTION_COLUMNS",
-    "ALBEDO_COLUMNS",
     "default_paths",
     "check_paths",
     "path_name",
@@ -92,10 +89,6 @@ __all__ = [
 
 logger = logging.getLogger("brdfpipe.manifold.analysis")
 
-#: Soler Fig. 9's three pairs (used by default when the database has them: the real MERL).
-PATH_COLUMNS: Final = tables.LATENT_PATHS
-REPRODUCTION_COLUMNS: Final = tables.REPRODUCTION
-ALBEDO_COLUMNS: Final = tables.MATERIAL_ALBEDO
 _LUMA: Final = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -247,7 +240,7 @@ class LatentPath:
                 + [(first, last)])
 
     def rows(self, model: gplvm.GplvmModel, gram: ArrayLike, distances: ArrayLike) -> list[dict[str, Any]]:
-        """One row per point (:data:`PATH_COLUMNS` without database, space, q); ``distances`` of :meth:`pairs`."""
+        """One row per point (:data:`~brdfpipe.spec.tables.LATENT_PATHS` without database, space, q); ``distances`` of :meth:`pairs`."""
         n = self.ts.size
         d = np.asarray(distances, dtype=np.float64)
         to_a, to_b, d_ab = d[:n], d[n : 2 * n], float(d[2 * n])
@@ -324,7 +317,7 @@ def path_analysis(
     b: str,
     steps: int = 20,
 ) -> list[dict[str, Any]]:
-    """One row per point of the latent path from ``a`` to ``b`` (see the module docstring and PATH_COLUMNS)."""
+    """One row per point of the latent path from ``a`` to ``b`` (see the module docstring and tables.LATENT_PATHS)."""
     return paths_analysis(store, model, gram, [(a, b)], steps)
 
 
@@ -395,7 +388,7 @@ def analyze_manifold(
             raise ValueError(f"albedo map for q = {q} requested, but there is no q = {q} model")
         if int(q) < 2:
             raise ValueError(f"albedo map for q = {q} requested: a latent plane needs q ≥ 2")
-    _write_csv(Path(albedo_out), ALBEDO_COLUMNS, [
+    _write_csv(Path(albedo_out), tables.MATERIAL_ALBEDO, [
         {"database": database, "material": m, "r": A[i, 0], "g": A[i, 1], "b": A[i, 2], "luminance": float(A[i] @ _LUMA)}
         for i, m in enumerate(names)
     ])
@@ -406,13 +399,13 @@ def analyze_manifold(
 
     rows = [{"database": database, "space": info.space, "q": int(path_q), **r}
             for r in paths_analysis(st, fits[int(path_q)], G, pairs, steps)]
-    _write_csv(Path(paths_out), PATH_COLUMNS, rows)
+    _write_csv(Path(paths_out), tables.LATENT_PATHS, rows)
 
     rep = []
     for method, k, errs in reproduction_errors(G, info.raw_gram, fits, pca_ks):
         rep += [{"database": database, "space": info.space, "material": m, "method": method, "k": k,
                  "relative_error": float(errs[i])} for i, m in enumerate(names)]
-    _write_csv(Path(reproduction_out), REPRODUCTION_COLUMNS, rep)
+    _write_csv(Path(reproduction_out), tables.REPRODUCTION, rep)
     logger.info("manifold analyses of %d materials (%s database) -> %s", len(names), database, reproduction_out)
 
 

@@ -41,7 +41,6 @@ from brdfpipe.data import logmap, merl
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, material_indices, open_store
 from brdfpipe.manifold import gplvm, spaces
 from brdfpipe.manifold.albedo import ALBEDO_NODES
-from brdfpipe.manifold.gram import SPACES
 from brdfpipe.manifold.perceptual import StreamedDistances
 
 __all__ = ["BlendMeasures", "POINT_CELLS", "albedo_cell_weights", "measure_blends"]
@@ -115,8 +114,6 @@ def measure_blends(
             raise ValueError(f"{model.path or 'the model'}: blend over its materials in its space "
                              f"({model.space!r}), got {len(list(materials))} materials in space {space!r}")
     space = "raw" if space is None else space
-    if space not in SPACES:
-        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(SPACES)}")
     spaces.check_blendable(space)
     idx = (np.arange(st.n_materials, dtype=np.intp) if materials is None
            else material_indices(st, materials, "materials"))

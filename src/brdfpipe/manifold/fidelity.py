@@ -2,8 +2,8 @@
 
 A fitted model (:class:`brdfpipe.manifold.gplvm.GplvmModel`) is judged here on what a
 user of the manifold relies on, with the same numbers for every candidate data
-space (:data:`brdfpipe.manifold.gram.SPACES` × μ), so the default can be chosen by
-measurement (rule ``compare_spaces``, CSV :data:`SPACE_COLUMNS`):
+space (:data:`brdfpipe.spec.manifold.SPACE_NAMES` × μ), so the default can be chosen by
+measurement (rule ``compare_spaces``, CSV :data:`~brdfpipe.spec.tables.SPACES`):
 
 Weights
 -------
@@ -91,10 +91,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.manifold import analysis, blendpass, gplvm, latent
-from brdfpipe.manifold.gram import LINEAR_SPACES, check_gram_store, load_gram
+from brdfpipe.manifold.gram import check_gram_store, load_gram
 from brdfpipe.manifold.likelihood import log_likelihood
 from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
-from brdfpipe.spec.manifold import candidate_label
+from brdfpipe.spec.manifold import LINEAR_SPACES, candidate_label
 from brdfpipe.spec import tables
 
 __all__ = [
@@ -102,8 +102,6 @@ __all__ = [
     "NN_STEP",
     "CLAMPED_HULL_POINTS",
     "CLAMPED_MAP_STRIDE",
-    "SPACE_COLUMNS",
-    "STABILITY_COLUMNS",
     "candidate_label",
     "smooth_weights",
     "albedo_outside",
@@ -132,8 +130,6 @@ HULL_POINTS: Final = 20000
 CLAMPED_HULL_POINTS: Final = 2000
 #: Every this-th row and column of the albedo map grid whose clamped tables' albedo is measured (q = 2).
 CLAMPED_MAP_STRIDE: Final = 3
-SPACE_COLUMNS: Final = tables.SPACES
-STABILITY_COLUMNS: Final = tables.STABILITY
 
 
 # --------------------------------------------------------------------------
@@ -327,7 +323,7 @@ def measure_model(
     albedo_grid: int = 96,
     hull: ArrayLike | None = None,
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """Every measure of the module docstring for one fit: a :data:`SPACE_COLUMNS` row (partial) and stability rows.
+    """Every measure of the module docstring for one fit: a :data:`~brdfpipe.spec.tables.SPACES` row (partial) and stability rows.
 
     ``raw_gram`` / ``space_gram``: un-centred Gram matrices of the model's
     materials in raw units and in the model's space (``space_gram`` may be
@@ -481,8 +477,8 @@ def measure_candidate(
     ``models``: {q: model file} of the candidate (:func:`candidate_label` of
     its space, μ, normalisation, optimiser and start must give ``candidate``;
     the row records the last three); ``default``: the label of the configured
-    default.  Writes ``spaces_out`` (:data:`SPACE_COLUMNS`, one row per q)
-    and ``stability_out`` (:data:`STABILITY_COLUMNS`).  ``albedos``: the
+    default.  Writes ``spaces_out`` (:data:`~brdfpipe.spec.tables.SPACES`, one row per q)
+    and ``stability_out`` (:data:`~brdfpipe.spec.tables.STABILITY`).  ``albedos``: the
     materials' albedos (:func:`brdfpipe.manifold.albedo.write_material_albedos`,
     checked against the store); None computes them here.  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``);
@@ -551,8 +547,8 @@ def measure_candidate(
                     "kappa %.3g; next to a material the table jumps by %.3g (median, max %.3g)", candidate, q,
                     100 * row["albedo_clamped_bad_hull"], 100 * row["albedo_bad_hull"], row["kappa"],
                     row["jump_nn_median_1e-6"], row["jump_nn_max_1e-6"])
-    _write_csv(spaces_out, SPACE_COLUMNS, rows)
-    _write_csv(stability_out, STABILITY_COLUMNS, stab)
+    _write_csv(spaces_out, tables.SPACES, rows)
+    _write_csv(stability_out, tables.STABILITY, stab)
     return rows
 
 
@@ -572,18 +568,18 @@ def combine_candidates(
 ) -> None:
     """The workflow's ``compare_spaces`` job: the candidates' tables, one after another, in one table each.
 
-    ValueError naming a file whose header is not :data:`SPACE_COLUMNS` /
-    :data:`STABILITY_COLUMNS` or that repeats a row (candidate, q[, norm, ε]),
+    ValueError naming a file whose header is not :data:`~brdfpipe.spec.tables.SPACES` /
+    :data:`~brdfpipe.spec.tables.STABILITY` or that repeats a row (candidate, q[, norm, ε]),
     or when not exactly one candidate is the default.
     """
     texts: list[tuple[str | os.PathLike[str], str]] = []
-    for files, columns, out in ((spaces, SPACE_COLUMNS, spaces_out), (stability, STABILITY_COLUMNS, stability_out)):
+    for files, columns, out in ((spaces, tables.SPACES, spaces_out), (stability, tables.STABILITY, stability_out)):
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(columns)
         defaults = set()
         seen: set[tuple[str, ...]] = set()
-        key = [columns.index(c) for c in ("candidate", "q") + (("norm", "epsilon") if columns is STABILITY_COLUMNS else ())]
+        key = [columns.index(c) for c in ("candidate", "q") + (("norm", "epsilon") if columns is tables.STABILITY else ())]
         for f in files:
             rows = _read_rows(f, columns)
             for r in rows:
@@ -591,10 +587,10 @@ def combine_candidates(
                 if k in seen:
                     raise ValueError(f"{f}: a second row for {', '.join(k)}")
                 seen.add(k)
-            if columns is SPACE_COLUMNS:
+            if columns is tables.SPACES:
                 defaults |= {r[1] for r in rows if r[columns.index("default")] == "true"}
             w.writerows(rows)
-        if columns is SPACE_COLUMNS and len(defaults) != 1:
+        if columns is tables.SPACES and len(defaults) != 1:
             raise ValueError(f"expected exactly one default candidate among {len(files)} tables, found {sorted(defaults)}")
         texts.append((out, buf.getvalue()))
     for out, text in texts:  # both checked before either is written

@@ -26,15 +26,10 @@ from brdfpipe.manifold.lengthscale_figure import LengthscaleTable, read_lengthsc
 from brdfpipe.spec import tables
 
 __all__ = [
-    "TRACE_COLUMNS",
     "TRACE_STAGES",
-    "ALBEDO_COLUMNS",
-    "PATHS_COLUMNS",
-    "REPRODUCTION_COLUMNS",
     "ALBEDO_MAP_KEYS",
     "SPACES_FIGURE_COLUMNS",
     "STABILITY_FIGURE_COLUMNS",
-    "UNSEEN_COLUMNS",
     "TraceTable",
     "AlbedoTable",
     "AlbedoMap",
@@ -63,25 +58,17 @@ __all__ = [
 # * ``manifold/albedo.csv`` (``database,material,r,g,b,luminance``);
 # * albedo maps ``manifold/albedo-map-q{q}.npz`` (arrays x (W,), y (H,),
 #   dims (2,), albedo (H, W, 3), luminance (H, W), fixed (q,), q, database);
-# * ``manifold/paths.csv`` (:data:`PATHS_COLUMNS`, one row per step of each
+# * ``manifold/paths.csv`` (:data:`~brdfpipe.spec.tables.LATENT_PATHS`, one row per step of each
 #   latent path) and ``manifold/reproduction.csv``
-#   (:data:`REPRODUCTION_COLUMNS`).
+#   (:data:`~brdfpipe.spec.tables.REPRODUCTION`).
 #
 # :func:`brdfpipe.manifold.figures.make_manifold_figures` reads and checks every input first (a
 # missing or malformed file raises FigureInputError naming it, before any
 # figure is written), then writes the figures of MANIFOLD_FIGURE_STEMS, each
 # PNG + PDF, atomically and deterministically like the acquisition figures.
 
-#: Columns of a GPLVM trace CSV (gplvm.write_trace).
-TRACE_COLUMNS: tuple[str, ...] = tables.GPLVM_TRACE
 #: Trace stages: the start point, Hooke–Jeeves sweeps, L-BFGS iterations, Newton steps (in any order).
 TRACE_STAGES: tuple[str, ...] = ("start", "hooke-jeeves", "lbfgs", "newton")
-#: Columns of ``albedo.csv``.
-ALBEDO_COLUMNS: tuple[str, ...] = tables.MATERIAL_ALBEDO
-#: Columns of ``paths.csv``.
-PATHS_COLUMNS: tuple[str, ...] = tables.LATENT_PATHS
-#: Columns of ``reproduction.csv``.
-REPRODUCTION_COLUMNS: tuple[str, ...] = tables.REPRODUCTION
 #: Arrays of an albedo map npz.
 ALBEDO_MAP_KEYS: tuple[str, ...] = (
     "x", "y", "dims", "albedo", "luminance", "fixed", "q", "database", "inside_hull", "bad_inside", "bad_outside",
@@ -133,7 +120,7 @@ class TraceTable:
 
 def read_trace(path: str | os.PathLike[str]) -> TraceTable:
     """Read and check a ``q{q}-trace.csv`` (FigureInputError naming the file if it is missing or malformed)."""
-    p, rows = _read_manifold_csv(path, TRACE_COLUMNS, "trace file")
+    p, rows = _read_manifold_csv(path, tables.GPLVM_TRACE, "trace file")
     steps, stages, values = [], [], []
     for r in rows:
         i = int(r["__line__"])
@@ -172,7 +159,7 @@ class AlbedoTable:
 
 def read_albedo(path: str | os.PathLike[str]) -> AlbedoTable:
     """Read and check ``albedo.csv``."""
-    p, rows = _read_manifold_csv(path, ALBEDO_COLUMNS, "albedo table")
+    p, rows = _read_manifold_csv(path, tables.MATERIAL_ALBEDO, "albedo table")
     mats: list[str] = []
     rgb, lum = [], []
     seen: set[str] = set()
@@ -304,7 +291,7 @@ _PATH_NUMERIC = ("t", "latent_distance", "perceptual_a", "perceptual_b", "percep
 
 def read_paths(path: str | os.PathLike[str]) -> PathTable:
     """Read and check ``paths.csv``: rows grouped by (space, q, path), in order of first appearance."""
-    p, rows = _read_manifold_csv(path, PATHS_COLUMNS, "paths table")
+    p, rows = _read_manifold_csv(path, tables.LATENT_PATHS, "paths table")
     groups: dict[tuple[str, int, str], list[dict[str, Any]]] = {}
     for r in rows:
         i = int(r["__line__"])
@@ -362,7 +349,7 @@ class ReproductionTable:
 
 def read_reproduction(path: str | os.PathLike[str]) -> ReproductionTable:
     """Read and check ``reproduction.csv`` (methods ``pca`` and ``gplvm``)."""
-    p, rows = _read_manifold_csv(path, REPRODUCTION_COLUMNS, "reproduction table")
+    p, rows = _read_manifold_csv(path, tables.REPRODUCTION, "reproduction table")
     values: dict[tuple[str, str, int], dict[str, float]] = {}
     for r in rows:
         i = int(r["__line__"])
@@ -582,8 +569,6 @@ def read_manifold_inputs(*, models: Mapping[int, str | os.PathLike[str]],
 # ---------------------------------------------------------------------------
 
 
-#: Columns of the manifold's ``unseen.csv`` (:mod:`brdfpipe.manifold.unseen`).
-UNSEEN_COLUMNS: tuple[str, ...] = tables.MANIFOLD_UNSEEN
 
 
 @dataclass(frozen=True)
@@ -602,7 +587,7 @@ class UnseenTable:
 
 def read_unseen(path: str | os.PathLike[str]) -> UnseenTable:
     """Read and check the manifold's ``unseen.csv`` (:class:`FigureInputError` naming the file)."""
-    p, rows = read_csv(path, UNSEEN_COLUMNS)
+    p, rows = read_csv(path, tables.MANIFOLD_UNSEEN)
     model_db = single_database(p, (r["model_database"] for r in rows))
     space = single_database(p, (r["space"] for r in rows))
     errors: dict[tuple[str, str, str, int], float] = {}

@@ -38,7 +38,7 @@ from brdfpipe.core.plot import (
     no_data,
     style,
 )
-from brdfpipe.data.databases import title as database_label
+from brdfpipe.data import databases
 from brdfpipe.manifold.figure_inputs import (
     LatentPath,
     ManifoldInputs,
@@ -155,7 +155,7 @@ def manifold_fig05_likelihood(inp: ManifoldInputs, stem: str | os.PathLike[str])
             gap.set_title("distance to the best log-likelihood")
             if not gap.get_lines():
                 no_data(gap, "no improvement")
-        title = f"GPLVM log-likelihood during the fit ({database_label(inp.database)}, {_fit_note(inp)})"
+        title = f"GPLVM log-likelihood during the fit ({databases.title(inp.database)}, {_fit_note(inp)})"
         methods = sorted({str(m.method) for m in inp.models.values()})
         scales = sorted({f"{float(m.gram_scale):.4g}" for m in inp.models.values()})
         subtitle = (f"Soler 2018 Fig. 5 analogue; method {', '.join(methods)}; Gram matrix divided by "
@@ -203,7 +203,7 @@ def manifold_fig10_latent_q2(inp: ManifoldInputs, stem: str | os.PathLike[str]) 
                 ax.set_visible(False)
         latent_row(axes, P, inp.albedo.display_colours(model.names), views, labels,
                     f"q = {q}, {len(names)} materials", size=22.0)
-        title = f"The {'2-D ' if q == 2 else ''}latent space of the materials ({database_label(inp.database)}, {_fit_note(inp)})"
+        title = f"The {'2-D ' if q == 2 else ''}latent space of the materials ({databases.title(inp.database)}, {_fit_note(inp)})"
         subtitle = (f"Soler 2018 Fig. 10 analogue; colour: hemispherical albedo (RGB / brightest channel, "
                     f"gamma 1/2.2); ℓ = {model.ell:g}, μ = {model.mu:g}; {_space_note([model.space])}"
                     + ("; each material named once, in the deepest panel showing it" if len(views) > 1 else ""))
@@ -254,7 +254,7 @@ def manifold_fig10_latent_q5(inp: ManifoldInputs, stem: str | os.PathLike[str]) 
             latent_row(axes, P, colours, views, (f"latent dim {dims[0]}", f"latent dim {dims[1]}"),
                         f"dims {dims[0]}, {dims[1]}", size=16.0)
             rows.append((axes, P))
-        title = f"Projections of the q = {q} latent space ({database_label(inp.database)}, {_fit_note(inp)})"
+        title = f"Projections of the q = {q} latent space ({databases.title(inp.database)}, {_fit_note(inp)})"
         subtitle = (f"Soler 2018 Fig. 10 analogue; latent points projected onto pairs of latent dimensions; "
                     f"colour: hemispherical albedo (gamma 1/2.2); {_space_note([model.space])}"
                     + ("; each material named once per row, in the deepest panel showing it"
@@ -339,7 +339,7 @@ def manifold_fig07_albedo(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> 
                 warn(f"{m.path}: luminance albedo outside [0, 1] ({lo:.4g}..{hi:.4g})")
         for ax in axes[max(1, len(maps)):]:
             ax.set_visible(False)
-        title = f"Albedo of the interpolated BRDFs over the latent space ({database_label(inp.database)}, {_fit_note(inp)})"
+        title = f"Albedo of the interpolated BRDFs over the latent space ({databases.title(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 Fig. 7 analogue; luminance 0.2126 R + 0.7152 G + 0.0722 B of the hemispherical "
                     "albedo, iso-lines labelled; white dashed line: the convex hull of the training points "
                     "(for q > 2, where the slice cuts the q-dimensional hull); white dots: training materials "
@@ -379,7 +379,7 @@ def manifold_fig09_paths(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> F
             ax.set_ylabel("perceptual distance / d(A, B)")
             ax.legend(loc="best", fontsize=6.5)
         _hide_unused_path_panels(axes, len(paths))
-        title = f"Perceptual distances along latent paths ({database_label(inp.database)}, {_fit_note(inp)})"
+        title = f"Perceptual distances along latent paths ({databases.title(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 Fig. 9 analogue; blue: distance of the interpolated BRDF to A, red: to B, "
                     "both divided by the distance between A and B; dashed: perceptually uniform; "
                     f"{_space_note(p.space for p in paths)}")
@@ -462,7 +462,7 @@ def manifold_fig08_reproduction(inp: ManifoldInputs, stem: str | os.PathLike[str
             ax.set_ylabel("relative error ‖ẑ − z‖ / ‖z‖")
             ax.legend(loc="center left", bbox_to_anchor=(1.02, 0.5), borderaxespad=0.0)
         ax.set_title(f"reproduction of the {len(mats)} training materials ({space} space)")
-        title = f"Reproducing the training materials: PCA vs GPLVM ({database_label(inp.database)}, {_fit_note(inp)})"
+        title = f"Reproducing the training materials: PCA vs GPLVM ({databases.title(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 Fig. 8 analogue; PCA truncated to k components vs the GPLVM interpolant at "
                     "each material's latent point (exact in exact arithmetic: b(x_i) = e_i)")
         return finish(fig, stem, title, subtitle, inp.database, warn)
@@ -504,7 +504,7 @@ def manifold_eq7_bound(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> Fig
                 no_data(ax, "deviation and bound are 0")
                 ax.set_title(lp.title, fontsize=8.0)
         _hide_unused_path_panels(axes, len(paths))
-        title = f"Deviation from the nearest training material vs the eq. 7 bound ({database_label(inp.database)}, {_fit_note(inp)})"
+        title = f"Deviation from the nearest training material vs the eq. 7 bound ({databases.title(inp.database)}, {_fit_note(inp)})"
         subtitle = ("Soler 2018 eq. 7: ‖z* − z_j‖ ≤ e^(−1/2)·√(2N)/ℓ·κ(K)·‖Z‖·‖x* − x_j‖, j the nearest "
                     "training point in latent space; the path ends (bound 0, deviation 0 up to rounding) omitted; "
                     f"{_space_note(p.space for p in paths)}")
@@ -571,7 +571,7 @@ def manifold_spaces(table: SpacesTable, stem: str | os.PathLike[str]) -> FigureO
         ax_s.set_ylabel("median ‖z(xᵢ+εu) − zᵢ‖ / ‖zᵢ‖")
         ax_s.set_title(f"(b) stability near the training points, q = {qs}\nsolid: the fit's own space; dotted: raw BRDF units; red: 1 %")
         ax_s.legend(fontsize=6.5)
-        title = f"GPLVM data spaces compared ({database_label(table.database)})"
+        title = f"GPLVM data spaces compared ({databases.title(table.database)})"
         subtitle = (f"candidates: data space and kernel noise μ (and how fitted, when not the standard fit); default: "
                     f"{table.default}. (a) albedo outside [0, 1] of the interpolated table as rendered (negative "
                     "values clamped to 0; ×: before clamping); (b) change of the interpolated "
@@ -725,8 +725,8 @@ def manifold_unseen(model_path: str | os.PathLike[str], q: int, unseen_csv: str 
         else:
             no_data(right, "no reproduction rows")
         title = (f"Materials outside the training set on the GPLVM manifold "
-                 f"(model: {database_label(table.model_database)})")
-        subtitle = (f"Soler 2018 Fig. 10 / Fig. 8 analogue for unseen materials ({'; '.join(database_label(d) for d in dbs)}); "
+                 f"(model: {databases.title(table.model_database)})")
+        subtitle = (f"Soler 2018 Fig. 10 / Fig. 8 analogue for unseen materials ({'; '.join(databases.title(d) for d in dbs)}); "
                     "x* maximises the "
                     f"GP likelihood of the material or minimises ‖z − Σ bᵢ(x) zᵢ‖ in the {table.space} space")
         return finish(fig, stem, title, subtitle, table.model_database, warn)

@@ -221,7 +221,7 @@ def interpolate_tables(
 
     ``weights`` is ``(P, N)``: one row of blend weights per output table,
     over ``materials`` (in that order; default all of the store).  In the
-    :data:`~brdfpipe.manifold.gram.LINEAR_SPACES` the blend is of the stored values (their factor is
+    :data:`~brdfpipe.spec.manifold.LINEAR_SPACES` the blend is of the stored values (their factor is
     per value, so blending before or after it is the same).
     In the ``log`` space the blend is taken of the log-mapped values, with the
     same ρ_ref (median of ``materials``) and weights as :func:`~brdfpipe.manifold.gram.gram_matrix`,

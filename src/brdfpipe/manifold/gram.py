@@ -15,7 +15,7 @@ training set, :mod:`brdfpipe.manifold.unseen`).
 
 Data spaces
 -----------
-``Z`` holds the stored values mapped to one data space (:data:`SPACES`):
+``Z`` holds the stored values mapped to one data space (:data:`~brdfpipe.spec.manifold.SPACE_NAMES`):
 
 * ``raw``: the stored values (the paper);
 * ``cosine``: each cell × cos θi · cos θo of its centre (``merl.cell_directions``);
@@ -30,7 +30,7 @@ Data spaces
   the cosines.
 
 Every space but ``log`` is a fixed per-value scaling ``z̃ = D z`` of the raw
-values (:data:`LINEAR_SPACES`): the fit sees ``D z``, but the interpolant
+values (:data:`~brdfpipe.spec.manifold.LINEAR_SPACES`): the fit sees ``D z``, but the interpolant
 ``Σ wᵢ D zᵢ = D Σ wᵢ zᵢ``, so the blend weights apply to the raw BRDFs — and
 to images rendered from them (Soler §5.2) — unchanged.  ``log`` is not
 linear in the BRDF: its interpolant is a blend of log-mapped values.
@@ -74,10 +74,6 @@ from brdfpipe.manifold import spaces
 from brdfpipe.spec import manifold as manifold_spec
 
 __all__ = [
-    "SPACES",
-    "LINEAR_SPACES",
-    "RELATIVE_FLOOR",
-    "STANDARDISED_FLOOR",
     "MEAN_HANDLING",
     "GramInfo",
     "CrossGram",
@@ -99,13 +95,6 @@ __all__ = [
 
 logger = logging.getLogger("brdfpipe.manifold.gram")
 
-#: Data spaces of :func:`gram_matrix` (see the module docstring; records: :data:`brdfpipe.spec.manifold.DATA_SPACES`).
-SPACES: Final = manifold_spec.SPACE_NAMES
-#: Spaces that scale each raw value by a constant: their interpolant is linear in the raw BRDFs.
-LINEAR_SPACES: Final = manifold_spec.LINEAR_SPACES
-#: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space (:mod:`brdfpipe.manifold.spaces`).
-RELATIVE_FLOOR: Final = spaces.RELATIVE_FLOOR
-STANDARDISED_FLOOR: Final = spaces.STANDARDISED_FLOOR
 #: How the data are centred: the column mean over the materials is subtracted (:attr:`GramInfo.mean_handling`).
 MEAN_HANDLING: Final = "mean subtracted"
 #: Cells mapped to float64 at a time within a cell block of the store.
@@ -128,10 +117,8 @@ class DataMismatchError(ValueError):
 
 
 def check_space(space: str) -> str:
-    """``space`` if it is one of :data:`SPACES`; otherwise a ValueError listing them."""
-    if space not in SPACES:
-        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(SPACES)}")
-    return space
+    """``space`` if it is a data space (:func:`brdfpipe.spec.manifold.data_space`); otherwise a ValueError listing them."""
+    return manifold_spec.data_space(space).name
 
 
 def select_materials(st: BrdfStore, materials: Sequence[str] | None) -> NDArray[np.intp]:
@@ -186,7 +173,7 @@ def gram_matrix(
 
     ``Z``: one row per material (``materials`` in the order given, default all
     of the store), the R, G, B values of the cells valid in every material of
-    the store, mapped to ``space`` (one of :data:`SPACES`, see the module
+    the store, mapped to ``space`` (one of :data:`~brdfpipe.spec.manifold.SPACE_NAMES`, see the module
     docstring); ``d`` = 3 × valid cells.  Streamed by blocks of 145,800
     cells, each mapped to float64 in sub-blocks of 16,384 cells and
     accumulated as ``G += B Bᵀ`` and ``s += B 1``; then centred with

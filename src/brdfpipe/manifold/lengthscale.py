@@ -56,7 +56,6 @@ from brdfpipe.spec.manifold import check_paths, path_name
 __all__ = [
     "LENGTH_SCALE_FACTORS",
     "PROFILE_STEPS",
-    "LENGTHSCALE_COLUMNS",
     "lengthscale_rows",
     "measure_lengthscales",
 ]
@@ -67,8 +66,6 @@ logger = logging.getLogger("brdfpipe.manifold.lengthscale")
 LENGTH_SCALE_FACTORS: Final[tuple[float, ...]] = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0, 2.0, 4.0)
 #: Equal steps along the path (the profile is exact from the Gram matrix: no table is formed).
 PROFILE_STEPS: Final = 100
-#: Columns of ``lengthscales.csv``.
-LENGTHSCALE_COLUMNS: Final = tables.LENGTHSCALES
 
 
 def _kernel_factor(X: NDArray[np.float64], ell: float, mu: float) -> tuple[tuple[NDArray[np.float64], bool], float]:
@@ -91,7 +88,7 @@ def lengthscale_rows(
 
     ``gram``: the centred Gram matrix of the data the model was fitted on
     (its materials in the model's order).  Row keys: the columns of
-    :data:`LENGTHSCALE_COLUMNS` but ``database``, ``space`` and ``q``.
+    :data:`~brdfpipe.spec.tables.LENGTHSCALES` but ``database``, ``space`` and ``q``.
     """
     names = list(model.names)
     check_paths([(a, b)], names, what="path")
@@ -152,7 +149,7 @@ def measure_lengthscales(
         raise ValueError(f"path must be a pair of materials, got {list(path)!r}")
     rows = [{"database": database, "space": m.space, "q": int(m.X.shape[1]), **r}
             for r in lengthscale_rows(m, G, str(path[0]), str(path[1]))]
-    integrity.write_csv(out, [LENGTHSCALE_COLUMNS, *([_fmt(r[c]) for c in LENGTHSCALE_COLUMNS] for r in rows)])
+    integrity.write_csv(out, [tables.LENGTHSCALES, *([_fmt(r[c]) for c in tables.LENGTHSCALES] for r in rows)])
     logger.info("eq. 7 against ℓ along %s: %d rows -> %s", path_name(str(path[0]), str(path[1])), len(rows), out)
     return rows
 

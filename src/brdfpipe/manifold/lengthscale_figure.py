@@ -32,7 +32,7 @@ from brdfpipe.core.plot import (
     single_database,
     style,
 )
-from brdfpipe.data.databases import title as database_label
+from brdfpipe.data import databases
 from brdfpipe.spec import tables
 
 __all__ = ["LengthscaleTable", "read_lengthscales", "manifold_fig06_lengthscale"]
@@ -161,7 +161,7 @@ def _draw(tab: LengthscaleTable, stem: str | os.PathLike[str], warn: Warnings) -
     ax_l.legend(lines[0] + more[0], lines[1] + more[1], fontsize=5.5, loc="upper center")
     if np.any(tab.deviation[:, inner] > tab.bound[:, inner] * (1 + 1e-9)):
         warn("the deviation exceeds the eq. 7 bound somewhere")
-    title = f"The interpolant and the eq. 7 bound as the length scale shrinks ({database_label(tab.database)})"
+    title = f"The interpolant and the eq. 7 bound as the length scale shrinks ({databases.title(tab.database)})"
     subtitle = (f"Soler 2018 Fig. 6; {tab.material_a} → {tab.material_b}, the default candidate's q = {tab.q} "
                 "latent points "
                 f"({tab.space} space), kernel ℓ scaled by {tab.factors.min():g}–{tab.factors.max():g}; "

@@ -235,11 +235,12 @@ class GramRoot:
         self.minus = np.asfortranarray(V[:, ~pos] * np.sqrt(-lam[~pos])) if (~pos).any() else None
 
 
-def loglik_grad(
-    x: NDArray[np.float64], root: GramRoot, d: float, ell: float, mu: float
-) -> tuple[float, NDArray[np.float64]]:
-    """:func:`log_likelihood_grad` without validation (the L-BFGS stage's inner loop)."""
-    blas, lapack = scipy.linalg.blas, scipy.linalg.lapack
+def _factor(x: NDArray[np.float64], ell: float, mu: float) -> tuple[float, NDArray[np.float64], NDArray[np.float64],
+                                                                 float, NDArray[np.float64]]:
+    """The kernel of ``x`` factorised: ``(s, E, c, log det K, K⁻¹)`` with ``s = 1/ℓ²``, ``E = exp(−s d²/2)``,
+    ``K = E + μI`` (diagonal 1 + μ), ``c`` its lower Cholesky factor and K⁻¹ in its lower triangle only
+    (LAPACK's dpotri: the strict upper triangle is zero).  LinAlgError if K is not positive definite."""
+    lapack = scipy.linalg.lapack
     s = 1.0 / (ell * ell)
     E = np.exp(sqdist(x) * (-0.5 * s))
     K = E.copy()
@@ -251,6 +252,15 @@ def loglik_grad(
     Kinv_l, info = lapack.dpotri(c, lower=1)
     if info != 0:
         raise np.linalg.LinAlgError("K could not be inverted")
+    return s, E, c, logdet, Kinv_l
+
+
+def loglik_grad(
+    x: NDArray[np.float64], root: GramRoot, d: float, ell: float, mu: float
+) -> tuple[float, NDArray[np.float64]]:
+    """:func:`log_likelihood_grad` without validation (the L-BFGS stage's inner loop)."""
+    blas = scipy.linalg.blas
+    s, E, c, logdet, Kinv_l = _factor(x, ell, mu)
     # Lower triangles only (dpotri and dsyrk leave the strict upper triangle zero), mirrored once.
     Wl = Kinv_l
     Wl *= -0.5 * d
@@ -327,19 +337,9 @@ def loglik_grad_hess(
     x: NDArray[np.float64], root: GramRoot, d: float, ell: float, mu: float
 ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
     """:func:`log_likelihood_hessian` without validation."""
-    blas, lapack = scipy.linalg.blas, scipy.linalg.lapack
+    blas = scipy.linalg.blas
     n, q = x.shape
-    s = 1.0 / (ell * ell)
-    E = np.exp(sqdist(x) * (-0.5 * s))
-    K = E.copy()
-    np.fill_diagonal(K, 1.0 + mu)
-    c, info = lapack.dpotrf(K, lower=1, clean=1)
-    if info != 0:
-        raise np.linalg.LinAlgError("K is not positive definite")
-    logdet = 2.0 * float(np.log(np.diag(c)).sum())
-    P, info = lapack.dpotri(c, lower=1)
-    if info != 0:
-        raise np.linalg.LinAlgError("K could not be inverted")
+    s, E, c, logdet, P = _factor(x, ell, mu)
     P = np.tril(P)
     P += np.tril(P, -1).T
     Q = np.zeros((n, n))

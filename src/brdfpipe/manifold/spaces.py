@@ -121,11 +121,13 @@ MAPS: dict[str, SpaceMaps] = {
 
 
 def space_maps(space: str) -> SpaceMaps:
-    """The maps of ``space``; ValueError naming the known spaces otherwise."""
+    """The maps of ``space``; ValueError naming the known spaces for an unknown one, or a registered space
+    whose maps are missing here."""
+    manifold_spec.data_space(space)
     try:
         return MAPS[space]
-    except (KeyError, TypeError):
-        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(MAPS)}") from None
+    except KeyError:
+        raise ValueError(f"data space {space!r} has no maps in brdfpipe.manifold.spaces.MAPS") from None
 
 
 #: The spaces that are not linear whose blends the interpolant and the blend pass map back
@@ -140,9 +142,7 @@ def check_blendable(space: str) -> str:
     is added where blends are mapped back): never a blend of mapped values
     read as raw values.
     """
-    spec = manifold_spec.DATA_SPACES.get(space)
-    if spec is None:
-        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(manifold_spec.DATA_SPACES)}")
+    spec = manifold_spec.data_space(space)
     if not spec.linear and space not in INVERTED:
         raise ValueError(f"data space {space!r} is not linear and its blends have no inverse yet "
                          f"(brdfpipe.manifold.gplvm.interpolate_tables, brdfpipe.manifold.blendpass)")

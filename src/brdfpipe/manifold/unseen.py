@@ -39,7 +39,7 @@ y on the first k principal components of the same training materials
 (``G_c = VΛVᵀ``: residual ``‖y‖² − Σ_{j≤k} (V_jᵀc)²/λ_j``), for k = each
 latent dimension q and each of ``pca_components``.
 
-``unseen.csv`` (:data:`UNSEEN_COLUMNS`): one row per unseen material and
+``unseen.csv`` (:data:`~brdfpipe.spec.tables.MANIFOLD_UNSEEN`): one row per unseen material and
 method — ``gplvm-likelihood`` and ``gplvm-least-squares`` (k = q, with the
 conditional log-likelihood at x*, the nearest training material in latent
 space and x* itself, coordinates separated by spaces) and ``pca`` (k) —
@@ -72,7 +72,6 @@ from brdfpipe.manifold.gram import CrossGram, cross_gram, load_gram
 from brdfpipe.spec import tables
 
 __all__ = [
-    "UNSEEN_COLUMNS",
     "METHODS",
     "STARTS",
     "Position",
@@ -87,8 +86,6 @@ logger = logging.getLogger("brdfpipe.manifold.unseen")
 
 F64 = NDArray[np.float64]
 
-#: Columns of the manifold's ``unseen.csv``.
-UNSEEN_COLUMNS: Final = tables.MANIFOLD_UNSEEN
 #: How x* is found: the GP likelihood of the material, or least squares of the interpolant against it.
 METHODS: Final = ("likelihood", "least-squares")
 #: Training points the local searches start from (those where the objective is best).
@@ -249,7 +246,7 @@ def unseen_rows(
     pca_ks: Sequence[int] = (20, 40),
     starts: int = STARTS,
 ) -> list[dict[str, Any]]:
-    """Rows of ``unseen.csv`` (:data:`UNSEEN_COLUMNS`) for every outside material of ``cross``.
+    """Rows of ``unseen.csv`` (:data:`~brdfpipe.spec.tables.MANIFOLD_UNSEEN`) for every outside material of ``cross``.
 
     ``gram``: the centred Gram matrix the models were fitted to (compared with
     ``cross.gram`` to :data:`GRAM_RTOL`: the outside materials must have been
@@ -326,7 +323,7 @@ def write_unseen(
             raise ValueError(f"{gram}: {d} columns, the store {store} has {cross.d} valid ones")
         rows = unseen_rows(cross, fits, gram=G, model_database=st.database, pca_ks=pca_ks)
     path = Path(out)
-    integrity.write_csv(path, _csv(UNSEEN_COLUMNS, rows))
+    integrity.write_csv(path, _csv(tables.MANIFOLD_UNSEEN, rows))
     logger.info("%d unseen materials on %d model(s) of %d %s materials (%s space) in %.1f s -> %s",
                 len(cross.others), len(fits), len(cross.materials), st.database, cross.space,
                 time.perf_counter() - t0, path)

@@ -41,14 +41,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
-from brdfpipe.core.atomic import atomic_write as _atomic_write, check_not_input
+from brdfpipe.core.atomic import atomic_write, check_not_input
 from brdfpipe.core.exr import ExrError, read_exr, tonemap, write_exr
 from brdfpipe.core.filenames import format_t
 from brdfpipe.core.version import full_version
 from brdfpipe.spec import tables
 
 __all__ = [
-    "SUMMARY_COLUMNS",
     "BlendError",
     "format_t",
     "blend_exr",
@@ -61,20 +60,12 @@ __all__ = [
     "error_maps",
     "error_maps_from_files",
     "ratio_standard_error",
-    "SHARE_COLUMNS",
     "bounce_shares",
-    "FLOOR_CHECK_COLUMNS",
     "floor_check_table",
 ]
 
 logger = logging.getLogger("brdfpipe.rendering.blend")
 
-#: Columns of ``summary.csv`` written by :func:`error_maps`, in order (the ``_one``
-#: columns: the same for the I¹⁻ images; they and the isolated reference's ratio are
-#: empty when no I¹⁻ images are given).
-SUMMARY_COLUMNS: Final = tables.ERROR_MAP_SUMMARY
-#: Columns of the I²⁺ share CSV written by :func:`bounce_shares`, in order.
-SHARE_COLUMNS: Final = tables.BOUNCE_SHARES
 
 #: Characters allowed in a path name (it becomes part of file names).
 _NAME_RE: Final = re.compile(r"^[A-Za-z0-9_.+-]+$")
@@ -303,7 +294,7 @@ def write_error_map_png(
         bar = fig.colorbar(im, ax=ax, fraction=0.05, pad=0.02, extend="max")
         bar.set_label(units)
         software = f"brdfpipe {full_version()} (matplotlib {mpl.__version__})"
-        _atomic_write(path, lambda fh: fig.savefig(fh, format="png", metadata={"Title": full_title,
+        atomic_write(path, lambda fh: fig.savefig(fh, format="png", metadata={"Title": full_title,
                                                                                "Software": software}))
 
 
@@ -425,7 +416,7 @@ def error_maps(
     needs no render, being affine in the table.  Without ``prerenders_one``
     those cells are empty.
 
-    Then writes ``summary`` (CSV, columns :data:`SUMMARY_COLUMNS`, one line
+    Then writes ``summary`` (CSV, columns :data:`~brdfpipe.spec.tables.ERROR_MAP_SUMMARY`, one line
     per point in input order, numbers as ``%.9g``, ``t`` as ``format_t``)
     atomically, and returns the rows (floats unrounded).  Each pre-render is
     read once for all points.  Any missing or corrupt pre-render or
@@ -584,12 +575,12 @@ def _point_row(
 
 def _write_summary(summary: Path, database: str, points: Sequence[tuple[str, float, str]],
                    rows: Sequence[Mapping[str, Any]]) -> None:
-    """The summary CSV of :func:`error_maps` (:data:`SUMMARY_COLUMNS`), atomically with its digest."""
+    """The summary CSV of :func:`error_maps` (:data:`~brdfpipe.spec.tables.ERROR_MAP_SUMMARY`), atomically with its digest."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(SUMMARY_COLUMNS)
+    writer.writerow(tables.ERROR_MAP_SUMMARY)
     for (_, _, s), row in zip(points, rows):
-        writer.writerow([database, row["path"], s] + [_fmt(row[c]) if c in row else "" for c in SUMMARY_COLUMNS[3:]])
+        writer.writerow([database, row["path"], s] + [_fmt(row[c]) if c in row else "" for c in tables.ERROR_MAP_SUMMARY[3:]])
     integrity.write_csv(summary, buf.getvalue())
 
 
@@ -668,7 +659,7 @@ def bounce_shares(
     whole pre-render ``I``, ``ones[m]`` its ``I¹⁻`` part (same render,
     :func:`brdfpipe.rendering.scene.render_material`), ``mask`` the object mask EXR
     (:func:`brdfpipe.rendering.scene.render_object_mask`; a pixel is the object's when
-    its mask is ≥ 0.5).  Writes ``out`` (CSV, columns :data:`SHARE_COLUMNS`,
+    its mask is ≥ 0.5).  Writes ``out`` (CSV, columns :data:`~brdfpipe.spec.tables.BOUNCE_SHARES`,
     one row per material in the order of ``images``, numbers ``%.9g``)
     atomically and returns the rows:
 
@@ -718,10 +709,10 @@ def bounce_shares(
                        f"of the object")
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(SHARE_COLUMNS)
+    writer.writerow(tables.BOUNCE_SHARES)
     for row in rows:
         writer.writerow([database, row["material"]]
-                        + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c]) for c in SHARE_COLUMNS[2:]])
+                        + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c]) for c in tables.BOUNCE_SHARES[2:]])
     integrity.write_csv(out, buf.getvalue())
     return rows
 
@@ -730,14 +721,12 @@ def bounce_shares(
 # Blends against the noise floor, every GPLVM candidate (render.floor_check)
 # --------------------------------------------------------------------------
 
-#: Columns of the floor check's CSV written by :func:`floor_check_table`, in order.
-FLOOR_CHECK_COLUMNS: Final = tables.FLOOR_CHECK
 
 
 def _read_summary_rows(path: Path, database: str) -> list[dict[str, str]]:
     if not path.is_file():
         raise BlendError(f"{path}: no such file")
-    _, rows = integrity.read_csv_rows(path, required=SUMMARY_COLUMNS, kind="error-map summary", error=BlendError)
+    _, rows = integrity.read_csv_rows(path, required=tables.ERROR_MAP_SUMMARY, kind="error-map summary", error=BlendError)
     for k, row in enumerate(rows):
         if row["database"] != database:
             raise BlendError(f"{path}: row {k + 1} is from database {row['database']!r}, this run's is {database!r}")
@@ -782,7 +771,7 @@ def floor_check_table(
     (a clamp the linear blend of images cannot know), the noise floor and
     the ratios of the summary with their standard errors (whole image,
     I¹⁻, and against the reference that differs only by the L²⁺ paths).  Writes ``out``
-    (columns :data:`FLOOR_CHECK_COLUMNS`, numbers ``%.9g``) atomically.
+    (columns :data:`~brdfpipe.spec.tables.FLOOR_CHECK`, numbers ``%.9g``) atomically.
     :class:`BlendError` naming the file when a summary is of another
     database, its rows and the weights disagree on the points, or the renders
     differ in size or spp.
@@ -836,10 +825,10 @@ def floor_check_table(
             rows.append(row)
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(FLOOR_CHECK_COLUMNS)
+    writer.writerow(tables.FLOOR_CHECK)
     for row in rows:
         writer.writerow([database] + [_fmt(row[c]) if isinstance(row[c], float) else str(row[c])
-                                      for c in FLOOR_CHECK_COLUMNS[1:]])
+                                      for c in tables.FLOOR_CHECK[1:]])
     integrity.write_csv(out, buf.getvalue())
     for c in labels:
         mine = [r["ratio_one_seed2"] for r in rows if r["candidate"] == c]

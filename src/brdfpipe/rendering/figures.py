@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import RENDER_FIGURE_STEMS, format_t
-from brdfpipe.data.databases import title as database_label
+from brdfpipe.data import databases
 from brdfpipe.core.plot import (
     FigureInputError,
     FigureOutput,
@@ -43,6 +43,7 @@ from brdfpipe.core.plot import (
 )
 from brdfpipe.spec.figures import track_figures
 from brdfpipe.spec.manifold import SOLER_FIG1_MATERIALS, SOLER_FIG12_PATH, path_name
+from brdfpipe.spec import tables
 
 __all__ = [
     "RENDER_FIGURE_STEMS",
@@ -216,7 +217,7 @@ def render_fig01_latent_samples(samples: Mapping[str, Any], images: Sequence[Pat
                "of each table's measured values, which came out negative" if shares else "")
             + f"; among them the pre-renders of {how}, at the paper's places; one exposure ({ev:+.2f} EV).")
     title = (f"Materials at random points of the latent space among measured ones (Soler Fig. 1) — "
-             f"{database_label(database)}")
+             f"{databases.title(database)}")
     subtitle = (f"{len(entries)} latent samples (q = {q}, seed {samples['seed']}) and {len(cells) - len(entries)} "
                 "measured materials, all rendered in the pre-renders' scene and settings")
     return finish(fig, stem, title, subtitle, database, warn, note=note)
@@ -238,7 +239,7 @@ def render_prerenders(prerenders: Mapping[str, Path], stem: Path, database: str)
     for k, (m, im) in enumerate(zip(names, images)):
         ax = fig.add_subplot(rows, cols, k + 1)
         _image_axes(ax, tonemap(im, ev), m, fontsize=4.5)
-    title = f"Pre-rendered materials, global illumination (Soler §5.2) — {database_label(database)}"
+    title = f"Pre-rendered materials, global illumination (Soler §5.2) — {databases.title(database)}"
     return finish(fig, stem, title, f"{len(names)} materials, one exposure ({ev:+.2f} EV)", database, warn)
 
 
@@ -317,7 +318,7 @@ def render_fig12_interpolation(prerenders: Mapping[str, Path], points: Sequence[
             + ", rendered at t = " + ", ".join(f"{q.t:g}" for q in first) + ": "
             + "; ".join(f"t = {q.t:g}: {_point_numbers(q, summary.get((q.path, format_t(q.t))))}" for q in first)
             + (f". {len(paths) - 1} other rendered path(s) below it." if len(paths) > 1 else "."))
-    title = f"Blended pre-renders vs renders along latent paths (Soler Fig. 12) — {database_label(database)}"
+    title = f"Blended pre-renders vs renders along latent paths (Soler Fig. 12) — {databases.title(database)}"
     return finish(fig, stem, title, "top: the pre-rendered ends and Σ wᵢ Iᵢ of the pre-renders between them; "
                   "bottom: the interpolated material rendered; first row pair: "
                   + (f"{a} → {b} (Soler's path)" if not why else why), database, warn, note=note)
@@ -371,7 +372,7 @@ def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[st
     note = (f"{q.material_a} → {q.material_b} at t = {q.t:g} in the q = {q.q} latent space"
             + (f" — {why} —" if why else " (Soler's point)") + f": {_point_numbers(q, row)}.")
     title = (f"Blended pre-renders vs the render of the interpolated material at the path's midpoint (Soler Fig. 13)"
-             f" — {database_label(database)}")
+             f" — {databases.title(database)}")
     subtitle = (f"{q.material_a} → {q.material_b}, t = {q.t:g}, q = {q.q}"
                 + (f"; {why}" if why else "") + "; error maps on one scale, against the reference's second seed "
                 "(the pre-renders share the first seed's samples)")
@@ -478,10 +479,9 @@ def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.
     size, spp and the floor's range.  :class:`FigureInputError` for a
     missing table, a missing column or another database.
     """
-    from brdfpipe.rendering.blend import FLOOR_CHECK_COLUMNS
 
     stem = figure_stem(files)
-    rows = _read_csv_rows(Path(table), FLOOR_CHECK_COLUMNS)
+    rows = _read_csv_rows(Path(table), tables.FLOOR_CHECK)
     if not rows:
         raise FigureInputError(f"{table}: no rows")
     other = sorted({r["database"] for r in rows} - {database})
@@ -526,5 +526,5 @@ def plot_floor_check(*, table: str | os.PathLike[str], files: Sequence[str | os.
         subtitle = (f"{len(points)} path points per candidate, {first['width']}×{first['height']} px, "
                     f"{first['spp']} spp; noise floor (two seeds) {floors.min():.3g}–{floors.max():.3g} "
                     f"relative; bars: ± 2 s.e. of the floor's estimate; dotted: {FLOOR_RATIO_TARGET}×")
-        title = f"Blended pre-renders vs renders at the noise floor, every data space — {database_label(database)}"
+        title = f"Blended pre-renders vs renders at the noise floor, every data space — {databases.title(database)}"
         return finish(fig, stem, title, subtitle, database, warn)

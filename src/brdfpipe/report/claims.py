@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from brdfpipe.report import claims_soler, claims_xu
 from brdfpipe.report.claims_base import (
     CAUSES,
     CLAIM_COLUMNS,
@@ -65,9 +66,7 @@ from brdfpipe.report.claims_soler import (
     reproduction_vs_pca,
     second_bounce_share,
 )
-from brdfpipe.report.claims_soler import not_checkable_claims as soler_not_checkable
 from brdfpipe.report.claims_xu import ErrorMeans, read_errors, xu_error_claims
-from brdfpipe.report.claims_xu import not_checkable_claims as xu_not_checkable
 from brdfpipe.report.claims_setups import one_shot_optimum, training_size_decreasing, two_shot_first_specular, \
     xu_setup_claims
 
@@ -105,7 +104,7 @@ def _xu(inputs: ClaimInputs) -> list[Claim]:
     return (xu_error_claims(e) + xu_setup_claims(e)
             + [training_size_decreasing(inputs.training_size),
                one_shot_optimum(inputs.fig08_table, paper=inputs.paper_directions),
-               two_shot_first_specular(inputs.fig08_table, paper=inputs.paper_directions)] + xu_not_checkable())
+               two_shot_first_specular(inputs.fig08_table, paper=inputs.paper_directions)] + claims_xu.not_checkable_claims())
 
 
 def _soler(inputs: ClaimInputs) -> list[Claim]:
@@ -114,7 +113,7 @@ def _soler(inputs: ClaimInputs) -> list[Claim]:
             negligible_discontinuity(inputs.spaces), eq7_bound(inputs.paths),
             second_bounce_share(inputs.bounce_shares),
             blend_vs_noise_floor(inputs.errormap_summary, floor_check=False),
-            blend_vs_noise_floor(inputs.floor_check, floor_check=True)] + soler_not_checkable()
+            blend_vs_noise_floor(inputs.floor_check, floor_check=True)] + claims_soler.not_checkable_claims()
 
 
 def compute_claims(inputs: ClaimInputs) -> list[Claim]:

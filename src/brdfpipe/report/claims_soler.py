@@ -2,7 +2,7 @@
 
 The manifold claims read the default GPLVM candidate's rows of the manifold
 CSVs and say which candidate that is — its data space, μ and how it is
-fitted — against the paper's recipe (:data:`PAPER_RECIPE`: raw BRDF values
+fitted — against the paper's recipe (:data:`~brdfpipe.spec.manifold.PAPER_RECIPE`: raw BRDF values
 and Gram, no normalisation, μ = 1e-4, Hooke–Jeeves from the truncated PCA).
 When ``spaces.csv`` has the recipe's own rows, a claim the default fails is
 put down to the method only if the recipe passes it.  What is checked is
@@ -51,7 +51,6 @@ from brdfpipe.spec import manifold as manifold_spec
 from brdfpipe.spec import tables
 
 __all__ = [
-    "PAPER_RECIPE",
     "PERFECT",
     "NEGLIGIBLE",
     "ORDER_OF_MAGNITUDE",
@@ -72,9 +71,6 @@ __all__ = [
     "not_checkable_claims",
 ]
 
-#: The paper's recipe (§3): raw BRDF values and Gram (no normalisation, no signal variance), μ = 1e-4,
-#: Hooke–Jeeves from the truncated PCA (ℓ = 1).
-PAPER_RECIPE = manifold_spec.PAPER_RECIPE
 #: "always perfectly reproduces" (§4.2, Fig. 8): exact to rounding (strictly); within the tolerance 1 % of the
 #: material's norm, a difference no render of Fig. 8 shows — and still below PCA-40's.
 PERFECT: tuple[float, float] = (1e-6, 1e-2)

@@ -32,6 +32,7 @@ from brdfpipe.spec.errors import ConfigError
 __all__ = [
     "DataSpace",
     "DATA_SPACES",
+    "data_space",
     "SPACE_NAMES",
     "LINEAR_SPACES",
     "OPTIMISERS",
@@ -79,6 +80,17 @@ DATA_SPACES: dict[str, DataSpace] = {
         DataSpace("standardised", True, "each value × √(cos θi · cos θo) / σ, σ over the materials (floored)"),
     )
 }
+def data_space(name: str) -> DataSpace:
+    """The record of data space ``name``: the one check of a space's name against :data:`DATA_SPACES`.
+
+    ValueError ``unknown data space 'x'; expected one of …`` otherwise.
+    """
+    try:
+        return DATA_SPACES[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown data space {name!r}; expected one of {', '.join(DATA_SPACES)}") from None
+
+
 #: The data spaces' names (the schema's ``manifold.space`` enum).
 SPACE_NAMES: tuple[str, ...] = tuple(DATA_SPACES)
 #: The spaces whose interpolant is linear in the raw BRDFs.
@@ -148,8 +160,7 @@ def candidate_label(space: str, mu: float, normalise: bool = True, method: str =
     ValueError for an unknown space, optimiser or initialisation, or a μ that
     is not a finite number ≥ 0.
     """
-    if space not in DATA_SPACES:
-        raise ValueError(f"unknown data space {space!r}; expected one of {', '.join(DATA_SPACES)}")
+    data_space(space)
     mu_f = float(mu)
     if not math.isfinite(mu_f) or mu_f < 0:
         raise ValueError(f"mu must be a finite number >= 0, got {mu!r}")
