@@ -160,6 +160,14 @@ def test_measure_candidate_and_combine(setup: dict) -> None:
     assert rows[0]["albedo_bad_map"] == pytest.approx(((amap["albedo"] < 0) | (amap["albedo"] > 1)).any(axis=2).mean())
     table = integrity.read_csv_rows(out_s)[1]
     assert [t["default"] for t in table] == ["true", "true"] and table[0]["database"] == "synthetic"
+    # more clamped points than hull points drawn: refused before any work
+    for bad in (0, fidelity.HULL_POINTS + 1):
+        with pytest.raises(ValueError, match=f"clamped_hull_points must be in \\[1, {fidelity.HULL_POINTS}\\], got {bad}"):
+            fidelity.measure_candidate(
+                store=setup["store"], grams=setup["grams"], models=setup["models"], candidate="standardised-mu1e-06",
+                default="standardised-mu1e-06", paths=paths, path_q=3, seed=4, steps=4, albedo_grid=12,
+                clamped_hull_points=bad, spaces_out=tmp / "x.csv", stability_out=tmp / "y.csv")
+    assert not (tmp / "x.csv").exists()
     # a wrong label is refused, naming the file
     with pytest.raises(ValueError, match="q2.npz: a standardised-mu1e-06 fit, expected raw-mu0.0001"):
         fidelity.measure_candidate(
