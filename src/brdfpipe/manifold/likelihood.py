@@ -34,6 +34,7 @@ degenerate "all points coincide"; measured in ``benches/bench_gplvm.py``.)
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -255,6 +256,17 @@ def _factor(x: NDArray[np.float64], ell: float, mu: float) -> tuple[float, NDArr
     return s, E, c, logdet, Kinv_l
 
 
+def _root_solves(c: NDArray[np.float64], root: GramRoot) -> Iterator[tuple[float, NDArray[np.float64],
+                                                                            NDArray[np.float64]]]:
+    """Per part of the Gram matrix's root (G = R₊R₊ᵀ − R₋R₋ᵀ): its sign, L⁻¹R and K⁻¹R, with ``c`` = L."""
+    blas = scipy.linalg.blas
+    for R, sign in ((root.plus, 1.0), (root.minus, -1.0)):
+        if R is None or R.shape[1] == 0:
+            continue
+        S = blas.dtrsm(1.0, c, R, lower=1)  # L⁻¹R
+        yield sign, S, blas.dtrsm(1.0, c, S, lower=1, trans_a=1)  # K⁻¹R
+
+
 def loglik_grad(
     x: NDArray[np.float64], root: GramRoot, d: float, ell: float, mu: float
 ) -> tuple[float, NDArray[np.float64]]:
@@ -265,12 +277,8 @@ def loglik_grad(
     Wl = Kinv_l
     Wl *= -0.5 * d
     tr = 0.0
-    for R, sign in ((root.plus, 1.0), (root.minus, -1.0)):
-        if R is None or R.shape[1] == 0:
-            continue
-        S = blas.dtrsm(1.0, c, R, lower=1)  # L⁻¹R
+    for sign, S, T in _root_solves(c, root):
         tr += sign * float(np.einsum("ij,ij->", S, S))
-        T = blas.dtrsm(1.0, c, S, lower=1, trans_a=1)  # K⁻¹R
         Wl = blas.dsyrk(0.5 * sign, T, beta=1.0, c=Wl, lower=1, overwrite_c=1)  # + ½ K⁻¹GK⁻¹
     L = -0.5 * d * logdet - 0.5 * tr
     np.fill_diagonal(Wl, 0.0)  # the diagonal of A is zero anyway
@@ -344,12 +352,8 @@ def loglik_grad_hess(
     P += np.tril(P, -1).T
     Q = np.zeros((n, n))
     tr = 0.0
-    for R, sign in ((root.plus, 1.0), (root.minus, -1.0)):
-        if R is None or R.shape[1] == 0:
-            continue
-        S = blas.dtrsm(1.0, c, R, lower=1)  # L⁻¹R
+    for sign, S, T in _root_solves(c, root):
         tr += sign * float(np.einsum("ij,ij->", S, S))
-        T = blas.dtrsm(1.0, c, S, lower=1, trans_a=1)  # K⁻¹R
         Q = blas.dsyrk(sign, T, beta=1.0, c=Q, lower=1, overwrite_c=1)
     Q = np.tril(Q)
     Q += np.tril(Q, -1).T
