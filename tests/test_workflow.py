@@ -252,6 +252,8 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"manifold": {"mu": -1e-4}}, "manifold.mu = -0.0001: must be ≥ 1e-10"),
         ({"manifold": {"paths": [["no-such-material", "other"]]}}, "unknown material 'no-such-material'"),
         ({"manifold": {"path_q": 3}}, "is not one of manifold.latent_dims"),
+        ({"manifold": {"clamped_hull_points": 0}}, "manifold.clamped_hull_points = 0: must be ≥ 1"),
+        ({"manifold": {"clamped_hull_points": 20001}}, "manifold.clamped_hull_points = 20001: must be ≤ 20000"),
         ({"render": {"variant": "scalar_spectral"}}, "render.variant = 'scalar_spectral': must be one of"),
         ({"render": {"noise_seed": 0}}, "must differ from render.seed"),
         ({"render": {"materials_per_job": 0}}, "render.materials_per_job = 0: must be ≥ 1"),
@@ -282,7 +284,9 @@ def test_bad_config_fails_before_any_job(tmp_path: Path, overrides: dict, messag
     assert not (tmp_path / "results").exists()
 
 
-def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> None:
+def three_merl_files_one_truncated(tmp_path: Path, keep: int | None = None) -> tuple[Path, Path, bytes]:
+    """A folder of three measured-looking MERL files, ``beta`` cut to ``keep`` bytes (half of it by default), and a
+    config of ``database: merl`` on it; returns the folder, the config and beta's whole bytes."""
     folder = tmp_path / "merl"
     folder.mkdir()
     table = np.full(merl.SHAPE, 0.1)
@@ -290,9 +294,14 @@ def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> 
     for name in ("alpha", "beta", "gamma"):
         merl.write_merl(folder / f"{name}.binary", table)
     good = (folder / "beta.binary").read_bytes()
-    (folder / "beta.binary").write_bytes(good[: len(good) // 2])  # truncated
+    (folder / "beta.binary").write_bytes(good[: len(good) // 2 if keep is None else keep])  # truncated
     cfg = write_config(tmp_path / "merl.yaml", database="merl", merl_dir=str(folder), test_materials=["alpha"],
                        manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})  # 3 materials
+    return folder, cfg, good
+
+
+def test_corrupt_merl_file_fails_the_run_and_leaves_no_store(tmp_path: Path) -> None:
+    folder, cfg, good = three_merl_files_one_truncated(tmp_path)
     r = snakemake(tmp_path, "--keep-going", configfile=cfg)
     assert r.returncode != 0
     log = (tmp_path / "logs" / "ingest_material" / "beta.log").read_text()
@@ -322,15 +331,7 @@ def test_dry_run_console_shows_the_job_stats_not_each_jobs_record(tmp_path: Path
 
 def test_failed_job_console_shows_progress_error_and_log_not_records(tmp_path: Path) -> None:
     """A run's console: progress, then the failed job's error with its log path and log; records in .snakemake/log/."""
-    folder = tmp_path / "merl"
-    folder.mkdir()
-    table = np.full(merl.SHAPE, 0.1)
-    table[:, ~merl.measured_mask()] = -1.0
-    for name in ("alpha", "beta", "gamma"):
-        merl.write_merl(folder / f"{name}.binary", table)
-    (folder / "beta.binary").write_bytes((folder / "beta.binary").read_bytes()[:1000])  # truncated
-    cfg = write_config(tmp_path / "merl.yaml", database="merl", merl_dir=str(folder), test_materials=["alpha"],
-                       manifold={"latent_dims": [2]}, acquisition={"training_sizes": [2]})
+    _, cfg, _ = three_merl_files_one_truncated(tmp_path, keep=1000)
     r = snakemake(tmp_path, "--keep-going", filenames.store(), configfile=cfg)
     out = r.stdout + r.stderr
     assert r.returncode != 0
