@@ -165,7 +165,8 @@ def _table_rows(rows: Sequence[Sequence[Panel]], images: Mapping[Path, NDArray[n
 
 def _write_tables(stem: Path, table: Sequence[Mapping[str, str]], title: str) -> tuple[Path, Path]:
     csv_path, md_path = stem.with_name(stem.name + ".csv"), stem.with_name(stem.name + ".md")
-    integrity.write_csv(csv_path, [tables.RECONSTRUCTION_PANELS, *([r[c] for c in tables.RECONSTRUCTION_PANELS] for r in table)])
+    cols = tables.RECONSTRUCTION_PANELS
+    integrity.write_csv(csv_path, [cols, *([r[c] for c in cols] for r in table)])
     lines = [f"# {title}", "", "Every panel, row by row. rms_log: RMS error of the reconstructed table in the "
              "log-mapped space (errors.csv, mean over R, G, B); render Δ: ‖render − reference‖ / ‖reference‖ over "
              "the image (same scene, settings and seed).", "",

@@ -153,7 +153,8 @@ def database_from_folder(folder: str | os.PathLike[str], *, key: str = "merl_dir
         entries = sorted(path.iterdir())
     except OSError as err:
         raise DatabaseError(f"{key} {path}: cannot list the folder ({err.strerror or err})") from None
-    other_case = [e for e in entries if e.name.lower().endswith(layouts.MERL_SUFFIX) and not e.name.endswith(layouts.MERL_SUFFIX)]
+    suffix = layouts.MERL_SUFFIX
+    other_case = [e for e in entries if e.name.lower().endswith(suffix) and not e.name.endswith(suffix)]
     if other_case:
         raise DatabaseError(
             f"{key} {path}: {_listing(other_case)}: suffix is not exactly '{layouts.MERL_SUFFIX}' "
