@@ -50,6 +50,20 @@ def test_candidates_take_their_own_fit_or_the_manifold_keys() -> None:
                                                                                       "normalise": True}]})
 
 
+def test_a_space_whose_blends_cannot_become_tables_is_refused_at_parse_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every candidate's blends are measured as tables: a space neither linear nor invertible fails at parse time,
+    naming its key, not in a job."""
+    monkeypatch.setitem(man_spec.DATA_SPACES, "sqrt", man_spec.DataSpace("sqrt", False, "√ρ"))
+    man = {"space": "raw", "mu": 1e-4, "candidates": [{"space": "log", "mu": 1e-4}, {"space": "sqrt", "mu": 1e-4}]}
+    with pytest.raises(ConfigError, match=r"config manifold\.candidates\[1\]\.space: data space 'sqrt' is neither "
+                                          r"linear nor invertible"):
+        plan.manifold_candidates(man)
+    with pytest.raises(ConfigError, match=r"config manifold\.space: data space 'sqrt'"):
+        plan.manifold_candidates({**man, "space": "sqrt", "candidates": []})
+    monkeypatch.setitem(man_spec.DATA_SPACES, "sqrt", man_spec.DataSpace("sqrt", False, "√ρ", invertible=True))
+    assert "sqrt-mu0.0001" in plan.manifold_candidates(man)
+
+
 def _gram_file(tmp_path: Path) -> tuple[Path, np.ndarray, int]:
     """A centred Gram matrix of 12 'materials' in units far from the kernel's amplitude (as raw BRDFs are)."""
     rng = np.random.default_rng(3)

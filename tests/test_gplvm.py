@@ -627,6 +627,45 @@ def test_a_model_or_gram_file_of_the_retired_format_is_refused(tmp_path: Path) -
         gram.load_gram(tmp_path / "old.npz")
 
 
+def _sqrt_space(monkeypatch: pytest.MonkeyPatch, *, inverse: bool) -> None:
+    """Register a ``sqrt`` space (√(ρ·cos θi·cos θo)) as a user would: its record and its maps, nothing else."""
+    from brdfpipe.manifold import spaces
+    from brdfpipe.spec import manifold as manifold_spec
+
+    def cos_maps(st: object, names: object, cells: np.ndarray) -> tuple[np.ndarray, None]:
+        wi, wo = merl.cell_directions(cells)
+        return np.maximum(wi[:, 2] * wo[:, 2], 1e-3), None
+
+    monkeypatch.setitem(manifold_spec.DATA_SPACES, "sqrt",
+                        manifold_spec.DataSpace("sqrt", False, "√(ρ cos θi cos θo)", invertible=inverse))
+    monkeypatch.setitem(spaces.MAPS, "sqrt", spaces.SpaceMaps(
+        cos_maps, lambda x, a, b, train: np.sqrt(np.maximum(x, 0.0) * a),
+        (lambda y, a, b: y * y / a) if inverse else None))
+
+
+def test_a_non_linear_space_with_its_inverse_blends_through_its_maps(
+    small_store: Path, dense: dict[str, np.ndarray], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A new non-linear space needs only its record and its maps: both routes blend mapped values and map back."""
+    from brdfpipe.manifold import albedo, blendpass
+
+    _sqrt_space(monkeypatch, inverse=True)
+    W = np.array([[0.5, 0.5, 0, 0, 0, 0], [0.2, 0, 0.3, 0, 0.5, 0]])
+    tables, clamped = gplvm.interpolate_tables(small_store, W, space="sqrt")
+    cells = dense["cells"]
+    wi, wo = merl.cell_directions(cells)
+    c = np.maximum(wi[:, 2] * wo[:, 2], 1e-3)
+    mapped = np.sqrt(np.maximum(dense["data"].astype(np.float64), 0.0) * c)  # (n, 3, p)
+    expect = np.einsum("pn,ncj->pcj", W, mapped) ** 2 / c
+    got = tables.reshape(2, 3, N_CELLS)[:, :, cells]
+    np.testing.assert_allclose(got, expect, rtol=1e-9, atol=1e-12)
+    assert not np.allclose(got[0], 0.5 * (dense["data"][0] + dense["data"][1]), rtol=1e-3)
+    measured = blendpass.measure_blends(small_store, W, space="sqrt", pairs=[])
+    for p in range(2):
+        np.testing.assert_allclose(measured.albedo[p], albedo.material_albedo(tables[p]), rtol=1e-9)
+    assert measured.clamped.tolist() == clamped.tolist()
+
+
 def test_a_space_that_is_not_linear_is_not_blended_as_raw_values(
     small_store: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -634,9 +673,10 @@ def test_a_space_that_is_not_linear_is_not_blended_as_raw_values(
     from brdfpipe.manifold import blendpass
     from brdfpipe.spec import manifold as manifold_spec
 
-    monkeypatch.setitem(manifold_spec.DATA_SPACES, "sqrt", manifold_spec.DataSpace("sqrt", False, "√ρ"))
+    _sqrt_space(monkeypatch, inverse=False)
     W = np.full((1, 6), 1.0 / 6)
-    with pytest.raises(ValueError, match="'sqrt' is not linear and its blends have no inverse"):
+    with pytest.raises(ValueError, match="'sqrt' is not linear and has no inverse in its maps"):
         gplvm.interpolate_tables(small_store, W, space="sqrt")
-    with pytest.raises(ValueError, match="'sqrt' is not linear and its blends have no inverse"):
+    with pytest.raises(ValueError, match="'sqrt' is not linear and has no inverse in its maps"):
         blendpass.measure_blends(small_store, W, space="sqrt", pairs=[])
+    assert not manifold_spec.data_space("sqrt").blendable

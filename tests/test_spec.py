@@ -106,6 +106,9 @@ def test_every_data_space_has_its_maps() -> None:
     from brdfpipe.manifold import spaces
 
     assert list(spaces.MAPS) == list(man_spec.SPACE_NAMES)
+    for name, record in man_spec.DATA_SPACES.items():  # the record's invertible is what the maps carry
+        assert (spaces.MAPS[name].inverse is not None) == (not record.linear and record.invertible), name
+        assert record.blendable
     with pytest.raises(ValueError, match="unknown data space 'lab'"):
         spaces.space_maps("lab")
 
@@ -202,7 +205,8 @@ def test_a_space_that_is_not_linear_needs_its_inverse_before_blending(monkeypatc
     for name in man_spec.SPACE_NAMES:
         assert spaces.check_blendable(name) == name
     monkeypatch.setitem(man_spec.DATA_SPACES, "sqrt", man_spec.DataSpace("sqrt", False, "√ρ"))
-    with pytest.raises(ValueError, match="'sqrt' is not linear and its blends have no inverse"):
+    monkeypatch.setitem(spaces.MAPS, "sqrt", spaces.SpaceMaps(spaces.MAPS["raw"].cell_maps, spaces.MAPS["raw"].forward))
+    with pytest.raises(ValueError, match="'sqrt' is not linear and has no inverse in its maps"):
         spaces.check_blendable("sqrt")
     with pytest.raises(ValueError, match="unknown data space 'lab'"):
         spaces.check_blendable("lab")

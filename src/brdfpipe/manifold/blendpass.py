@@ -14,16 +14,17 @@ tables.  Both are sums over cells:
   (:class:`brdfpipe.manifold.perceptual.StreamedDistances`).
 
 So :func:`measure_blends` forms the blends a block of cells at a time, exactly
-as :func:`brdfpipe.manifold.gplvm.interpolate_tables` does (in the ``log`` space
-the blend of the log-mapped values with the median reference of the
-materials, mapped back; negative values in valid cells clamped to 0, cells
-not valid in every material of the store unmeasured), and accumulates the
-sums: one pass over the store for all P blends, no table ever held whole.
-``interpolate_tables`` followed by ``material_albedo`` and ``pr12_distance``
-per table gives the same numbers up to the order of summation (tested to
-1e-9 relative in ``tests/test_blendpass.py``); it reads the store twice per
-call in the ``log`` space (median reference, then the blend) and holds its
-P output tables (35 MB each), so callers batched a few points per pass.
+as :func:`brdfpipe.manifold.gplvm.interpolate_tables` does (both call
+:func:`brdfpipe.manifold.spaces.blend_block`: in a space that is not linear,
+such as ``log``, the blend of the mapped values, mapped back with the space's
+inverse; negative values in valid cells clamped to 0, cells not valid in
+every material of the store unmeasured), and accumulates the sums: one pass
+over the store for all P blends (and, in a space whose maps are statistics
+of the materials, one before it: ``log``'s median reference), no table ever
+held whole.  ``interpolate_tables`` followed by ``material_albedo`` and
+``pr12_distance`` per table gives the same numbers up to the order of
+summation (tested to 1e-9 relative in ``tests/test_blendpass.py``); it holds
+its P output tables (35 MB each), so callers batched a few points per pass.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.data import logmap, merl
+from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, iter_cell_blocks, material_indices, open_store
 from brdfpipe.manifold import gplvm, spaces
 from brdfpipe.manifold.albedo import ALBEDO_NODES
@@ -76,6 +77,11 @@ def albedo_cell_weights(nodes: int = ALBEDO_NODES) -> NDArray[np.float64]:
     w = merl.mean_directional_albedo_weights(np.arcsin(np.sqrt(u)))
     w.setflags(write=False)
     return w
+
+
+def _per_channel(maps: NDArray[np.float64] | None, a: int, b: int) -> NDArray[np.float64] | None:
+    """Per-cell maps of cells ``a:b`` repeated for the three channels of a ``(n, 3·m)`` block."""
+    return None if maps is None else np.tile(maps[a:b], 3)
 
 
 def measure_blends(
@@ -137,7 +143,7 @@ def measure_blends(
     use = np.asarray(st.valid[:], dtype=bool) & (albedo_cell_weights() != 0 if albedo_only else True)
     cells = np.flatnonzero(use).astype(np.int64)
     a_w = albedo_cell_weights()[cells]
-    wt = logmap.cell_weights(cells, "product") if space == "log" else None
+    a_all, b_all = spaces.blend_maps(space, st, [st.materials[i] for i in idx], cells)
     paired = sorted({int(k) for pair in pairs for k in pair})
     if paired and (paired[0] < 0 or paired[-1] >= P):
         raise ValueError(f"pairs must index the {P} blends, got {paired[0]} … {paired[-1]}")
@@ -148,20 +154,12 @@ def measure_blends(
     clamped = np.zeros(P, dtype=np.int64)
     sub = int(np.clip(POINT_CELLS // max(P, 1), _MIN_SUB_CELLS, _MAX_SUB_CELLS))
     for j0, j1, data in iter_cell_blocks(st, rows, cells):
-        # ρ_ref of the log space: the median over every channel of the blended materials, as
-        # logmap.median_reference computes it (same blocks, same rows).
-        ref = logmap.median_rows(data.reshape(-1, j1 - j0)) if space == "log" else None
         for a in range(0, j1 - j0, sub):
             b = min(a + sub, j1 - j0)
             block = data[:, :, a:b]
             n, m = rows.size, b - a
-            if space == "log":
-                assert ref is not None and wt is not None
-                r, w = ref[a:b], wt[j0 + a : j0 + b]
-                vals = logmap.inverse(W_sorted @ logmap.forward(block, r, w).reshape(n, 3 * m),
-                                      np.tile(r, 3), np.tile(w, 3))
-            else:
-                vals = W_sorted @ block.reshape(n, 3 * m).astype(np.float64)
+            vals = spaces.blend_block(space, W_sorted, block.reshape(n, 3 * m),
+                                      _per_channel(a_all, j0 + a, j0 + b), _per_channel(b_all, j0 + a, j0 + b))
             neg = vals < 0
             clamped += neg.sum(axis=1)
             vals[neg] = 0.0

@@ -58,7 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
-from brdfpipe.data import logmap, merl
+from brdfpipe.data import merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import DIGEST_ALGORITHM, BrdfStore, iter_column_blocks, open_store
 from brdfpipe.manifold import derivation, spaces
@@ -220,12 +220,12 @@ def interpolate_tables(
     space.
 
     ``weights`` is ``(P, N)``: one row of blend weights per output table,
-    over ``materials`` (in that order; default all of the store).  In the
-    :data:`~brdfpipe.spec.manifold.LINEAR_SPACES` the blend is of the stored values (their factor is
-    per value, so blending before or after it is the same).
-    In the ``log`` space the blend is taken of the log-mapped values, with the
-    same ρ_ref (median of ``materials``) and weights as :func:`~brdfpipe.manifold.gram.gram_matrix`,
-    and mapped back with :func:`brdfpipe.data.logmap.inverse`.  Cells not valid in
+    over ``materials`` (in that order; default all of the store).  In a
+    linear space the blend is of the stored values (their factor is per
+    value, so blending before or after it is the same); in any other the
+    blend is of the mapped values, with the same per-cell maps (computed over
+    ``materials``) as :func:`~brdfpipe.manifold.gram.gram_matrix`, mapped back
+    with the space's inverse (:func:`brdfpipe.manifold.spaces.blend_block`).  Cells not valid in
     every material of the store are written as −1 (unmeasured, like MERL);
     values that come out negative in valid cells are clamped to 0 and
     counted (logged as a warning).  Streamed by column blocks of the store;
@@ -249,10 +249,8 @@ def interpolate_tables(
     order = np.argsort(idx, kind="stable")
     rows, W_sorted = idx[order], W[:, order]
     valid = np.asarray(st.valid[:], dtype=bool)
-    if space == "log":
-        cells = np.flatnonzero(valid).astype(np.int64)
-        ref_all = logmap.median_reference(st, [st.materials[i] for i in idx], cells)
-        wt_all = logmap.cell_weights(cells, "product")
+    cells = np.flatnonzero(valid).astype(np.int64)
+    a_all, b_all = spaces.blend_maps(space, st, [st.materials[i] for i in idx], cells)
     P = W.shape[0]
     out = np.full((P, 3 * N_CELLS), -1.0)
     clamped = np.zeros(P, dtype=np.int64)
@@ -261,12 +259,9 @@ def interpolate_tables(
         keep = valid[cell]
         if not keep.any():
             continue
-        if space == "log":
-            pos = np.searchsorted(cells, cell[keep])
-            ref, wt = ref_all[pos], wt_all[pos]
-            vals = logmap.inverse(W_sorted @ logmap.forward(block[:, keep], ref, wt), ref, wt)
-        else:
-            vals = W_sorted @ block[:, keep].astype(np.float64)
+        pos = np.searchsorted(cells, cell[keep])
+        vals = spaces.blend_block(space, W_sorted, block[:, keep],
+                                  None if a_all is None else a_all[pos], None if b_all is None else b_all[pos])
         neg = vals < 0
         clamped += neg.sum(axis=1)
         vals[neg] = 0.0

@@ -12,11 +12,16 @@ One :class:`SpaceMaps` per data space of :data:`brdfpipe.spec.manifold.DATA_SPAC
   training materials (float32 or float64: the statistic is taken in float64), for spaces whose scale is a statistic over
   the materials (``standardised``: σ of each channel of each cell).
 
+* ``inverse(y, a, b)``: for a space that is not linear and is invertible
+  (the spec's ``invertible``), the map of a blend of mapped values back to
+  values, with the same per-cell maps; ``None`` for the others.
+
 Every map but ``log`` multiplies each value by a constant (the spec's
 ``linear``): the interpolant of such a space blends the raw BRDFs with the
-same weights.  A space that is not linear also needs its inverse where the
-interpolant and the blend pass map the blend back
-(:func:`brdfpipe.manifold.gplvm.interpolate_tables`, :mod:`brdfpipe.manifold.blendpass`).
+same weights.  A space that is not linear blends mapped values, and the
+interpolant and the blend pass (:func:`brdfpipe.manifold.gplvm.interpolate_tables`,
+:mod:`brdfpipe.manifold.blendpass`) map the blend back with its ``inverse``:
+both dispatch on these records alone (:func:`blend_block`).
 """
 
 from __future__ import annotations
@@ -38,9 +43,10 @@ __all__ = [
     "CellMaps",
     "SpaceMaps",
     "MAPS",
-    "INVERTED",
     "space_maps",
     "check_blendable",
+    "blend_maps",
+    "blend_block",
 ]
 
 #: Floor of ρ_ref in the ``relative`` space (sr⁻¹) and of σ in the ``standardised`` space.
@@ -54,10 +60,11 @@ CellMaps = tuple[F64 | None, F64 | None]
 
 @dataclass(frozen=True)
 class SpaceMaps:
-    """The two steps of one data space's map (module docstring)."""
+    """The steps of one data space's map and, for a space that is not linear, its inverse (module docstring)."""
 
     cell_maps: Callable[[BrdfStore, Sequence[str], NDArray[np.int64]], CellMaps]
     forward: Callable[[F64, F64 | None, F64 | None, NDArray[Any]], F64]
+    inverse: Callable[[F64, F64 | None, F64 | None], F64] | None = None
 
 
 def _cosines(cells: NDArray[np.int64]) -> F64:
@@ -110,11 +117,16 @@ def _log_forward(x: F64, a: F64 | None, b: F64 | None, train: NDArray[Any]) -> F
     return logmap.forward(x, a, b)
 
 
+def _log_inverse(y: F64, a: F64 | None, b: F64 | None) -> F64:
+    assert a is not None and b is not None
+    return logmap.inverse(y, a, b)
+
+
 #: Data space → its maps (the names of :data:`brdfpipe.spec.manifold.DATA_SPACES`; a test keeps them equal).
 MAPS: dict[str, SpaceMaps] = {
     "raw": SpaceMaps(_no_maps, _identity),
     "cosine": SpaceMaps(_cosine_maps, _scale),
-    "log": SpaceMaps(_log_maps, _log_forward),
+    "log": SpaceMaps(_log_maps, _log_forward, _log_inverse),
     "relative": SpaceMaps(_relative_maps, _scale),
     "standardised": SpaceMaps(_standardised_maps, _standardise),
 }
@@ -130,20 +142,46 @@ def space_maps(space: str) -> SpaceMaps:
         raise ValueError(f"data space {space!r} has no maps in brdfpipe.manifold.spaces.MAPS") from None
 
 
-#: The spaces that are not linear whose blends the interpolant and the blend pass map back
-#: (:func:`brdfpipe.manifold.gplvm.interpolate_tables`, :mod:`brdfpipe.manifold.blendpass`).
-INVERTED: Final = ("log",)
-
-
 def check_blendable(space: str) -> str:
-    """``space``, if its blends can be turned into tables: linear, or with its inverse implemented.
+    """``space``, if its blends can be turned into tables: linear, or with its inverse in its maps.
 
-    ValueError otherwise (a new space that is not linear, before its inverse
-    is added where blends are mapped back): never a blend of mapped values
-    read as raw values.
+    ValueError otherwise (a space that is not linear and has no inverse):
+    never a blend of mapped values read as raw values.  The config check
+    refuses such a space at parse time from its record
+    (:attr:`brdfpipe.spec.manifold.DataSpace.blendable`).
     """
     spec = manifold_spec.data_space(space)
-    if not spec.linear and space not in INVERTED:
-        raise ValueError(f"data space {space!r} is not linear and its blends have no inverse yet "
-                         f"(brdfpipe.manifold.gplvm.interpolate_tables, brdfpipe.manifold.blendpass)")
+    if not spec.linear and space_maps(space).inverse is None:
+        raise ValueError(f"data space {space!r} is not linear and has no inverse in its maps "
+                         f"(brdfpipe.manifold.spaces.MAPS): its blends cannot become tables")
     return space
+
+
+def blend_maps(space: str, st: BrdfStore, names: Sequence[str], cells: NDArray[np.int64]) -> CellMaps:
+    """The per-cell maps that :func:`blend_block` needs at ``cells``, over the blended materials ``names``.
+
+    ``(None, None)`` for a linear space (its blends are of the values as they
+    are); the space's ``cell_maps`` otherwise (e.g. ``log``: ρ_ref, the
+    median of ``names``, one pass over the store, and the cell weights).
+    """
+    if manifold_spec.data_space(space).linear:
+        return None, None
+    return space_maps(space).cell_maps(st, names, cells)
+
+
+def blend_block(space: str, weights: F64, block: NDArray[Any], a: F64 | None, b: F64 | None) -> F64:
+    """The blends ``weights @ block`` of one block of values, as values: ``(P, cols)`` float64.
+
+    ``block`` is ``(n, cols)`` (the blended materials' values at ``cols``
+    channel-cells, float32 or float64), ``weights`` ``(P, n)``, ``a`` and
+    ``b`` the space's per-cell maps at those columns.  A linear space blends
+    the values as they are (its factor is per value: blending before or after
+    it is the same); any other space blends its mapped values and maps the
+    blend back with its inverse (:func:`check_blendable` first).
+    """
+    if manifold_spec.data_space(space).linear:
+        return weights @ block.astype(np.float64)
+    maps = space_maps(space)
+    assert maps.inverse is not None, f"data space {space!r}: check_blendable first"
+    x = np.asarray(block, dtype=np.float64)
+    return maps.inverse(weights @ maps.forward(x, a, b, x), a, b)

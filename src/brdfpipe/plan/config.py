@@ -18,7 +18,7 @@ from typing import Any
 
 from brdfpipe.core import filenames
 from brdfpipe.spec.errors import ConfigError
-from brdfpipe.spec.manifold import STANDARD_FIT, GplvmCandidate, check_paths, default_paths
+from brdfpipe.spec.manifold import STANDARD_FIT, GplvmCandidate, check_paths, data_space, default_paths
 
 __all__ = [
     "ConfigError",
@@ -174,19 +174,25 @@ def manifold_candidates(manifold: Mapping[str, Any]) -> dict[str, GplvmCandidate
     and ``init``; each entry of ``candidates`` is fitted with its own
     ``normalise`` / ``method`` / ``init`` where it gives them, else with
     those.  :class:`ConfigError` naming ``manifold.candidates`` for two
-    entries with the same label.
+    entries with the same label, and naming the key of a space whose blends
+    cannot become tables (neither linear nor invertible: every candidate's
+    blends are measured as tables).
     """
     fit = {k: manifold.get(k, d) for k, d in zip(("normalise", "method", "init"), STANDARD_FIT)}
 
-    def candidate(c: Mapping[str, Any]) -> GplvmCandidate:
-        return GplvmCandidate(str(c["space"]), float(c["mu"]), bool(c.get("normalise", fit["normalise"])),
+    def candidate(c: Mapping[str, Any], key: str) -> GplvmCandidate:
+        space = str(c["space"])
+        if not data_space(space).blendable:
+            raise ConfigError(f"config {key}: data space {space!r} is neither linear nor invertible, so its "
+                              "blends cannot become tables; give its maps an inverse or choose another space")
+        return GplvmCandidate(space, float(c["mu"]), bool(c.get("normalise", fit["normalise"])),
                               str(c.get("method", fit["method"])), str(c.get("init", fit["init"])))
 
-    first = candidate(manifold)
+    first = candidate(manifold, "manifold.space")
     out = {first.label: first}
     seen: set[str] = set()
     for k, c in enumerate(manifold.get("candidates") or []):
-        cand = candidate(c)
+        cand = candidate(c, f"manifold.candidates[{k}].space")
         label = cand.label
         if label in seen:
             raise ConfigError(f"config manifold.candidates[{k}]: {label} is listed twice")

@@ -60,13 +60,24 @@ class DataSpace:
     ``linear``: the map scales each raw value by a constant (``z̃ = D z``), so
     the interpolant Σ wᵢ D zᵢ = D Σ wᵢ zᵢ blends the raw BRDFs, and images
     rendered from them, with the same weights (Soler §5.2).  A space that is
-    not linear blends mapped values, which the interpolant maps back.
+    not linear blends mapped values, which the interpolant maps back with the
+    space's inverse: ``invertible`` says it has one (its maps in
+    :mod:`brdfpipe.manifold.spaces` then carry it; a test keeps the two
+    equal).  A space neither linear nor invertible cannot turn a blend into a
+    table: the config check refuses it as ``manifold.space`` or a candidate's
+    space (:attr:`blendable`).
     ``description``: one line for documentation and tables.
     """
 
     name: str
     linear: bool
     description: str
+    invertible: bool = False
+
+    @property
+    def blendable(self) -> bool:
+        """Whether a blend of this space's values can become a table: linear, or mapped back by its inverse."""
+        return self.linear or self.invertible
 
 
 #: Every data space, in the schema's order.
@@ -75,11 +86,14 @@ DATA_SPACES: dict[str, DataSpace] = {
     for s in (
         DataSpace("raw", True, "the stored values (Soler et al. 2018)"),
         DataSpace("cosine", True, "each cell × cos θi · cos θo of its centre"),
-        DataSpace("log", False, "ln((ρw + ε)/(ρ_ref w + ε)), the acquisition track's log-relative map (Xu eq. 1)"),
+        DataSpace("log", False, "ln((ρw + ε)/(ρ_ref w + ε)), the acquisition track's log-relative map (Xu eq. 1)",
+                  invertible=True),
         DataSpace("relative", True, "each cell × cos θi · cos θo / max(ρ_ref, 1e-3)"),
         DataSpace("standardised", True, "each value × √(cos θi · cos θo) / σ, σ over the materials (floored)"),
     )
 }
+
+
 def data_space(name: str) -> DataSpace:
     """The record of data space ``name``: the one check of a space's name against :data:`DATA_SPACES`.
 
