@@ -16,9 +16,23 @@ another is building (tests/shared_runs.py).  So:
 * Last, the test that waits for the Slurm run and compares it with the
   shared run of tiny-point, after the other test that reads that run, so
   that both find their runs built rather than wait for them (:data:`LAST`).
+
+And the disk it takes: the suite's runs write tens of GB in all, more than a
+fresh machine may have free, so nothing outlives its use.  A passing test's
+``tmp_path`` goes at its teardown (``tmp_path_retention_policy = "failed"``
+in pyproject.toml), and a module's folders (its module-scoped fixtures'
+``tmp_path_factory.mktemp``) go when the module's fixtures are torn down
+(:func:`_module_folders_removed`), unless a test of this worker failed: then
+everything stays for inspection.  The session's shared runs
+(tests/shared_runs.py) live beside the workers' folders, to the session's
+end; a session-scoped fixture must put its folder there too, not in the
+worker's folder.
 """
 
 from __future__ import annotations
+
+import shutil
+from collections.abc import Iterator
 
 import pytest
 
@@ -49,3 +63,24 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         return 2, 0
 
     items.sort(key=rank)
+
+
+_failed = False
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    global _failed
+    if report.failed:
+        _failed = True
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _module_folders_removed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Remove the folders a test module made in this worker's temporary folder once its fixtures are torn down."""
+    base = tmp_path_factory.getbasetemp()
+    before = set(base.iterdir())
+    yield
+    if _failed:
+        return
+    for path in set(base.iterdir()) - before:
+        shutil.rmtree(path, ignore_errors=True)

@@ -122,7 +122,7 @@ class _Materials:
         return merl.read_merl(self.path(name))
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def materials(tmp_path_factory: pytest.TempPathFactory, _llvm_available: None) -> _Materials:
     return _Materials(tmp_path_factory.mktemp("merl"))
 
