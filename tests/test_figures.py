@@ -25,6 +25,7 @@ from brdfpipe.core import filenames, integrity
 from brdfpipe.core.plot import figure_stem, FigureInputError
 from brdfpipe.data.databases import title as database_label
 from brdfpipe.acquisition.figures import (
+    AcquisitionFigureInputs,
     fig05_error_vs_images,
     fig08_optimal_configurations,
     fig18_per_material,
@@ -193,7 +194,7 @@ def test_wrapper_writes_every_file(outputs: tuple[Path, list[Path]]) -> None:
 
 
 def test_png_shape_and_titles(inputs: dict[str, Path], tmp_path: Path) -> None:
-    res = fig05_error_vs_images(inputs["errors"], tmp_path / "f5", fovs=FOVS)
+    res = fig05_error_vs_images(AcquisitionFigureInputs(inputs["errors"], fovs=FOVS), tmp_path / "f5")
     img = matplotlib.image.imread(res.files[0])
     assert img.shape[:2] == res.size_px
     assert "synthetic MERL-format database" in res.title
@@ -215,7 +216,7 @@ def test_database_named_in_every_title(outputs: tuple[Path, list[Path]]) -> None
 
 def test_database_taken_from_input(tmp_path: Path) -> None:
     errs = write_errors(tmp_path / "errors.csv", database="merl")
-    res = fig18_per_material(errs, tmp_path / "f18", n=2)
+    res = fig18_per_material(AcquisitionFigureInputs(errs, n_point=2), tmp_path / "f18")
     assert "MERL (Matusik et al. 2003)" in res.title and res.database == "merl"
     assert database_label("synthetic") == "synthetic MERL-format database (brdfpipe)"
     assert database_label("merl") == "MERL (Matusik et al. 2003)"
@@ -285,12 +286,13 @@ def test_absent_fov_is_skipped_with_warning(inputs: dict[str, Path], tmp_path: P
 
 
 def test_no_directions_at_all(inputs: dict[str, Path], tmp_path: Path) -> None:
-    res = fig08_optimal_configurations([], tmp_path / "f8", fovs=(25,))
+    res = fig08_optimal_configurations(AcquisitionFigureInputs(directions=[], fovs=(25,)), tmp_path / "f8")
     assert len(res.files) == 4 and all(p.is_file() for p in res.files)
     assert sorted(res.files) == sorted(tmp_path / f"f8.{ext}" for ext in ("png", "pdf", "csv", "md"))
     assert res.warnings and "FOV 25°" in res.warnings[0]
     # Files for other FOVs only: the same no-data figure, with a warning per FOV.
-    res = fig08_optimal_configurations([inputs["dir15"]], tmp_path / "g8", fovs=(25,))
+    res = fig08_optimal_configurations(AcquisitionFigureInputs(directions=[inputs["dir15"]], fovs=(25,)),
+                                       tmp_path / "g8")
     assert res.warnings and "FOV 25°" in res.warnings[0]
     with (tmp_path / "g8.csv").open(encoding="utf-8") as fh:
         assert sum(1 for _ in fh) == 2  # the digest line and the header only
@@ -299,7 +301,8 @@ def test_no_directions_at_all(inputs: dict[str, Path], tmp_path: Path) -> None:
 def test_missing_directions_file_is_an_error(inputs: dict[str, Path], tmp_path: Path) -> None:
     absent = tmp_path / filenames.directions("all", "nearfield", 15, "error")
     with pytest.raises(FigureInputError, match=r"nearfield-fov15-error\.json"):
-        fig08_optimal_configurations([inputs["dir25"], absent], tmp_path / "out" / "f8", fovs=(15, 25))
+        fig08_optimal_configurations(AcquisitionFigureInputs(directions=[inputs["dir25"], absent], fovs=(15, 25)),
+                                     tmp_path / "out" / "f8")
     assert files_under(tmp_path / "out") == []
 
 
@@ -314,7 +317,7 @@ def test_missing_column_names_file(tmp_path: Path) -> None:
     tr = tmp_path / "bad-training.csv"
     integrity.write_csv(tr, "database,n_train,material,channel,kind,value\nsynthetic,5,mean,all,rms_log,0.3\n")
     with pytest.raises(FigureInputError, match=r"bad-training\.csv.*order_seed"):
-        figures.fig07_training_size(tr, tmp_path / "f7")
+        figures.fig07_training_size(AcquisitionFigureInputs(training_csv=tr), tmp_path / "f7")
     # The wrapper checks every input first: nothing is written when one is bad.
     good = write_errors(tmp_path / "good-errors.csv")
     with pytest.raises(FigureInputError, match=r"bad-training\.csv"):
@@ -357,10 +360,12 @@ def test_empty_missing_and_malformed_inputs(inputs: dict[str, Path], tmp_path: P
     malformed.parent.mkdir(parents=True)
     malformed.write_text("{not json")
     with pytest.raises(ValueError, match=r"nearfield-fov25-error\.json"):
-        fig08_optimal_configurations([inputs["dir15"], malformed], tmp_path / "f8", fovs=(25,))
+        fig08_optimal_configurations(AcquisitionFigureInputs(directions=[inputs["dir15"], malformed], fovs=(25,)),
+                                     tmp_path / "f8")
     # ... also when the FOV it would serve is not asked for
     with pytest.raises(ValueError, match=r"nearfield-fov25-error\.json"):
-        fig08_optimal_configurations([inputs["dir15"], malformed], tmp_path / "f8", fovs=(15,))
+        fig08_optimal_configurations(AcquisitionFigureInputs(directions=[inputs["dir15"], malformed], fovs=(15,)),
+                                     tmp_path / "f8")
     assert not list(tmp_path.glob("f8.*"))
 
 
@@ -447,8 +452,8 @@ def test_the_previous_work_curve_is_nielsens_kappa_and_eq6_has_its_own(inputs: d
         return save(fig, *args, **kwargs)
 
     monkeypatch.setattr(figures, "finish", record)
-    figures.fig06_fov_vs_point(inputs["errors"], tmp_path / "f6", fovs=FOVS)
-    fig18_per_material(inputs["errors"], tmp_path / "f18", n=N_MAX)
+    figures.fig06_fov_vs_point(AcquisitionFigureInputs(inputs["errors"], fovs=FOVS), tmp_path / "f6")
+    fig18_per_material(AcquisitionFigureInputs(inputs["errors"], n_point=N_MAX), tmp_path / "f18")
     kappa = [t for t in legends if "κ" in t]
     nielsen = "min κ, first n components (Nielsen 2015 as released)"
     eq6 = "min κ, all k components (Xu eq. 6)"

@@ -18,7 +18,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.notes import read_note
 from brdfpipe.core.plot import FigureInputError
 from brdfpipe.manifold import fitting, gplvm, gram, lengthscale, likelihood
-from brdfpipe.manifold.lengthscale_figure import manifold_fig06_lengthscale, read_lengthscales
+from brdfpipe.manifold.lengthscale_figure import draw_lengthscale_figure, read_lengthscales
 
 N, D = 9, 40
 NAMES = tuple(f"m{i}" for i in range(N))
@@ -95,7 +95,7 @@ def test_workflow_entry_writes_the_table_and_the_figure_its_note(fitted, tmp_pat
     tab = read_lengthscales(out)
     assert (tab.material_a, tab.material_b, tab.q) == ("m2", "m7", 2)
     np.testing.assert_allclose(tab.factors, sorted(lengthscale.LENGTH_SCALE_FACTORS))
-    fig = manifold_fig06_lengthscale(out, tmp_path / "fig06")
+    fig = draw_lengthscale_figure(out, tmp_path / "fig06")
     assert [p.name for p in fig.files] == ["fig06.png", "fig06.pdf", "fig06.json"]
     note = read_note(tmp_path / "fig06.json")
     assert note == fig.note and "m2 → m7 (q = 2" in note

@@ -34,11 +34,38 @@ MAKERS = {
 
 @pytest.mark.parametrize("fig", fig_spec.FIGURES, ids=lambda f: f.report_key)
 def test_every_registered_figure_is_drawn_by_its_function(fig: fig_spec.Figure) -> None:
+    """The record is the dispatcher: its function exists, takes the rule's inputs and a stem, and no maker names it."""
     module = importlib.import_module(f"brdfpipe.{fig.track}.figures")
-    assert callable(getattr(module, fig.draw, None)), f"brdfpipe.{fig.track}.figures has no {fig.draw}"
+    draw = getattr(module, fig.draw, None)
+    assert callable(draw), f"brdfpipe.{fig.track}.figures has no {fig.draw}"
     if fig.rule in MAKERS:
+        assert list(inspect.signature(draw).parameters) == ["inp", "stem"], fig.draw
         mod, maker = MAKERS[fig.rule]
-        assert fig.draw in inspect.getsource(getattr(importlib.import_module(mod), maker)), (maker, fig.draw)
+        source = inspect.getsource(getattr(importlib.import_module(mod), maker))
+        assert fig.draw not in source and "draw_figures(" in source, (maker, fig.draw)
+
+
+def test_a_figure_record_alone_makes_its_rule_draw_it(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A new record naming a new function is drawn by its rule's maker with no other edit (core.plot.draw_figures)."""
+    from brdfpipe.core import plot
+    from brdfpipe.manifold import figures as manifold_figures
+
+    drawn = []
+
+    def manifold_fig99_new(inp: object, stem: Path) -> plot.FigureOutput:
+        drawn.append((inp, stem))
+        return plot.FigureOutput((stem.with_suffix(".png"),), "a title", (), "synthetic", (1, 1))
+
+    extra = fig_spec.Figure("manifold", "fig99", "manifold-fig99-new", "Soler Fig. 99", rule="plot_manifold_figures",
+                            draw="manifold_fig99_new", caption="A new figure.")
+    monkeypatch.setattr(fig_spec, "FIGURES", (*fig_spec.FIGURES, extra))
+    monkeypatch.setattr(manifold_figures, "manifold_fig99_new", manifold_fig99_new, raising=False)
+    stems = plot.figure_stems("manifold", "plot_manifold_figures",
+                              {"fig99": [tmp_path / "x.png", tmp_path / "x.pdf"]}, "test")
+    out = plot.draw_figures(manifold_figures, "manifold", "plot_manifold_figures", stems, "the inputs")
+    assert drawn == [("the inputs", tmp_path / "x")] and out[0].files == (tmp_path / "x.png",)
+    with pytest.raises(ValueError, match=r"test: unknown figure key\(s\) \['fig98'\]"):
+        plot.figure_stems("manifold", "plot_manifold_figures", {"fig98": []}, "test")
 
 
 def test_report_keys_stems_and_draw_functions_are_unique() -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from brdfpipe.spec import tables
 
 __all__ = [
     "FOV_TOL",
+    "AcquisitionFigureInputs",
     "ErrorTable",
     "TrainingTable",
     "read_errors",
@@ -32,6 +34,35 @@ __all__ = [
 #: Two fields of view closer than this (degrees) are the same.
 FOV_TOL = 1e-6
 _FOV_TOL = FOV_TOL
+
+
+@dataclass(frozen=True)
+class AcquisitionFigureInputs:
+    """What the Xu figures of ``plot_acquisition_figures`` read: each figure's function takes it and its stem.
+
+    ``errors_csv``: the evaluation's ``errors.csv``; ``training_csv``: the
+    training-size table (Fig. 7); ``directions``: the direction files to
+    tabulate (Figs. 8, 9, 14); ``fovs``: the near-field FOVs of Figs. 5, 6
+    and 8 (None: every near-field FOV in the table); ``n_point``: the point
+    samples of Fig. 18; ``fov_fixed``: the FOV of Figs. 7 (label), 13 and
+    14; ``figure_fov``: the near-field FOV of Figs. 3 and 9 (Xu's 25°);
+    ``figure_materials``: the materials of Fig. 3 (Fig. 2's; None: every
+    held-out material); ``split``: the split whose rows are plotted;
+    ``kind``: the error plotted; ``database``: the label of the
+    configuration figures' titles (the errors table's).
+    """
+
+    errors_csv: str | os.PathLike[str] = ""
+    training_csv: str | os.PathLike[str] | None = None
+    directions: Sequence[str | os.PathLike[str]] = ()
+    fovs: Sequence[float] | None = None
+    n_point: int = 5
+    fov_fixed: float = 25.0
+    figure_fov: float = 25.0
+    figure_materials: Sequence[str] | None = None
+    split: str = "train"
+    kind: str = "rms_log"
+    database: str = ""
 
 
 @dataclass(frozen=True)

@@ -29,12 +29,15 @@ this module re-exports their public names.
 
 Outputs
 -------
-One public function per figure; each takes its input path(s) and an output
-*stem* and writes ``<stem>.png`` and ``<stem>.pdf`` (a figure with a table,
-:attr:`brdfpipe.spec.figures.Figure.table`, also ``<stem>.csv`` and
+One public function per figure, the one its record in
+:mod:`brdfpipe.spec.figures` names; each takes the rule's inputs
+(:class:`~brdfpipe.acquisition.figure_inputs.AcquisitionFigureInputs`) and an
+output *stem* and writes ``<stem>.png`` and ``<stem>.pdf`` (a figure with a
+table, :attr:`brdfpipe.spec.figures.Figure.table`, also ``<stem>.csv`` and
 ``<stem>.md``), each atomically (temporary sibling, then
 :func:`os.replace`), and returns a :class:`FigureOutput`.
-:func:`make_acquisition_figures` writes them all.
+:func:`make_acquisition_figures` draws those a rule asks for, each through
+its record (:func:`brdfpipe.core.plot.draw_figures`).
 
 =============================  ================================================
 ``fig03-recon-vs-deviation``   E_recon vs E_deviation of the Fig. 2 materials
@@ -68,6 +71,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import sys
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -77,6 +81,7 @@ from matplotlib.ticker import LogFormatter, MaxNLocator
 
 from brdfpipe.acquisition.figure_inputs import (
     FOV_TOL,
+    AcquisitionFigureInputs,
     ErrorTable,
     TrainingTable,
     read_errors,
@@ -94,18 +99,17 @@ from brdfpipe.acquisition.figures_configs import (
 )
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
-from brdfpipe.core.filenames import FIGURE_STEMS
 from brdfpipe.data import databases
 from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec import figures as figure_specs
 from brdfpipe.spec import tables
 from brdfpipe.core.plot import (
     COLOURS,
     FigureInputError,
     FigureOutput,
     Warnings,
-    check_keys,
+    draw_figures,
     figure_stem,
+    figure_stems,
     finish,
     new_figure,
     no_data,
@@ -117,7 +121,7 @@ from brdfpipe.core.plot import (
 )
 
 __all__ = [
-    "FIGURE_STEMS",
+    "AcquisitionFigureInputs",
     "ErrorTable",
     "TrainingTable",
     "read_errors",
@@ -213,16 +217,15 @@ def _plot_series(ax: Any, n: np.ndarray, v: np.ndarray, **style: Any) -> None:
 # ---------------------------------------------------------------------------
 
 
-def fig05_error_vs_images(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                          fovs: Sequence[float] | None = None, split: str = "train",
-                          kind: str = "rms_log") -> FigureOutput:
+def fig05_error_vs_images(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
     """Xu Fig. 5: mean error over the held-out materials vs number of near-field images.
 
-    One panel per FOV (``fovs``, default every near-field FOV in the table);
-    curves for directions optimised with E(S) (eq. 15) and with the condition
-    number.  Absent FOVs / metrics are skipped with a warning.
+    One panel per FOV (``inp.fovs``, default every near-field FOV in the
+    table); curves for directions optimised with E(S) (eq. 15) and with the
+    condition number.  Absent FOVs / metrics are skipped with a warning.
     """
-    table = read_errors(errors_csv)
+    fovs, split, kind = inp.fovs, inp.split, inp.kind
+    table = read_errors(inp.errors_csv)
     warn = Warnings("fig05")
     split = _choose_split(table, split, warn)
     fov_list = list(fovs) if fovs is not None else table.fovs(split, "nearfield", kind=kind)
@@ -299,11 +302,10 @@ def _point_curves(ax: Any, table: ErrorTable, split: str, kind: str, warn: Warni
         allv.extend(v.tolist())
 
 
-def fig06_fov_vs_point(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                       fovs: Sequence[float] | None = None, split: str = "train",
-                       kind: str = "rms_log") -> FigureOutput:
+def fig06_fov_vs_point(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
     """Xu Fig. 6: near-field error vs n for each FOV (E(S) directions) against point sampling vs n."""
-    table = read_errors(errors_csv)
+    fovs, split, kind = inp.fovs, inp.split, inp.kind
+    table = read_errors(inp.errors_csv)
     warn = Warnings("fig06")
     split = _choose_split(table, split, warn)
     fov_list = [float(f) for f in fovs] if fovs is not None else table.fovs(split, "nearfield", "error", kind)
@@ -327,19 +329,18 @@ def fig06_fov_vs_point(errors_csv: str | os.PathLike[str], stem: str | os.PathLi
                        table.database, warn)
 
 
-def fig13_fixed_camera_light(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                             fov: float = 25.0, split: str = "train", kind: str = "rms_log",
-                             include_condition: bool = True) -> FigureOutput:
-    """Xu Fig. 13: error vs n for fixed camera, fixed light and near-field (at ``fov``) and point sampling.
+def fig13_fixed_camera_light(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Xu Fig. 13: error vs n for fixed camera, fixed light and near-field (at ``inp.fov_fixed``) and point sampling.
 
-    Solid: directions optimised with E(S); dashed (``include_condition``): with κ.
+    Solid: directions optimised with E(S); dashed: with κ.
     """
-    table = read_errors(errors_csv)
+    fov, split, kind = inp.fov_fixed, inp.split, inp.kind
+    table = read_errors(inp.errors_csv)
     warn = Warnings("fig13")
     split = _choose_split(table, split, warn)
     curves = (("fixed_camera", fov, COLOURS[0]), ("fixed_light", fov, COLOURS[4]),
               ("nearfield", fov, COLOURS[2]), ("point", 0.0, COLOURS[1]))
-    metrics = ("error", "condition") if include_condition else ("error",)
+    metrics = ("error", "condition")
     with style():
         fig = new_figure(8.8, 4.5)
         ax = fig.subplots()
@@ -399,10 +400,10 @@ def _mean_deviation(table: ErrorTable, split: str, warn: Warnings) -> float | No
     return float(np.mean(vals))
 
 
-def fig19_error_vs_n(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                     split: str = "train", kind: str = "rms_log") -> FigureOutput:
+def fig19_error_vs_n(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
     """Xu Fig. 19: point sampling error vs number of samples n (E(S) and κ directions), with the E_deviation floor."""
-    table = read_errors(errors_csv)
+    split, kind = inp.split, inp.kind
+    table = read_errors(inp.errors_csv)
     warn = Warnings("fig19")
     split = _choose_split(table, split, warn)
     with style():
@@ -429,15 +430,15 @@ def fig19_error_vs_n(errors_csv: str | os.PathLike[str], stem: str | os.PathLike
                        table.database, warn)
 
 
-def fig18_per_material(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                       n: int = 5, split: str = "train", kind: str = "rms_log") -> FigureOutput:
-    """Xu Fig. 18: per-material error of ``n`` point samples (E(S) and κ directions), with E_deviation markers.
+def fig18_per_material(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Xu Fig. 18: per-material error of ``inp.n_point`` point samples (E(S) and κ directions), with E_deviation markers.
 
     Each material's value is its channel ``all`` row, else the mean of its
     channel rows; materials are the held-out ones present in the table, in
     name order.
     """
-    table = read_errors(errors_csv)
+    n, split, kind = inp.n_point, inp.split, inp.kind
+    table = read_errors(inp.errors_csv)
     warn = Warnings("fig18")
     split = _choose_split(table, split, warn)
     mats = sorted({m for metric in _POINT_CURVES for m in table.materials(split, "point", 0.0, metric, n, kind)})
@@ -522,18 +523,17 @@ def recon_vs_deviation(table: ErrorTable, materials: Sequence[str], *, split: st
     return out
 
 
-def fig03_recon_vs_deviation(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                             materials: Sequence[str] | None = None, fov: float = 25.0,
-                             n_images: Sequence[int] = (1, 2), split: str = "train",
-                             metric: str = "error") -> FigureOutput:
-    """Xu Fig. 3: E_recon of the 1- and 2-image near-field sets at ``fov`` next to E_deviation, per material.
+def fig03_recon_vs_deviation(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Xu Fig. 3: E_recon of the 1- and 2-image near-field E(S) sets at ``inp.figure_fov`` next to E_deviation.
 
-    ``materials``: those of Fig. 2 (None: every held-out material with
-    rows).  The values are :func:`recon_vs_deviation`'s; writes them to
+    Per material of ``inp.figure_materials``: those of Fig. 2 (None: every
+    held-out material with rows).  The values are :func:`recon_vs_deviation`'s; writes them to
     ``<stem>.csv`` (:data:`~brdfpipe.spec.tables.RECON_VS_DEVIATION`, one row per material
     and set size) and ``<stem>.md``.
     """
-    table = read_errors(errors_csv)
+    materials, fov, split = inp.figure_materials, inp.figure_fov, inp.split
+    n_images, metric = (1, 2), "error"
+    table = read_errors(inp.errors_csv)
     warn = Warnings("fig03")
     split = _choose_split(table, split, warn)
     fov = float(fov)
@@ -588,16 +588,18 @@ def fig03_recon_vs_deviation(errors_csv: str | os.PathLike[str], stem: str | os.
 # ---------------------------------------------------------------------------
 
 
-def fig07_training_size(training_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                        kind: str = "rms_log", fov: float = 25.0, n_images: int = 2) -> FigureOutput:
-    """Xu Fig. 7: mean error over the held-out materials vs number of training materials.
+def fig07_training_size(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Xu Fig. 7: mean error over the held-out materials vs number of training materials (``inp.training_csv``).
 
     One thin curve per material order (``order_seed``) and, when there are
     several (or a ``mean`` order row exists), their average in bold.
-    ``fov`` and ``n_images`` only label the figure (the table has no such
-    columns; the evaluation stage computes it for 2-image near-field at 25°).
+    ``inp.fov_fixed`` and the 2 images only label the figure (the table has
+    no such columns; the evaluation stage computes it for 2-image near-field).
     """
-    table = read_training_size(training_csv)
+    kind, fov, n_images = inp.kind, inp.fov_fixed, 2
+    if inp.training_csv is None:
+        raise ValueError("fig07 needs the training-size table (training_csv)")
+    table = read_training_size(inp.training_csv)
     warn = Warnings("fig07")
     seeds = table.seeds(kind)
     with style():
@@ -649,7 +651,7 @@ def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
                              split: str = "train", kind: str = "rms_log") -> list[Path]:
     """Write the requested Xu 2016 figure analogues; return the files written.
 
-    ``figures``: figure key (of :data:`FIGURE_STEMS`) → its output files
+    ``figures``: figure key (of the rule's records in :mod:`brdfpipe.spec.figures`) → its output files
     (PNG, PDF; a figure with a table, :attr:`brdfpipe.spec.figures.Figure.table`,
     also CSV and Markdown), exactly as the workflow declares them; only
     these figures are drawn.  ``training_csv`` is needed for ``fig07``,
@@ -662,30 +664,16 @@ def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
     split whose rows are plotted (``train``: directions from the training
     split, evaluated on the held-out materials).
     """
-    check_keys(figures, FIGURE_STEMS, "make_acquisition_figures")
-    stems = {k: figure_stem(v, table=figure_specs.figure(f"xu-{k}").table) for k, v in figures.items()}
+    stems = figure_stems("acquisition", "plot_acquisition_figures", figures, "make_acquisition_figures")
     # Check every input before writing anything: a bad file stops the run with no partial output.
     database = read_errors(errors_csv).database
     if "fig07" in stems:
         if training_csv is None:
             raise ValueError("fig07 needs the training-size table (training_csv)")
         read_training_size(training_csv)
-    fovs = [float(f) for f in fovs]
-    draw = {
-        "fig03": lambda st: fig03_recon_vs_deviation(errors_csv, st, materials=figure_materials, fov=figure_fov,
-                                                     split=split),
-        "fig05": lambda st: fig05_error_vs_images(errors_csv, st, fovs=fovs, split=split, kind=kind),
-        "fig06": lambda st: fig06_fov_vs_point(errors_csv, st, fovs=fovs, split=split, kind=kind),
-        "fig07": lambda st: fig07_training_size(training_csv, st, kind=kind, fov=fov_fixed),  # type: ignore[arg-type]
-        "fig08": lambda st: fig08_optimal_configurations(directions, st, fovs=fovs),
-        "fig09": lambda st: fig09_configurations(directions, st, fov=figure_fov, split=split, database=database),
-        "fig13": lambda st: fig13_fixed_camera_light(errors_csv, st, fov=fov_fixed, split=split, kind=kind),
-        "fig14": lambda st: fig14_fixed_configurations(directions, st, fov=fov_fixed, split=split,
-                                                       database=database),
-        "fig18": lambda st: fig18_per_material(errors_csv, st, n=n_point, split=split, kind=kind),
-        "fig19": lambda st: fig19_error_vs_n(errors_csv, st, split=split, kind=kind),
-    }
-    results = [draw[k](stems[k]) for k in FIGURE_STEMS if k in stems]
+    inp = AcquisitionFigureInputs(errors_csv, training_csv, directions, [float(f) for f in fovs], n_point, fov_fixed,
+                                  figure_fov, figure_materials, split, kind, database)
+    results = draw_figures(sys.modules[__name__], "acquisition", "plot_acquisition_figures", stems, inp)
     dbs = {r.database for r in results if r.database}
     if len(dbs) > 1:
         logger.warning("figures: inputs name different databases: %s", ", ".join(sorted(dbs)))

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from brdfpipe.acquisition.figure_inputs import FOV_TOL
+from brdfpipe.acquisition.figure_inputs import FOV_TOL, AcquisitionFigureInputs
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.plot import FigureInputError, FigureOutput, Warnings, finish, new_figure, no_data, style
@@ -211,23 +211,22 @@ def _draw_configuration(ax: Any, rows: Sequence[_ConfigRow], fov: float) -> None
     ax.set_axis_off()
 
 
-def fig08_optimal_configurations(directions: Sequence[str | os.PathLike[str]], stem: str | os.PathLike[str], *,
-                                 fovs: Sequence[float], n_images: Sequence[int] = (1, 2),
-                                 setup: str = "nearfield", metric: str = "error",
-                                 splits: Sequence[str] = ("all", "train")) -> FigureOutput:
-    """Xu Figs. 8 and 9: table and sketch of the optimal 1- and 2-image configurations per FOV.
+def fig08_optimal_configurations(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Xu Figs. 8 and 9: table and sketch of the optimal 1- and 2-image near-field configurations per FOV.
 
-    ``directions``: the direction files to choose from; for each FOV the
-    first of ``splits`` with a ``setup``/``metric`` file at that FOV is used
-    (``all``, the full database, as Xu's Fig. 8; else ``train``).  Writes
+    ``inp.directions``: the direction files to choose from; for each FOV of
+    ``inp.fovs`` the first of the splits ``all``, ``train`` with a near-field
+    E(S) file at that FOV is used (``all``, the full database, as Xu's Fig. 8;
+    else ``train``).  Writes
     ``<stem>.csv`` (columns :data:`~brdfpipe.spec.tables.FIG08`, one row per image),
     ``<stem>.md`` and the sketch ``<stem>.png``/``.pdf`` (one 3-D panel per
     FOV and set size: the hemisphere, the sample disk, light arrows L and
     camera positions C with their viewing cones).
     """
     warn = Warnings("fig08")
-    rows, database = _load_configurations(directions, [float(f) for f in fovs], list(n_images), setup,
-                                          metric, list(splits), warn)
+    setup, metric, n_images = "nearfield", "error", [1, 2]
+    rows, database = _load_configurations(inp.directions, [float(f) for f in inp.fovs or ()], n_images, setup,
+                                          metric, ["all", "train"], warn)
     stem = Path(stem)
     csv_path = stem.with_name(stem.name + ".csv")
     md_path = stem.with_name(stem.name + ".md")
@@ -373,25 +372,23 @@ def configurations_figure(directions: Sequence[str | os.PathLike[str]], stem: st
         return finish(fig, stem, title, subtitle, database, warn, extra=(csv_path, md_path))
 
 
-def fig09_configurations(directions: Sequence[str | os.PathLike[str]], stem: str | os.PathLike[str], *,
-                         fov: float = 25.0, split: str = "train", metric: str = "error",
-                         database: str = "") -> FigureOutput:
-    """Xu Fig. 9: the one- and two-shot near-field light/camera pairs at ``fov`` (the sets of ``split``)."""
+def fig09_configurations(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Xu Fig. 9: the one- and two-shot near-field light/camera pairs at ``inp.figure_fov`` (E(S), ``inp.split``)."""
+    fov, split = inp.figure_fov, inp.split
     return configurations_figure(
-        directions, stem, sets=[("nearfield", fov, 1), ("nearfield", fov, 2)], metric=metric, split=split,
-        database=database,
+        inp.directions, stem, sets=[("nearfield", fov, 1), ("nearfield", fov, 2)], metric="error", split=split,
+        database=inp.database,
         title="One- and two-shot near-field configurations",
         subtitle=(f"Xu 2016 Fig. 9 analogue, FOV {_fov_text(fov)}; directions optimised on split {split} (the sets the held-out materials "
                   "are acquired with); L: light (star), C: camera (square); top view: θ radial, φ round"))
 
 
-def fig14_fixed_configurations(directions: Sequence[str | os.PathLike[str]], stem: str | os.PathLike[str], *,
-                               fov: float = 25.0, n: int = 2, split: str = "train",
-                               metric: str = "error", database: str = "") -> FigureOutput:
-    """Xu Fig. 14: the optimal ``n``-image sets of the fixed-camera and fixed-light set-ups at ``fov``."""
+def fig14_fixed_configurations(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Xu Fig. 14: the optimal 2-image sets of the fixed-camera and fixed-light set-ups at ``inp.fov_fixed``."""
+    fov, split, n = inp.fov_fixed, inp.split, 2
     return configurations_figure(
-        directions, stem, sets=[("fixed_camera", fov, n), ("fixed_light", fov, n)], metric=metric, split=split,
-        database=database,
+        inp.directions, stem, sets=[("fixed_camera", fov, n), ("fixed_light", fov, n)], metric="error", split=split,
+        database=inp.database,
         title=f"Optimal {n}-image configurations with a fixed camera and with a fixed light",
         subtitle=(f"Xu 2016 Fig. 14 analogue, FOV {_fov_text(fov)}; directions optimised on split {split}; angles in in-out (θi, φi, θo, "
                   "φo) and Rusinkiewicz (θh, θd, φd) coordinates; the shared direction at φ = 0"))

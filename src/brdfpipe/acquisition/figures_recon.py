@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -35,13 +36,12 @@ from brdfpipe.acquisition.figure_inputs import ErrorTable, read_errors
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.exr import ExrError, read_exr, tonemap
-from brdfpipe.core.filenames import RECONSTRUCTION_FIGURE_STEMS
 from brdfpipe.core.plot import (
     FigureInputError,
     FigureOutput,
     Warnings,
-    check_keys,
-    figure_stem,
+    draw_figures,
+    figure_stems,
     finish,
     new_figure,
     no_data,
@@ -49,7 +49,6 @@ from brdfpipe.core.plot import (
 )
 from brdfpipe.data import databases
 from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec import figures as figure_specs
 from brdfpipe.spec.figures import ReconSet
 from brdfpipe.spec import tables
 
@@ -57,6 +56,7 @@ __all__ = [
     "Panel",
     "render_difference",
     "reconstruction_panels",
+    "ReconFigureInputs",
     "fig02_reconstructions",
     "fig15_fixed_camera_reconstructions",
     "make_reconstruction_figures",
@@ -232,39 +232,50 @@ def _image_sets(columns: Sequence[tuple[str, ReconSet]]) -> list[ReconSet]:
     return [s for _, s in columns if s[0] != "point"]
 
 
-def fig02_reconstructions(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                          materials: Sequence[str], columns: Sequence[tuple[str, ReconSet]],
-                          prerenders: Mapping[str, str | os.PathLike[str]],
-                          renders: Mapping[tuple[str, ReconSet], str | os.PathLike[str]],
-                          inputs: Mapping[tuple[str, ReconSet], Sequence[str | os.PathLike[str]]],
-                          split: str = "train") -> FigureOutput:
+@dataclass(frozen=True)
+class ReconFigureInputs:
+    """Everything the figures of ``plot_reconstruction_figures`` read, checked by :func:`make_reconstruction_figures`.
+
+    ``columns``: figure key → its (label, set) columns
+    (:func:`brdfpipe.plan.outputs.reconstruction_columns`); ``prerenders``:
+    material → its pre-render; ``renders``: (material, set) → the render of
+    its reconstruction; ``inputs``: (material, set) → the set's input images.
+    """
+
+    errors_csv: str | os.PathLike[str]
+    materials: Sequence[str]
+    columns: Mapping[str, Sequence[tuple[str, ReconSet]]]
+    prerenders: Mapping[str, str | os.PathLike[str]]
+    renders: Mapping[tuple[str, ReconSet], str | os.PathLike[str]]
+    inputs: Mapping[tuple[str, ReconSet], Sequence[str | os.PathLike[str]]]
+    split: str = "train"
+
+
+def fig02_reconstructions(inp: ReconFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
     """Xu Fig. 2: per material the 1-image input, its reconstruction, 5 points; the 2 inputs, theirs, 20 points; the reference.
 
-    ``columns``: :func:`brdfpipe.plan.outputs.reconstruction_columns`'s
-    ``fig02`` (label, set); every image set's inputs come before its render.
+    Its columns are ``inp.columns["fig02"]`` (label, set); every image set's
+    inputs come before its render.
     """
-    rows = reconstruction_panels(materials, columns, prerenders=prerenders, renders=renders, inputs=inputs,
-                                 show_inputs=_image_sets(columns))
+    columns = inp.columns["fig02"]
+    rows = reconstruction_panels(inp.materials, columns, prerenders=inp.prerenders, renders=inp.renders,
+                                 inputs=inp.inputs, show_inputs=_image_sets(columns))
     points = sorted({acquisition_spec.METRIC_KINDS[s[2]].label for _, s in columns if s[0] == "point"})
     return _reconstruction_figure(
-        errors_csv, Path(stem), rows, split=split,
+        inp.errors_csv, Path(stem), rows, split=inp.split,
         title="Held-out materials reconstructed from near-field images and from point samples",
         subtitle=("Xu 2016 Fig. 2 analogue; the renders of the reconstructed tables in the pre-renders' scene (same "
                   "settings and seed) next to the material's pre-render; near-field sets min E(S), point sets of "
                   f"previous work {', '.join(points) or '(none)'}; inputs: the observed pixels of each image"))
 
 
-def fig15_fixed_camera_reconstructions(errors_csv: str | os.PathLike[str], stem: str | os.PathLike[str], *,
-                                       materials: Sequence[str], columns: Sequence[tuple[str, ReconSet]],
-                                       prerenders: Mapping[str, str | os.PathLike[str]],
-                                       renders: Mapping[tuple[str, ReconSet], str | os.PathLike[str]],
-                                       inputs: Mapping[tuple[str, ReconSet], Sequence[str | os.PathLike[str]]],
-                                       split: str = "train") -> FigureOutput:
+def fig15_fixed_camera_reconstructions(inp: ReconFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
     """Xu Fig. 15: per material the fixed-camera set's 2 inputs and reconstruction, the near-field one's, the reference."""
-    rows = reconstruction_panels(materials, columns, prerenders=prerenders, renders=renders, inputs=inputs,
-                                 show_inputs=[s for _, s in columns if s[0] == "fixed_camera"])
+    columns = inp.columns["fig15"]
+    rows = reconstruction_panels(inp.materials, columns, prerenders=inp.prerenders, renders=inp.renders,
+                                 inputs=inp.inputs, show_inputs=[s for _, s in columns if s[0] == "fixed_camera"])
     return _reconstruction_figure(
-        errors_csv, Path(stem), rows, split=split,
+        inp.errors_csv, Path(stem), rows, split=inp.split,
         title="Held-out materials reconstructed from two images with a fixed camera",
         subtitle=("Xu 2016 Fig. 15 analogue; renders of the reconstructed tables in the pre-renders' scene next to "
                   "the 2-image near-field reconstruction and the material's pre-render; directions min E(S); "
@@ -293,7 +304,7 @@ def make_reconstruction_figures(*, errors_csv: str | os.PathLike[str], materials
                                 inputs: Sequence[str | os.PathLike[str]],
                                 figures: Mapping[str, Sequence[str | os.PathLike[str]]],
                                 split: str = "train") -> list[Path]:
-    """Write the requested figures of rendered reconstructions (keys of :data:`RECONSTRUCTION_FIGURE_STEMS`).
+    """Write the requested figures of rendered reconstructions, each by the function its record names.
 
     ``sets``: every reconstructed (setup, fov, metric, n)
     (:func:`brdfpipe.plan.outputs.reconstruction_sets`); ``columns[key]``:
@@ -304,8 +315,7 @@ def make_reconstruction_figures(*, errors_csv: str | os.PathLike[str], materials
     ``figures``: key → its PNG, PDF, CSV and Markdown paths.  Every input
     is read before anything is written.
     """
-    check_keys(figures, RECONSTRUCTION_FIGURE_STEMS, "make_reconstruction_figures")
-    stems = {k: figure_stem(v, table=figure_specs.figure(f"xu-{k}").table) for k, v in figures.items()}
+    stems = figure_stems("acquisition", "plot_reconstruction_figures", figures, "make_reconstruction_figures")
     missing = sorted(set(stems) - set(columns))
     if missing:
         raise ValueError(f"make_reconstruction_figures: no columns for {', '.join(missing)}")
@@ -320,11 +330,6 @@ def make_reconstruction_figures(*, errors_csv: str | os.PathLike[str], materials
     read_errors(errors_csv)
     for f in [*prerenders, *renders, *inputs]:
         _read(Path(f))
-    draw = {
-        "fig02": lambda st: fig02_reconstructions(errors_csv, st, materials=materials, columns=cols["fig02"],
-                                                  prerenders=pre, renders=images, inputs=shots, split=split),
-        "fig15": lambda st: fig15_fixed_camera_reconstructions(
-            errors_csv, st, materials=materials, columns=cols["fig15"], prerenders=pre, renders=images,
-            inputs=shots, split=split),
-    }
-    return [p for k in RECONSTRUCTION_FIGURE_STEMS if k in stems for p in draw[k](stems[k]).files]
+    inp = ReconFigureInputs(errors_csv, materials, cols, pre, images, shots, split)
+    results = draw_figures(sys.modules[__name__], "acquisition", "plot_reconstruction_figures", stems, inp)
+    return [p for r in results for p in r.files]

@@ -28,6 +28,7 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import matplotlib as mpl
@@ -39,6 +40,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.notes import write_note
 from brdfpipe.core.version import full_version
+from brdfpipe.spec import figures as figure_specs
 
 __all__ = [
     "DPI",
@@ -56,7 +58,8 @@ __all__ = [
     "no_data",
     "finish",
     "figure_stem",
-    "check_keys",
+    "figure_stems",
+    "draw_figures",
 ]
 
 logger = logging.getLogger("brdfpipe.core.plot")
@@ -291,8 +294,31 @@ def figure_stem(files: Sequence[str | os.PathLike[str]], *, table: bool = False,
     return stems.pop()
 
 
-def check_keys(figures: Mapping[str, Any], known: Mapping[str, str], what: str) -> None:
-    """Raise :class:`ValueError` naming ``what`` if ``figures`` has a key that is not one of ``known``."""
-    unknown = sorted(set(figures) - set(known))
+def figure_stems(track: str, rule: str, figures: Mapping[str, Sequence[str | os.PathLike[str]]],
+                 what: str) -> dict[str, Path]:
+    """Key → output stem of each figure of ``rule`` asked for (``figures``: key → its declared files), checked.
+
+    The keys and what each figure writes (a table, a note) are its record's
+    (:func:`brdfpipe.spec.figures.track_figures`); :class:`ValueError`
+    naming ``what`` for a key that is not a figure of the rule, or files that
+    are not the figure's (:func:`figure_stem`).
+    """
+    records = {f.key: f for f in figure_specs.track_figures(track, rule)}
+    unknown = sorted(set(figures) - set(records))
     if unknown:
-        raise ValueError(f"{what}: unknown figure key(s) {unknown}; known: {sorted(known)}")
+        raise ValueError(f"{what}: unknown figure key(s) {unknown}; known: {sorted(records)}")
+    return {k: figure_stem(figures[k], table=f.table, note=f.note) for k, f in records.items() if k in figures}
+
+
+def draw_figures(module: ModuleType, track: str, rule: str, stems: Mapping[str, Path],
+                 inputs: Any) -> list[FigureOutput]:
+    """Draw the figures of ``stems`` (:func:`figure_stems`), each by the function its record names.
+
+    The record (:class:`brdfpipe.spec.figures.Figure`) is the dispatcher:
+    its ``draw`` is the name of a function of ``module`` called as
+    ``draw(inputs, stem)``, where ``inputs`` holds everything the rule's
+    figures read; nothing else maps a figure to its function.  In the
+    records' order.
+    """
+    return [getattr(module, f.draw)(inputs, stems[f.key])
+            for f in figure_specs.track_figures(track, rule) if f.key in stems]

@@ -5,8 +5,8 @@ Figs. 5, 7, 8, 9, 10 and eq. 7 from the GPLVM fits and
 :mod:`brdfpipe.manifold.analysis`'s tables, Fig. 6 from
 :mod:`brdfpipe.manifold.lengthscale`'s (drawn by
 :mod:`brdfpipe.manifold.lengthscale_figure`), and the comparison of data
-spaces: :func:`make_manifold_figures` (stems :data:`MANIFOLD_FIGURE_STEMS`)
-and :func:`manifold_spaces`.  Every input is read and checked first; a
+spaces (:func:`manifold_spaces`); :func:`make_manifold_figures` draws those a
+rule asks for, each by the function its record names.  Every input is read and checked first; a
 missing or malformed file raises :class:`~brdfpipe.core.plot.FigureInputError`
 naming it, before any figure is written (the readers:
 :mod:`brdfpipe.manifold.figure_inputs`; the latent maps' zooms and labels:
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -25,13 +26,13 @@ from typing import Any
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from brdfpipe.core.filenames import MANIFOLD_FIGURE_STEMS
 from brdfpipe.core.plot import (
     COLOURS,
     FigureInputError,
     FigureOutput,
     Warnings,
-    check_keys,
+    draw_figures,
+    figure_stems,
     figure_stem,
     finish,
     new_figure,
@@ -42,14 +43,12 @@ from brdfpipe.data import databases
 from brdfpipe.manifold.figure_inputs import (
     LatentPath,
     ManifoldInputs,
-    SpacesTable,
     read_manifold_inputs,
     read_model,
     read_unseen,
 )
 from brdfpipe.manifold.latent_map import label_rows, latent_row, set_title, zoom_chain
-from brdfpipe.manifold.lengthscale_figure import manifold_fig06_lengthscale
-from brdfpipe.spec import figures as figure_specs
+from brdfpipe.manifold.lengthscale_figure import draw_lengthscale_figure
 
 __all__ = [
     "manifold_fig05_likelihood",
@@ -511,8 +510,18 @@ def manifold_eq7_bound(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> Fig
         return finish(fig, stem, title, subtitle, inp.database, warn)
 
 
-def manifold_spaces(table: SpacesTable, stem: str | os.PathLike[str]) -> FigureOutput:
+def manifold_fig06_lengthscale(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> FigureOutput:
+    """Soler Fig. 6: eq. 7 as ℓ shrinks, from ``lengthscales.csv`` (:func:`draw_lengthscale_figure`)."""
+    if inp.lengthscales is None:
+        raise FigureInputError("the 'fig06' figure needs lengthscales_csv")
+    return draw_lengthscale_figure(inp.lengthscales, stem, inp.database)
+
+
+def manifold_spaces(inp: ManifoldInputs, stem: str | os.PathLike[str]) -> FigureOutput:
     """The data spaces compared: albedo outside [0, 1], stability near the training points, κ(K) and Σ|w|."""
+    if inp.spaces is None:
+        raise FigureInputError("the 'spaces' figure needs spaces_csv and stability_csv")
+    table = inp.spaces
     warn = Warnings("manifold-spaces")
     cands = table.candidates
     dims = table.dims
@@ -588,7 +597,7 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
                           spaces_csv: str | os.PathLike[str] | None = None,
                           stability_csv: str | os.PathLike[str] | None = None,
                           lengthscales_csv: str | os.PathLike[str] | None = None) -> list[Path]:
-    """Write the requested Soler 2018 figure analogues (keys of :data:`MANIFOLD_FIGURE_STEMS`).
+    """Write the requested Soler 2018 figure analogues (keys of the rule's records in :mod:`brdfpipe.spec.figures`).
 
     ``models``, ``traces``, ``albedo_maps``: q → path.  ``figures``: key →
     its PNG and PDF paths, as the workflow declares them; only these are
@@ -612,9 +621,7 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
                                      (``spaces_csv``, ``stability_csv``)
     ==============================  ===========================================
     """
-    check_keys(figures, MANIFOLD_FIGURE_STEMS, "make_manifold_figures")
-    notes = {f.key for f in figure_specs.track_figures("manifold", "plot_manifold_figures") if f.note}
-    stems = {k: figure_stem(v, note=k in notes) for k, v in figures.items()}
+    stems = figure_stems("manifold", "plot_manifold_figures", figures, "make_manifold_figures")
     if "spaces" in stems and (spaces_csv is None or stability_csv is None):
         raise FigureInputError("the 'spaces' figure needs spaces_csv and stability_csv")
     if "fig06" in stems and lengthscales_csv is None:
@@ -622,20 +629,7 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
     inp = read_manifold_inputs(models=models, traces=traces, albedo_csv=albedo_csv, albedo_maps=albedo_maps,
                                paths_csv=paths_csv, reproduction_csv=reproduction_csv, database=database,
                                spaces_csv=spaces_csv, stability_csv=stability_csv, lengthscales_csv=lengthscales_csv)
-    draw = {
-        "fig05": manifold_fig05_likelihood,
-        "fig10_q2": manifold_fig10_latent_q2,
-        "fig10_q5": manifold_fig10_latent_q5,
-        "fig07": manifold_fig07_albedo,
-        "fig09": manifold_fig09_paths,
-        "fig08": manifold_fig08_reproduction,
-        "eq7": manifold_eq7_bound,
-    }
-    results = [draw[k](inp, stems[k]) for k in MANIFOLD_FIGURE_STEMS if k in stems and k not in ("spaces", "fig06")]
-    if "fig06" in stems and inp.lengthscales is not None:
-        results.append(manifold_fig06_lengthscale(inp.lengthscales, stems["fig06"], inp.database))
-    if "spaces" in stems and inp.spaces is not None:
-        results.append(manifold_spaces(inp.spaces, stems["spaces"]))
+    results = draw_figures(sys.modules[__name__], "manifold", "plot_manifold_figures", stems, inp)
     return [p for r in results for p in r.files]
 
 

@@ -35,7 +35,7 @@ from brdfpipe.core.plot import (
 from brdfpipe.data import databases
 from brdfpipe.spec import tables
 
-__all__ = ["LengthscaleTable", "read_lengthscales", "manifold_fig06_lengthscale"]
+__all__ = ["LengthscaleTable", "read_lengthscales", "draw_lengthscale_figure"]
 
 
 @dataclass(frozen=True)
@@ -105,7 +105,7 @@ def _note(tab: LengthscaleTable) -> str:
             f"{worst:.3g}).")
 
 
-def manifold_fig06_lengthscale(table: LengthscaleTable | str | os.PathLike[str], stem: str | os.PathLike[str],
+def draw_lengthscale_figure(table: LengthscaleTable | str | os.PathLike[str], stem: str | os.PathLike[str],
                                database: str | None = None) -> FigureOutput:
     """Soler Fig. 6 from ``lengthscales.csv`` or its table (see the module docstring); PNG, PDF and its note."""
     tab = table if isinstance(table, LengthscaleTable) else read_lengthscales(table)
@@ -117,7 +117,7 @@ def manifold_fig06_lengthscale(table: LengthscaleTable | str | os.PathLike[str],
 
 
 def _draw(tab: LengthscaleTable, stem: str | os.PathLike[str], warn: Warnings) -> FigureOutput:
-    """The three panels of :func:`manifold_fig06_lengthscale`, titled and saved with the note."""
+    """The three panels of :func:`draw_lengthscale_figure`, titled and saved with the note."""
     from matplotlib import colormaps
 
     cmap = colormaps["viridis"]

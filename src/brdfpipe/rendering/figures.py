@@ -7,7 +7,7 @@ paper's path, chrome → silver-paint, next to the renders of the
 interpolated materials, then the other rendered paths:
 :func:`render_fig12_interpolation`) and Fig. 13 (the paper's check at that
 path's midpoint: :func:`render_fig13_errors`), written by
-:func:`make_render_figures` (stems :data:`RENDER_FIGURE_STEMS`), and the
+:func:`make_render_figures` (each by the function its record names), and the
 noise-floor check of the GPLVM candidates (:func:`plot_floor_check`, from
 :func:`brdfpipe.rendering.blend.floor_check`'s table).  Figs. 1, 12 and 13
 write a note next to them (the run's numbers their report captions quote).
@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import sys
 import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,25 +30,25 @@ import numpy as np
 from numpy.typing import NDArray
 
 from brdfpipe.core import integrity
-from brdfpipe.core.filenames import RENDER_FIGURE_STEMS, format_t
+from brdfpipe.core.filenames import format_t
 from brdfpipe.data import databases
 from brdfpipe.core.plot import (
     FigureInputError,
     FigureOutput,
     Warnings,
-    check_keys,
+    draw_figures,
     figure_stem,
+    figure_stems,
     finish,
     new_figure,
     style,
 )
-from brdfpipe.spec.figures import track_figures
 from brdfpipe.spec.manifold import SOLER_FIG1_MATERIALS, SOLER_FIG12_PATH, path_name
 from brdfpipe.spec import tables
 
 __all__ = [
-    "RENDER_FIGURE_STEMS",
     "RenderPoint",
+    "RenderFigureInputs",
     "paper_path",
     "fig01_layout",
     "render_fig01_latent_samples",
@@ -146,6 +147,24 @@ def _pct(x: float) -> str:
 # ---------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class RenderFigureInputs:
+    """Everything the figures of ``plot_render_figures`` read, read and checked by :func:`make_render_figures`.
+
+    Each figure's function (its record's ``draw``) takes it and the figure's
+    stem: ``prerenders`` (material → EXR), the path ``points``, the error
+    maps' ``summary`` rows ((path, t) → row), the ``database`` and, for
+    Fig. 1, the latent ``samples``' document and their renders.
+    """
+
+    prerenders: Mapping[str, Path]
+    points: Sequence[RenderPoint]
+    summary: Mapping[tuple[str, str], Mapping[str, str]]
+    database: str
+    samples: Mapping[str, Any] | None = None
+    sample_images: Sequence[Path] = ()
+
+
 def fig01_layout(n_samples: int, materials: Sequence[str], seed: int) -> tuple[list[tuple[str, str]], str]:
     """The cells of Fig. 1, row by row (:data:`FIG01_COLUMNS` a row), ``[(kind, name), …]``, and how the measured
     materials were chosen.
@@ -183,10 +202,11 @@ def fig01_layout(n_samples: int, materials: Sequence[str], seed: int) -> tuple[l
     return out, how
 
 
-def render_fig01_latent_samples(samples: Mapping[str, Any], images: Sequence[Path], prerenders: Mapping[str, Path],
-                                stem: Path, database: str) -> FigureOutput:
+def render_fig01_latent_samples(inp: RenderFigureInputs, stem: Path) -> FigureOutput:
     """Soler Fig. 1: renders of the latent samples among measured materials' pre-renders, one exposure."""
     from brdfpipe.rendering.blend import tonemap
+
+    samples, images, prerenders, database = inp.samples or {}, inp.sample_images, inp.prerenders, inp.database
 
     warn = Warnings(stem.name)
     entries = list(samples["samples"])
@@ -223,9 +243,11 @@ def render_fig01_latent_samples(samples: Mapping[str, Any], images: Sequence[Pat
     return finish(fig, stem, title, subtitle, database, warn, note=note)
 
 
-def render_prerenders(prerenders: Mapping[str, Path], stem: Path, database: str) -> FigureOutput:
+def render_prerenders(inp: RenderFigureInputs, stem: Path) -> FigureOutput:
     """Grid of every pre-rendered material (the images the blends of Soler §5.2 are made of), one common exposure."""
     from brdfpipe.rendering.blend import tonemap
+
+    prerenders, database = inp.prerenders, inp.database
 
     warn = Warnings(stem.name)
     names = sorted(prerenders)
@@ -276,11 +298,11 @@ def _point_numbers(q: RenderPoint, row: Mapping[str, str] | None) -> str:
     return out
 
 
-def render_fig12_interpolation(prerenders: Mapping[str, Path], points: Sequence[RenderPoint],
-                               summary: Mapping[tuple[str, str], Mapping[str, str]], stem: Path,
-                               database: str) -> FigureOutput:
+def render_fig12_interpolation(inp: RenderFigureInputs, stem: Path) -> FigureOutput:
     """Per path (the paper's first): A, blends at each t, B (top); references at each t (bottom) (Soler Fig. 12)."""
     from brdfpipe.rendering.blend import tonemap
+
+    prerenders, points, summary, database = inp.prerenders, inp.points, inp.summary, inp.database
 
     warn = Warnings(stem.name)
     main, why = paper_path(points)
@@ -333,10 +355,11 @@ def _midpoint(points: Sequence[RenderPoint]) -> tuple[RenderPoint, str]:
     return q, why
 
 
-def render_fig13_errors(points: Sequence[RenderPoint], summary: Mapping[tuple[str, str], Mapping[str, str]],
-                        stem: Path, database: str) -> FigureOutput:
+def render_fig13_errors(inp: RenderFigureInputs, stem: Path) -> FigureOutput:
     """Soler Fig. 13 at the paper's point: blend, reference, |blend − second-seed reference| and the noise floor."""
     from brdfpipe.rendering.blend import error_map, tonemap
+
+    points, summary, database = inp.points, inp.summary, inp.database
 
     warn = Warnings(stem.name)
     q, why = _midpoint(points)
@@ -412,7 +435,7 @@ def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
                         references_noise: Sequence[str | os.PathLike[str]] | None = None,
                         samples: str | os.PathLike[str] | None = None,
                         sample_images: Sequence[str | os.PathLike[str]] = ()) -> list[Path]:
-    """Write the requested rendering-track figures (keys of :data:`RENDER_FIGURE_STEMS`), PNG + PDF (+ note) each.
+    """Write the requested rendering-track figures (keys of the rule's records), PNG + PDF (+ note) each.
 
     Per path point ``k``: ``weights[k]`` (its weights JSON,
     :func:`brdfpipe.manifold.analysis.path_points_to_files`), ``references[k]`` and
@@ -425,9 +448,7 @@ def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
     their renders (``fig01``).  ``figures``: key → its files.  A missing or
     corrupt input raises :class:`FigureInputError` naming it.
     """
-    check_keys(figures, RENDER_FIGURE_STEMS, "make_render_figures")
-    notes = {f.key for f in track_figures("rendering", "plot_render_figures") if f.note}
-    stems = {k: figure_stem(v, note=k in notes) for k, v in figures.items()}
+    stems = figure_stems("rendering", "plot_render_figures", figures, "make_render_figures")
     points = _read_points(weights, references, references_noise, blended, errors)
     pre = {m: Path(p) for m, p in prerenders.items()}
     for q in points:
@@ -446,15 +467,9 @@ def make_render_figures(*, prerenders: Mapping[str, str | os.PathLike[str]],
         from brdfpipe.manifold.samples import read_samples
 
         samples_doc = read_samples(samples, error=FigureInputError)
-    draw = {
-        "fig01": lambda st: render_fig01_latent_samples(samples_doc or {}, [Path(f) for f in sample_images], pre,
-                                                        st, database),
-        "prerenders": lambda st: render_prerenders(pre, st, database),
-        "fig12": lambda st: render_fig12_interpolation(pre, points, summary_rows, st, database),
-        "fig13": lambda st: render_fig13_errors(points, summary_rows, st, database),
-    }
+    inp = RenderFigureInputs(pre, points, summary_rows, database, samples_doc, [Path(f) for f in sample_images])
     with style():
-        results = [draw[k](stems[k]) for k in RENDER_FIGURE_STEMS if k in stems]
+        results = draw_figures(sys.modules[__name__], "rendering", "plot_render_figures", stems, inp)
     return [p for r in results for p in r.files]
 
 
