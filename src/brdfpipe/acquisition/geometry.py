@@ -37,7 +37,6 @@ __all__ = [
     "config_to_dict",
     "config_from_dict",
     "CONFIG_DIMS",
-    "FIXED_KINDS",
     "cell_config",
     "centre_cells",
 ]
@@ -134,8 +133,6 @@ Config = tuple[int, int, int]
 CONFIG_DIMS: tuple[int, int, int] = (merl.N_THETA_H, merl.N_THETA_D, merl.N_PHI_D)
 _FIXED_THETA_DEG: float = 1.0  # elevation steps of fixed_* (shared and per image)
 _FIXED_PHI_DEG: float = 2.0  # azimuth steps of fixed_* (per image)
-#: The setups whose images share one direction (its elevation is common to the set).
-FIXED_KINDS = frozenset(acquisition_spec.FIXED_SETUPS)
 
 
 @dataclass(frozen=True)
@@ -208,7 +205,7 @@ def _check_config(setup: Setup, config: ArrayLike) -> Config:
     for value, dim in zip(c, CONFIG_DIMS):
         if not 0 <= value < dim:
             raise ValueError(f"configuration {c} out of range: indices must lie in [0, {CONFIG_DIMS})")
-    if setup.kind in FIXED_KINDS and c[1] == 0 and c[2] != 0:
+    if setup.spec.shared and c[1] == 0 and c[2] != 0:
         raise ValueError(f"configuration {c}: a direction at the zenith (i_theta = 0) needs i_phi = 0")
     return c
 
@@ -249,7 +246,7 @@ def _fixed_directions(kind: str, configs: NDArray[np.intp]) -> tuple[F64, F64]:
 def centre_cells(setup: Setup, configs: NDArray[np.intp]) -> NDArray[np.intp]:
     """Centre cells of an (n, 3) array of in-range configurations (vectorised)."""
     configs = np.asarray(configs, dtype=np.intp).reshape(-1, 3)
-    if setup.kind in FIXED_KINDS:
+    if setup.spec.shared:
         wi, wo = _fixed_directions(setup.kind, configs)
         return merl.cell_index(wi, wo)
     return (configs[:, 0] * merl.N_THETA_D + configs[:, 1]) * merl.N_PHI_D + configs[:, 2]
@@ -265,7 +262,7 @@ def centre_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
     from the disk centre to the camera.
     """
     c = _check_config(setup, config)
-    if setup.kind in FIXED_KINDS:
+    if setup.spec.shared:
         wi, wo = _fixed_directions(setup.kind, np.asarray([c], dtype=np.intp))
     else:
         wi, wo = merl.directions_from_half_diff(*_centre_angles(c))
@@ -399,7 +396,7 @@ def config_to_dict(setup: Setup, config: ArrayLike) -> dict[str, Any]:
     """
     c = _check_config(setup, config)
     wi, wo = centre_directions(setup, c)
-    if setup.kind in FIXED_KINDS:
+    if setup.spec.shared:
         cell = int(merl.cell_index(wi, wo)[0])
         th, td, pd = _half_diff_deg(wi[None, :], wo[None, :])
     else:
@@ -436,7 +433,7 @@ def config_from_dict(setup: Setup, record: dict[str, Any]) -> Config:
     cell = record.get("cell")
     if isinstance(cell, bool) or not isinstance(cell, (int, np.integer)) or not 0 <= int(cell) < merl.N_CELLS:
         raise ValueError(f"configuration record: 'cell' must be a MERL cell index, got {cell!r}")
-    if setup.kind not in FIXED_KINDS:
+    if not setup.spec.shared:
         return _check_config(setup, cell_config(int(cell)))
     light, camera = _vector(record, "light"), _vector(record, "camera")
     shared, other = (camera, light) if setup.spec.shared == "camera" else (light, camera)

@@ -31,7 +31,6 @@ from brdfpipe.data import merl
 from brdfpipe.spec import acquisition as acquisition_spec
 from brdfpipe.acquisition.geometry import (
     CONFIG_DIMS,
-    FIXED_KINDS,
     Config,
     Setup,
     cell_config,
@@ -287,7 +286,7 @@ class _Optimizer:
         self.lookup[cells] = np.arange(cells.size, dtype=np.int32)
         self.valid = self.lookup >= 0
         self.Q = _load_q(model.Q)
-        self.fixed = setup.kind in FIXED_KINDS
+        self.fixed = bool(setup.spec.shared)
         self.axes: tuple[int, ...] = (1, 2) if self.fixed else (0, 1, 2)
         self.wrap = (False, False, setup.spec.wrap_phi)
         self._cache: dict[Config, NDArray[np.int32] | None] = {}
