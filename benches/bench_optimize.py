@@ -61,7 +61,11 @@ Usage::
     python benches/bench_optimize.py [--model PATH] [--store results/merl.zarr]
         [--fov 25] [--n 2] [--candidates 500] [--grid 32] [--metric error]
         [--setup nearfield] [--seed 0] [--blas-threads N] [--work DIR] [--keep]
-        [--evaluation fast|direct] [--baseline N]
+        [--evaluation fast|direct] [--baseline N] [--grids 32,128]
+
+``--grids 32,128`` replaces the timed run: the CPU of the same optimisation
+at each grid, one after the other in this process, and each grid's ratio to
+the first (issue 33's target: 128 px at no more CPU than 32 px).
 """
 
 from __future__ import annotations
@@ -125,6 +129,32 @@ def run_baseline(optimize, model, setup, args: argparse.Namespace) -> None:  # t
     print(f"baseline: direct / fast = {times['direct'] / times['fast']:.1f}x; same sets: {same}", flush=True)
 
 
+def compare_grids(optimize, geometry, model, args: argparse.Namespace) -> None:  # type: ignore[no-untyped-def]
+    """CPU of the same optimisation at each of ``--grids`` (pixels per image side), in this process, one after another.
+
+    Issue 33's target: the near-field optimiser at 128 px costs no more CPU
+    than at 32 px; the first grid is the baseline of the ratios.  CPU is the
+    process's (all its threads: BLAS included), the model already in memory;
+    the count of metric evaluations lets two machines be compared.
+    """
+    rows = []
+    for grid in args.grids:
+        setup = geometry.Setup(args.setup, args.fov, grid)
+        c0, t0 = time.process_time(), time.perf_counter()
+        sets = optimize.optimize(model, setup, metric=args.metric, n_max=args.n, candidates=args.candidates,
+                                 seed=args.seed, log=None)
+        cpu, wall = time.process_time() - c0, time.perf_counter() - t0
+        rows.append((grid, cpu, wall, sets[-1].n_observations, sets[-1].expected_error))
+        print(f"grid {grid:4d} px: {cpu:7.1f} CPU-s, {wall:7.1f} s wall; n = {sets[-1].n}: "
+              f"{sets[-1].n_observations} rows, E = {sets[-1].expected_error:.6g}", flush=True)
+    base = rows[0][1]
+    for grid, cpu, *_ in rows[1:]:
+        verdict = "PASS" if cpu <= base else "FAIL"
+        print(f"{verdict}: grid {grid} px costs {cpu / base:.2f}x the CPU of {rows[0][0]} px "
+              f"(target <= 1.00x; {args.setup}, fov {args.fov:g}°, n = 1..{args.n}, t = {args.candidates}, "
+              f"metric {args.metric})", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", type=Path, default=None, help="an svd model (default: fit one in /tmp)")
@@ -143,6 +173,9 @@ def main() -> None:
     ap.add_argument("--quiet", action="store_true", help="print only the per-n summary lines of the log")
     ap.add_argument("--evaluation", default="fast", choices=["fast", "direct"],
                     help="candidate evaluation of the main run (direct: every candidate afresh)")
+    ap.add_argument("--grids", type=lambda v: [int(g) for g in v.split(",")], default=None, metavar="G1,G2",
+                    help="instead of the timed run: the CPU of the optimisation at each grid and the ratios to the "
+                         "first (issue 33: 128 px at no more CPU than 32 px)")
     ap.add_argument("--baseline", type=int, default=0, metavar="N",
                     help="first time n = 1..N with the direct and the fast evaluation and print the ratio")
     args = ap.parse_args()
@@ -176,6 +209,9 @@ def main() -> None:
               f"({len(model.materials)} materials, split {model.split})", flush=True)
         setup = geometry.Setup(args.setup, args.fov if args.setup != "point" else 0.0, args.grid)
 
+        if args.grids:
+            compare_grids(optimize, geometry, model, args)
+            return
         if args.baseline > 0:
             run_baseline(optimize, model, setup, args)
 

@@ -33,7 +33,6 @@ __all__ = [
 
 #: Two fields of view closer than this (degrees) are the same.
 FOV_TOL = 1e-6
-_FOV_TOL = FOV_TOL
 
 
 @dataclass(frozen=True)
@@ -84,20 +83,20 @@ class ErrorTable:
                material: str = "mean", channel: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """(n, value) sorted by n, finite values only (empty arrays if none)."""
         pts = sorted((k[4], v) for k, v in self.values.items()
-                     if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
+                     if k[0] == split and k[1] == setup and abs(k[2] - fov) < FOV_TOL and k[3] == metric
                      and k[5] == material and k[6] == channel and k[7] == kind and math.isfinite(v))
         return (np.array([p[0] for p in pts], dtype=np.int64), np.array([p[1] for p in pts], dtype=np.float64))
 
     def materials(self, split: str, setup: str, fov: float, metric: str, n: int, kind: str) -> list[str]:
         return sorted({k[5] for k in self.values
-                       if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
+                       if k[0] == split and k[1] == setup and abs(k[2] - fov) < FOV_TOL and k[3] == metric
                        and k[4] == n and k[7] == kind and k[5] != "mean"})
 
     def material_value(self, split: str, setup: str, fov: float, metric: str, n: int, kind: str,
                        material: str) -> float:
         """A material's value averaged over channels: its ``all`` row, else the mean of its channel rows."""
         vals = {k[6]: v for k, v in self.values.items()
-                if k[0] == split and k[1] == setup and abs(k[2] - fov) < _FOV_TOL and k[3] == metric
+                if k[0] == split and k[1] == setup and abs(k[2] - fov) < FOV_TOL and k[3] == metric
                 and k[4] == n and k[7] == kind and k[5] == material}
         if "all" in vals and math.isfinite(vals["all"]):
             return vals["all"]
