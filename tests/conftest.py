@@ -23,10 +23,11 @@ fresh machine may have free, so nothing outlives its use.  A passing test's
 in pyproject.toml), and a module's folders (its module-scoped fixtures'
 ``tmp_path_factory.mktemp``) go when the module's fixtures are torn down
 (:func:`_module_folders_removed`), unless a test of this worker failed: then
-everything stays for inspection.  The session's shared runs
-(tests/shared_runs.py) live beside the workers' folders, to the session's
-end; a session-scoped fixture must put its folder there too, not in the
-worker's folder.
+everything stays for inspection.  The session's shared folders (the shared
+runs and the Slurm run: tests/shared_runs.py, names starting with
+``SHARED_PREFIX``) live to the session's end: beside the workers' folders
+under xdist, in the session's folder without it; a session-scoped fixture
+must put its folder there too.
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ import shutil
 from collections.abc import Iterator
 
 import pytest
+
+from shared_runs import SHARED_PREFIX
 
 FIRST = ("tests/test_slurm.py::test_slurm_takes_the_workflows_jobs",)
 #: Node-id prefixes of the long tests, started in this order after FIRST.
@@ -83,4 +86,5 @@ def _module_folders_removed(tmp_path_factory: pytest.TempPathFactory) -> Iterato
     if _failed:
         return
     for path in set(base.iterdir()) - before:
-        shutil.rmtree(path, ignore_errors=True)
+        if not path.name.startswith(SHARED_PREFIX):
+            shutil.rmtree(path, ignore_errors=True)

@@ -26,6 +26,10 @@ SNAKEFILE = ROOT / "workflow" / "Snakefile"
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 
 
+#: The names of the session's shared folders start with this: tests/conftest.py never removes them mid-session.
+SHARED_PREFIX = "shared-"
+
+
 def shared_root(factory: pytest.TempPathFactory) -> Path:
     base = factory.getbasetemp()
     # under xdist each worker's basetemp is <session>/popen-gwN; the session folder is shared
@@ -40,7 +44,7 @@ def workflow_env() -> dict[str, str]:
 
 def shared_run(factory: pytest.TempPathFactory, config: Path, *, cores: int = 2, timeout: int = 900) -> Path:
     """The working directory of a finished local run of ``config`` (built by the first caller)."""
-    folder = shared_root(factory) / f"shared-{config.stem}"
+    folder = shared_root(factory) / f"{SHARED_PREFIX}{config.stem}"
     folder.mkdir(exist_ok=True)
     work, status = folder / "work", folder / "status.json"
     with open(folder / "lock", "w") as lock:
@@ -71,7 +75,7 @@ def shared_build(factory: pytest.TempPathFactory, name: str, build: Callable[[Pa
     A build that raised fails every caller, with its message.  Readers must
     not write into the folder.
     """
-    folder = shared_root(factory) / f"shared-{name}"
+    folder = shared_root(factory) / f"{SHARED_PREFIX}{name}"
     folder.mkdir(exist_ok=True)
     work, status = folder / "work", folder / "status.json"
     with open(folder / "lock", "w") as lock:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pytest
 
-from shared_runs import shared_root, shared_run
+from shared_runs import SHARED_PREFIX, shared_root, shared_run
 
 ROOT = Path(__file__).resolve().parents[1]
 HARNESS = ROOT / "tests" / "slurm" / "run_slurm_test.py"
@@ -121,7 +121,7 @@ def _preconditions() -> None:
 def harness_started(factory: pytest.TempPathFactory) -> Harness:
     """The session's Slurm harness, started in the background by the first caller."""
     _preconditions()
-    h = Harness(shared_root(factory) / "slurm-run")
+    h = Harness(shared_root(factory) / f"{SHARED_PREFIX}slurm-run")
     h.folder.mkdir(exist_ok=True)
     with open(h.folder / "lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
