@@ -474,3 +474,32 @@ def test_each_kappa_metric_picks_the_sets_a_brute_force_greedy_search_picks() ->
             sorted(sets[-1].configurations[:n]) for n in range(1, n_max + 1)]  # each set grows from the previous
         picked[metric] = want
     assert picked["condition_nielsen"] != picked["condition"]
+
+
+def test_a_ring_of_cameras_is_a_record(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The extending page's ring (docs/design/extending.md): one record, its geometry the fixed light's.
+
+    One light shared by the set and cameras on a ring at 45° elevation: the
+    record pins the camera's elevation (axis 1) and moves only its azimuth;
+    nothing else is edited.  Every set the optimiser returns keeps the ring,
+    shares the light's elevation, and its reported E(S) is its rows' own.
+    """
+    from brdfpipe.spec import acquisition as acq_spec
+
+    ring = acq_spec.SetupKind("ring", "camera ring at 45°, fixed light", images=True, fov="fixed", shared="light",
+                              axes=("θlight", "θcam", "φcam"), wrap_phi=True, n_max_key="n_max_images",
+                              moves=(2,), pinned=((1, 45),))
+    monkeypatch.setitem(acq_spec.SETUPS, "ring", ring)
+    model, setup = full_model(), Setup("ring", 25.0, 8)
+    sets = optimize(model, setup, metric="error", n_max=3, candidates=T, seed=0, log=lambda line: None)
+    assert [s.n for s in sets] == [1, 2, 3]
+    for s in sets:
+        assert all(c[1] == 45 for c in s.configurations), s.configurations
+        assert len({c[0] for c in s.configurations}) == 1  # the shared light's elevation
+        em = ErrorModel(model.sigma, model.U, eta=40.0)
+        rows = model.Q[rows_of(model, setup, s.configurations)]
+        assert math.isclose(s.expected_error, expected_error(em, *selection_stats(rows)), rel_tol=1e-9)
+    assert sets[-1].expected_error < sets[0].expected_error
+    light = optimize(model, Setup("fixed_light", 25.0, 8), metric="error", n_max=3, candidates=T, seed=0,
+                     log=lambda line: None)
+    assert any(c[1] != 45 for c in light[-1].configurations)  # without the pin the cameras leave the ring

@@ -157,7 +157,6 @@ _KIND_LABEL = {
     "relrms_linear": "relative RMS error (cosine-weighted BRDF)",
     "deviation": "E_deviation (log-mapped BRDF)",
 }
-_SETUP_LABEL = {name: s.label for name, s in acquisition_spec.SETUPS.items()}
 
 
 # ---------------------------------------------------------------------------
@@ -338,8 +337,9 @@ def fig13_fixed_camera_light(inp: AcquisitionFigureInputs, stem: str | os.PathLi
     table = read_errors(inp.errors_csv)
     warn = Warnings("fig13")
     split = _choose_split(table, split, warn)
-    curves = (("fixed_camera", fov, COLOURS[0]), ("fixed_light", fov, COLOURS[4]),
-              ("nearfield", fov, COLOURS[2]), ("point", 0.0, COLOURS[1]))
+    # every set-up: those with a shared direction, the other image set-ups, then point samples
+    records = sorted(acquisition_spec.SETUPS.values(), key=lambda r: (not r.shared, not r.images))
+    curves = [(r.name, fov if r.images else 0.0, COLOURS[r.colour % len(COLOURS)]) for r in records]
     metrics = ("error", "condition")
     with style():
         fig = new_figure(8.8, 4.5)
@@ -348,11 +348,11 @@ def fig13_fixed_camera_light(inp: AcquisitionFigureInputs, stem: str | os.PathLi
         for setup, f, colour in curves:
             for metric in metrics:
                 n, v = table.series(split, setup, f, metric, kind)
-                where = f"{setup}" + (f" FOV {_fov_text(f)}" if acquisition_spec.SETUPS[setup].images else "")
+                where = f"{setup}" + (f" FOV {_fov_text(f)}" if f else "")
                 if n.size == 0:
                     warn(f"no mean {kind} rows for {where}, metric {metric}; curve skipped")
                     continue
-                label = _SETUP_LABEL[setup] + (f" ({_fov_text(f)})" if acquisition_spec.SETUPS[setup].images else "")
+                label = acquisition_spec.setup(setup).label + (f" ({_fov_text(f)})" if f else "")
                 label += ", min E(S)" if metric == "error" else ", min κ"
                 _plot_series(ax, n, v, color=colour, marker="o" if metric == "error" else "s",
                              linestyle="-" if metric == "error" else "--",

@@ -48,7 +48,12 @@ __all__ = [
 ]
 
 _IMAGE_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
-_SETUP_LABEL = {name: s.label for name, s in acquisition_spec.SETUPS.items()}
+
+
+def _setup_label(name: str) -> str:
+    """A set-up's legend from its record (the name itself for a set-up no record knows)."""
+    record = acquisition_spec.SETUPS.get(name)
+    return record.label if record is not None else name
 
 
 def _fov_text(fov: float) -> str:
@@ -146,7 +151,7 @@ def _load_configurations(directions: Sequence[str | os.PathLike[str]], fovs: Seq
 def _markdown(rows: Sequence[_ConfigRow], database: str, setup: str, metric: str) -> str:
     lines = [
         f"# Optimal {'- and '.join(sorted({str(r.n_images) for r in rows})) or '1- and 2'}-image "
-        f"{_SETUP_LABEL.get(setup, setup)} configurations (Xu 2016 Fig. 8 analogue), {databases.title(database)}",
+        f"{_setup_label(setup)} configurations (Xu 2016 Fig. 8 analogue), {databases.title(database)}",
         "",
         f"Directions optimised with {'E(S) (eq. 15)' if metric == 'error' else 'the condition number'}; "
         "angles in degrees at the centre of the sample (θh, θd, φd: Rusinkiewicz half/difference angles; "
@@ -264,7 +269,7 @@ def fig08_optimal_configurations(inp: AcquisitionFigureInputs, stem: str | os.Pa
                     key.legend(handles, labels, loc="upper center", fontsize=7.5, frameon=False,
                                handletextpad=0.3, borderaxespad=0.0,
                                title="L: light, C: camera as (θ, φ); angles in degrees", title_fontsize=7.5)
-        title = (f"Optimal {_SETUP_LABEL.get(setup, setup)} configurations per field of view "
+        title = (f"Optimal {_setup_label(setup)} configurations per field of view "
                  f"({databases.title(database) if database else 'no directions files found'})")
         splits_used = sorted({r.split for r in rows})
         subtitle = ("Xu 2016 Figs. 8-9 analogue; arrows L: light, squares C: camera with its view cone "
@@ -295,7 +300,7 @@ def _configurations_markdown(rows: Sequence[_ConfigRow], title: str, metric: str
     lines += ["| set-up | FOV | images | image | θi | φi | θo | φo | θh | θd | φd | E(S) | split |",
               "|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---|"]
     for r in rows:
-        lines.append(f"| {_SETUP_LABEL.get(r.setup, r.setup)} | {r.fov:g}° | {r.n_images} | {r.image} "
+        lines.append(f"| {_setup_label(r.setup)} | {r.fov:g}° | {r.n_images} | {r.image} "
                      f"| {r.light_sph[0]:.1f} | {r.light_sph[1]:.1f} | {r.camera_sph[0]:.1f} | {r.camera_sph[1]:.1f} "
                      f"| {r.theta_h:.1f} | {r.theta_d:.1f} | {r.phi_d:.1f} | {r.expected_error:.4g} | {r.split} |")
     return "\n".join(lines) + "\n"
@@ -354,7 +359,7 @@ def configurations_figure(directions: Sequence[str | os.PathLike[str]], stem: st
         fig = new_figure(4.4 * ncols + 0.2, 9.4)
         gs = fig.add_gridspec(3, ncols, height_ratios=[5.0, 3.6, 1.3])
         for j, ((setup, fov, n), rows) in enumerate(panels):
-            what = f"{_SETUP_LABEL.get(setup, setup)}, FOV {_fov_text(fov)}, {n} image{'s' if n > 1 else ''}"
+            what = f"{_setup_label(setup)}, FOV {_fov_text(fov)}, {n} image{'s' if n > 1 else ''}"
             sketch = fig.add_subplot(gs[0, j], projection="3d")
             top = fig.add_subplot(gs[1, j], projection="polar")
             text = fig.add_subplot(gs[2, j])

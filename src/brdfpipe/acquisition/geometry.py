@@ -139,7 +139,7 @@ _FIXED_PHI_DEG: float = 2.0  # azimuth steps of fixed_* (per image)
 class Setup:
     """An acquisition setup: kind, field of view (degrees) and pixel lattice.
 
-    ``kind`` ∈ :data:`~brdfpipe.spec.acquisition.SETUP_NAMES`.  Image setups (``nearfield``,
+    ``kind``: a set-up of :data:`~brdfpipe.spec.acquisition.SETUPS`.  Image setups (``nearfield``,
     ``fixed_camera``, ``fixed_light``) need ``0 < fov_deg < 90`` (an image
     can frame the whole disk from every camera direction only if ν < 1) and a
     ``grid`` ≥ 1 (the image is a ``grid × grid`` lattice); ``point`` needs
@@ -152,8 +152,7 @@ class Setup:
     grid: int = DEFAULT_GRID
 
     def __post_init__(self) -> None:
-        if self.kind not in acquisition_spec.SETUP_NAMES:
-            raise ValueError(f"setup kind must be one of {acquisition_spec.SETUP_NAMES}, got {self.kind!r}")
+        acquisition_spec.setup(self.kind)  # ValueError naming the known set-ups
         if isinstance(self.fov_deg, (bool, np.bool_)) or not isinstance(
             self.fov_deg, (int, float, np.integer, np.floating)
         ):

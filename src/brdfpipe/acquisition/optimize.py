@@ -287,7 +287,11 @@ class _Optimizer:
         self.valid = self.lookup >= 0
         self.Q = _load_q(model.Q)
         self.fixed = bool(setup.spec.shared)
-        self.axes: tuple[int, ...] = (1, 2) if self.fixed else (0, 1, 2)
+        self.axes: tuple[int, ...] = setup.spec.moves
+        self.pinned: tuple[tuple[int, int], ...] = setup.spec.pinned
+        if self.pinned and not self.fixed:
+            raise ValueError(f"set-up {setup.kind}: pinned axes need a shared direction "
+                             "(candidates drawn on the grid)")
         self.wrap = (False, False, setup.spec.wrap_phi)
         self._cache: dict[Config, NDArray[np.int32] | None] = {}
         self._cached_cells = 0
@@ -371,6 +375,8 @@ class _Optimizer:
             it = self.rng.integers(0, CONFIG_DIMS[1], batch)
             ip = self.rng.integers(0, CONFIG_DIMS[2], batch)
             configs = np.stack([ish, it, ip], axis=1)
+            for axis, value in self.pinned:
+                configs[:, axis] = value
             ok = self.valid[centre_cells(self.setup, configs)] & ((it != 0) | (ip == 0))
             for row in configs[ok]:
                 c = (int(row[0]), int(row[1]), int(row[2]))
@@ -676,6 +682,9 @@ def _held_blocks(opt: _Optimizer, held: Sequence[Config]) -> list[_Block]:
         config = (int(c[0]), int(c[1]), int(c[2]))
         if config in {b.config for b in blocks}:
             raise ValueError(f"held configuration {config} is given twice")
+        off = [axis for axis, value in opt.pinned if config[axis] != value]
+        if off:
+            raise ValueError(f"held {opt.setup.kind} configuration {config} leaves its pinned axes {off}")
         if opt.fixed and blocks and config[0] != blocks[0].config[0]:
             raise ValueError(f"held {opt.setup.kind} configurations must share the elevation: {config} vs "
                              f"{blocks[0].config}")

@@ -9,9 +9,9 @@ light shared by all images (§8).  The geometry
 (:mod:`brdfpipe.rendering.capture`), the figures and the planner read a
 set-up's properties from its :class:`SetupKind` instead of testing names.
 
-Adding a set-up: a record in :data:`SETUPS` here, its physics in
-``acquisition/geometry.py`` (the cells one configuration observes) and its
-name in the config schema's two enums (``acquisition.setups``, and
+Adding a set-up: a record in :data:`SETUPS` here (its move set included),
+its physics in ``acquisition/geometry.py`` where it has new physics (the
+cells one configuration observes) and its name in the config schema's two enums (``acquisition.setups``, and
 ``closed_loop.setups`` for an image set-up; a test keeps them equal to this
 registry).  See ``docs/design/extending.md``.
 
@@ -60,7 +60,18 @@ class SetupKind:
     two of the three axes per image.  ``axes``: the names of a
     configuration's three grid indices in logs.  ``wrap_phi``: the third axis
     is an azimuth that wraps round.  ``n_max_key``: the config key bounding
-    the set size.  ``label``: a figure's legend.
+    the set size.  ``label``: a figure's legend; ``colour``: its curves'
+    colour in the figures that compare set-ups (an index into
+    :data:`brdfpipe.core.plot.COLOURS`).
+
+    The optimiser's move set: ``moves``, the axes its local search moves each
+    observation along (±step; a shared direction's elevation, axis 0, moves
+    for the whole set instead); ``pinned``, (axis, grid index) pairs every
+    configuration keeps, e.g. a ring of cameras at one elevation (a set-up
+    with a shared direction only).  Candidates are drawn among the model's
+    cells for a set-up without a shared direction (a configuration is a
+    cell), else uniformly over the grid with the set's shared elevation and
+    the pinned axes in place.
     """
 
     name: str
@@ -71,6 +82,9 @@ class SetupKind:
     axes: tuple[str, str, str]
     wrap_phi: bool
     n_max_key: str
+    moves: tuple[int, ...] = (0, 1, 2)
+    pinned: tuple[tuple[int, int], ...] = ()
+    colour: int = 5
 
     @property
     def unit(self) -> str:
@@ -83,13 +97,15 @@ SETUPS: dict[str, SetupKind] = {
     s.name: s
     for s in (
         SetupKind("point", "point samples", images=False, fov="none", shared="",
-                  axes=("iθh", "iθd", "iφd"), wrap_phi=True, n_max_key="n_max_point"),
+                  axes=("iθh", "iθd", "iφd"), wrap_phi=True, n_max_key="n_max_point", colour=1),
         SetupKind("nearfield", "near-field", images=True, fov="fovs", shared="",
-                  axes=("iθh", "iθd", "iφd"), wrap_phi=False, n_max_key="n_max_images"),
+                  axes=("iθh", "iθd", "iφd"), wrap_phi=False, n_max_key="n_max_images", colour=2),
         SetupKind("fixed_camera", "fixed camera, moving light", images=True, fov="fixed", shared="camera",
-                  axes=("θcam", "θlight", "φlight"), wrap_phi=True, n_max_key="n_max_images"),
+                  axes=("θcam", "θlight", "φlight"), wrap_phi=True, n_max_key="n_max_images", moves=(1, 2),
+                  colour=0),
         SetupKind("fixed_light", "fixed light, moving camera", images=True, fov="fixed", shared="light",
-                  axes=("θlight", "θcam", "φcam"), wrap_phi=True, n_max_key="n_max_images"),
+                  axes=("θlight", "θcam", "φcam"), wrap_phi=True, n_max_key="n_max_images", moves=(1, 2),
+                  colour=4),
     )
 }
 #: The set-ups' names (the schema's ``acquisition.setups`` enum).
