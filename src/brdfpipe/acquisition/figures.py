@@ -431,7 +431,7 @@ def fig19_error_vs_n(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str])
 
 
 def fig18_per_material(inp: AcquisitionFigureInputs, stem: str | os.PathLike[str]) -> FigureOutput:
-    """Xu Fig. 18: per-material error of ``inp.n_point`` point samples (E(S) and κ directions), with E_deviation markers.
+    """Xu Fig. 18: per-material error of ``inp.n_point`` point samples (E(S), κ directions), E_deviation markers.
 
     Each material's value is its channel ``all`` row, else the mean of its
     channel rows; materials are the held-out ones present in the table, in
