@@ -56,6 +56,7 @@ __all__ = [
     "cell_centres",
     "cell_directions",
     "measured_mask",
+    "above_horizon",
     "directional_albedo",
     "mean_directional_albedo_weights",
 ]
@@ -314,7 +315,12 @@ def measured_mask() -> NDArray[np.bool_]:
     slightly fewer because it tests the cell centre only.
     """
     wi, wo = cell_directions()
-    return ((wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)).reshape(DIMS)
+    return above_horizon(wi, wo).reshape(DIMS)
+
+
+def above_horizon(wi: NDArray[np.float64], wo: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether both directions of each pair are above the horizon (z > 0): ``(n,)`` from two ``(n, 3)`` arrays."""
+    return (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
 
 
 # --------------------------------------------------------------------------

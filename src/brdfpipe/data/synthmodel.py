@@ -117,9 +117,11 @@ class Grid:
 @lru_cache(maxsize=1)
 def cell_grid() -> Grid:
     """Geometry of the measured MERL cell centres (cached per process)."""
-    mask = merl.measured_mask()
+    # every cell's directions once: the measured mask (merl.measured_mask) and the measured cells' directions
+    wi_all, wo_all = merl.cell_directions()
+    mask = merl.above_horizon(wi_all, wo_all).reshape(merl.DIMS)
     cells = np.flatnonzero(mask)
-    wi, wo = merl.cell_directions(cells)
+    wi, wo = wi_all[cells], wo_all[cells]
     ih, rest = np.divmod(cells, merl.N_THETA_D * merl.N_PHI_D)
     id_ = rest // merl.N_PHI_D
     u = (np.arange(merl.N_THETA_H) + 0.5) / merl.N_THETA_H
