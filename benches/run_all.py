@@ -58,6 +58,8 @@ def main() -> None:
     run("benches/bench_integrity.py")
     run("benches/bench_dryrun.py")
     run("benches/bench_memory.py")
+    # Speed (issue 33): the jobs' CPU beside a competing load against idle (no job spins or oversubscribes).
+    run("benches/bench_load.py")
     # Speed: where the last run's wall time went (critical path, CPU per rule, idle cores).
     run("benches/bench_critical_path.py")
 
