@@ -11,6 +11,7 @@ training rows.  Q is stored as float32, as the real model does.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import logging
@@ -503,3 +504,19 @@ def test_a_ring_of_cameras_is_a_record(monkeypatch: pytest.MonkeyPatch) -> None:
     light = optimize(model, Setup("fixed_light", 25.0, 8), metric="error", n_max=3, candidates=T, seed=0,
                      log=lambda line: None)
     assert any(c[1] != 45 for c in light[-1].configurations)  # without the pin the cameras leave the ring
+
+
+def test_a_pinned_axis_is_refused_where_it_cannot_hold(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Pinned axes need candidates drawn on the grid (a shared direction); a held set must keep them."""
+    from brdfpipe.spec import acquisition as acq_spec
+
+    base = acq_spec.SETUPS["fixed_light"]
+    monkeypatch.setitem(acq_spec.SETUPS, "ring", dataclasses.replace(base, name="ring", moves=(2,), pinned=((1, 45),)))
+    monkeypatch.setitem(acq_spec.SETUPS, "pinned_nearfield",
+                        dataclasses.replace(acq_spec.SETUPS["nearfield"], name="pinned_nearfield", pinned=((1, 45),)))
+    model = full_model()
+    with pytest.raises(ValueError, match="set-up pinned_nearfield: pinned axes need a shared direction"):
+        optimize(model, Setup("pinned_nearfield", 25.0, 8), n_max=1, candidates=T, seed=0, log=lambda line: None)
+    with pytest.raises(ValueError, match=r"held ring configuration \(20, 30, 10\) leaves its pinned axes \[1\]"):
+        optimize(model, Setup("ring", 25.0, 8), n_max=2, candidates=T, seed=0, held=[(20, 30, 10)],
+                 log=lambda line: None)
