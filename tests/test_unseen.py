@@ -338,7 +338,6 @@ def test_plan_of_the_unseen_materials() -> None:
     assert set(plan.unseen_figures(unseen=True, evaluated=True)) == {"acquisition", "manifold"}
     assert set(plan.unseen_figures(unseen=True, evaluated=False)) == {"manifold"}
     assert plan.unseen_map_q({"latent_dims": [5, 2]}) == 2 and plan.unseen_map_q({"latent_dims": [3, 5]}) == 3
-    assert set(plan.UNSEEN_RULES) <= set(plan.MEMORY_MB)
 
 
 # -- the acquisition (table lookup) ----------------------------------------------

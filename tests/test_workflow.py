@@ -481,3 +481,28 @@ def test_a_subset_of_materials_plans_jobs_for_those_only(tmp_path: Path) -> None
     manifest = json.loads((tmp_path / "results" / "synthetic" / "manifest.json").read_text())
     assert sorted(m["name"] for m in manifest["materials"]) == subset and manifest["count"] == 12
     assert json.loads((tmp_path / "results" / "splits.json").read_text())["materials"] == subset
+
+
+def test_a_rule_without_a_memory_model_fails_at_parse_naming_it(tmp_path: Path) -> None:
+    """The memory check reads Snakemake's own rules: a rule the model lacks is refused before any job, by name."""
+    workflow = tmp_path / "workflow"
+    shutil.copytree(ROOT / "workflow", workflow)
+    report = workflow / "rules" / "report.smk"
+    report.write_text(report.read_text() + '''
+
+rule count_claims:
+    input:
+        claims=fn.claims_csv(),
+        stamp=stamp_of("count_claims"),
+    output:
+        "results/report/claims.count",
+    shell:
+        "wc -l {input.claims} > {output}"
+''')
+    cmd = [str(SNAKEMAKE), "--snakefile", str(workflow / "Snakefile"), "--directory", str(tmp_path),
+           "--configfile", str(TINY), "--cores", "2", "-n"]
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    out = r.stdout + r.stderr
+    assert r.returncode != 0
+    assert "rules without a memory model (brdfpipe.plan.memory.MEMORY_MB): count_claims" in out, out
+    assert not (tmp_path / "results").exists()

@@ -275,8 +275,7 @@ JOB_SIZES = {
     )
     for scene, (res, _) in RENDER_SETTINGS.items()
 }
-# No job may need more memory than one job may have: sizes and materials are
-# checked against the memory model here, naming the key (brdfpipe.plan.memory).
+# The memory check's inputs (the Snakefile runs the check once all rules exist).
 if config["materials"] is not None:
     MATERIALS_KEY = "materials"
 else:
@@ -285,32 +284,10 @@ else:
         "merl": "merl_dir",
         "nbrdf": "nbrdf_archive",
     }.get(config["database"], "database")
-PLANNED_RULES = plan.planned_rules(
-    config,
-    generated=GENERATED,
-    fits=FITS,
-    path_points=bool(PATH_POINTS),
-    floor_check=bool(FLOOR_CANDIDATES),
-    unseen=bool(UNSEEN),
-    samples=bool(N_SAMPLES),
-)
 POINT_OUTPUTS = {
     **{r: len(PATH_POINTS) for r in plan.PER_OUTPUT_MB},
     "sample_latent_materials": N_SAMPLES,
 }
-try:
-    plan.check_memory(
-        config,
-        len(MATERIALS),
-        PLANNED_RULES,
-        outputs=POINT_OUTPUTS,
-        floor_resolution=FLOOR["resolution"] if FLOOR_CANDIDATES else None,
-        materials_key=MATERIALS_KEY,
-        n_test=len(TEST_MATERIALS),
-        n_unseen=N_UNSEEN,
-    )
-except plan.ConfigError as err:
-    raise WorkflowError(f"invalid configuration: {err}") from None
 
 
 def mem(rule, outputs=1, scenes=None):

@@ -8,7 +8,7 @@ below it imports it.
 
 * :mod:`brdfpipe.plan.config`  – the config's parse-time checks (one :class:`ConfigError` line naming the key);
 * :mod:`brdfpipe.plan.outputs` – which direction sets, figures and unseen-material files a config produces, where a run's results are;
-* :mod:`brdfpipe.plan.memory`  – the rules a config runs and the memory each job declares, checked up front;
+* :mod:`brdfpipe.plan.memory`  – the memory each job declares, checked up front over the rules the workflow defines;
 * :mod:`brdfpipe.plan.report`  – what the Snakemake report holds (one item per figure, table and error map).
 
 ``from brdfpipe import plan`` gives every public name of the four modules

@@ -13,13 +13,10 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from brdfpipe.plan.outputs import (closedloop_directions, curve_directions, paper_directions, reconstruction_sets,
-                                   unseen_directions)
+from brdfpipe.plan.outputs import closedloop_directions
 from brdfpipe.spec.errors import ConfigError
 
 __all__ = [
-    "UNSEEN_RULES",
-    "planned_rules",
     "MEMORY_MB",
     "PER_OUTPUT_MB",
     "MEMORY_HEADROOM",
@@ -327,7 +324,8 @@ def check_memory(
 ) -> None:
     """Refuse a configuration one of whose jobs would declare more than ``limit_mb`` (:data:`JOB_MEMORY_LIMIT_MB`).
 
-    For each rule (``rules``, :func:`planned_rules`) the first attempt's
+    For each rule (``rules``: those the workflow defines for ``config``, read
+    from Snakemake's own rule list at parse time) the first attempt's
     ``mem_mb`` (:func:`mem_mb`) with the config's sizes (the floor check's
     rules with ``floor_resolution``).  The job that needs most decides:
     :class:`ConfigError` naming the key whose term grew most (a size of
@@ -383,46 +381,3 @@ def check_memory(
         value, limit_text = f"{int(have)}", f"at most {int(most)}"
     why = f"one {rule} job would need {need:,} MB with {n_materials} materials, above the {limit_mb:,} MB a job may have (the Slurm profile's per-job memory)"
     raise ConfigError(f"config {key} = {value}: {why}; {limit_text}")
-
-
-#: The rules of the materials outside the training database (config ``unseen``).
-UNSEEN_RULES: tuple[str, ...] = ("evaluate_unseen_fits", "capture_unseen_closedloop", "evaluate_unseen",
-                                 "locate_unseen", "plot_unseen_errors", "plot_unseen_latent")
-
-
-def planned_rules(config: Mapping[str, Any], *, generated: bool, path_points: bool, floor_check: bool,
-                  fits: bool = False, unseen: bool = False, samples: bool = False) -> list[str]:
-    """The rules of :data:`MEMORY_MB` whose jobs ``config`` plans (for :func:`check_memory`).
-
-    ``generated``: the run generates the synthetic database; ``fits``: it
-    evaluates a database of fits (rule ``evaluate_fits`` instead of
-    ``ingest_material``); ``unseen``: it has materials outside its database
-    (config ``unseen``); ``samples``: it draws latent samples (Soler Fig. 1,
-    ``render.latent_samples.count`` > 0).
-    """
-    skip: set[str] = set()
-    if not unseen:
-        skip |= set(UNSEEN_RULES)
-    else:
-        if not closedloop_directions(config):
-            skip.add("capture_unseen_closedloop")
-        if not (closedloop_directions(config) or unseen_directions(config["acquisition"])):
-            skip |= {"evaluate_unseen", "plot_unseen_errors"}
-    if not generated:
-        skip |= {"synthesize_material", "write_manifest"}
-    skip.add("ingest_material" if fits else "evaluate_fits")
-    if not closedloop_directions(config):
-        skip |= {"capture_closedloop", "evaluate_closedloop", "plot_closedloop"}
-    if not path_points:
-        skip |= {"interpolate_path_points", "render_path_points", "error_maps"}
-    if not floor_check:
-        skip |= FLOOR_RULES
-    if not samples:
-        skip |= {"sample_latent_materials", "render_latent_samples"}
-    if not curve_directions(config["acquisition"]):
-        skip.add("evaluate_training_size")
-    if not paper_directions(config["acquisition"]):
-        skip.add("evaluate_paper_directions")
-    if not reconstruction_sets(config["acquisition"]):
-        skip |= {"reconstruct_figure_material", "render_reconstructions", "plot_reconstruction_figures"}
-    return [r for r in MEMORY_MB if r not in skip]

@@ -1,13 +1,11 @@
-"""Which outputs a configuration produces: direction sets, figures, the unseen materials' files, rules.
+"""Which outputs a configuration produces: direction sets, figures, the unseen materials' files.
 
 Read by the Snakefile while it builds the DAG (``workflow/rules/*.smk``) and
 by the tests: the direction sets each split optimises, the sets the closed
 loop captures and the unseen materials are looked up with, the figures of
 each track (from :data:`brdfpipe.spec.figures.FIGURES`), the GPLVM
-candidates the floor check renders,
-and which rules a configuration runs
-(:func:`brdfpipe.plan.memory.planned_rules`); and where a finished run's
-results are (the console's last lines).  Standard library only.
+candidates the floor check renders; and where a finished run's results are
+(the console's last lines).  Standard library only.
 """
 
 from __future__ import annotations
