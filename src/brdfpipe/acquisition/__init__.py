@@ -10,6 +10,7 @@ Imports :mod:`brdfpipe.data` and :mod:`brdfpipe.core`.
 * :mod:`brdfpipe.acquisition.metrics`     – the expected error E(S) (eq. 15), condition number (eq. 6), eq. 4;
 * :mod:`brdfpipe.acquisition.geometry`    – setups and the MERL cells a configuration observes;
 * :mod:`brdfpipe.acquisition.optimize`    – the greedy few-to-many optimiser (§5.1) and directions files;
+* :mod:`brdfpipe.acquisition.candidates`  – the optimiser's candidates: a set-up's configurations, their metric keys;
 * :mod:`brdfpipe.acquisition.paper_directions` – the near-field directions §6 states in words, with their E(S);
 * :mod:`brdfpipe.acquisition.reconstruct` – a full BRDF reconstructed from sparse observations (eq. 4), and a
   held-out material from direction sets (Xu Figs. 2, 15);
