@@ -6,11 +6,11 @@ Kernel (eq. 5) ``c(x, x′) = μ·δ(x, x′) + exp(−‖x − x′‖²/2ℓ²
 ``K = exp(−D²/2ℓ²) + μI``; objective (eq. 6)
 ``L(X) = −(d/2)·log|K| − ½·tr(K⁻¹ Gc)``, with ``Gc`` the centred Gram matrix
 of the materials' data (:func:`brdfpipe.manifold.gram.gram_matrix`) and ``d``
-its column count.  :func:`log_likelihood`, :func:`log_likelihood_grad` and
-:func:`log_likelihood_hessian` check their arguments; :func:`loglik`,
-:func:`loglik_grad` and :func:`loglik_grad_hess` are the same without the
-checks, given the Gram matrix's square root (:class:`GramRoot`): the inner
-loops of the optimisers (:mod:`brdfpipe.manifold.fitting`).
+its column count.  :func:`log_likelihood` and :func:`log_likelihood_grad`
+check their arguments; :func:`loglik` and :func:`loglik_grad` are the same
+without the checks, given the Gram matrix's square root (:class:`GramRoot`),
+and :func:`loglik_grad_hess` adds the Hessian: the inner loops of the
+optimisers (:mod:`brdfpipe.manifold.fitting`).
 
 Data scale
 ----------
@@ -55,7 +55,6 @@ __all__ = [
     "kernel_vector",
     "log_likelihood",
     "log_likelihood_grad",
-    "log_likelihood_hessian",
     "GramRoot",
     "loglik",
     "loglik_grad",
@@ -291,38 +290,6 @@ def loglik_grad(
     return L, grad
 
 
-def log_likelihood_hessian(
-    X: ArrayLike, gram: ArrayLike, d: float, ell: float = 1.0, mu: float = 1e-4
-) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
-    """``L`` (eq. 6), ``∂L/∂X`` (N × q) and the Hessian ``∂²L/∂x∂x`` (Nq × Nq, in the order of ``X.ravel()``).
-
-    With ``P = K⁻¹``, ``Q = K⁻¹GK⁻¹`` and ``W = −(d/2)P + ½Q`` (= ∂L/∂K),
-    the second differential is ``d²L = tr(W d²K) + (d/2)·tr(P dK₁ P dK₂) −
-    tr(P dK₁ Q dK₂)``.  Moving coordinate k of point i changes only row and
-    column i of K: ``∂K/∂x_ik = e_i aᵀ + a e_iᵀ`` with ``a`` row i of
-    ``A_k = −E ∘ Δ_k / ℓ²`` (``Δ_k[i, j] = x_ik − x_jk``, antisymmetric), so
-    for any symmetric P, Q
-    ``tr(P dK₁ Q dK₂) = (A_kQ)_ij (A_lP)_ji + (A_kP)_ij (A_lQ)_ji + P_ij (A_kQA_lᵀ)_ij + Q_ij (A_kPA_lᵀ)_ij``
-    for the pair (x_ik, x_jl).  The block (k, l) over all point pairs is
-    therefore a few element-wise products of N × N matrices and the two
-    products ``(dA_kP − A_kQ)A_lᵀ`` and ``A_kPA_lᵀ``; the ``tr(W d²K)`` term
-    is ``−2F_ij(Δ_kΔ_l/ℓ⁴ − δ_kl/ℓ²)`` off the diagonal (``F = W ∘ E``) and
-    minus its row sum on it (L is invariant under translations).  Cost:
-    ``2q + q(q + 1)`` products of N × N matrices (≈ 80N³ flops for q = 5,
-    20 gradients' worth) on top of the gradient's factorisations; memory
-    ``(Nq)²`` doubles.  The Hessian is singular along the rigid motions of the
-    latent points (q translations, q(q − 1)/2 rotations).  Used by the
-    ``newton`` method (:mod:`brdfpipe.manifold.newton`); checked against finite differences of
-    the gradient in the tests.
-    """
-    g, d_f = check_gram(gram, d)
-    ell, mu = check_hyper(ell, mu)
-    x = check_latents(X)
-    if x.shape[0] != g.shape[0]:
-        raise ValueError(f"X has {x.shape[0]} rows but gram is {g.shape[0]} x {g.shape[0]}")
-    return loglik_grad_hess(x, GramRoot(g), d_f, ell, mu)
-
-
 def loglik(x: NDArray[np.float64], root: GramRoot, d: float, ell: float, mu: float) -> float:
     """L alone (one Cholesky and one triangular solve): the trial points of the Newton stage."""
     blas, lapack = scipy.linalg.blas, scipy.linalg.lapack
@@ -344,7 +311,28 @@ def loglik(x: NDArray[np.float64], root: GramRoot, d: float, ell: float, mu: flo
 def loglik_grad_hess(
     x: NDArray[np.float64], root: GramRoot, d: float, ell: float, mu: float
 ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`log_likelihood_hessian` without validation."""
+    """``L`` (eq. 6), ``∂L/∂X`` (N × q) and the Hessian ``∂²L/∂x∂x`` (Nq × Nq, in the order of ``x.ravel()``).
+
+    Arguments unchecked (see :func:`log_likelihood_grad`).  With ``P = K⁻¹``, ``Q = K⁻¹GK⁻¹`` and
+    ``W = −(d/2)P + ½Q`` (= ∂L/∂K),
+    the second differential is ``d²L = tr(W d²K) + (d/2)·tr(P dK₁ P dK₂) −
+    tr(P dK₁ Q dK₂)``.  Moving coordinate k of point i changes only row and
+    column i of K: ``∂K/∂x_ik = e_i aᵀ + a e_iᵀ`` with ``a`` row i of
+    ``A_k = −E ∘ Δ_k / ℓ²`` (``Δ_k[i, j] = x_ik − x_jk``, antisymmetric), so
+    for any symmetric P, Q
+    ``tr(P dK₁ Q dK₂) = (A_kQ)_ij (A_lP)_ji + (A_kP)_ij (A_lQ)_ji + P_ij (A_kQA_lᵀ)_ij + Q_ij (A_kPA_lᵀ)_ij``
+    for the pair (x_ik, x_jl).  The block (k, l) over all point pairs is
+    therefore a few element-wise products of N × N matrices and the two
+    products ``(dA_kP − A_kQ)A_lᵀ`` and ``A_kPA_lᵀ``; the ``tr(W d²K)`` term
+    is ``−2F_ij(Δ_kΔ_l/ℓ⁴ − δ_kl/ℓ²)`` off the diagonal (``F = W ∘ E``) and
+    minus its row sum on it (L is invariant under translations).  Cost:
+    ``2q + q(q + 1)`` products of N × N matrices (≈ 80N³ flops for q = 5,
+    20 gradients' worth) on top of the gradient's factorisations; memory
+    ``(Nq)²`` doubles.  The Hessian is singular along the rigid motions of the
+    latent points (q translations, q(q − 1)/2 rotations).  Used by the
+    ``newton`` method (:mod:`brdfpipe.manifold.newton`); checked against finite differences of
+    the gradient in the tests.
+    """
     blas = scipy.linalg.blas
     n, q = x.shape
     s, E, c, logdet, P = _factor(x, ell, mu)

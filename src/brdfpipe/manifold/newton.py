@@ -8,7 +8,7 @@ start):
    ``rms`` and ``unit`` (:data:`~brdfpipe.manifold.fitting.NEWTON_TRIAL_SCALES`);
    steps 2 to 4 from each, the higher final L is kept;
 2. Newton steps with the exact Hessian
-   (:func:`~brdfpipe.manifold.likelihood.log_likelihood_hessian`,
+   (:func:`~brdfpipe.manifold.likelihood.loglik_grad_hess`,
    ≈ 20 gradients' worth at q = 5) in Levenberg–Marquardt form: the shift λ
    on a ladder of powers of two, raised until L gains, lowered after good
    steps; where L curves up along some direction by more than λ/2, λ is
