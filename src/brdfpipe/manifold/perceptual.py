@@ -121,13 +121,10 @@ Choices (where [PR12]'s text was not available)
 
 API
 ---
-:func:`pr12_features` (one table → 1-D features of 53 MB),
-:func:`pr12_distance` (two tables or features → float) and
-:func:`pr12_distances` (all distances between two batches, each table's
-features computed once).  Path distances as in Soler et al. Fig. 9:
-``pr12_distances(path_tables, [table_a, table_b])``.  :class:`StreamedDistances`:
+:func:`pr12_features` (one table → 1-D features of 53 MB) and
+:func:`pr12_distance` (two tables or features → float).  :class:`StreamedDistances`:
 the same distances between tables seen a block of cells at a time (no table whole;
-:mod:`brdfpipe.manifold.blendpass`).
+:mod:`brdfpipe.manifold.blendpass`, which measures the paths of Soler et al. Fig. 9).
 """
 
 from __future__ import annotations
@@ -146,7 +143,6 @@ __all__ = [
     "N_BRANCHES",
     "pr12_features",
     "pr12_distance",
-    "pr12_distances",
     "pr12_n_features",
     "StreamedDistances",
 ]
@@ -354,49 +350,6 @@ def pr12_distance(a: ArrayLike, b: ArrayLike) -> float:
     fa = _as_features(a, "a")
     fb = _as_features(b, "b")
     return float(np.sqrt(_sq_distance(fa, fb, _measured(fa), _measured(fb))))
-
-
-def _batch(xs: Sequence[ArrayLike] | NDArray, what: str) -> list[NDArray[np.float64]]:
-    if isinstance(xs, np.ndarray) and xs.ndim in (2, 5):
-        items = list(xs)
-    elif isinstance(xs, np.ndarray):
-        raise ValueError(
-            f"{what} must be a sequence of tables/feature vectors, a (N, {pr12_n_features()}) "
-            f"feature array or a (N, 3, 90, 90, 180) table array; got shape {xs.shape}"
-        )
-    else:
-        items = list(xs)
-    return [_as_features(x, f"{what}[{i}]") for i, x in enumerate(items)]
-
-
-def pr12_distances(
-    xs: Sequence[ArrayLike] | NDArray, ys: Sequence[ArrayLike] | NDArray | None = None
-) -> NDArray[np.float64]:
-    """All PR12 distances between two batches: ``D[i, j] = pr12_distance(xs[i], ys[j])``.
-
-    Items are tables or feature vectors; each table's features are computed
-    once.  ``ys=None`` gives the symmetric ``(N, N)`` matrix of ``xs`` with an
-    exact zero diagonal (each pair computed once).  For a latent path as in
-    Soler et al. Fig. 9: ``pr12_distances(path, [a, b])`` is ``(len(path), 2)``.
-    Memory: one feature vector is ~53 MB (float64); pass features computed one
-    at a time (or call :func:`pr12_distance` in a loop) for large batches.
-    """
-    fx = _batch(xs, "xs")
-    mx = [_measured(f) for f in fx]
-    if ys is None:
-        n = len(fx)
-        out = np.zeros((n, n))
-        for i in range(n):
-            for j in range(i + 1, n):
-                out[i, j] = out[j, i] = np.sqrt(_sq_distance(fx[i], fx[j], mx[i], mx[j]))
-        return out
-    fy = _batch(ys, "ys")
-    my = [_measured(f) for f in fy]
-    out = np.empty((len(fx), len(fy)))
-    for i in range(len(fx)):
-        for j in range(len(fy)):
-            out[i, j] = np.sqrt(_sq_distance(fx[i], fy[j], mx[i], my[j]))
-    return out
 
 
 class StreamedDistances:
