@@ -16,7 +16,6 @@ from brdfpipe.core import filenames, integrity
 from brdfpipe.rendering import blend
 from brdfpipe.rendering.blend import (
     BlendError,
-    blend_exr,
     error_map,
     error_maps,
     format_t,
@@ -43,8 +42,13 @@ def _images(tmp_path: Path, n: int = 3, seed: int = 0, shape: tuple[int, int] = 
 
 
 # --------------------------------------------------------------------------
-# blend_exr
+# Blending: error_maps' weights check and blend of the pre-renders
 # --------------------------------------------------------------------------
+
+
+def blend_exr(paths: list[Path], weights: Any, progress: Any = None) -> np.ndarray:
+    """``Σᵢ wᵢ Iᵢ`` of the EXR images at ``paths``, checked and blended as :func:`error_maps` does."""
+    return blend._blend_many(paths, blend._check_weights(weights, len(paths), "weights")[None, :], progress)[0]
 
 
 def test_blend_of_constant_images_is_the_weighted_sum(tmp_path: Path) -> None:

@@ -50,7 +50,6 @@ from brdfpipe.spec import tables
 __all__ = [
     "BlendError",
     "format_t",
-    "blend_exr",
     "rmse",
     "relative_rmse",
     "error_map",
@@ -84,7 +83,7 @@ def _say(progress: Callable[[str], None] | None, msg: str) -> None:
 # --------------------------------------------------------------------------
 
 
-def _check_weights(weights: ArrayLike, n: int, what: str = "weights") -> NDArray[np.float64]:
+def _check_weights(weights: ArrayLike, n: int, what: str) -> NDArray[np.float64]:
     w = np.asarray(weights, dtype=np.float64)
     if w.ndim != 1:
         raise BlendError(f"{what} must be a vector, got shape {w.shape}")
@@ -125,28 +124,6 @@ def _blend_many(
         _say(progress, f"blend: read {i + 1}/{len(paths)} {p}")
     assert out is not None
     return out
-
-
-def blend_exr(
-    paths: Sequence[str | os.PathLike[str]],
-    weights: ArrayLike,
-    *,
-    progress: Callable[[str], None] | None = None,
-) -> NDArray[np.float64]:
-    """``Σᵢ wᵢ Iᵢ`` of the EXR images at ``paths``, an ``(H, W, 3)`` float64 array.
-
-    Images are read one at a time and accumulated in float64 (never stacked);
-    each file is read exactly once.  ``weights`` are used as given (negative
-    weights are kept, the sum is not renormalised).  Raises
-    :class:`BlendError` if the number of weights differs from the number of
-    paths, a weight is not finite, or an image's shape differs from the first
-    image's (naming the file and both shapes), and
-    :class:`~brdfpipe.core.exr.ExrError` naming the file for a missing or invalid
-    EXR.  ``progress`` gets one line per image read (default: the log).
-    """
-    paths = list(paths)
-    w = _check_weights(weights, len(paths))
-    return _blend_many(paths, w[None, :], progress)[0]
 
 
 # --------------------------------------------------------------------------
