@@ -25,11 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from brdfpipe.manifold.likelihood import check_hyper, check_latents, check_point, kernel_matrix
+from brdfpipe.manifold.likelihood import kernel_matrix
 
-__all__ = ["State", "full_state", "candidate", "rank2_update", "Settings", "run"]
+__all__ = ["State", "full_state", "Settings", "run"]
 
 
 @dataclass
@@ -97,52 +97,19 @@ def _candidates(
     return dlogdet, dtr, cols, a, Minv, ok
 
 
-def candidate(
-    st: State, gram: NDArray[np.float64], i: int, xi: NDArray[np.float64], inv2l2: float
-) -> tuple[float, float, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
-    """Score moving point ``i`` to ``xi``: (Δlog|K|, Δtr, new column, Aᵀ (2 × N), M⁻¹); None if K′ is not PD.
-
-    One candidate of :func:`_candidates`.
-    """
-    dlogdet, dtr, cols, a, Minv, ok = _candidates(st, gram, i, xi[None, :], inv2l2)
-    if not ok[0]:
-        return None
-    At = np.stack([a[:, 0], st.Kinv[i]])
-    return float(dlogdet[0]), float(dtr[0]), cols[:, 0], At, Minv[0]
-
-
 def _accept(st: State, i: int, xi: NDArray[np.float64], col: NDArray[np.float64],
-            At: NDArray[np.float64], Minv: NDArray[np.float64], dlogdet: float, dtr: float) -> None:
-    """Apply a scored move: Woodbury ``K′⁻¹ = K⁻¹ − A M⁻¹ Aᵀ`` (Sherman–Morrison twice), K, X, log|K|, tr."""
+            a: NDArray[np.float64], Minv: NDArray[np.float64], dlogdet: float, dtr: float) -> None:
+    """Apply a move scored by :func:`_candidates` (its column, ``a = K⁻¹u``, M⁻¹, Δlog|K|, Δtr).
+
+    Woodbury ``K′⁻¹ = K⁻¹ − A M⁻¹ Aᵀ`` (Sherman–Morrison twice, ``A = [a, K⁻¹e_i]``), then K, X, log|K|, tr.
+    """
+    At = np.stack([a, st.Kinv[i]])
     st.Kinv -= At.T @ (Minv @ At)
     st.K[:, i] = col
     st.K[i, :] = col
     st.X[i] = xi
     st.logdet += dlogdet
     st.tr += dtr
-
-
-def rank2_update(
-    Kinv: ArrayLike, logdet: float, X: ArrayLike, i: int, x_new: ArrayLike, ell: float = 1.0, mu: float = 1e-4
-) -> tuple[NDArray[np.float64], float]:
-    """K⁻¹ and log|K| after moving latent point ``i`` of ``X`` to ``x_new`` (Woodbury 2 × 2 + determinant lemma).
-
-    ``Kinv`` / ``logdet`` must belong to ``kernel_matrix(X, ell, mu)``.  O(N²).
-    Exposed for tests; the search uses the same code.  ValueError if the
-    updated K is not positive definite.
-    """
-    ell, mu = check_hyper(ell, mu)
-    x = check_latents(X)
-    K = kernel_matrix(x, ell, mu)
-    st = State(x.copy(), K, np.array(Kinv, dtype=np.float64), float(logdet), 0.0)
-    xi = check_point(x_new, x.shape[1])
-    res = candidate(st, np.zeros_like(K), int(i), xi, 1.0 / (2.0 * ell * ell))
-    if res is None:
-        raise ValueError("the updated kernel matrix is not positive definite")
-    dlogdet, dtr, col, A, Minv = res
-    _accept(st, int(i), xi, col, A, Minv, dlogdet, dtr)
-    return st.Kinv, st.logdet
-
 
 
 def _hooke_jeeves(
@@ -180,8 +147,7 @@ def _hooke_jeeves(
         if good.size == 0:
             return -1
         c = int(good[0])
-        At = np.stack([a[:, c], st.Kinv[i]])
-        _accept(st, i, xs[c].copy(), cols[:, c].copy(), At, Minv[c], float(dlogdet[c]), float(dtr[c]))
+        _accept(st, i, xs[c].copy(), cols[:, c].copy(), a[:, c], Minv[c], float(dlogdet[c]), float(dtr[c]))
         accepted += 1
         since += 1
         if since >= refactor_every:
