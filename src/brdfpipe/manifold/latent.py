@@ -10,10 +10,9 @@ material can stop being physically plausible.  This module gives:
 * :func:`hull_contains` / :func:`sample_in_hull`: the convex hull of the
   latent points (any ``q``, degenerate point sets included);
 * :func:`nearest_materials`: the training materials nearest a latent point;
-* :func:`latent_albedos`: the white-sky albedo of the material at many
-  latent points;
-* :func:`extrapolate`: walk along a latent line until the albedo leaves
-  [0, 1] in some channel (energy conservation, or a negative material);
+* :func:`extrapolate`: walk along a latent line until the white-sky albedo
+  of the material leaves [0, 1] in some channel (energy conservation, or a
+  negative material);
 * :func:`sample_material`: plausible new materials, uniform in the hull and
   with albedo in [0, 1].
 
@@ -92,7 +91,6 @@ __all__ = [
     "sample_in_hull",
     "nearest_materials",
     "blend_weights_at",
-    "latent_albedos",
     "Extrapolation",
     "extrapolate",
     "MAX_WALK_WEIGHTS",
@@ -403,7 +401,8 @@ class _Albedo:
     store: BrdfStore | None
 
     @classmethod
-    def of(cls, model: gplvm.GplvmModel, source: AlbedoSource, exact: bool = False) -> _Albedo:
+    def of(cls, model: gplvm.GplvmModel, source: AlbedoSource, exact: bool) -> _Albedo:
+        """The albedo of ``model``'s interpolated material from ``source`` (see :func:`extrapolate`)."""
         if isinstance(source, (BrdfStore, str, os.PathLike)):
             st = gplvm.check_store(model, source)  # the store holds the rows the model was fitted on
             if _is_linear(model.space) and not exact:
@@ -436,24 +435,6 @@ class _Albedo:
             for j, t in enumerate(tables):
                 out[a + j] = material_albedo(t)
         return out
-
-
-def latent_albedos(
-    model: gplvm.GplvmModel, source: AlbedoSource, points: ArrayLike, *, exact: bool = False
-) -> NDArray[np.float64]:
-    """White-sky albedo ``(P, 3)`` of the interpolated material at each latent point.
-
-    ``source``: the materials' albedos ``(N, 3)`` in model order
-    (:func:`brdfpipe.manifold.albedo.material_albedos`; linear data spaces only) or
-    the store (any space; in the log space the tables are formed, one store pass per 4
-    points).  ``exact``: form the table in every space (needs the store), so
-    the clamping of negative interpolated values counts.  See the module
-    docstring, "Albedo at a latent point".
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.ndim == 1:
-        pts = pts[None, :]
-    return _Albedo.of(model, source, exact)(pts)
 
 
 # --------------------------------------------------------------------------
@@ -504,7 +485,11 @@ def extrapolate(
     ``start``: a latent point or a material name.  ``direction``: a latent
     vector ``d``, or a material name B, meaning ``d = x_B − x_start`` (so
     ``s = 1`` is B and ``s > 1`` goes beyond it).  ``source``: the materials'
-    albedos or the store (see :func:`latent_albedos`, also for ``exact``).  At each step the
+    albedos ``(N, 3)`` in model order (:func:`brdfpipe.manifold.albedo.material_albedos`;
+    linear data spaces only) or the store (any space; in the log space the tables are
+    formed, one store pass per 4 points).  ``exact``: form the table in every space
+    (needs the store), so the clamping of negative interpolated values counts (module
+    docstring, "Albedo at a latent point").  At each step the
     albedo of the interpolated material is computed per channel; the walk
     stops at the first step where a channel exceeds 1 (the material would
     reflect more energy than it receives) or goes below 0.  ValueError for a
@@ -589,7 +574,7 @@ def sample_material(
 
     Candidates come from :func:`sample_in_hull` in batches and are kept in
     the order drawn, so the result is deterministic given ``rng``.
-    ``source``, ``exact``: see :func:`latent_albedos`.  ``max_tries``: most candidates
+    ``source``, ``exact``: see :func:`extrapolate`.  ``max_tries``: most candidates
     drawn (default ``max(1000, 100·n)``); ValueError when fewer than ``n``
     are accepted within it (naming how many were).
     """
