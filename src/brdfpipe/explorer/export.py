@@ -100,16 +100,13 @@ __all__ = [
     "FALLBACK_TARGET",
     "ExplorerError",
     "pack_halves",
-    "unpack_halves",
     "TILE",
     "blend_tiles",
     "reduced_basis",
     "truncation_errors",
     "noise_floor",
     "hull_data",
-    "read_data_file",
     "script_json",
-    "write_data_file",
     "write_explorer",
 ]
 
@@ -153,18 +150,6 @@ def pack_halves(images: ArrayLike) -> NDArray[np.uint32]:
     bits = bits.reshape(g, 4, 2, hh, ww, 3)  # group, component j, low/high, H, W, channel
     words = bits[:, :, 0] | (bits[:, :, 1] << 16)  # (G, 4, H, W, 3)
     return np.ascontiguousarray(words.transpose(4, 0, 2, 3, 1).reshape(3 * g, hh, ww, 4))
-
-
-def unpack_halves(words: ArrayLike, n: int) -> NDArray[np.float16]:
-    """Inverse of :func:`pack_halves`: the first ``n`` images ``(n, H, W, 3)`` float16."""
-    w = np.asarray(words, dtype=np.uint32)
-    layers, hh, ww, _ = w.shape
-    g = layers // 3
-    w = w.reshape(3, g, hh, ww, 4).transpose(1, 4, 2, 3, 0)  # G, j, H, W, channel
-    lo = (w & 0xFFFF).astype(np.uint16)
-    hi = (w >> 16).astype(np.uint16)
-    bits = np.stack([lo, hi], axis=2).reshape(g * PER_TEXEL, hh, ww, 3)
-    return bits[:n].view(np.float16)
 
 
 def blend_tiles(images: ArrayLike, *, zero_after_first: bool = False, tile: int = TILE) -> NDArray[np.uint32]:
@@ -363,7 +348,7 @@ def script_json(value: Any) -> str:
     ``<``, ``>``, ``&``, U+2028 and U+2029 are ``\\u`` escapes, so no
     material, path or database name can close the script (``</script>``),
     open an HTML comment (``<!--``) or break a line of the source.  The
-    value read back (``JSON.parse``, :func:`read_data_file`) is unchanged.
+    value read back (``JSON.parse``) is unchanged.
     """
     text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
     return text.translate(_SCRIPT_UNSAFE)
@@ -379,29 +364,6 @@ def _script(key: str, value: Any) -> str:
     record = {"crc32": integrity.text_crc32(text), "json": text}
     return f"window.{_GLOBAL} = window.{_GLOBAL} || {{}};\nwindow.{_GLOBAL}[{script_json(key)}] = " \
            f"{script_json(record)};\n"
-
-
-def write_data_file(path: str | os.PathLike[str], key: str, value: Any) -> None:
-    """Write a ``data/*.js`` file assigning ``value`` to ``key`` (with its CRC-32), atomically (for tests and tools)."""
-    atomic.write_bytes(path, _script(key, value).encode("ascii"))
-
-
-def read_data_file(path: str | os.PathLike[str]) -> Any:
-    """The value a ``data/*.js`` file assigns, its CRC-32 checked (for tests and tools); ExplorerError naming it."""
-    try:
-        text = Path(path).read_text(encoding="ascii")
-        head, sep, body = text.partition("] = ")
-        if not sep or not body.rstrip().endswith(";"):
-            raise ValueError("no assignment")
-        record = json.loads(body.rstrip()[:-1])
-        payload = record["json"]
-        recorded = record["crc32"]
-    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as err:
-        raise ExplorerError(f"{path}: not an explorer data file, or truncated ({type(err).__name__}: {err}); "
-                            f"{integrity.rerun_hint(path)}") from None
-    if integrity.text_crc32(payload) != recorded:
-        raise integrity.mismatch(path, "its payload", error=ExplorerError)
-    return json.loads(payload)
 
 
 def _is_explorer(folder: Path) -> bool:
