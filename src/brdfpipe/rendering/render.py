@@ -118,7 +118,6 @@ __all__ = [
     "merl_bsdf",
     "SamplingFit",
     "fit_sampling",
-    "sampling_variance",
     "sampling_report",
     "tabulate_bsdf",
     "lambertian_table",
@@ -504,21 +503,6 @@ def fit_sampling(table: ArrayLike, n_lobes: int = 2) -> SamplingFit:
         return one
     two = _fit_two_lobes(prob, one)
     return two if two.rel_variance < (1.0 - TWO_LOBE_GAIN) * one.rel_variance else one
-
-
-def sampling_variance(
-    table: ArrayLike,
-    w_cos: float,
-    alphas: tuple[float, ...] = (),
-    weights: tuple[float, ...] = (),
-) -> NDArray[np.float64]:
-    """Relative variance of ``f cos θo / p`` per fit incident angle for a given mixture.
-
-    ``p = w_cos · cos/π + Σ weights[k] · GGX(alphas[k])``; returns
-    ``(len(FIT_THETA_I_DEG),)`` (∞ where the mixture misses some of the BRDF).
-    """
-    prob = _FitProblem(np.asarray(table))
-    return prob.rel_variance(prob.mixture(w_cos, tuple(alphas), tuple(weights))[None, :])[0]
 
 
 def sampling_report(table: ArrayLike) -> dict[str, float]:
