@@ -11,7 +11,7 @@ import scipy.spatial
 from brdfpipe.core import integrity
 from brdfpipe.data import ingest, merl, store, synth
 from brdfpipe.data.merl import N_CELLS
-from brdfpipe.manifold import albedo, analysis, fidelity, fitting, gplvm, gram, latent, likelihood
+from brdfpipe.manifold import albedo, analysis, blendpass, fidelity, fitting, gplvm, gram, latent, likelihood
 
 N = 8
 
@@ -41,6 +41,15 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
 def _model(setup: dict, q: int) -> gplvm.GplvmModel:
     return gplvm.load_model(setup["models"][q])
+
+
+def nearest_neighbour_jump(st: Path, model: gplvm.GplvmModel) -> tuple[np.ndarray, np.ndarray]:
+    """Per material i: ``‖table(xᵢ + t(xⱼ − xᵢ)) − zᵢ‖ / ‖zᵢ‖`` (the table as written, clamped), and j, alone.
+
+    The jump of one model in a pass of its own (measure_candidate measures every q's in its one pass).
+    """
+    W, nn = fidelity.nearest_neighbour_points(model)
+    return blendpass.measure_blends(st, W, model=model, targets=range(W.shape[0])).to_target, nn
 
 
 def test_candidate_label() -> None:
@@ -253,7 +262,7 @@ def test_log_candidate_measures_its_blends_in_two_passes(setup: dict, monkeypatc
         np.testing.assert_allclose(given[q], want, rtol=1e-9, atol=0)
         bad = ((want < 0) | (want > 1)).any(axis=1).mean()
         assert row["albedo_clamped_bad_hull"] == row["albedo_bad_hull"] == bad and row["albedo_clamped_points"] == 12
-        jump, nn = fidelity.nearest_neighbour_jump(setup["store"], m)  # the tables of the log space's blends
+        jump, nn = nearest_neighbour_jump(setup["store"], m)  # the tables of the log space's blends
         assert row["jump_nn_max_1e-6"] == pytest.approx(jump.max(), rel=1e-9) and row["jump_nn_worst"] == (
             f"{m.names[int(jump.argmax())]}>{m.names[int(nn[jump.argmax()])]}")
         assert np.isnan(row["reproduction_max"])  # a Gram quantity: linear spaces only
@@ -328,7 +337,7 @@ def test_jump_next_to_a_material_is_the_table_brdfpipe_interpolate_writes(setup:
     --t 1e-6` writes (j the nearest neighbour), clamped as written — the unclamped blend is never nearer; at t = 0 the
     same command gives the material back (reproduction_max), the fidelity a measure at the points alone reports."""
     m = _model(setup, 3)
-    jump, nn = fidelity.nearest_neighbour_jump(setup["store"], m)
+    jump, nn = nearest_neighbour_jump(setup["store"], m)
     _, _, info = gram.load_gram(setup["grams"]["raw"])
     repro = fidelity.reproduction_at_points(m, info.raw_gram)
     Z = setup["brdf"][:, setup["valid"]]

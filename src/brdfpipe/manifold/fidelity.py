@@ -43,7 +43,7 @@ Measures
   fit (of G/s when the fit was normalised); ``log_likelihood_eq6``: Soler's
   eq. 6 at the fitted points with the space's Gram matrix as it is (no
   normalisation), so fits of one space compare whatever their normalisation.
-* ``jump_nn_*_1e-6`` (:func:`nearest_neighbour_jump`): next to each material,
+* ``jump_nn_*_1e-6`` (:func:`nearest_neighbour_points`): next to each material,
   towards its nearest neighbour in latent space (``x = (1 − t) xᵢ + t xⱼ``,
   t = :data:`NN_STEP`, the point ``brdfpipe interpolate --between i j --t 1e-6``
   takes), the distance of the interpolated table *as that command writes it*
@@ -107,7 +107,6 @@ __all__ = [
     "albedo_outside",
     "clamped_albedos",
     "stability",
-    "nearest_neighbour_jump",
     "reproduction_at_points",
     "nearest_neighbour_spread",
     "path_uniformity",
@@ -226,31 +225,20 @@ def _relative_distances(W: NDArray[np.float64], G: NDArray[np.float64]) -> NDArr
     return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", V, G, V), 0.0)) / norms
 
 
-def nearest_neighbour_points(model: gplvm.GplvmModel, t: float = NN_STEP) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+def nearest_neighbour_points(model: gplvm.GplvmModel) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """Blend weights ``(N, N)`` at ``(1 − t) xᵢ + t xⱼ`` next to each material i, j its nearest latent neighbour; and j.
 
-    The point and its weights are those of ``brdfpipe interpolate --between i j --t t``
+    ``t`` = :data:`NN_STEP`.  The point and its weights are those of ``brdfpipe interpolate --between i j --t 1e-6``
     (:func:`brdfpipe.manifold.gplvm.interpolate_to_file`: the model's own weights, δ term where the point is a
     training point bitwise).
     """
+    t = NN_STEP
     X = model.X
     D = ((X[:, None, :] - X[None, :, :]) ** 2).sum(axis=2)
     np.fill_diagonal(D, np.inf)
     nn = D.argmin(axis=1)
     W = np.stack([gplvm.blend_weights(gplvm.weights(model, (1.0 - t) * X[i] + t * X[nn[i]])) for i in range(len(nn))])
     return W, nn
-
-
-def nearest_neighbour_jump(store: Any, model: gplvm.GplvmModel, t: float = NN_STEP) -> tuple[NDArray[np.float64],
-                                                                                              NDArray[np.intp]]:
-    """Per material i: ``‖table(xᵢ + t(xⱼ − xᵢ)) − zᵢ‖ / ‖zᵢ‖`` (raw units, valid cells), and j its nearest neighbour.
-
-    The table as ``brdfpipe interpolate`` writes it (negative values clamped), in one pass over the store
-    (:func:`brdfpipe.manifold.blendpass.measure_blends` with ``targets``); any data space.
-    """
-    W, nn = nearest_neighbour_points(model, t)
-    got = blendpass.measure_blends(store, W, model=model, targets=range(W.shape[0]))
-    return got.to_target, nn
 
 
 def reproduction_at_points(model: gplvm.GplvmModel, raw_gram: ArrayLike) -> NDArray[np.float64]:
@@ -335,7 +323,7 @@ def measure_model(
     the map's sub-grid (q = 2; :func:`clamped_albedos`, measured by the caller
     in one pass for every q); ``jump``: the table's distance from each
     material next to it, and the neighbour it was taken towards
-    (:func:`nearest_neighbour_jump`).
+    (:func:`nearest_neighbour_points`).
 
     ``hull``: the hull points, already drawn from ``rng`` (:func:`hull_sample`;
     ``rng`` then in the state after the draw); None: drawn here.
@@ -410,7 +398,8 @@ def _table_pass(
     """One pass over the store (every valid cell) for the measures of whole tables.
 
     The perceptual distances of the latent paths' points (:meth:`LatentPath.pairs`, of the paths' fit) and,
-    for every q, the jump next to each material (:func:`nearest_neighbour_jump`).
+    for every q, the jump next to each material (:func:`nearest_neighbour_points`, measured as the distance of
+    the table written there from the material's: :func:`brdfpipe.manifold.blendpass.measure_blends` with ``targets``).
     """
     first = next(iter(fits.values()))
     blocks: list[NDArray[np.float64]] = []
