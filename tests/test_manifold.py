@@ -100,7 +100,7 @@ def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
     model = gplvm.load_model(small["models"][3])
     G, _, _ = gram.load_gram(small["gram"])
     a, b = small["names"][0], small["names"][4]
-    rows = analysis.path_analysis(small["store"], model, G, a, b, steps=4)
+    rows = analysis.paths_analysis(small["store"], model, G, [(a, b)], steps=4)
     assert [r["step"] for r in rows] == list(range(5)) and rows[-1]["t"] == 1.0
     assert rows[0]["perceptual_a"] == 0.0 and rows[-1]["perceptual_b"] == 0.0
     assert rows[0]["perceptual_b"] == pytest.approx(rows[0]["perceptual_ab"]) and rows[0]["perceptual_ab"] > 0
@@ -109,7 +109,7 @@ def test_paths_bound_holds_and_ends_are_exact(small: dict) -> None:
     assert rows[0]["nearest"] == a and rows[-1]["nearest"] == b
     assert rows[0]["bound"] == 0.0
     with pytest.raises(ValueError, match="unknown material 'zzz'"):
-        analysis.path_analysis(small["store"], model, G, a, "zzz")
+        analysis.paths_analysis(small["store"], model, G, [(a, "zzz")])
 
 
 def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -124,14 +124,14 @@ def test_path_memory_does_not_grow_with_its_steps(small: dict, monkeypatch: pyte
     model = gplvm.load_model(small["models"][3])
     G, _, _ = gram.load_gram(small["gram"])
     a, b = small["names"][0], small["names"][4]
-    whole = analysis.path_analysis(small["store"], model, G, a, b, steps=12)
+    whole = analysis.paths_analysis(small["store"], model, G, [(a, b)], steps=12)
     from brdfpipe.manifold import blendpass
 
     monkeypatch.setattr(blendpass, "POINT_CELLS", 3 * 4096)
     peaks = {}
     for steps in (2, 12):
         tracemalloc.start()
-        rows = analysis.path_analysis(small["store"], model, G, a, b, steps=steps)
+        rows = analysis.paths_analysis(small["store"], model, G, [(a, b)], steps=steps)
         peaks[steps] = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
     for r, w in zip(rows, whole):

@@ -82,7 +82,6 @@ __all__ = [
     "LatentPath",
     "latent_path",
     "paths_analysis",
-    "path_analysis",
     "analyze_manifold",
     "path_points_to_files",
 ]
@@ -285,11 +284,11 @@ def paths_analysis(
     pairs: Sequence[tuple[str, str]],
     steps: int = 20,
 ) -> list[dict[str, Any]]:
-    """The rows of :func:`path_analysis` of every path ``pairs`` in order, all blended in one pass over the store.
+    """One row per point of every latent path of ``pairs``, in order, all blended in one pass over the store.
 
-    The interpolated tables are never formed whole: their perceptual distances
-    are summed a block of cells at a time (:func:`brdfpipe.manifold.blendpass.measure_blends`),
-    so memory does not grow with ``steps``.
+    The rows: see the module docstring and tables.LATENT_PATHS.  The interpolated tables are never
+    formed whole: their perceptual distances are summed a block of cells at a time
+    (:func:`brdfpipe.manifold.blendpass.measure_blends`), so memory does not grow with ``steps``.
     """
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps}")
@@ -307,18 +306,6 @@ def paths_analysis(
         rows += p.rows(model, gram, measured.distances[at : at + n])
         at += n
     return rows
-
-
-def path_analysis(
-    store: BrdfStore | str | os.PathLike[str],
-    model: gplvm.GplvmModel,
-    gram: ArrayLike,
-    a: str,
-    b: str,
-    steps: int = 20,
-) -> list[dict[str, Any]]:
-    """One row per point of the latent path from ``a`` to ``b`` (see the module docstring and tables.LATENT_PATHS)."""
-    return paths_analysis(store, model, gram, [(a, b)], steps)
 
 
 # --------------------------------------------------------------------------

@@ -269,7 +269,7 @@ def nearest_neighbour_spread(model: gplvm.GplvmModel) -> dict[str, float]:
 
 
 def path_uniformity(path_rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
-    """From :func:`brdfpipe.manifold.analysis.path_analysis` rows: largest ``|d(A, x)/d(A, B) − t|`` and decreasing steps."""
+    """From :func:`brdfpipe.manifold.analysis.paths_analysis` rows: largest ``|d(A, x)/d(A, B) − t|`` and decreasing steps."""
     by_path: dict[str, list[Mapping[str, Any]]] = {}
     for r in path_rows:
         by_path.setdefault(str(r["path"]), []).append(r)
