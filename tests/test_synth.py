@@ -354,7 +354,8 @@ def test_synthesize_writes_files_and_manifest(
         assert _unmarked(raw).tobytes() == _unmarked(table / merl.SCALES[:, None, None, None]).tobytes()
         assert provenance.read_mark(out / f"{spec.name}.binary") == synth.material_mark(spec, NOISE, (5, SEED))
     # the manifest describes the materials completely
-    meta, specs = synth.read_manifest(manifest)
+    specs = [synth.MaterialSpec(m["name"], m["family"], int(m["index"]), int(m["seed"]), m["params"])
+             for m in doc["materials"]]
     assert [s.name for s in specs] == [s.name for s in specs5]
     assert synth.generate_table(specs[4], NOISE).tobytes() == generated[specs5[4].name][0].tobytes()
 

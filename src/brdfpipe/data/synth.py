@@ -178,7 +178,6 @@ __all__ = [
     "write_named_material",
     "write_manifest",
     "write_database_manifest",
-    "read_manifest",
     "is_synthetic_file",
     "check_output_folder",
     "synthesize",
@@ -828,18 +827,6 @@ def write_database_manifest(
     write_manifest(
         specs, path, seed=seed, noise=noise, test_materials=test_materials, records=records, count=count
     )
-
-
-def read_manifest(path: str | os.PathLike[str]) -> tuple[dict[str, Any], list[MaterialSpec]]:
-    """Read a manifest: the JSON document and its materials as specs."""
-    doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    if doc.get("kind") != "synthetic":
-        raise ValueError(f"{path}: not a synthetic-database manifest")
-    specs = [
-        MaterialSpec(m["name"], m["family"], int(m["index"]), int(m["seed"]), m["params"])
-        for m in doc["materials"]
-    ]
-    return doc, specs
 
 
 def default_test_count(count: int) -> int:
