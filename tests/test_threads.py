@@ -2,10 +2,18 @@
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
-from brdfpipe.core.threads import blas_threads, current_blas_threads
+from brdfpipe.core.threads import blas_threads, openblas_libraries
+
+
+def current_blas_threads() -> dict[str, int]:
+    """Thread count of each loaded OpenBLAS (numpy's and scipy's), by library path (empty where none can be queried)."""
+    importlib.import_module("scipy.linalg")  # scipy's own OpenBLAS, beside numpy's
+    return {path: int(get()) for path, _, _, get in openblas_libraries()}
 
 
 def test_every_openblas_is_limited_and_restored() -> None:

@@ -27,7 +27,7 @@ from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
-__all__ = ["blas_threads", "openblas_libraries", "current_blas_threads", "run_threads"]
+__all__ = ["blas_threads", "openblas_libraries", "run_threads"]
 
 logger = logging.getLogger("brdfpipe.core.threads")
 
@@ -65,12 +65,6 @@ def openblas_libraries() -> list[tuple[str, ctypes.CDLL, ctypes._CFuncPtr, ctype
             set_fn.argtypes = [ctypes.c_int]
             out.append((path, lib, set_fn, get_fn))
     return out
-
-
-def current_blas_threads() -> dict[str, int]:
-    """Thread count of each loaded OpenBLAS, by library path (empty where none can be queried)."""
-    _load_blas()
-    return {path: int(get()) for path, _, _, get in openblas_libraries()}
 
 
 @contextlib.contextmanager
