@@ -349,7 +349,7 @@ def test_sealed_group_checks_attributes_files_and_chunks(tmp_path: Path) -> None
     (good / ".snakemake_timestamp").touch()  # Snakemake's mark on a directory output: never read, ignored
     group, attrs, digests = _open(good)
     digests.verify()
-    assert digests.verified and sorted(digests.names("X/")) == ["X/c/0/0", "X/c/0/1", "X/c/0/2", "X/zarr.json"]
+    assert sorted(digests.names("X/")) == ["X/c/0/0", "X/c/0/1", "X/c/0/2", "X/zarr.json"]
     hint = "rerun its rule: snakemake --forcerun map_logrelative"
 
     def damaged(how: str) -> Path:

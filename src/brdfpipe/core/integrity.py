@@ -454,11 +454,6 @@ class GroupDigests:
         self._verified: set[str] = set()
         self._lock = threading.Lock()
 
-    @property
-    def verified(self) -> bool:
-        """Whether every file has been checked."""
-        return len(self._verified) == len(self.files)
-
     def names(self, prefix: str = "") -> list[str]:
         """Recorded files under ``prefix`` (e.g. ``"Q/"``), sorted."""
         return sorted(f for f in self.files if f.startswith(prefix))

@@ -252,11 +252,6 @@ class BrdfStore:
         """Columns per (inner) chunk of ``brdf``."""
         return int(self.brdf.chunks[1])
 
-    @property
-    def verified(self) -> bool:
-        """Whether every row's shard has been checked against its digest."""
-        return len(self._verified) == self.n_materials
-
     def shard_path(self, row: int) -> Path:
         """The shard file of row ``row``."""
         return self.path / "brdf" / shard_key(row)
