@@ -24,37 +24,38 @@ CAPTURE = {"n_images": [1, 2], "spp": 4, "seed": 7, "light_distance": 20, "min_s
            "sensor": {"enabled": True, "brackets": [1, 8]}, "variant": "llvm_ad_rgb", "code": "ab12"}
 
 
-def digest(params: dict, wildcards: dict | None = None, inputs: list | None = None) -> str:
+def record(params: dict, wildcards: dict | None = None, inputs: list | None = None) -> str:
+    """The record a stamp holds (its first line) for a capture_closedloop job."""
     wc = {"material": "paint-white-003"} if wildcards is None else wildcards
-    return stamps.record_digest(stamps.job_record("capture_closedloop", wc, params, inputs or ["a.binary"]))
+    return stamps.job_record("capture_closedloop", wc, params, inputs or ["a.binary"])
 
 
 def test_a_swap_of_two_params_changes_the_stamp_though_snakemake_sees_the_same_values() -> None:
     swapped = {**CAPTURE, "seed": CAPTURE["spp"], "spp": CAPTURE["seed"]}
     # what Snakemake's params trigger compares (persistence._params: sorted reprs of the values, no names)
     assert sorted(map(repr, CAPTURE.values())) == sorted(map(repr, swapped.values()))
-    assert digest(swapped) != digest(CAPTURE)
+    assert record(swapped) != record(CAPTURE)
     # a value another param already has: the set of values stays the same too
     dup = {**CAPTURE, "light_distance": 4, "spp": 20}
-    assert set(map(repr, dup.values())) == set(map(repr, CAPTURE.values())) and digest(dup) != digest(CAPTURE)
+    assert set(map(repr, dup.values())) == set(map(repr, CAPTURE.values())) and record(dup) != record(CAPTURE)
 
 
 def test_the_stamp_covers_wildcards_inputs_code_and_nothing_else() -> None:
-    assert digest(CAPTURE, {"material": "metal-brass-001"}) != digest(CAPTURE)
-    assert digest(CAPTURE, inputs=["a.binary", "b.json"]) != digest(CAPTURE)
-    assert digest({**CAPTURE, "code": "ab13"}) != digest(CAPTURE)
+    assert record(CAPTURE, {"material": "metal-brass-001"}) != record(CAPTURE)
+    assert record(CAPTURE, inputs=["a.binary", "b.json"]) != record(CAPTURE)
+    assert record({**CAPTURE, "code": "ab13"}) != record(CAPTURE)
     # the order of a mapping's keys (a config rewritten by a YAML tool) and tuple vs list change nothing
     reordered = dict(reversed(list(CAPTURE.items())))
     reordered["sensor"] = {"brackets": (1, 8), "enabled": True}
-    assert digest(reordered) == digest(CAPTURE)
+    assert record(reordered) == record(CAPTURE)
     # 4 and 4.0 are different values for the library (an int seed, a float exposure)
-    assert digest({**CAPTURE, "spp": 4.0}) != digest(CAPTURE)
+    assert record({**CAPTURE, "spp": 4.0}) != record(CAPTURE)
 
 
 @pytest.mark.parametrize("value", [{1, 2}, object(), {1: "a"}])
 def test_a_param_that_is_not_plain_data_is_refused_naming_rule_and_param(value: object) -> None:
     with pytest.raises(stamps.StampError, match="rule capture_closedloop: param sensor"):
-        digest({**CAPTURE, "sensor": value})
+        record({**CAPTURE, "sensor": value})
 
 
 def test_job_keys_are_file_names_and_tell_jobs_apart(tmp_path: Path) -> None:

@@ -83,7 +83,6 @@ __all__ = [
     "PLAN_FILE",
     "StampError",
     "job_record",
-    "record_digest",
     "job_key",
     "done_path",
     "read_stamp",
@@ -122,7 +121,7 @@ def _plain(rule: str, what: str, value: Any) -> Any:
 
 
 def job_record(rule: str, wildcards: Mapping[str, str], params: Mapping[str, Any], inputs: Iterable[Any]) -> str:
-    """The canonical JSON text of what defines one job (the text a stamp's digest is taken of).
+    """The canonical JSON text of what defines one job (its stamp's first line).
 
     ``params``: every parameter by name, functions already evaluated;
     ``inputs``: the input files in the rule's order (patterns as written,
@@ -137,11 +136,6 @@ def job_record(rule: str, wildcards: Mapping[str, str], params: Mapping[str, Any
         "input": [_plain(rule, "an input", f) for f in inputs],
     }
     return json.dumps(doc, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=True)
-
-
-def record_digest(record: str) -> str:
-    """The first :data:`DIGEST_CHARS` hex characters of the sha256 of ``record`` (UTF-8)."""
-    return hashlib.sha256(record.encode("utf-8")).hexdigest()[:DIGEST_CHARS]
 
 
 def job_key(wildcards: Mapping[str, str]) -> str:
