@@ -162,18 +162,17 @@ def test_saved_partials_give_the_fitted_model(data: dict[str, Path], model: svd.
         part = svd.gram_partial(data["logmap"], b, n)
         path = tmp_path / "parts" / f"{b}.npz"
         svd.save_partial(path, part, logmap_path=data["logmap"], block=b, n_blocks=n)
-        loaded = svd.load_partial(path)
+        loaded, info = svd.read_partial(path)
         assert np.array_equal(loaded.gram, part.gram) and np.array_equal(loaded.colsum, part.colsum)
         assert loaded.ncols == part.ncols
-        info = svd.partial_info(path)
         assert (info.block, info.n_blocks, info.m) == (b, n, 18)
         paths.append(path)
     assert _leftovers(tmp_path / "parts") == []
     # The workflow's entry point: Snakemake scatter item "i-of-n" is block i - 1 of n.
     via_item = tmp_path / "item.npz"
     svd.write_partial(via_item, logmap_path=data["logmap"], scatteritem="2-of-4")
-    assert svd.partial_info(via_item) == svd.partial_info(paths[1])
-    assert np.array_equal(svd.load_partial(via_item).gram, svd.load_partial(paths[1]).gram)
+    (via, via_info), (second, second_info) = svd.read_partial(via_item), svd.read_partial(paths[1])
+    assert via_info == second_info and np.array_equal(via.gram, second.gram)
     for item in ("0-of-4", "5-of-4", "2of4"):
         with pytest.raises(ValueError, match="scatter item"):
             svd.write_partial(tmp_path / "bad.npz", logmap_path=data["logmap"], scatteritem=item)
@@ -204,7 +203,7 @@ def test_saved_partials_give_the_fitted_model(data: dict[str, Path], model: svd.
             svd.write_model(data["logmap"], subset, bad_out)
         assert not bad_out.exists()
     with pytest.raises(ModelError, match="no such Gram partial"):
-        svd.load_partial(tmp_path / "nothing.npz")
+        svd.read_partial(tmp_path / "nothing.npz")
     with pytest.raises(ValueError, match="columns"):
         svd.save_partial(tmp_path / "x.npz", svd.gram_partial(data["logmap"], 0, 2), logmap_path=data["logmap"],
                          block=1, n_blocks=2)
@@ -419,8 +418,8 @@ def test_an_edited_gram_partial_is_refused(data: dict[str, Path], tmp_path: Path
     np.savez(part, **arrays)
     with pytest.raises(ModelError, match=re.escape(f"{part}: its arrays do not match their recorded digest") +
                        ".*snakemake --forcerun accumulate_gram"):
-        svd.load_partial(part)
+        svd.read_partial(part)
     svd.write_partial(part, logmap_path=data["logmap"], block=0, n_blocks=1)
     part.write_bytes(part.read_bytes()[:-100])
     with pytest.raises(ModelError, match=re.escape(f"{part}: truncated or corrupt Gram partial")):
-        svd.load_partial(part)
+        svd.read_partial(part)

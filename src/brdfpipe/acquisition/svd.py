@@ -139,8 +139,7 @@ __all__ = [
     "save_partial",
     "write_partial",
     "parse_scatteritem",
-    "load_partial",
-    "partial_info",
+    "read_partial",
     "combine",
     "decompose",
     "write_model",
@@ -174,7 +173,7 @@ class GramPartial(NamedTuple):
 
 @dataclass(frozen=True)
 class PartialInfo:
-    """Where a saved partial comes from (see :func:`partial_info`)."""
+    """Where a saved partial comes from (see :func:`read_partial`)."""
 
     logmap_id: str
     block: int
@@ -316,7 +315,8 @@ def write_partial(
     logger.info("Gram partial of block %d/%d of %s (%d columns) -> %s", block + 1, n_blocks, lm.path, part.ncols, path)
 
 
-def _read_partial(path: str | os.PathLike[str]) -> tuple[GramPartial, PartialInfo]:
+def read_partial(path: str | os.PathLike[str]) -> tuple[GramPartial, PartialInfo]:
+    """A partial written by :func:`save_partial` and where it comes from; :class:`ModelError` if unreadable."""
     path = Path(path)
     z = load_npz(path, kind="Gram partial", error=ModelError)  # checks the digest
     try:
@@ -340,16 +340,6 @@ def _read_partial(path: str | os.PathLike[str]) -> tuple[GramPartial, PartialInf
     if part.gram.shape != (info.m, info.m) or part.colsum.shape != (info.m,) or part.ncols != info.stop - info.start:
         raise ModelError(f"{path}: Gram partial is inconsistent (shapes {part.gram.shape}, {part.colsum.shape})")
     return part, info
-
-
-def load_partial(path: str | os.PathLike[str]) -> GramPartial:
-    """Load a partial written by :func:`save_partial`; :class:`ModelError` if unreadable."""
-    return _read_partial(path)[0]
-
-
-def partial_info(path: str | os.PathLike[str]) -> PartialInfo:
-    """Provenance of a saved partial: log-map id, block, column range, m, p."""
-    return _read_partial(path)[1]
 
 
 # --------------------------------------------------------------------------
@@ -523,7 +513,7 @@ def write_model(
     lm = open_logmap(logmap_path)
     if not partial_paths:
         raise ValueError("no partials given")
-    loaded = [_read_partial(pth) for pth in partial_paths]
+    loaded = [read_partial(pth) for pth in partial_paths]
     n_blocks = {info.n_blocks for _, info in loaded}
     if len(n_blocks) != 1:
         raise ModelError(f"partials mix different block counts {sorted(n_blocks)}")
