@@ -547,7 +547,6 @@ class FactoredSelection:
         self._Minv: F64 | None = None  # M⁻¹ (k, k), explicit: products with it are one dgemm
         self._W: F64 | None = None  # M⁻¹Uᵀ (k, m)
         self._w: F64 | None = None  # M⁻¹qsum (k,), only when β > 0
-        self._nnW: F64 | None = None  # NᵀN W (k, m)
         self._a2: F64 | None = None  # ‖N W_i‖² (m,)
 
     # -- factorisation and solve, on first use ----------------------------------
@@ -593,13 +592,12 @@ class FactoredSelection:
             return (em.sigma**2)[:, None] * x
         return scipy.linalg.blas.dgemm(1.0, em.qtq, x)
 
-    def _prepared(self) -> tuple[F64, F64, F64]:
-        """``(W, NᵀN W, ‖N W_i‖²)``: the per-base quantities of the low-rank form."""
+    def _prepared(self) -> tuple[F64, F64]:
+        """``(W, ‖N W_i‖²)``: the per-base quantities of the low-rank form."""
         W, _ = self._solve()
-        if self._nnW is None or self._a2 is None:
-            self._nnW = self._nn(W)
-            self._a2 = np.einsum("ki,ki->i", W, self._nnW)
-        return W, self._nnW, self._a2
+        if self._a2 is None:
+            self._a2 = np.einsum("ki,ki->i", W, self._nn(W))
+        return W, self._a2
 
     def error(self) -> float:
         """E(S) of this selection (from its solve)."""
@@ -756,7 +754,7 @@ class FactoredSelection:
         None when ``rem``'s downdate is too ill-conditioned (see the section comment).
         """
         em = self.model
-        W, nnW, a2 = self._prepared()
+        W, a2 = self._prepared()
         _, w0 = self._solve()
         k, m = em.k, em.m
         t, rc = len(cands), cands[0].r
