@@ -570,7 +570,6 @@ class Model:
     weighting: str
     epsilon: float
     database: str
-    tolerance: float
     id: str
     logmap_id: str
     digests: GroupDigests | None = field(default=None, repr=False, compare=False)
@@ -657,7 +656,6 @@ def open_model(path: str | os.PathLike[str], *, verify: bool = True) -> Model:
         weighting=str(attrs.get("weighting")),
         epsilon=float(attrs.get("epsilon", 0.0)),
         database=str(attrs.get("database")),
-        tolerance=float(attrs.get("tolerance", TOL)),
         id=str(marker.get("id")),
         logmap_id=str(marker.get("logmap_id")),
         digests=digests,
