@@ -166,7 +166,6 @@ class FitResult:
     sweeps: int
     accepted_moves: int
     evaluations: int
-    final_step: float
     #: Largest |L_incremental − L_refactored| seen at a refactorisation (relative to |L|).
     max_drift: float
     seconds: float
@@ -235,7 +234,7 @@ def _fit_newton(
     stages = ["start"] + [st for st, _ in hist]
     trace = list(enumerate([L_init] + [v for _, v in hist]))
     trace[-1] = (trace[-1][0], L_fin)
-    res = FitResult(X_fin, L_fin, trace, ell, mu, d, label, factor, L_init, 0, 0, 0, float("nan"), 0.0, 0.0)
+    res = FitResult(X_fin, L_fin, trace, ell, mu, d, label, factor, L_init, 0, 0, 0, 0.0, 0.0)
     res.scale_trials = {run[1]: run[0] for run in runs} if len(runs) > 1 else {}
     res.method, res.stages, res.hj_log_likelihood = "newton", stages, float("nan")
     res.newton_iterations = steps
@@ -279,7 +278,7 @@ def _hj_start(
     n_trial = min(int(trial_sweeps), int(max_sweeps))
     for rule in INIT_SCALES:
         factor = _scale_factor(Y, rule, s.ell)
-        st_t, tr_t, (a_t, e_t, _, dr_t, _) = hookejeeves.run(s, Y * factor, n_trial)
+        st_t, tr_t, (a_t, e_t, dr_t) = hookejeeves.run(s, Y * factor, n_trial)
         acc, ev, drift = acc + a_t, ev + e_t, max(drift, dr_t)
         L_t = tr_t[-1][1]
         trials[rule] = L_t
@@ -304,20 +303,19 @@ class _HJEnd:
     L_hj: float
     #: L-BFGS iterations.
     nit: int
-    #: Accepted moves, evaluations, final step and max drift of the search after the start.
+    #: Accepted moves, evaluations and max drift of the search after the start.
     accepted: int
     evaluations: int
-    step: float
     drift: float
 
 
 def _hooke_jeeves_stage(s: hookejeeves.Settings, start: _HJStart) -> _HJEnd:
     """Method ``hooke-jeeves``: the search continues from the start for the sweeps left."""
-    st, tr2, (a2, e2, stp, dr2, _) = hookejeeves.run(s, start.X, max(start.remaining, 0), start.sweep0)
+    st, tr2, (a2, e2, dr2) = hookejeeves.run(s, start.X, max(start.remaining, 0), start.sweep0)
     trace = start.trace + (tr2[1:] if start.trace else tr2)
     L_init = trace[0][1] if start.L_init is None else start.L_init
     stages = ["hooke-jeeves"] * len(trace)
-    return _HJEnd(st.X, trace, stages, L_init, trace[-1][1], 0, a2, e2, stp, dr2)
+    return _HJEnd(st.X, trace, stages, L_init, trace[-1][1], 0, a2, e2, dr2)
 
 
 def _hybrid_stages(
@@ -333,7 +331,7 @@ def _hybrid_stages(
     X1, hist1, nit = _lbfgs_polish(X_start, g, d_f, ell, mu, max_iter=max_iter, ftol=ftol, gtol=gtol)
     trace = [(0, L_init)] + [(k + 1, v) for k, v in enumerate(hist1)]
     stages = ["start"] + ["lbfgs"] * len(hist1)
-    st, tr2, (a2, e2, stp, dr2, _) = hookejeeves.run(s, X1, max(start.remaining, 0), len(trace) - 1)
+    st, tr2, (a2, e2, dr2) = hookejeeves.run(s, X1, max(start.remaining, 0), len(trace) - 1)
     trace[-1] = (trace[-1][0], tr2[0][1])
     trace += tr2[1:]
     stages += ["hooke-jeeves"] * (len(tr2) - 1)
@@ -345,7 +343,7 @@ def _hybrid_stages(
         stages += ["lbfgs"] * len(hist3)
         nit += nit3
     trace[-1] = (trace[-1][0], log_likelihood(X_fin, g, d_f, ell, mu))
-    return _HJEnd(X_fin, trace, stages, L_init, L_hj, nit, a2, e2, stp, dr2)
+    return _HJEnd(X_fin, trace, stages, L_init, L_hj, nit, a2, e2, dr2)
 
 
 def _hj_result(s: hookejeeves.Settings, start: _HJStart, end: _HJEnd, method: str) -> FitResult:
@@ -353,7 +351,7 @@ def _hj_result(s: hookejeeves.Settings, start: _HJStart, end: _HJEnd, method: st
     res = FitResult(
         end.X, end.trace[-1][1], end.trace, s.ell, s.mu, s.d, start.label, start.factor, end.L_init,
         sum(st_ == "hooke-jeeves" for st_ in end.stages), start.accepted + end.accepted,
-        start.evaluations + end.evaluations, end.step, max(start.drift, end.drift), 0.0,
+        start.evaluations + end.evaluations, max(start.drift, end.drift), 0.0,
     )
     res.scale_trials = start.trials
     res.method, res.stages, res.hj_log_likelihood, res.polish_iterations = method, end.stages, end.L_hj, end.nit

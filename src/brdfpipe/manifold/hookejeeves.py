@@ -116,7 +116,7 @@ def _hooke_jeeves(
     st: State, gram: NDArray[np.float64], d: float, ell: float, mu: float, *,
     rng: np.random.Generator, max_sweeps: int, step: float, min_step: float, refactor_every: int,
     tol: float, ftol: float,
-) -> tuple[list[tuple[int, float]], int, int, float, float, int]:
+) -> tuple[list[tuple[int, float]], int, int, float]:
     n, q = st.X.shape
     inv2l2 = 1.0 / (2.0 * ell * ell)
 
@@ -196,10 +196,9 @@ def _hooke_jeeves(
         stalled = stalled + 1 if L() - L_before <= ftol * max(abs(L()), 1.0) else 0
         if stalled >= patience:
             break
-    step = float(steps.max())
     refactor()
     trace[-1] = (trace[-1][0], L())
-    return trace, accepted, evals, step, max_drift, sweep
+    return trace, accepted, evals, max_drift
 
 
 
@@ -221,16 +220,16 @@ class Settings:
 
 def run(
     s: Settings, X0: NDArray[np.float64], sweeps: int, sweep0: int = 0
-) -> tuple[State, list[tuple[int, float]], tuple[int, int, float, float, int]]:
+) -> tuple[State, list[tuple[int, float]], tuple[int, int, float]]:
     """At most ``sweeps`` Hooke–Jeeves sweeps from X₀, seeded by ``(seed, sweep0)`` and numbered from ``sweep0``.
 
     Returns the final state, the ``(sweep, L)`` trace and ``(accepted
-    moves, evaluations, final step, max drift, sweeps)``.
+    moves, evaluations, max drift)``.
     """
     st = full_state(X0, s.gram, s.ell, s.mu)
     rng = np.random.default_rng([s.seed, sweep0])
-    trace, acc, ev, stp, drift, nsw = _hooke_jeeves(
+    trace, acc, ev, drift = _hooke_jeeves(
         st, s.gram, s.d, s.ell, s.mu, rng=rng, max_sweeps=sweeps, step=s.step, min_step=s.min_step,
         refactor_every=s.refactor_every, tol=s.tol, ftol=s.ftol,
     )
-    return st, [(k + sweep0, v) for k, v in trace], (acc, ev, stp, drift, nsw)
+    return st, [(k + sweep0, v) for k, v in trace], (acc, ev, drift)
