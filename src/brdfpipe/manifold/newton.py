@@ -94,11 +94,10 @@ _MAX_RAISE: Final = 3
 
 @dataclass
 class Counts:
-    """Work of the ``newton`` method: evaluations of L alone, of L with its gradient and Hessian, factorisations."""
+    """Work of the ``newton`` method: evaluations of L alone, of L with its gradient and Hessian, Newton steps."""
 
     evaluations: int = 0
     hessians: int = 0
-    factorisations: int = 0
     newton_iterations: int = 0
 
 
@@ -137,12 +136,11 @@ def _rigid_motions(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return U[:, s > 1e-12 * s[0]]
 
 
-def _positive_definite(B: NDArray[np.float64], shift: float, counts: Counts) -> bool:
+def _positive_definite(B: NDArray[np.float64], shift: float) -> bool:
     """Whether ``B + shift·I`` is positive definite (its Cholesky factorisation succeeds)."""
     diag = np.diag_indices_from(B)
     base = B[diag].copy()
     B[diag] = base + shift
-    counts.factorisations += 1
     ok = scipy.linalg.lapack.dpotrf(B, lower=1, clean=0)[1] == 0
     B[diag] = base
     return bool(ok)
@@ -169,7 +167,6 @@ def _lm_step(
         M[diag] = base + unit * 2.0**k
         c, info = lapack.dpotrf(M, lower=1, clean=1)
         M[diag] = base
-        counts.factorisations += 1
         if info != 0:  # M is positive semi-definite: only a shift lost to rounding
             k += 1
             continue
@@ -213,8 +210,7 @@ def _lm_newton(
         gf = g.ravel() * (-1.0 / scale)
         unit = float(np.abs(np.diag(B)).mean())
         unit = unit if unit > 0 else 1.0  # a zero Hessian: every point far from all others
-        raised = next((j for j in range(k, k + _MAX_RAISE + 1) if _positive_definite(B, unit * 2.0 ** (j - 1), counts)),
-                      None)
+        raised = next((j for j in range(k, k + _MAX_RAISE + 1) if _positive_definite(B, unit * 2.0 ** (j - 1))), None)
         if raised is not None:
             M, k = B.copy(), raised
         else:
@@ -261,7 +257,6 @@ def _polish_gradient(
         while step is None and k <= 0:
             B[diag] = base + unit * 2.0**k
             c, info = lapack.dpotrf(B, lower=1, clean=1)
-            counts.factorisations += 1
             k += 2
             if info != 0:
                 continue
@@ -319,7 +314,7 @@ def newton_stages(
     for round_ in range(int(max_escapes) + 1):
         x, L, g, H, steps_left = _lm_newton(x, root, d, ell, mu, scale=scale, steps_left=steps_left, gtol=gtol,
                                             hist=hist, counts=counts)
-        v = _ascent_curvature(H, scale, counts) if round_ < int(max_escapes) and steps_left > 0 else None
+        v = _ascent_curvature(H, scale) if round_ < int(max_escapes) and steps_left > 0 else None
         escaped = None if v is None else _escape_saddle(x, v, L, root, d, ell, mu, scale=scale, counts=counts)
         if escaped is None:
             break
@@ -332,7 +327,7 @@ def newton_stages(
     return x, L_start, hist
 
 
-def _ascent_curvature(H: NDArray[np.float64], scale: float, counts: Counts) -> NDArray[np.float64] | None:
+def _ascent_curvature(H: NDArray[np.float64], scale: float) -> NDArray[np.float64] | None:
     """At a stationary point: the eigenvector of the most positive curvature of L where it is a saddle
     (smallest eigenvalue of ``M = −H/scale`` below −:data:`SADDLE_CURVATURE` × its mean |diagonal|), else None.  Its sign
     is fixed (largest-magnitude entry positive)."""
@@ -341,7 +336,6 @@ def _ascent_curvature(H: NDArray[np.float64], scale: float, counts: Counts) -> N
     dB = float(np.abs(np.diag(B)).mean())
     diag = np.diag_indices_from(B)
     B[diag] += SADDLE_CURVATURE * dB
-    counts.factorisations += 1
     if lapack.dpotrf(B, lower=1, clean=0)[1] == 0:
         return None  # negative semi-definite up to SADDLE_CURVATURE of its scale: a maximum
     B[diag] -= SADDLE_CURVATURE * dB
