@@ -95,7 +95,6 @@ class Run:
     cores: int
     jobs: dict[int, Job]
     wall: float
-    started: datetime
     deps: dict[int, list[int]] = field(default_factory=dict)
 
 
@@ -195,7 +194,7 @@ def read_run(log: str | os.PathLike[str], workdir: str | os.PathLike[str] | None
             got = _read_benchmark(workdir / job.benchmark)
             if got is not None:
                 job.wall, job.cpu, job.max_rss_mb = got
-    run = Run(log=log, cores=cores, jobs=jobs, wall=last, started=t0)
+    run = Run(log=log, cores=cores, jobs=jobs, wall=last)
     run.deps = _dependencies(jobs.values())
     return run
 
@@ -215,7 +214,6 @@ class PathStep:
     ready: float  # when its last dependency finished (the run's start for the first job)
     wait: float  # start − ready: ready but not started
     share: float  # duration / wall
-    wait_share: float  # wait / wall
 
 
 def critical_path(run: Run) -> list[PathStep]:
@@ -237,7 +235,7 @@ def critical_path(run: Run) -> list[PathStep]:
     for k, j in enumerate(chain):
         ready = chain[k - 1].end if k else 0.0
         wait = max(0.0, j.start - ready)
-        steps.append(PathStep(j, ready, wait, j.duration / wall, wait / wall))
+        steps.append(PathStep(j, ready, wait, j.duration / wall))
     return steps
 
 
