@@ -90,8 +90,7 @@ class DatabaseSpec:
     materials; ``source``: ``archive`` (a shipped archive of fits, file
     ``archive`` in :data:`ARCHIVES_DIR`), ``user-archive`` (the config's
     ``nbrdf_archive``), ``folder`` (the config's ``merl_dir``) or
-    ``generated`` (the synthetic generator); ``measured_by``: the
-    measurement's citation; ``default_test``: its held-out materials
+    ``generated`` (the synthetic generator); ``default_test``: its held-out materials
     (``None``: chosen by the database's rule, see
     :func:`brdfpipe.data.database.resolve_test_materials`); ``archive_sha256``:
     the digest of the shipped archive whose every fit passes
@@ -102,7 +101,6 @@ class DatabaseSpec:
     name: str
     title: str
     source: Literal["archive", "user-archive", "folder", "generated"]
-    measured_by: str
     archive: str | None = None
     default_test: tuple[str, ...] | None = None
     archive_sha256: str | None = None
@@ -117,19 +115,18 @@ class DatabaseSpec:
 DATABASES: Final[dict[str, DatabaseSpec]] = {
     d.name: d
     for d in (
-        DatabaseSpec("merl-nbrdf", f"MERL materials, {_SZTRAJMAN}", "archive", "Matusik et al. 2003",
+        DatabaseSpec("merl-nbrdf", f"MERL materials, {_SZTRAJMAN}", "archive",
                      archive="merl_nbrdf.zip", default_test=MERL_TEST_MATERIALS,
                      archive_sha256="d1678c0cc5059f315d3d3284f36f3082787474106d72e3cae41fbad76d8f271a"),
         DatabaseSpec("rgl-nbrdf", f"RGL isotropic materials (Dupuy & Jakob 2018), {_SZTRAJMAN}", "archive",
-                     "Dupuy & Jakob 2018", archive="rgl-isotropic_nbrdf.zip",
+                     archive="rgl-isotropic_nbrdf.zip",
                      archive_sha256="401f588f08a66714ebd9d1355298f85e4d2f3782c9a87f370538dc8657cf5389"),
         DatabaseSpec("nielsen-nbrdf", f"Nielsen et al. 2015 materials, {_SZTRAJMAN}", "archive",
-                     "Nielsen et al. 2015", archive="nielsen_nbrdf.zip",
+                     archive="nielsen_nbrdf.zip",
                      archive_sha256="fd034c57b2cbe0e976b088ea4bb7ccbdda3782dad90946243124e07316442166"),
-        DatabaseSpec("nbrdf", "materials of a user's archive, NBRDF fits", "user-archive", "the archive's authors"),
-        DatabaseSpec("merl", "MERL (Matusik et al. 2003)", "folder", "Matusik et al. 2003",
-                     default_test=MERL_TEST_MATERIALS),
-        DatabaseSpec("synthetic", "synthetic MERL-format database (brdfpipe)", "generated", "nobody (generated)"),
+        DatabaseSpec("nbrdf", "materials of a user's archive, NBRDF fits", "user-archive"),
+        DatabaseSpec("merl", "MERL (Matusik et al. 2003)", "folder", default_test=MERL_TEST_MATERIALS),
+        DatabaseSpec("synthetic", "synthetic MERL-format database (brdfpipe)", "generated"),
     )
 }
 #: The database a run uses when the config names none.
