@@ -151,25 +151,15 @@ def _outside(albedo: NDArray[np.float64]) -> NDArray[np.bool_]:
     return ((albedo < 0.0) | (albedo > 1.0)).any(axis=1)
 
 
-def albedo_outside(
-    model: gplvm.GplvmModel,
-    points: ArrayLike,
-    albedos: ArrayLike,
-    *,
-    store: Any = None,
-) -> NDArray[np.bool_]:
-    """For each latent point: is the albedo of its interpolated material outside [0, 1] in some channel?
+def albedo_outside(model: gplvm.GplvmModel, points: ArrayLike, albedos: ArrayLike) -> NDArray[np.bool_]:
+    """For each latent point: is the albedo ``w·A`` of its (unclamped) interpolated material outside [0, 1]?
 
-    Linear spaces: ``w·A`` with the materials' albedos ``A`` (N, 3).  The
-    ``log`` space: the albedo of each interpolated table (needs ``store``;
-    all points in one pass over it, :func:`brdfpipe.manifold.blendpass.measure_blends`).
+    ``A``: the materials' albedos (N, 3); a linear data space only (the blend of the tables is the blend of
+    their albedos), ValueError for another.
     """
-    W = smooth_weights(model, points)
-    if model.space in LINEAR_SPACES:
-        return _outside(W @ np.asarray(albedos, dtype=np.float64))
-    if store is None:
-        raise ValueError(f"albedo in the {model.space!r} space needs the store (the blend is not linear)")
-    return _outside(blendpass.measure_blends(store, W, model=model).albedo)
+    if model.space not in LINEAR_SPACES:
+        raise ValueError(f"albedo w·A in the {model.space!r} space: the blend is not linear")
+    return _outside(smooth_weights(model, points) @ np.asarray(albedos, dtype=np.float64))
 
 
 def clamped_albedos(
@@ -269,7 +259,7 @@ def nearest_neighbour_spread(model: gplvm.GplvmModel) -> dict[str, float]:
 
 
 def path_uniformity(path_rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
-    """From :func:`brdfpipe.manifold.analysis.paths_analysis` rows: largest ``|d(A, x)/d(A, B) − t|`` and decreasing steps."""
+    """From :func:`brdfpipe.manifold.analysis.paths_analysis` rows: largest ``|d(A, x)/d(A, B) − t|``, decreasing steps."""
     by_path: dict[str, list[Mapping[str, Any]]] = {}
     for r in path_rows:
         by_path.setdefault(str(r["path"]), []).append(r)
@@ -306,10 +296,9 @@ def measure_model(
     rng: np.random.Generator,
     clamped_albedo: ArrayLike,
     jump: tuple[NDArray[np.float64], NDArray[np.intp]],
+    hull: ArrayLike,
     clamped_map_albedo: ArrayLike | None = None,
-    hull_points: int = HULL_POINTS,
     albedo_grid: int = 96,
-    hull: ArrayLike | None = None,
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Every measure of the module docstring for one fit: a :data:`~brdfpipe.spec.tables.SPACES` row (partial) and stability rows.
 
@@ -326,7 +315,7 @@ def measure_model(
     (:func:`nearest_neighbour_points`).
 
     ``hull``: the hull points, already drawn from ``rng`` (:func:`hull_sample`;
-    ``rng`` then in the state after the draw); None: drawn here.
+    ``rng`` then in the state after the draw).
     """
     A = np.asarray(albedos, dtype=np.float64)
     n, q = model.X.shape
@@ -335,7 +324,7 @@ def measure_model(
     K = model.chol @ model.chol.T
     row["kappa"] = float(np.linalg.cond(K))
     linear = model.space in LINEAR_SPACES
-    H = hull_sample(model, hull_points, rng) if hull is None else np.asarray(hull, dtype=np.float64)
+    H = np.asarray(hull, dtype=np.float64)
     bad = _outside(np.asarray(clamped_albedo, dtype=np.float64))
     row["albedo_clamped_bad_hull"], row["albedo_clamped_points"] = float(bad.mean()), int(bad.size)
     row["albedo_clamped_bad_map"] = (float("nan") if clamped_map_albedo is None else
@@ -454,7 +443,6 @@ def measure_candidate(
     steps: int = 20,
     albedo_grid: int = 96,
     clamped_hull_points: int = CLAMPED_HULL_POINTS,
-    perceptual_paths: bool = True,
     albedos: str | os.PathLike[str] | None = None,
     spaces_out: str | os.PathLike[str],
     stability_out: str | os.PathLike[str],
@@ -507,8 +495,7 @@ def measure_candidate(
         fits[int(q)] = model
     rngs = {q: np.random.default_rng([seed, int(q), *candidate.encode()]) for q in fits}
     hulls = {q: hull_sample(m, HULL_POINTS, rngs[q]) for q, m in fits.items()}
-    lp = [analysis.latent_path(fits[int(path_q)], a, b, steps) for a, b in pairs] \
-        if perceptual_paths and int(path_q) in fits else []
+    lp = [analysis.latent_path(fits[int(path_q)], a, b, steps) for a, b in pairs] if int(path_q) in fits else []
     # the clamped tables at the first hull points of every q, and at the map's sub-grid (q = 2): one pass
     maps = {q: _map_points(m.X, albedo_grid, CLAMPED_MAP_STRIDE) for q, m in fits.items() if q == 2}
     picks = {q: np.vstack([hulls[q][:clamped_hull_points], maps.get(q, np.empty((0, q)))]) for q in fits}
