@@ -152,29 +152,27 @@ def pack_halves(images: ArrayLike) -> NDArray[np.uint32]:
     return np.ascontiguousarray(words.transpose(4, 0, 2, 3, 1).reshape(3 * g, hh, ww, 4))
 
 
-def blend_tiles(images: ArrayLike, *, zero_after_first: bool = False, tile: int = TILE) -> NDArray[np.uint32]:
-    """Row-major indices of the ``tile`` × ``tile`` tiles of a stack ``(n, H, W, 3)`` that need the full blend.
+def blend_tiles(images: ArrayLike, *, zero_after_first: bool = False) -> NDArray[np.uint32]:
+    """Row-major indices of the :data:`TILE` × :data:`TILE` tiles of a stack ``(n, H, W, 3)`` that need the full blend.
 
     A pixel needs it unless every image equals image 0 there (the blend is
     then ``(Σw)·I₀``), or, with ``zero_after_first`` (a mean + components
     basis), unless every image after the first is zero there (the blend is
-    ``c₀·I₀``).  Tiles are numbered from the image's top-left corner, ``⌈W/tile⌉``
+    ``c₀·I₀``).  Tiles are numbered from the image's top-left corner, ``⌈W/TILE⌉``
     per row; edge tiles may be partial.
     """
     a = np.asarray(images)
     if a.ndim != 4 or a.shape[-1] != 3 or a.shape[0] < 1:
         raise ExplorerError(f"blend_tiles: expected a stack (n, H, W, 3), got shape {a.shape}")
-    if tile < 1:
-        raise ExplorerError(f"blend_tiles: tile must be >= 1, got {tile}")
     n, h, w, _ = a.shape
     if zero_after_first:
         varies = np.any(a[1:] != 0, axis=(0, 3)) if n > 1 else np.zeros((h, w), dtype=bool)
     else:
         varies = np.any(a[1:] != a[:1], axis=(0, 3)) if n > 1 else np.zeros((h, w), dtype=bool)
-    th, tw = -(-h // tile), -(-w // tile)
-    padded = np.zeros((th * tile, tw * tile), dtype=bool)
+    th, tw = -(-h // TILE), -(-w // TILE)
+    padded = np.zeros((th * TILE, tw * TILE), dtype=bool)
     padded[:h, :w] = varies
-    per_tile = padded.reshape(th, tile, tw, tile).any(axis=(1, 3))
+    per_tile = padded.reshape(th, TILE, tw, TILE).any(axis=(1, 3))
     return np.flatnonzero(per_tile.reshape(-1)).astype(np.uint32)
 
 
