@@ -231,14 +231,12 @@ def write_error_map_png(
     vmax: float | None = None,
     title: str = "|blended − reference|",
     database: str | None = None,
-    units: str = "radiance units (mean over RGB of |Δ|)",
-    cmap: str = "magma",
 ) -> None:
     """A false-colour PNG of an error map with a labelled colour bar (atomic).
 
     Colours run from 0 (black) to ``vmax`` (default: the map's 99th
     percentile, or its maximum if that is 0 … or 1 for an all-zero map);
-    larger values saturate.  ``cmap`` is a perceptual matplotlib colormap.
+    larger values saturate (perceptual colormap ``magma``).
     The title is ``"{database}: {title}"`` (just ``title`` without a
     database).  Built on :class:`matplotlib.figure.Figure` with the Agg canvas
     (pyplot is not used) and written without a timestamp, so the same input
@@ -265,11 +263,11 @@ def write_error_map_png(
         fig = Figure(figsize=(width_in, img_h + 0.6), dpi=150, layout="constrained")
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
-        im = ax.imshow(e, cmap=cmap, vmin=0.0, vmax=vmax, interpolation="nearest")
+        im = ax.imshow(e, cmap="magma", vmin=0.0, vmax=vmax, interpolation="nearest")
         ax.set_axis_off()
         ax.set_title(full_title, fontsize=8.5)
         bar = fig.colorbar(im, ax=ax, fraction=0.05, pad=0.02, extend="max")
-        bar.set_label(units)
+        bar.set_label("radiance units (mean over RGB of |Δ|)")
         software = f"brdfpipe {full_version()} (matplotlib {mpl.__version__})"
         atomic_write(path, lambda fh: fig.savefig(fh, format="png", metadata={"Title": full_title,
                                                                                "Software": software}))
