@@ -322,13 +322,12 @@ def read_json(
     *,
     kind: str = "JSON file",
     error: type[Exception] = IntegrityError,
-    require: bool = True,
 ) -> dict[str, Any]:
     """The JSON object of ``path`` without its digest key, after checking it.
 
     Raises ``error`` naming the file for a missing or unreadable file, text
-    that is not a JSON object (truncated or corrupt), no digest (unless
-    ``require=False``) or one that does not match.
+    that is not a JSON object (truncated or corrupt), no digest or one that
+    does not match.
     """
     path = Path(path)
     try:
@@ -351,9 +350,7 @@ def read_json(
         raise corrupt(path, kind, f"not a JSON object but {type(doc).__name__}", error=error)
     recorded = doc.pop(DIGEST_KEY, None)
     if recorded is None:
-        if require:
-            raise no_digest(path, kind, error=error)
-        return doc
+        raise no_digest(path, kind, error=error)
     if recorded != json_digest(doc):
         raise mismatch(path, "its content", error=error)
     return doc
