@@ -23,9 +23,7 @@ __all__ = [
     "FIGURES",
     "SYNTHETIC",
     "FIGURE_STEMS",
-    "RECONSTRUCTION_FIGURE_STEMS",
     "MANIFOLD_FIGURE_STEMS",
-    "RENDER_FIGURE_STEMS",
     "FLOOR_CHECK_STEM",
     "fov_tag",
     "BATCH_RULE_FAMILIES",
@@ -117,16 +115,10 @@ FIGURES = f"{RESULTS}/figures"
 
 #: Xu 2016 figure analogues drawn by rule plot_acquisition_figures: key → file stem (:mod:`brdfpipe.spec.figures`).
 FIGURE_STEMS: dict[str, str] = {f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_acquisition_figures")}
-#: Xu 2016 figures of rendered reconstructions (Figs. 2, 15), drawn by rule plot_reconstruction_figures: key → file stem.
-RECONSTRUCTION_FIGURE_STEMS: dict[str, str] = {
-    f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_reconstruction_figures")
-}
 #: Soler 2018 figure analogues of the manifold track: key → file stem.
 MANIFOLD_FIGURE_STEMS: dict[str, str] = {
     f.key: f.stem for f in figure_specs.track_figures("manifold", "plot_manifold_figures")
 }
-#: Rendering-track figures: key → file stem.
-RENDER_FIGURE_STEMS: dict[str, str] = {f.key: f.stem for f in figure_specs.track_figures("rendering", "plot_render_figures")}
 #: The blends-vs-noise-floor figure of every GPLVM candidate (render.floor_check).
 FLOOR_CHECK_STEM = figure_specs.figure("render-floor-check").stem
 
