@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import re
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -98,6 +99,10 @@ def test_plan_is_fast_deterministic_and_seeded() -> None:
         assert json.loads(json.dumps(s.params, allow_nan=False)) == s.params
 
 
+#: Material names: lower-case words joined by hyphens, ending in the running number.
+NAME_RE = re.compile(r"^[a-z0-9]+(?:-[a-z0-9]+)*-[0-9]{3,}$")
+
+
 def test_names_unique_valid_and_say_the_family() -> None:
     for count in (1, 5, 12, 100, 1234):
         specs = synth.plan_database(count, SEED)
@@ -105,7 +110,7 @@ def test_names_unique_valid_and_say_the_family() -> None:
         assert len(set(names)) == count
         for i, s in enumerate(specs):
             assert s.index == i
-            assert synth.NAME_RE.match(s.name), s.name
+            assert NAME_RE.match(s.name), s.name
             assert set(s.name) <= set("abcdefghijklmnopqrstuvwxyz0123456789-")
             assert s.name.startswith(s.family + "-")
             assert int(s.name.rsplit("-", 1)[1]) == i

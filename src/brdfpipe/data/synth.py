@@ -136,7 +136,6 @@ import logging
 import math
 import numbers
 import os
-import re
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -162,7 +161,6 @@ __all__ = [
     "DEFAULT_NOISE",
     "ALBEDO_BOUND",
     "ALBEDO_THETA_I",
-    "NAME_RE",
     "WATERMARK_MAGIC",
     "WATERMARK_CELLS",
     "WATERMARK_RAW",
@@ -201,8 +199,6 @@ DEFAULT_NOISE: Final = 0.01
 ALBEDO_BOUND: Final = 0.97
 #: Incident angles (radians) at which the albedo bound is checked: 0 … 89.5°.
 ALBEDO_THETA_I: Final = np.radians(np.linspace(0.0, 89.5, 46))
-#: Material names: lower-case words joined by hyphens, ending in the running number.
-NAME_RE: Final = re.compile(r"^[a-z0-9]+(?:-[a-z0-9]+)*-[0-9]{3,}$")
 
 # The watermark of synthetic files (its home is brdfpipe.data.provenance, with the marks).
 _WATERMARK_BYTES: Final = WATERMARK_RAW.tobytes()
