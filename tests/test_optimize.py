@@ -27,6 +27,7 @@ from pspace_reference import direct_training_error
 from brdfpipe.acquisition.geometry import config_to_dict, observation_cells, Setup
 from brdfpipe.acquisition.metrics import (ErrorModel, condition_number, condition_number_first_n, expected_error,
                                           selection_stats)
+from brdfpipe.acquisition.candidates import Scorer, Screen
 from brdfpipe.acquisition.optimize import DirectionSet, optimize, read_directions, write_directions
 from brdfpipe.core import filenames
 from brdfpipe.data import merl
@@ -520,3 +521,82 @@ def test_a_pinned_axis_is_refused_where_it_cannot_hold(monkeypatch: pytest.Monke
     with pytest.raises(ValueError, match=r"held ring configuration \(20, 30, 10\) leaves its pinned axes \[1\]"):
         optimize(model, Setup("ring", 25.0, 8), n_max=2, candidates=T, seed=0, held=[(20, 30, 10)],
                  log=lambda line: None)
+
+
+# ---------------------------------------------------------------------------
+# Screening the greedy add on a coarse lattice (ours, acquisition.screen_grid)
+# ---------------------------------------------------------------------------
+
+
+def _sets(kind: str, screen: Screen | None, metric: str = "error", grid: int = 16) -> list[tuple]:
+    sets = optimize(full_model(), setup_of(kind, grid), metric=metric, n_max=3, candidates=T, seed=3,
+                    log=lambda line: None, screen=screen)
+    return [(s.configurations, s.expected_error, s.greedy_value, s.metric_value, s.moves) for s in sets]
+
+
+@pytest.mark.parametrize("kind", ["nearfield", "fixed_camera", "fixed_light"])
+def test_screening_that_keeps_every_candidate_adds_what_the_exhaustive_add_adds(kind: str) -> None:
+    """All t candidates kept and scored in full: the exhaustive search, bit for bit."""
+    assert _sets(kind, Screen(grid=4, keep=T)) == _sets(kind, None)
+
+
+@pytest.mark.parametrize("kind", ["nearfield", "fixed_camera"])
+def test_screening_scores_in_full_only_the_kept_candidates(kind: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The full lattice's cells are computed for the ``keep`` best coarse candidates only (and the local search)."""
+    import brdfpipe.acquisition.candidates as candidates
+
+    full = setup_of(kind, 16)
+    counted: list[tuple] = []
+    real = candidates.observation_cells
+
+    def counting(setup: Setup, config: tuple, valid: NDArray[np.bool_]) -> NDArray[np.int64]:
+        if setup == full:
+            counted.append(tuple(config))
+        return real(setup, config, valid)
+
+    monkeypatch.setattr(candidates, "observation_cells", counting)
+    logs: list[str] = []
+    sets = optimize(full_model(), full, metric="error", n_max=1, candidates=T, seed=3, steps=(1,),
+                    log=logs.append, screen=Screen(grid=4, keep=3))
+    moves = 2 * len(full.spec.moves) + 1  # ± one step along each axis and the combined move, per sweep
+    assert len(set(counted)) <= 3 + moves * (sets[0].moves + 1), (len(set(counted)), sets[0].moves)
+    assert f"best of {T} candidates" in logs[1] and "screened at 4 px, best 3 scored in full" in logs[0]
+
+
+def test_screening_applies_to_images_and_the_error_metric_at_a_coarser_grid(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Elsewhere it changes nothing, and the directions file records it only where it screened."""
+    screen = Screen(grid=4, keep=2)
+    assert _sets("point", screen) == _sets("point", None)
+    assert _sets("nearfield", screen, metric="condition") == _sets("nearfield", None, metric="condition")
+    assert _sets("nearfield", Screen(grid=16, keep=2)) == _sets("nearfield", None)
+    assert not screen.applies(setup_of("point"), "error") and screen.applies(setup_of("nearfield"), "error")
+    kw = dict(split="all", model_path="m.zarr", seed=3, eta=40.0, beta=0.0, database="synthetic")
+    for kind, metric, recorded in [("nearfield", "error", {"grid": 4, "keep": 2}), ("nearfield", "condition", None),
+                                   ("point", "error", None)]:
+        sets = optimize(full_model(), setup_of(kind), metric=metric, n_max=1, candidates=T, seed=3,
+                        log=lambda line: None, screen=screen)
+        path = write_directions(tmp_path / f"{kind}-{metric}.json", sets, setup=setup_of(kind), metric=metric,
+                                screen=screen, **kw)
+        assert json.loads(path.read_text()).get("screen") == recorded
+        assert read_directions(path).sets[0].configurations == sets[0].configurations
+    with pytest.raises(ValueError, match="screen grid must be a positive integer"):
+        Screen(grid=0)
+    with pytest.raises(ValueError, match="screen must be a Screen"):
+        optimize(full_model(), setup_of("nearfield"), n_max=1, candidates=T, screen=(4, 2))  # type: ignore[arg-type]
+
+
+def test_a_weighted_candidate_counts_as_its_rows_repeated() -> None:
+    """A coarse candidate's rows count (full / coarse)² times each: exactly its rows repeated that often."""
+    model = full_model()
+    em = ErrorModel(model.sigma, model.U, eta=40.0)
+    scorer = Scorer(em, "error", model.Q, "direct")
+    setup = setup_of("nearfield", 6)
+    lut = lookup_of(model)
+    first = lut[observation_cells(setup, (10, 30, 40), lut >= 0)]
+    block = scorer.block((10, 30, 40), first)
+    base = scorer.afresh([block])
+    cands = [lut[observation_cells(setup, c, lut >= 0)] for c in [(20, 40, 60), (5, 70, 90), (30, 20, 10)]]
+    weighted = scorer.evaluate(base, [block], cands, weight=4.0)
+    repeated = scorer.evaluate(base, [block], [np.repeat(c, 4) for c in cands])
+    np.testing.assert_allclose(np.asarray(weighted), np.asarray(repeated), rtol=1e-9)
+    assert scorer.evaluate(base, [block], cands) != weighted

@@ -88,6 +88,8 @@ def test_closed_loop_captures_the_configured_sets() -> None:
          "config closed_loop.spp = 65536: at most 16320 with acquisition.grid = 512"),
         ({"closed_loop": {"sensor": {**TINY["closed_loop"]["sensor"], "read_noise": 1e4, "brackets": [1]}}},
          "config closed_loop.min_snr = 3: no pixel can reach it"),
+        ({"acquisition": {"screen_grid": 12}},
+         "config acquisition.screen_grid = 12: must be below acquisition.grid (12), or 0"),
     ],
 )
 def test_bad_values_name_their_key(sections: dict, key: str) -> None:

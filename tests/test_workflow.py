@@ -267,6 +267,7 @@ def check_floor(workdir: Path, names: list[str]) -> None:
         ({"closed_loop": {"n_images": [3]}}, "closed_loop.n_images"),
         ({"database": "merl", "merl_dir": ""}, "merl_dir: empty path"),
         ({"materials": ["no-such-*"]}, "materials: 'no-such-*' match"),
+        ({"acquisition": {"screen_grid": 16}}, "acquisition.screen_grid = 16: must be below acquisition.grid (12)"),
         ({"render": {"envmap": {"width": 100000, "height": 50000}}}, "render.envmap.width × height = 5,000,000,000"),
         ({"closed_loop": {"sensor": {"enabled": True, "brackets": [2, 8]}}}, "closed_loop.sensor.brackets"),
         ({"report": {"compare_with": ["no/such/claims.csv"]}}, "report.compare_with[0] = 'no/such/claims.csv': no such file"),

@@ -106,6 +106,8 @@ rule optimize_directions:
         eta=ACQ["eta"],
         beta=ACQ["beta"],
         seed=ACQ["seed"],
+        screen_grid=ACQ["screen_grid"],
+        screen_keep=ACQ["screen_keep"],
         code=code("optimize_directions.py"),
     script:
         "../scripts/optimize_directions.py"
@@ -221,6 +223,8 @@ if PAPER_DIRECTIONS:
             beta=ACQ["beta"],
             candidates=ACQ["candidates"],
             seed=ACQ["seed"],
+            screen_grid=ACQ["screen_grid"],
+            screen_keep=ACQ["screen_keep"],
             code=code("evaluate_paper_directions.py"),
         script:
             "../scripts/evaluate_paper_directions.py"

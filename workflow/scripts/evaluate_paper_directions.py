@@ -14,4 +14,6 @@ with log_to(snakemake.log[0], stamp=snakemake.input.stamp):
         candidates=snakemake.params.candidates,
         seed=snakemake.params.seed,
         threads=snakemake.threads,
+        screen_grid=snakemake.params.screen_grid,
+        screen_keep=snakemake.params.screen_keep,
     )

@@ -30,7 +30,7 @@ from brdfpipe.core.threads import blas_threads
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl
 from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.acquisition.candidates import Block, CandidateSpace, Key, Scorer
+from brdfpipe.acquisition.candidates import Block, CandidateSpace, Key, Scorer, Screen
 from brdfpipe.acquisition.geometry import Config, Setup, config_from_dict, config_to_dict
 from brdfpipe.acquisition.metrics import (
     DEFAULT_ETA,
@@ -264,14 +264,39 @@ def _held_blocks(space: CandidateSpace, scorer: Scorer, held: Sequence[Config]) 
     return blocks
 
 
-def _greedy_add(space: CandidateSpace, scorer: Scorer, blocks: list[Block], t: int) -> tuple[Key, int]:
-    """Add the best of ``t`` random candidates to ``blocks``; its key and how many were evaluated."""
+def _greedy_add(space: CandidateSpace, scorer: Scorer, blocks: list[Block], t: int,
+                coarse: CandidateSpace | None = None, keep: int = 0) -> tuple[Key, int]:
+    """Add the best of ``t`` random candidates to ``blocks``; its key and how many were scored.
+
+    ``coarse``: the same set-up on a coarse lattice (:class:`Screen`): the
+    candidates are ranked by their coarse keys and the ``keep`` best (a
+    candidate the coarse lattice cannot score ranks last) scored at the full
+    lattice, in the order they were drawn, so that keeping every candidate
+    adds what the exhaustive add does.
+    """
     base = scorer.current(blocks)
     exclude = {b.config for b in blocks}
     shared = blocks[0].config[0] if (space.fixed and blocks) else None
+    drawn = space.sample(t, exclude, shared)
+    if coarse is not None:
+        rows = [coarse.rows(cfg) for cfg in drawn]
+        scored = [i for i, r in enumerate(rows) if r is not None]
+        found = scorer.evaluate(base, blocks, [rows[i] for i in scored],
+                                weight=(space.setup.grid / coarse.setup.grid) ** 2)
+        coarse_key: list[Key] = [(math.inf,)] * len(drawn)
+        for i, key in zip(scored, found):
+            coarse_key[i] = key
+        ranked = sorted(range(len(drawn)), key=coarse_key.__getitem__)
+        kept: list[int] = []
+        for i in ranked:
+            if space.rows(drawn[i]) is not None:
+                kept.append(i)
+                if len(kept) == keep:
+                    break
+        drawn = [drawn[i] for i in sorted(kept)]
     configs: list[Config] = []
     cands: list[NDArray[np.intp]] = []
-    for cfg in space.sample(t, exclude, shared):
+    for cfg in drawn:
         idx = space.rows(cfg)
         if idx is not None:
             configs.append(cfg)
@@ -284,7 +309,7 @@ def _greedy_add(space: CandidateSpace, scorer: Scorer, blocks: list[Block], t: i
     new = scorer.block(configs[best], cands[best])
     blocks.append(new)
     scorer.accept(blocks, base, new)
-    return keys[best], len(cands)
+    return keys[best], len(cands) if coarse is None else len(scored)
 
 
 def _move_single(
@@ -437,6 +462,7 @@ def optimize(
     log: Callable[[str], Any] | logging.Logger | None = None,
     evaluation: Literal["fast", "direct"] = "fast",
     held: Sequence[Config] = (),
+    screen: Screen | None = None,
 ) -> list[DirectionSet]:
     """Optimal acquisition configurations for n = 1 … ``n_max`` (Xu et al. §5; see the section comment).
 
@@ -481,6 +507,10 @@ def optimize(
         none): the search adds the others to them and never moves them
         (nor, for fixed_*, their shared elevation).  Each must observe a
         model column; fixed_* ones must share the elevation.
+    screen:
+        The greedy add screened on a coarse lattice (:class:`Screen`, ours), for image set-ups and the
+        "error" metric at a grid below the set-up's (ignored otherwise); None: every candidate scored at
+        the full lattice, the paper's search.
 
     Returns
     -------
@@ -503,6 +533,8 @@ def optimize(
     step_list = _check_steps(steps)
     if evaluation not in ("fast", "direct"):
         raise ValueError(f"evaluation must be 'fast' or 'direct', got {evaluation!r}")
+    if screen is not None and not isinstance(screen, Screen):
+        raise ValueError(f"screen must be a Screen or None, got {type(screen).__name__}")
     ErrorModel(np.ones(1), np.zeros((1, 1)), eta=eta, beta=beta)  # checks η and β before the model is read
     held = tuple(held)
     if len(held) >= int(n_max):
@@ -512,15 +544,19 @@ def optimize(
     em = ErrorModel(sigma, U, eta=eta, beta=beta)  # validates σ and U
     scorer = Scorer(em, metric, _load_q(model.Q), evaluation)
     blocks = _held_blocks(space, scorer, held)
+    coarse, keep = None, 0
+    if screen is not None and screen.applies(setup, metric):
+        coarse, keep = CandidateSpace(Setup(setup.kind, setup.fov_deg, screen.grid), cells, space.rng), screen.keep
     _emit(log, f"optimise {setup.kind} fov {setup.fov_deg:g}° grid {setup.grid}, metric {metric}, "
                f"n = {len(held) + 1}..{n_max}, t = {candidates}, steps {step_list}, η = {em.eta:g}, "
                f"β = {em.beta:g}, seed {seed}; model p = {cells.size}, k = {em.k}, m = {em.m}"
+               + (f"; greedy add screened at {screen.grid} px, best {keep} scored in full" if coarse else "")
                + "".join(f"; held {space.describe(b.config)}" for b in blocks))
     sets: list[DirectionSet] = []
     for n in range(len(held) + 1, int(n_max) + 1):
         t0 = time.perf_counter()
         evals0 = scorer.evaluations
-        greedy, tried = _greedy_add(space, scorer, blocks, int(candidates))
+        greedy, tried = _greedy_add(space, scorer, blocks, int(candidates), coarse, keep)
         _emit(log, f"n={n} greedy add: best of {tried} candidates {space.describe(blocks[-1].config)}, "
                    f"{sum(b.n for b in blocks)} rows: {scorer.fmt(greedy)} ({time.perf_counter() - t0:.1f} s)")
         blocks, final, moves = _local_search(space, scorer, blocks, greedy, step_list, n, len(held), log)
@@ -544,7 +580,8 @@ def optimize(
 #    "beta": β, "seed": …, "database": …, "model": path, "brdfpipe_version": …,
 #    "sets": [{"n": n, "configurations": [config_to_dict records],
 #              "expected_error": E, "condition_number": κ (null when
-#              infinite), "n_observations": rows}, …]}
+#              infinite), "n_observations": rows}, …],
+#    "screen": {"grid": g, "keep": n} only where the greedy add was screened (ours)}
 
 
 def _json_number(x: float) -> float | int:
@@ -563,8 +600,11 @@ def write_directions(
     eta: float,
     beta: float,
     database: str,
+    screen: Screen | None = None,
 ) -> Path:
     """Write :func:`optimize`'s sets as the directions JSON (format above), atomically.
+
+    ``screen``: the :class:`Screen` the search used, recorded where it applied.
 
     The configuration records are regenerated from the configurations and
     ``setup``.  Parent folders are created.  Returns the path.
@@ -604,6 +644,8 @@ def write_directions(
         "brdfpipe_version": full_version(),
         "sets": out_sets,
     }
+    if screen is not None and screen.applies(setup, metric):
+        doc["screen"] = {"grid": int(screen.grid), "keep": int(screen.keep)}
     path = Path(path)
     integrity.write_json(path, doc, indent=1, allow_nan=False)  # with its digest
     return path
@@ -670,6 +712,8 @@ def optimize_to_file(
     beta: float,
     seed: int,
     threads: int | None = None,
+    screen_grid: int = 0,
+    screen_keep: int = 10,
 ) -> Path:
     """Optimise the direction sets of one setup on a PCA model and write them as JSON.
 
@@ -678,8 +722,12 @@ def optimize_to_file(
     step) and writes :func:`write_directions`'s JSON to ``out``; the split
     and database recorded are the model's.  ``threads``: the BLAS threads
     to use (the rule's declared threads; None leaves them as they are).
+    ``screen_grid`` > 0: the greedy add screened on that lattice, its
+    ``screen_keep`` best scored in full (:class:`Screen`, ours); 0: the paper's search.
     """
     from brdfpipe.acquisition.svd import open_model
+
+    screen = Screen(int(screen_grid), int(screen_keep)) if screen_grid else None
 
     model = open_model(model_path)
     known = acquisition_spec.SETUPS.get(setup)  # an unknown name: Setup says which exist
@@ -692,9 +740,9 @@ def optimize_to_file(
     with blas_threads(threads):
         sets = optimize(
             model, kind_setup, metric=metric, n_max=n_max, candidates=candidates,
-            eta=eta, beta=beta, seed=seed, log=log,
+            eta=eta, beta=beta, seed=seed, log=log, screen=screen,
         )
     return write_directions(
         out, sets, setup=kind_setup, metric=metric, split=model.split,
-        model_path=model_path, seed=seed, eta=eta, beta=beta, database=model.database,
+        model_path=model_path, seed=seed, eta=eta, beta=beta, database=model.database, screen=screen,
     )

@@ -55,6 +55,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from brdfpipe.acquisition.candidates import Screen
 from brdfpipe.acquisition.geometry import CONFIG_DIMS, Config, Setup, config_to_dict, observation_cells
 from brdfpipe.acquisition.metrics import ErrorModel, RowBlock, block_stats, expected_error
 from brdfpipe.acquisition.optimize import ModelLike, optimize
@@ -178,12 +179,14 @@ def evaluate_paper_directions(
     seed: int,
     phi_step: int = PHI_STEP,
     log: Callable[[str], Any] | logging.Logger | None = None,
+    screen: Screen | None = None,
 ) -> list[PaperSet]:
     """E(S) of each paper direction on ``model`` (see the module docstring), in the order given.
 
     ``grid``: pixels a side of the near-field images; ``eta``, ``beta``: E(S)'s
     η and β; ``candidates`` and ``seed``: the optimiser's t and seed, for the
-    images after the first; ``phi_step``: the φd sub-sampling (1: every
+    images after the first (``screen``: its greedy add's :class:`Screen`, as
+    :func:`~brdfpipe.acquisition.optimize.optimize`'s); ``phi_step``: the φd sub-sampling (1: every
     matching configuration).  ValueError when none of a direction's
     configurations observes a model column.
     """
@@ -206,7 +209,7 @@ def evaluate_paper_directions(
         configs: tuple[Config, ...] = (first,)
         if d.n_images > 1:
             sets = optimize(loaded, setup, metric="error", n_max=d.n_images, candidates=candidates, eta=eta,
-                            beta=beta, seed=seed, log=log, held=configs)
+                            beta=beta, seed=seed, log=log, held=configs, screen=screen)
             configs, E = sets[-1].configurations, sets[-1].expected_error
             emit(f"{d.key}: with the optimiser's {d.n_images - 1} more image(s) {configs[1:]}: E = {E:.6g}")
         out.append(PaperSet(d, configs, float(E), matching, evaluated))
@@ -247,13 +250,16 @@ def paper_directions_to_file(
     candidates: int,
     seed: int,
     threads: int | None = None,
+    screen_grid: int = 0,
+    screen_keep: int = 10,
 ) -> Path:
     """The workflow's ``evaluate_paper_directions`` job: the named paper directions on a model, as the table.
 
     ``directions``: keys of :data:`brdfpipe.spec.acquisition.PAPER_DIRECTIONS`;
     the model written by :func:`brdfpipe.acquisition.svd.write_model` (the
     table records its split and database); ``threads``: the BLAS threads to
-    use (the rule's; None leaves them as they are).
+    use (the rule's; None leaves them as they are); ``screen_grid`` > 0, ``screen_keep``: the
+    optimiser's :class:`Screen` (as :func:`~brdfpipe.acquisition.optimize.optimize_to_file`'s).
     """
     from brdfpipe.acquisition.svd import open_model
 
@@ -262,5 +268,6 @@ def paper_directions_to_file(
     model = open_model(model_path)
     with blas_threads(threads):
         sets = evaluate_paper_directions(model, records, grid=grid, eta=eta, beta=beta, candidates=candidates,
-                                         seed=seed, log=logger)
+                                         seed=seed, log=logger,
+                                         screen=Screen(int(screen_grid), int(screen_keep)) if screen_grid else None)
     return write_paper_directions(out, sets, grid=grid, split=model.split, database=model.database)

@@ -223,8 +223,8 @@ def check_config(config: Mapping[str, Any], *, materials: Sequence[str], train: 
 
     Raises :class:`ConfigError` naming the key: non-finite numbers,
     ``training_sizes`` larger than the training set, latent dimensions not
-    below the number of materials, a ``path_q`` without a model, equal render
-    seeds, and bad latent paths.
+    below the number of materials, a ``path_q`` without a model, a screening
+    lattice not below the images', equal render seeds, and bad latent paths.
     """
     check_finite(dict(config))
     n = len(materials)
@@ -237,6 +237,10 @@ def check_config(config: Mapping[str, Any], *, materials: Sequence[str], train: 
     path_q(config["manifold"])
     manifold_candidates(config["manifold"])
     training_sizes(config["acquisition"], len(train))
+    acq = config["acquisition"]
+    if 0 < int(acq["screen_grid"]) >= int(acq["grid"]):
+        raise ConfigError(f"config acquisition.screen_grid = {acq['screen_grid']}: must be below acquisition.grid "
+                          f"({acq['grid']}), or 0 to score every candidate at the full lattice")
     render = config["render"]
     if render["noise_seed"] == render["seed"]:
         raise ConfigError("config render.noise_seed must differ from render.seed (it measures the noise floor)")
