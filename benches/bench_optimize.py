@@ -137,22 +137,32 @@ def compare_grids(optimize, geometry, model, args: argparse.Namespace) -> None: 
     process's (all its threads: BLAS included), the model already in memory;
     the count of metric evaluations lets two machines be compared.
     """
+    from brdfpipe.acquisition.candidates import Screen
+
+    screen = Screen(args.screen, 10) if args.screen else None
+    # untimed warm-up: the first call alone pays Q's first read from disk and the lazy imports
+    optimize.optimize(model, geometry.Setup(args.setup, args.fov, args.grids[0]), metric=args.metric, n_max=1,
+                      candidates=10, seed=args.seed, log=None)
     rows = []
     for grid in args.grids:
         setup = geometry.Setup(args.setup, args.fov, grid)
-        c0, t0 = time.process_time(), time.perf_counter()
-        sets = optimize.optimize(model, setup, metric=args.metric, n_max=args.n, candidates=args.candidates,
-                                 seed=args.seed, log=None)
-        cpu, wall = time.process_time() - c0, time.perf_counter() - t0
-        rows.append((grid, cpu, wall, sets[-1].n_observations, sets[-1].expected_error))
-        print(f"grid {grid:4d} px: {cpu:7.1f} CPU-s, {wall:7.1f} s wall; n = {sets[-1].n}: "
-              f"{sets[-1].n_observations} rows, E = {sets[-1].expected_error:.6g}", flush=True)
+        for how in (None, screen) if screen is not None and screen.applies(setup, args.metric) else (None,):
+            c0, t0 = time.process_time(), time.perf_counter()
+            sets = optimize.optimize(model, setup, metric=args.metric, n_max=args.n, candidates=args.candidates,
+                                     seed=args.seed, log=None, screen=how)
+            cpu, wall = time.process_time() - c0, time.perf_counter() - t0
+            label = f"grid {grid} px" + ("" if how is None else f" screened at {how.grid} px")
+            rows.append((label, cpu, sets[-1].configurations))
+            print(f"{label}: {cpu:7.1f} CPU-s, {wall:7.1f} s wall; n = {sets[-1].n}: "
+                  f"{sets[-1].n_observations} rows, E = {sets[-1].expected_error:.6g}", flush=True)
     base = rows[0][1]
-    for grid, cpu, *_ in rows[1:]:
+    for label, cpu, configs in rows[1:]:
         verdict = "PASS" if cpu <= base else "FAIL"
-        print(f"{verdict}: grid {grid} px costs {cpu / base:.2f}x the CPU of {rows[0][0]} px "
+        same = "" if "screened" not in label else \
+            f"; the exhaustive add's sets: {configs == next(c for l, _, c in rows if l == label.split(' screened')[0])}"
+        print(f"{verdict}: {label} costs {cpu / base:.2f}x the CPU of {rows[0][0]} "
               f"(target <= 1.00x; {args.setup}, fov {args.fov:g}°, n = 1..{args.n}, t = {args.candidates}, "
-              f"metric {args.metric})", flush=True)
+              f"metric {args.metric}{same})", flush=True)
 
 
 def main() -> None:
@@ -176,6 +186,9 @@ def main() -> None:
     ap.add_argument("--grids", type=lambda v: [int(g) for g in v.split(",")], default=None, metavar="G1,G2",
                     help="instead of the timed run: the CPU of the optimisation at each grid and the ratios to the "
                          "first (issue 33: 128 px at no more CPU than 32 px)")
+    ap.add_argument("--screen", type=int, default=0, metavar="G",
+                    help="with --grids: also each grid above G with the greedy add screened at G px "
+                         "(acquisition.screen_grid, ours; its 10 best scored in full)")
     ap.add_argument("--baseline", type=int, default=0, metavar="N",
                     help="first time n = 1..N with the direct and the fast evaluation and print the ratio")
     args = ap.parse_args()

@@ -37,7 +37,7 @@ def main() -> None:
     run("benches/bench_svd.py", *(["--logmap", str(LOGMAP)] if LOGMAP.is_dir() else []))
     run("benches/bench_optimize.py", *(["--model", str(MODEL)] if MODEL.is_dir() else []))
     # Speed at the paper's resolution (issue 33): the near-field optimiser's CPU at 128 px against 32 px.
-    run("benches/bench_optimize.py", *(["--model", str(MODEL)] if MODEL.is_dir() else []), "--grids", "32,128")
+    run("benches/bench_optimize.py", *(["--model", str(MODEL)] if MODEL.is_dir() else []), "--grids", "32,128", "--screen", "32")
     # Manifold track: GPLVM fit vs scipy L-BFGS (and GPy, when a GPy environment is set up).
     # "entry" is the workflow's normalisation (manifold.normalise); "raw" the paper's units.
     run("benches/bench_gplvm.py", "--scaling", "entry")

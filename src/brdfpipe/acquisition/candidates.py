@@ -44,7 +44,7 @@ class Screen:
     full lattice, and the best of those is added.  Same draws, same local
     search.  For image set-ups and the E(S) metric, at a ``grid`` below the
     set-up's.  Measured against the exhaustive add (merl-nbrdf, 12 runs at 128
-    and 256 px): the same sets in every run, at 0.61× and 0.46× the CPU
+    and 256 px): the same sets in every run, at 0.63× and 0.46× the CPU
     (docs/results/run-cost.md).
     """
 
