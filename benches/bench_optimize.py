@@ -61,7 +61,7 @@ Usage::
     python benches/bench_optimize.py [--model PATH] [--store results/merl.zarr]
         [--fov 25] [--n 2] [--candidates 500] [--grid 32] [--metric error]
         [--setup nearfield] [--seed 0] [--blas-threads N] [--work DIR] [--keep]
-        [--evaluation fast|direct] [--baseline N] [--grids 32,128]
+        [--evaluation fast|direct] [--baseline N] [--grids 32,128 [--screen 32]]
 
 ``--grids 32,128`` replaces the timed run: the CPU of the same optimisation
 at each grid, one after the other in this process, and each grid's ratio to
