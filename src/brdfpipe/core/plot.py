@@ -246,7 +246,7 @@ def _save(fig: Figure, stem: str | os.PathLike[str], title: str) -> tuple[tuple[
     atomic_write(png, lambda fh: fig.savefig(fh, format="png", dpi=DPI,
                                               metadata={"Title": title, "Software": software}))
     # The PNG's save laid the figure out (constrained layout); the PDF keeps that layout rather than
-    # computing it again (a fifth of a figure job's time)
+    # computing it again (about a tenth of a figure job's CPU)
     engine = fig.get_layout_engine()
     fig.set_layout_engine("none")
     try:
