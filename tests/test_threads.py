@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from brdfpipe.core.threads import blas_threads, openblas_libraries
+from brdfpipe.core.threads import JOB_ENVIRONMENT, blas_threads, openblas_libraries
 
 
 def current_blas_threads() -> dict[str, int]:
@@ -37,3 +38,22 @@ def test_none_leaves_threads_alone_and_bad_counts_raise() -> None:
         with pytest.raises(ValueError):
             with blas_threads(bad):  # type: ignore[arg-type]
                 pass
+
+
+@pytest.mark.slow
+def test_jobs_run_with_their_rules_threads_and_blas_threads_that_sleep(
+        tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Each job's log gives its thread settings: its rule's ``threads`` and a short OpenBLAS spin.
+
+    decompose_svd declares 2 threads, fit_gplvm 1; both run with
+    ``OPENBLAS_THREAD_TIMEOUT`` of :data:`JOB_ENVIRONMENT` (set by the
+    Snakefile), so their idle BLAS threads sleep instead of spinning.
+    """
+    from shared_runs import shared_run
+
+    work = shared_run(tmp_path_factory, Path(__file__).resolve().parent / "config" / "tiny.yaml")
+    timeout = JOB_ENVIRONMENT["OPENBLAS_THREAD_TIMEOUT"]
+    for log, threads in ((work / "logs" / "decompose_svd" / "all.log", 2),
+                         (next((work / "logs" / "fit_gplvm").rglob("*.log")), 1)):
+        text = log.read_text()
+        assert f"OPENBLAS_NUM_THREADS={threads} OPENBLAS_THREAD_TIMEOUT={timeout}" in text, (log, text[:2000])

@@ -10,6 +10,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from brdfpipe.core import atomic, stamps
+from brdfpipe.core.threads import THREAD_VARIABLES
 
 __all__ = ["QUIET_LOGGERS", "log_to", "quiet_third_party", "setup_console_logging"]
 
@@ -70,6 +71,7 @@ def log_to(path: str | Path, level: int = logging.INFO, console_level: int = log
     root.setLevel(level)
     quiet_third_party()
     logger = logging.getLogger("brdfpipe.workflow")
+    logger.info("thread settings: %s", " ".join(f"{k}={os.environ.get(k, '(unset)')}" for k in THREAD_VARIABLES))
     try:
         with atomic.job_lease(path, opened):
             yield logger
