@@ -199,7 +199,7 @@ PARSE_TIME_MODULES = {
     "brdfpipe.data.databases": (), "brdfpipe.report.claims": (), "brdfpipe.report.sidebyside": (),
     "brdfpipe.plan.report": (), "brdfpipe.explorer": (), "brdfpipe.data.database": ("numpy",),
     "brdfpipe.spec.acquisition": (), "brdfpipe.spec.manifold": (), "brdfpipe.spec.figures": (),
-    "brdfpipe.spec.nearfield": (),
+    "brdfpipe.spec.nearfield": (), "brdfpipe.core.threads": (),
 }
 HEAVY = ("numpy", "scipy", "zarr", "matplotlib", "mitsuba", "h5py")
 
