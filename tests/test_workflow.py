@@ -11,6 +11,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +94,25 @@ def test_dry_run_plans_one_job_per_material(tmp_path: Path) -> None:
                     ("interpolate_candidate_path_points", 2), ("render_candidate_path_points", 2),
                     ("measure_candidate_blends", 2), ("summarize_floor_check", 1), ("plot_floor_check", 1)]:
         assert any(line.split()[:2] == [rule, str(n)] for line in out.splitlines()), out
+
+
+def test_scheduling_rounds_grow_with_the_jobs_not_with_jobs_times_seconds(
+        tmp_path: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Snakemake's rate limiter ended every scheduling round with a timer for another one, and each finished
+    job started a round of its own, so the rounds grew with jobs x seconds (82 for these 12 jobs on one core
+    in 15 s; 5,931 in a whole tiny run), each one stat()ing every waiting job's inputs.  With one pending
+    timer per scheduler (workflow/rules/common.smk): about one round per finished job and one per second."""
+    work = copy_run(shared_run(tmp_path_factory, TINY), tmp_path / "work")
+    start = time.monotonic()
+    r = snakemake(work, "--forcerun", "synthesize_material", "--until", "synthesize_material", "--verbose",
+                  "--cores", "1")
+    seconds = time.monotonic() - start
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out[-3000:]
+    finished = out.count("Finished jobid")
+    rounds = sum(line.startswith("Ready jobs") for line in out.splitlines())  # a round with jobs to choose from
+    assert finished == 12, out[-3000:]
+    assert 0 < rounds <= finished + seconds + 5, f"{rounds} scheduling rounds for {finished} jobs in {seconds:.0f} s"
 
 
 def test_tiny_run_builds_a_valid_store(tmp_path: Path, tmp_path_factory: pytest.TempPathFactory) -> None:

@@ -5,10 +5,13 @@
 
 import inspect
 import re
+import threading
+import time
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
 from snakemake.io import apply_wildcards, is_flagged
+from snakemake.scheduling.job_scheduler import JobScheduler
 
 from brdfpipe.data import database as brdf_db
 from brdfpipe.data import databases as brdf_dbs
@@ -22,6 +25,29 @@ from brdfpipe.spec import acquisition as setup_specs
 from brdfpipe.spec import manifold as manifold_specs
 
 SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
+
+
+# Scheduling rounds. Snakemake 9's job rate limiter (--max-jobs-per-timespan,
+# default 100/1s) ends every scheduling round by starting a timer for another
+# round one timespan later, and every finished job starts a round of its own,
+# so the timers multiply with the jobs finished: the tiny config's 98 jobs took
+# 5,931 rounds, each stat()ing the inputs of every job waiting for a core
+# (snakemake/snakemake pull request 3744). One pending timer per scheduler does
+# what they all did (a round within the timespan), and as a daemon it no longer
+# holds Snakemake's exit (docs/results/run-cost.md has the measurement).
+def _reevaluate_once(scheduler, delay):
+    due = time.monotonic() + delay
+    pending = getattr(scheduler, "_brdfpipe_round", None)
+    if pending is not None and pending[0].is_alive() and pending[1] <= due:
+        return  # a round comes by then already
+    timer = threading.Timer(delay, scheduler._open_jobs.release)
+    timer.daemon = True
+    timer.start()
+    scheduler._brdfpipe_round = (timer, due)
+
+
+if hasattr(JobScheduler, "_schedule_reevalutation"):
+    JobScheduler._schedule_reevalutation = _reevaluate_once
 
 
 def code(script):
