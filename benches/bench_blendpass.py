@@ -135,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     import logging
 
     logging.disable(logging.WARNING)  # the clamp counts of every batch
-    from brdfpipe.spec.manifold import default_paths
+    from brdfpipe.registry.manifold import default_paths
     from brdfpipe.data.store import open_store
     from brdfpipe.manifold import analysis, fidelity, latent
 

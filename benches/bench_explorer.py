@@ -58,7 +58,7 @@ def run_inputs(results: Path, scene: str) -> dict | None:
     """write_explorer's inputs from a finished run (None without one)."""
     from brdfpipe.core import filenames as fn
     from brdfpipe import plan
-    from brdfpipe.spec import manifold as manifold_spec
+    from brdfpipe.registry import manifold as manifold_spec
 
     manifest = results / "explorer" / "manifest.json"
     if not manifest.is_file():

@@ -79,7 +79,7 @@ import tempfile
 import time
 from pathlib import Path
 from _common import training_materials  # noqa: E402  (benches/ is on sys.path)
-from brdfpipe.spec import acquisition as acquisition_spec  # noqa: E402  (standard library only: before numpy)
+from brdfpipe.registry import acquisition as acquisition_spec  # noqa: E402  (standard library only: before numpy)
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 600.0

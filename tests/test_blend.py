@@ -25,7 +25,7 @@ from brdfpipe.rendering.blend import (
 )
 from brdfpipe.core.exr import ExrError, read_exr, read_exr_attrs, write_exr
 from brdfpipe.core.notes import read_note
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 H, W = 6, 8
 MATERIALS = ("alum-bronze", "chrome", "silver-paint")

@@ -14,8 +14,8 @@ import pytest
 from brdfpipe import plan
 from brdfpipe.core import integrity
 from brdfpipe.manifold import fitting, gplvm, gram, likelihood
-from brdfpipe.spec import manifold as man_spec
-from brdfpipe.spec.errors import ConfigError
+from brdfpipe.registry import manifold as man_spec
+from brdfpipe.registry.errors import ConfigError
 
 
 def test_a_label_names_what_differs_from_the_standard_fit() -> None:

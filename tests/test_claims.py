@@ -23,7 +23,7 @@ from brdfpipe.report import claims_ours as ours
 from brdfpipe.report import claims_setups as xu_setups
 from brdfpipe.report import claims_soler as soler
 from brdfpipe.report import claims_xu as xu
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 R, W, D, N = claims.REPRODUCES, claims.WITHIN, claims.DIFFERS, claims.NOT_CHECKABLE
 

@@ -26,7 +26,7 @@ from brdfpipe.acquisition.evaluation import (
 from brdfpipe.acquisition.geometry import Setup
 from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 
 # --------------------------------------------------------------------------

@@ -35,8 +35,8 @@ from brdfpipe.acquisition.figures import (
 from brdfpipe.acquisition.geometry import config_to_dict, Setup
 from brdfpipe.acquisition.optimize import DirectionSet, read_directions, write_directions
 from brdfpipe.core.filenames import FIGURE_STEMS
-from brdfpipe.spec import figures as fig_spec
-from brdfpipe.spec import tables
+from brdfpipe.registry import figures as fig_spec
+from brdfpipe.registry import tables
 
 DB = "synthetic"
 MATERIALS = ("blue-acrylic", "gold-metallic-paint", "white-fabric")

@@ -38,7 +38,7 @@ from brdfpipe.manifold.figures import (
     manifold_fig10_latent_q2,
     manifold_fig10_latent_q5,
 )
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 DB = "synthetic"
 N = 24

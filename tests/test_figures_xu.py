@@ -30,8 +30,8 @@ from brdfpipe.core.exr import read_exr
 from brdfpipe.core.plot import Warnings
 from brdfpipe.data import logmap, merl, provenance
 from brdfpipe.data.store import material_indices, open_store
-from brdfpipe.spec import figures as fig_spec
-from brdfpipe.spec import tables
+from brdfpipe.registry import figures as fig_spec
+from brdfpipe.registry import tables
 from shared_runs import shared_run
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,8 +16,8 @@ import pytest
 from brdfpipe.acquisition import geometry
 from brdfpipe.acquisition.geometry import DEFAULT_GRID, Setup, centre_directions, config_from_dict, config_to_dict, observation_cells, pixel_directions
 from brdfpipe.data import merl
-from brdfpipe.spec.acquisition import SETUP_NAMES
-from brdfpipe.spec import nearfield
+from brdfpipe.registry.acquisition import SETUP_NAMES
+from brdfpipe.registry import nearfield
 
 MEASURED = merl.measured_mask()
 MEASURED_CELLS = np.flatnonzero(MEASURED.ravel())

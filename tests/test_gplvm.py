@@ -18,7 +18,7 @@ from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl, store
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.manifold import fitting, gplvm, gram, hookejeeves, likelihood, newton
-from brdfpipe.spec.manifold import LINEAR_SPACES
+from brdfpipe.registry.manifold import LINEAR_SPACES
 from gram_fixture import dense, small_store  # noqa: F401 (pytest fixtures)
 
 
@@ -638,7 +638,7 @@ def test_a_model_or_gram_file_of_the_retired_format_is_refused(tmp_path: Path) -
 def _sqrt_space(monkeypatch: pytest.MonkeyPatch, *, inverse: bool) -> None:
     """Register a ``sqrt`` space (√(ρ·cos θi·cos θo)) as a user would: its record and its maps, nothing else."""
     from brdfpipe.manifold import spaces
-    from brdfpipe.spec import manifold as manifold_spec
+    from brdfpipe.registry import manifold as manifold_spec
 
     def cos_maps(st: object, names: object, cells: np.ndarray) -> tuple[np.ndarray, None]:
         wi, wo = merl.cell_directions(cells)
@@ -679,7 +679,7 @@ def test_a_space_that_is_not_linear_is_not_blended_as_raw_values(
 ) -> None:
     """A registered non-linear space without its inverse is refused where blends become tables (both routes)."""
     from brdfpipe.manifold import blendpass
-    from brdfpipe.spec import manifold as manifold_spec
+    from brdfpipe.registry import manifold as manifold_spec
 
     _sqrt_space(monkeypatch, inverse=False)
     W = np.full((1, 6), 1.0 / 6)

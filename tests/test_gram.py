@@ -9,7 +9,7 @@ import pytest
 
 from brdfpipe.data import logmap, merl, store
 from brdfpipe.manifold import gram
-from brdfpipe.spec.manifold import SPACE_NAMES
+from brdfpipe.registry.manifold import SPACE_NAMES
 from gram_fixture import dense, small_store  # noqa: F401 (pytest fixtures)
 
 

@@ -404,7 +404,7 @@ def test_both_readers_of_a_directions_file_require_its_exact_format(tmp_path: Pa
     """A directions file of another format version is refused by the capture as by the optimiser (one tag)."""
     from brdfpipe.acquisition.optimize import read_directions
     from brdfpipe.rendering.capture import read_configurations
-    from brdfpipe.spec.acquisition import DIRECTIONS_FORMAT
+    from brdfpipe.registry.acquisition import DIRECTIONS_FORMAT
 
     p = tmp_path / "d.json"
     doc = {"format": DIRECTIONS_FORMAT.rsplit("/", 1)[0] + "/2", "setup": "nearfield", "fov": 25.0, "grid": 8,

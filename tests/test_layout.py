@@ -4,8 +4,8 @@ Layers, bottom to top (a module may import its own subpackage and the
 subpackages :data:`ALLOWED` lists for it, never a higher one nor a sibling
 stage)::
 
-    spec  <-  core  <-  data  <-  {acquisition, manifold}  <-  rendering  <-  cli (top-level modules)
-    spec  <-  core  <-  plan (the planner, beside cli: nothing below imports it)
+    registry  <-  core  <-  data  <-  {acquisition, manifold}  <-  rendering  <-  cli (top-level modules)
+    registry  <-  core  <-  plan (the planner, beside cli: nothing below imports it)
 
 (rendering may use manifold, not acquisition: the tracks meet in files.)
 
@@ -28,17 +28,17 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "brdfpipe"
 #: (cli, the package's __init__) may import all of them.
 ALLOWED: dict[str, set[str]] = {
     # the records of what people add (set-ups, data spaces, figures): the standard library only
-    "spec": set(),
-    "core": {"spec"},
-    "data": {"core", "spec"},
-    "acquisition": {"data", "core", "spec"},
-    "manifold": {"data", "core", "spec"},
-    "rendering": {"manifold", "data", "core", "spec"},
+    "registry": set(),
+    "core": {"registry"},
+    "data": {"core", "registry"},
+    "acquisition": {"data", "core", "registry"},
+    "manifold": {"data", "core", "registry"},
+    "rendering": {"manifold", "data", "core", "registry"},
     # for people: the report reads the run's CSVs; the explorer exports models and pre-renders
-    "report": {"core", "spec"},
-    "explorer": {"rendering", "manifold", "data", "core", "spec"},
+    "report": {"core", "registry"},
+    "explorer": {"rendering", "manifold", "data", "core", "registry"},
     # the planner, on top beside cli: read at parse time, so only the light layers
-    "plan": {"core", "spec"},
+    "plan": {"core", "registry"},
 }
 
 
@@ -209,8 +209,8 @@ def test_no_upward_or_sideways_import_and_no_private_import() -> None:
 def test_no_cycle_between_subpackages() -> None:
     graph = subpackage_graph(module_sources())
     assert find_cycle(graph) is None, find_cycle(graph)
-    assert graph.get("core", set()) <= {"spec"}  # core imports nothing of brdfpipe above it (the specs are below)
-    assert graph.get("spec", set()) == set()  # the specs import nothing of brdfpipe
+    assert graph.get("core", set()) <= {"registry"}  # core imports nothing of brdfpipe above it (the registries are below)
+    assert graph.get("registry", set()) == set()  # the registries import nothing of brdfpipe
 
 
 def test_no_cycle_between_modules() -> None:
@@ -272,9 +272,9 @@ def test_subpackage_inits_are_documented_and_light() -> None:
         assert imported <= set(sys.stdlib_module_names) | {"__future__"}, (pkg, imported)  # the standard library only
 
 
-def test_spec_modules_import_only_the_standard_library() -> None:
-    """The specs are read at parse time and by every stage: the standard library and other specs only (outside TYPE_CHECKING or a function)."""
-    for path in sorted((PACKAGE / "spec").glob("*.py")):
+def test_registry_modules_import_only_the_standard_library() -> None:
+    """The registries are read at parse time and by every stage: the standard library and other registry modules only (outside TYPE_CHECKING or a function)."""
+    for path in sorted((PACKAGE / "registry").glob("*.py")):
         tree = ast.parse(path.read_text(encoding="utf-8"))
         typing_only = _type_checking_lines(path.read_text(encoding="utf-8"))
         for node in tree.body:  # module level only: a function body may import NumPy lazily
@@ -285,18 +285,18 @@ def test_spec_modules_import_only_the_standard_library() -> None:
                 names = [node.module or ""]
             for name in names:
                 if node.lineno not in typing_only:
-                    ok = name.split(".")[0] in set(sys.stdlib_module_names) | {"__future__"} or name.startswith("brdfpipe.spec.")
+                    ok = name.split(".")[0] in set(sys.stdlib_module_names) | {"__future__"} or name.startswith("brdfpipe.registry.")
                     assert ok, (path.name, name)
 
 
-def test_the_spec_check_catches_a_third_party_import(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """A spec module importing NumPy at module level fails the check above (it can fail)."""
-    fake = tmp_path / "spec"
+def test_the_registry_check_catches_a_third_party_import(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A registry module importing NumPy at module level fails the check above (it can fail)."""
+    fake = tmp_path / "registry"
     fake.mkdir()
     (fake / "bad.py").write_text("import numpy as np\n", encoding="utf-8")
     monkeypatch.setattr(sys.modules[__name__], "PACKAGE", tmp_path)
     with pytest.raises(AssertionError, match="numpy"):
-        test_spec_modules_import_only_the_standard_library()
+        test_registry_modules_import_only_the_standard_library()
 
 
 #: The longest a library function may be (lines from ``def`` to its last line, docstring and nested code included).

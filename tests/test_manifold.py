@@ -8,10 +8,10 @@ import pytest
 import scipy.linalg
 
 from brdfpipe.core import integrity
-from brdfpipe.spec.errors import ConfigError
+from brdfpipe.registry.errors import ConfigError
 from brdfpipe.data import ingest, merl, provenance, store, synth
 from brdfpipe.manifold import albedo, analysis, gplvm, gram, likelihood
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 
 @pytest.fixture(scope="module")

@@ -31,7 +31,7 @@ from brdfpipe.acquisition.candidates import Scorer, Screen
 from brdfpipe.acquisition.optimize import DirectionSet, optimize, read_directions, write_directions
 from brdfpipe.core import filenames
 from brdfpipe.data import merl
-from brdfpipe.spec.acquisition import DIRECTIONS_FORMAT
+from brdfpipe.registry.acquisition import DIRECTIONS_FORMAT
 
 T = 40  # candidates per greedy add (the paper's 500 is the default; small here for speed)
 
@@ -486,7 +486,7 @@ def test_a_ring_of_cameras_is_a_record(monkeypatch: pytest.MonkeyPatch) -> None:
     nothing else is edited.  Every set the optimiser returns keeps the ring,
     shares the light's elevation, and its reported E(S) is its rows' own.
     """
-    from brdfpipe.spec import acquisition as acq_spec
+    from brdfpipe.registry import acquisition as acq_spec
 
     ring = acq_spec.SetupKind("ring", "camera ring at 45°, fixed light", images=True, fov="fixed", shared="light",
                               axes=("θlight", "θcam", "φcam"), wrap_phi=True, n_max_key="n_max_images",
@@ -509,7 +509,7 @@ def test_a_ring_of_cameras_is_a_record(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_a_pinned_axis_is_refused_where_it_cannot_hold(monkeypatch: pytest.MonkeyPatch) -> None:
     """Pinned axes need candidates drawn on the grid (a shared direction); a held set must keep them."""
-    from brdfpipe.spec import acquisition as acq_spec
+    from brdfpipe.registry import acquisition as acq_spec
 
     base = acq_spec.SETUPS["fixed_light"]
     monkeypatch.setitem(acq_spec.SETUPS, "ring", dataclasses.replace(base, name="ring", moves=(2,), pinned=((1, 45),)))

@@ -23,8 +23,8 @@ from brdfpipe.acquisition.paper_directions import (PHI_STEP, evaluate_paper_dire
                                                    write_paper_directions)
 from brdfpipe.core import integrity
 from brdfpipe.data import merl
-from brdfpipe.spec import tables
-from brdfpipe.spec.acquisition import PAPER_DIRECTIONS, paper_direction
+from brdfpipe.registry import tables
+from brdfpipe.registry.acquisition import PAPER_DIRECTIONS, paper_direction
 
 GRID = 12
 ONE, TWO = paper_direction("one-shot"), paper_direction("two-shot")

@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from brdfpipe import plan
-from brdfpipe.spec import manifold as manifold_spec
+from brdfpipe.registry import manifold as manifold_spec
 from brdfpipe.core import filenames as fn, version
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -198,8 +198,8 @@ PARSE_TIME_MODULES = {
     "brdfpipe.core.filenames": (), "brdfpipe.plan": (), "brdfpipe.core.stamps": (), "brdfpipe.core.version": (),
     "brdfpipe.data.databases": (), "brdfpipe.report.claims": (), "brdfpipe.report.sidebyside": (),
     "brdfpipe.plan.report": (), "brdfpipe.explorer": (), "brdfpipe.data.database": ("numpy",),
-    "brdfpipe.spec.acquisition": (), "brdfpipe.spec.manifold": (), "brdfpipe.spec.figures": (),
-    "brdfpipe.spec.nearfield": (), "brdfpipe.core.threads": (),
+    "brdfpipe.registry.acquisition": (), "brdfpipe.registry.manifold": (), "brdfpipe.registry.figures": (),
+    "brdfpipe.registry.nearfield": (), "brdfpipe.core.threads": (),
 }
 HEAVY = ("numpy", "scipy", "zarr", "matplotlib", "mitsuba", "h5py")
 
@@ -543,9 +543,9 @@ def _schema_enums(schema: object, path: str = "") -> dict[str, list]:
 
 
 def test_each_schema_enum_equals_its_spec() -> None:
-    """The schema's lists of set-ups, metrics, data spaces, optimisers and starts are the specs' (brdfpipe.spec), in order."""
-    from brdfpipe.spec import acquisition as acq
-    from brdfpipe.spec import manifold as man
+    """The schema's lists of set-ups, metrics, data spaces, optimisers and starts are the specs' (brdfpipe.registry), in order."""
+    from brdfpipe.registry import acquisition as acq
+    from brdfpipe.registry import manifold as man
 
     enums = _schema_enums(SCHEMA)
     expected = {

@@ -25,7 +25,7 @@ from brdfpipe import plan
 from brdfpipe.core import filenames, integrity
 from brdfpipe.plan import report as items
 from brdfpipe.report import captions, claims, runinfo, sidebyside
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 
 def write_csv(path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, object]]) -> Path:

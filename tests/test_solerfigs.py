@@ -21,7 +21,7 @@ from brdfpipe import cli, plan
 from brdfpipe.core import filenames, integrity
 from brdfpipe.core.notes import read_note, write_note
 from brdfpipe.report import captions
-from brdfpipe.spec import manifold as man_spec
+from brdfpipe.registry import manifold as man_spec
 
 CONFIG = Path(__file__).resolve().parent / "config" / "tiny-nbrdf.yaml"
 
@@ -118,7 +118,7 @@ def _config() -> dict:
 
 def _default_model(work: Path, q: int) -> Path:
     """The model file of the config's own fit (its label names how it is fitted: tiny-nbrdf fits with hybrid)."""
-    from brdfpipe.spec.manifold import candidate_label
+    from brdfpipe.registry.manifold import candidate_label
 
     m = _config()["manifold"]
     label = candidate_label(m["space"], m["mu"], m.get("normalise", True), m.get("method", "newton"),

@@ -24,7 +24,7 @@ from brdfpipe.data import database, databases, ingest, merl, nbrdf, store
 from brdfpipe.manifold import fitting, gplvm, gram, likelihood, unseen
 from brdfpipe.manifold.gram import MEAN_HANDLING, cross_gram, gram_matrix
 from brdfpipe.manifold.spaces import STANDARDISED_FLOOR
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 RESULTS = "results"
 

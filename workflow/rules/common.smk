@@ -21,8 +21,8 @@ from brdfpipe.core import stamps as job_stamps
 from brdfpipe.core.version import script_digest
 from brdfpipe.report import claims as report_claims
 from brdfpipe.report import sidebyside
-from brdfpipe.spec import acquisition as setup_specs
-from brdfpipe.spec import manifold as manifold_specs
+from brdfpipe.registry import acquisition as setup_specs
+from brdfpipe.registry import manifold as manifold_specs
 
 SCRIPTS = Path(workflow.current_basedir).parent / "scripts"
 

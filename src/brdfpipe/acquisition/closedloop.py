@@ -57,7 +57,7 @@ from brdfpipe.core import integrity
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import material_indices, open_store
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "CLOSEDLOOP_KINDS",

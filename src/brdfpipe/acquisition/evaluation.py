@@ -121,7 +121,7 @@ from brdfpipe.data.logmap import Logmap, open_logmap
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import BrdfStore, material_indices, open_store, read_ahead, row_runs
 from brdfpipe.data.store import CHUNK_COLS
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "CHANNELS",
@@ -404,7 +404,7 @@ def evaluate(
     Returns
     -------
     list of dict
-        Rows with keys :data:`~brdfpipe.spec.tables.ERRORS` (see the module docstring),
+        Rows with keys :data:`~brdfpipe.registry.tables.ERRORS` (see the module docstring),
         ready for :func:`write_errors`.
     """
     mdl = as_model(model_path)
@@ -773,7 +773,7 @@ def training_size_curve(
     the ``train`` optimisation).  Approximations (see the module docstring):
     the ``train`` log-mapping's ρ_ref and the ``train`` directions for every N.
 
-    Returns rows with keys :data:`~brdfpipe.spec.tables.TRAINING_SIZE` (kind ``rms_log``,
+    Returns rows with keys :data:`~brdfpipe.registry.tables.TRAINING_SIZE` (kind ``rms_log``,
     per material-channel and ``mean``/``all``).
     """
     eta = metrics.check_eta(eta)

@@ -4,7 +4,7 @@ Shared by the figure modules of the acquisition track
 (:mod:`brdfpipe.acquisition.figures`, :mod:`brdfpipe.acquisition.figures_configs`,
 :mod:`brdfpipe.acquisition.figures_recon`).  ``errors.csv`` (tidy):
 ``database, split, setup, fov, metric, n, material, channel, kind, value``
-(:data:`brdfpipe.spec.tables.ERRORS`); ``training_size.csv``: ``database,
+(:data:`brdfpipe.registry.tables.ERRORS`); ``training_size.csv``: ``database,
 n_train, order_seed, material, channel, kind, value``.  A missing, empty or
 malformed file raises :class:`~brdfpipe.core.plot.FigureInputError` naming it.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from brdfpipe.core.plot import FigureInputError, parse_float, parse_int, read_csv, single_database
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "FOV_TOL",

@@ -30,10 +30,10 @@ this module re-exports their public names.
 Outputs
 -------
 One public function per figure, the one its record in
-:mod:`brdfpipe.spec.figures` names; each takes the rule's inputs
+:mod:`brdfpipe.registry.figures` names; each takes the rule's inputs
 (:class:`~brdfpipe.acquisition.figure_inputs.AcquisitionFigureInputs`) and an
 output *stem* and writes ``<stem>.png`` and ``<stem>.pdf`` (a figure with a
-table, :attr:`brdfpipe.spec.figures.Figure.table`, also ``<stem>.csv`` and
+table, :attr:`brdfpipe.registry.figures.Figure.table`, also ``<stem>.csv`` and
 ``<stem>.md``), each atomically (temporary sibling, then
 :func:`os.replace`), and returns a :class:`FigureOutput`.
 :func:`make_acquisition_figures` draws those a rule asks for, each through
@@ -100,8 +100,8 @@ from brdfpipe.acquisition.figures_configs import (
 from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.data import databases
-from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec import tables
+from brdfpipe.registry import acquisition as acquisition_spec
+from brdfpipe.registry import tables
 from brdfpipe.core.plot import (
     COLOURS,
     FigureInputError,
@@ -528,7 +528,7 @@ def fig03_recon_vs_deviation(inp: AcquisitionFigureInputs, stem: str | os.PathLi
 
     Per material of ``inp.figure_materials``: those of Fig. 2 (None: every
     held-out material with rows).  The values are :func:`recon_vs_deviation`'s; writes them to
-    ``<stem>.csv`` (:data:`~brdfpipe.spec.tables.RECON_VS_DEVIATION`, one row per material
+    ``<stem>.csv`` (:data:`~brdfpipe.registry.tables.RECON_VS_DEVIATION`, one row per material
     and set size) and ``<stem>.md``.
     """
     materials, fov, split = inp.figure_materials, inp.figure_fov, inp.split
@@ -651,8 +651,8 @@ def make_acquisition_figures(*, errors_csv: str | os.PathLike[str],
                              split: str = "train", kind: str = "rms_log") -> list[Path]:
     """Write the requested Xu 2016 figure analogues; return the files written.
 
-    ``figures``: figure key (of the rule's records in :mod:`brdfpipe.spec.figures`) → its output files
-    (PNG, PDF; a figure with a table, :attr:`brdfpipe.spec.figures.Figure.table`,
+    ``figures``: figure key (of the rule's records in :mod:`brdfpipe.registry.figures`) → its output files
+    (PNG, PDF; a figure with a table, :attr:`brdfpipe.registry.figures.Figure.table`,
     also CSV and Markdown), exactly as the workflow declares them; only
     these figures are drawn.  ``training_csv`` is needed for ``fig07``,
     ``directions`` (the direction files to tabulate) for ``fig08``, ``fig09``

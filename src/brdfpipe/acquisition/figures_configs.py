@@ -37,8 +37,8 @@ from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.plot import FigureInputError, FigureOutput, Warnings, finish, new_figure, no_data, style
 from brdfpipe.data import databases
-from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec import tables
+from brdfpipe.registry import acquisition as acquisition_spec
+from brdfpipe.registry import tables
 
 __all__ = [
     "fig08_optimal_configurations",
@@ -223,7 +223,7 @@ def fig08_optimal_configurations(inp: AcquisitionFigureInputs, stem: str | os.Pa
     ``inp.fovs`` the first of the splits ``all``, ``train`` with a near-field
     E(S) file at that FOV is used (``all``, the full database, as Xu's Fig. 8;
     else ``train``).  Writes
-    ``<stem>.csv`` (columns :data:`~brdfpipe.spec.tables.FIG08`, one row per image),
+    ``<stem>.csv`` (columns :data:`~brdfpipe.registry.tables.FIG08`, one row per image),
     ``<stem>.md`` and the sketch ``<stem>.png``/``.pdf`` (one 3-D panel per
     FOV and set size: the hemisphere, the sample disk, light arrows L and
     camera positions C with their viewing cones).
@@ -333,7 +333,7 @@ def configurations_figure(directions: Sequence[str | os.PathLike[str]], stem: st
     The 3-D sketch is Fig. 8's (hemisphere, sample disk, light arrows L,
     cameras C with their view cones); under it the top view (θ radial, φ
     round) and the angles of each image.  Writes ``<stem>.csv``
-    (:data:`~brdfpipe.spec.tables.CONFIGURATIONS`, one row per image) and ``<stem>.md``.
+    (:data:`~brdfpipe.registry.tables.CONFIGURATIONS`, one row per image) and ``<stem>.md``.
     ``database``: the run's, named when no directions file holds a set.
     ``title`` (ASCII: it is the PDF's Title too) is followed by the database's name.
     """

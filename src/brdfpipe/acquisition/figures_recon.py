@@ -12,7 +12,7 @@ luminance at 0.8).
 
 Each figure writes ``<stem>.png``/``.pdf`` and a table of its panels
 (``<stem>.csv`` with its digest line, ``<stem>.md``; columns
-:data:`~brdfpipe.spec.tables.RECONSTRUCTION_PANELS`): per reconstruction the RMS log error of its table
+:data:`~brdfpipe.registry.tables.RECONSTRUCTION_PANELS`): per reconstruction the RMS log error of its table
 (``errors.csv``'s ``rms_log``, mean over R, G, B) and the relative RMS
 difference of its render from the reference.  A missing or corrupt input
 raises :class:`~brdfpipe.core.plot.FigureInputError` naming it.
@@ -48,9 +48,9 @@ from brdfpipe.core.plot import (
     style,
 )
 from brdfpipe.data import databases
-from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec.figures import ReconSet
-from brdfpipe.spec import tables
+from brdfpipe.registry import acquisition as acquisition_spec
+from brdfpipe.registry.figures import ReconSet
+from brdfpipe.registry import tables
 
 __all__ = [
     "Panel",

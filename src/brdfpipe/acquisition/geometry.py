@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec import nearfield
+from brdfpipe.registry import acquisition as acquisition_spec
+from brdfpipe.registry import nearfield
 from brdfpipe.data import merl
 
 __all__ = [
@@ -88,7 +88,7 @@ F64 = NDArray[np.float64]
 # radius ν about the origin, which subtends the half-angle asin(ν) from C, so
 # in tangent-plane coordinates (u, v) its image lies in [−h, h]² with
 #
-#     h = tan(asin ν) = ν / √(1 − ν²)          (:func:`brdfpipe.spec.nearfield.image_half_width`)
+#     h = tan(asin ν) = ν / √(1 − ν²)          (:func:`brdfpipe.registry.nearfield.image_half_width`)
 #
 # (h = 0.2273 against ν = 0.2217 at 25°, 0.4551 against 0.4142 at 45°; a
 # square image of half-width ν — the bound at the zenith — clipped 2–3.8 %
@@ -96,13 +96,13 @@ F64 = NDArray[np.float64]
 # lattice of pitch Δ *centred on the optical axis*: u = (i − ⌊grid/2⌋)·Δ,
 # i = 0 … grid − 1, so there always is a centre pixel, looking exactly along
 # −wo.  Δ is the smallest pitch whose pixel footprints [u − Δ/2, u + Δ/2]
-# cover [−h, h] (:func:`brdfpipe.spec.nearfield.pixel_pitch`): Δ = 2h/grid for an odd grid; an even
+# cover [−h, h] (:func:`brdfpipe.registry.nearfield.pixel_pitch`): Δ = 2h/grid for an odd grid; an even
 # grid has one more column on the negative side than on the positive one,
 # so Δ = 2h/(grid − 1) (its negative side reaches past −h).  Camera frame:
 # forward f = −wo, right e_r = (−sin φo, cos φo, 0) (horizontal, normal to
 # the camera's plane of incidence; φo = atan2(wo_y, wo_x), 0 at the zenith),
-# up e_u = e_r × f (:func:`brdfpipe.spec.nearfield.camera_basis`); where
-# lattice index (a, b) sits in a rendered image: :func:`brdfpipe.spec.nearfield.image_frame`.
+# up e_u = e_r × f (:func:`brdfpipe.registry.nearfield.camera_basis`); where
+# lattice index (a, b) sits in a rendered image: :func:`brdfpipe.registry.nearfield.image_frame`.
 # The ray f + u·e_r + v·e_u from C meets the plane z = 0
 # at P (rays with non-negative z component never do and are dropped); a
 # pixel is kept iff |P| ≤ r: pixels outside the disk are masked, they are
@@ -139,7 +139,7 @@ _FIXED_PHI_DEG: float = 2.0  # azimuth steps of fixed_* (per image)
 class Setup:
     """An acquisition setup: kind, field of view (degrees) and pixel lattice.
 
-    ``kind``: a set-up of :data:`~brdfpipe.spec.acquisition.SETUPS`.  Image setups (``nearfield``,
+    ``kind``: a set-up of :data:`~brdfpipe.registry.acquisition.SETUPS`.  Image setups (``nearfield``,
     ``fixed_camera``, ``fixed_light``) need ``0 < fov_deg < 90`` (an image
     can frame the whole disk from every camera direction only if ν < 1) and a
     ``grid`` ≥ 1 (the image is a ``grid × grid`` lattice); ``point`` needs
@@ -177,7 +177,7 @@ class Setup:
 
     @property
     def spec(self) -> acquisition_spec.SetupKind:
-        """The set-up's record (:data:`brdfpipe.spec.acquisition.SETUPS`)."""
+        """The set-up's record (:data:`brdfpipe.registry.acquisition.SETUPS`)."""
         return acquisition_spec.SETUPS[self.kind]
 
     @property
@@ -324,7 +324,7 @@ def pixel_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
 def pixel_positions(setup: Setup, config: ArrayLike) -> tuple[NDArray[np.intp], NDArray[np.intp], int]:
     """Where each row of :func:`pixel_directions` lies in the image: ``(rows, cols, size)``.
 
-    The image is :func:`brdfpipe.spec.nearfield.image_frame`'s ``size`` ×
+    The image is :func:`brdfpipe.registry.nearfield.image_frame`'s ``size`` ×
     ``size`` frame (rows from the top, v up), the one the capture renders;
     lattice index (a, b) is its column ``offset + a`` and row ``size − 1 −
     offset − b``.  ValueError for a point set-up (it has no image).

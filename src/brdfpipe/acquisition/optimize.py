@@ -29,7 +29,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.core.version import full_version
 from brdfpipe.data import merl
-from brdfpipe.spec import acquisition as acquisition_spec
+from brdfpipe.registry import acquisition as acquisition_spec
 from brdfpipe.acquisition.candidates import Block, CandidateSpace, Key, Scorer, Screen
 from brdfpipe.acquisition.geometry import Config, Setup, config_from_dict, config_to_dict
 from brdfpipe.acquisition.metrics import (

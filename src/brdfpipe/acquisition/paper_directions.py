@@ -7,7 +7,7 @@ sentence fixes the first image's θh and its light's incidence, not a
 configuration.  Here it is the set of near-field configurations — the
 centre cell (iθh, iθd, iφd) of the MERL grid with φh = 0, as the optimiser's
 (:mod:`brdfpipe.acquisition.geometry`) — that match it
-(:data:`brdfpipe.spec.acquisition.PAPER_DIRECTIONS`,
+(:data:`brdfpipe.registry.acquisition.PAPER_DIRECTIONS`,
 :func:`matching_configurations`):
 
 * one image (FOV 25°, Fig. 9's, which draws it): the θh cell whose centre is
@@ -37,7 +37,7 @@ steps (±1, ±2 cells), as the optimiser's steps 3 → 2 → 1: the table says h
 many were evaluated of how many match.
 
 :func:`evaluate_paper_directions` evaluates them, :func:`write_paper_directions`
-writes the table (columns :data:`brdfpipe.spec.tables.PAPER_DIRECTIONS`, one
+writes the table (columns :data:`brdfpipe.registry.tables.PAPER_DIRECTIONS`, one
 row per image), :func:`paper_directions_to_file` is the workflow's
 ``evaluate_paper_directions`` job.
 """
@@ -63,8 +63,8 @@ from brdfpipe.core import integrity
 from brdfpipe.core.atomic import check_not_input
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import merl
-from brdfpipe.spec import tables
-from brdfpipe.spec.acquisition import PaperDirection, paper_direction
+from brdfpipe.registry import tables
+from brdfpipe.registry.acquisition import PaperDirection, paper_direction
 
 __all__ = [
     "PHI_STEP",
@@ -218,7 +218,7 @@ def evaluate_paper_directions(
 
 def write_paper_directions(path: str | os.PathLike[str], sets: Sequence[PaperSet], *, grid: int, split: str,
                            database: str) -> Path:
-    """Write the table (columns :data:`brdfpipe.spec.tables.PAPER_DIRECTIONS`, one row per image), atomically.
+    """Write the table (columns :data:`brdfpipe.registry.tables.PAPER_DIRECTIONS`, one row per image), atomically.
 
     ``chosen_by``: ``sentence`` for the image the paper states, ``optimiser``
     for those the optimiser added; angles are the centre's (the light's θ
@@ -255,7 +255,7 @@ def paper_directions_to_file(
 ) -> Path:
     """The workflow's ``evaluate_paper_directions`` job: the named paper directions on a model, as the table.
 
-    ``directions``: keys of :data:`brdfpipe.spec.acquisition.PAPER_DIRECTIONS`;
+    ``directions``: keys of :data:`brdfpipe.registry.acquisition.PAPER_DIRECTIONS`;
     the model written by :func:`brdfpipe.acquisition.svd.write_model` (the
     table records its split and database); ``threads``: the BLAS threads to
     use (the rule's; None leaves them as they are); ``screen_grid`` > 0, ``screen_keep``: the

@@ -62,7 +62,7 @@ from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.merl import N_CELLS
 from brdfpipe.data.store import open_store
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "MANY_FORMAT",
@@ -284,7 +284,7 @@ def evaluate_unseen(
     n_images: Sequence[int] = (),
     eta: float = DEFAULT_ETA,
 ) -> list[dict[str, Any]]:
-    """Rows of ``unseen.csv`` (:data:`~brdfpipe.spec.tables.UNSEEN_ERRORS`) for the materials of every store (module docstring).
+    """Rows of ``unseen.csv`` (:data:`~brdfpipe.registry.tables.UNSEEN_ERRORS`) for the materials of every store (module docstring).
 
     ``stores``: unseen database label → its store (each store must carry that
     label and be of another database than the model); ``model``: the
@@ -333,7 +333,7 @@ def write_unseen(
     eta: float = DEFAULT_ETA,
     threads: int | None = 1,
 ) -> Path:
-    """:func:`evaluate_unseen`, written to ``out`` (``unseen.csv``, :data:`~brdfpipe.spec.tables.UNSEEN_ERRORS`) atomically.
+    """:func:`evaluate_unseen`, written to ``out`` (``unseen.csv``, :data:`~brdfpipe.registry.tables.UNSEEN_ERRORS`) atomically.
 
     ``threads``: BLAS threads (the many small solves are slowed by idle BLAS threads spinning).
     """

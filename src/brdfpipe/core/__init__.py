@@ -1,7 +1,7 @@
 """Shared infrastructure at the bottom of the library: no science, no stage.
 
 Every other subpackage may import these modules; they import nothing of
-``brdfpipe`` above ``brdfpipe.core`` but the specs (:mod:`brdfpipe.spec`) (``tests/test_layout.py`` checks it).
+``brdfpipe`` above ``brdfpipe.core`` but the specs (:mod:`brdfpipe.registry`) (``tests/test_layout.py`` checks it).
 The light ones (:mod:`~brdfpipe.core.filenames`, :mod:`~brdfpipe.core.stamps`,
 :mod:`~brdfpipe.core.version`) are imported by the Snakefile at parse time,
 so this ``__init__`` imports nothing.  What the workflow plans from its

@@ -14,9 +14,9 @@ from __future__ import annotations
 import math
 import re
 
-from brdfpipe.spec import figures as figure_specs
-from brdfpipe.spec import layouts
-from brdfpipe.spec.manifold import path_name  # the paths' names are Soler's paths' spec
+from brdfpipe.registry import figures as figure_specs
+from brdfpipe.registry import layouts
+from brdfpipe.registry.manifold import path_name  # the paths' names are Soler's paths' spec
 
 __all__ = [
     "RESULTS",
@@ -113,7 +113,7 @@ STAMPS = f"{RESULTS}/.stamps"
 #: Folder of the figures (PNG + PDF, and Fig. 8's table).
 FIGURES = f"{RESULTS}/figures"
 
-#: Xu 2016 figure analogues drawn by rule plot_acquisition_figures: key → file stem (:mod:`brdfpipe.spec.figures`).
+#: Xu 2016 figure analogues drawn by rule plot_acquisition_figures: key → file stem (:mod:`brdfpipe.registry.figures`).
 FIGURE_STEMS: dict[str, str] = {f.key: f.stem for f in figure_specs.track_figures("acquisition", "plot_acquisition_figures")}
 #: Soler 2018 figure analogues of the manifold track: key → file stem.
 MANIFOLD_FIGURE_STEMS: dict[str, str] = {
@@ -146,7 +146,7 @@ def format_t(t: float | str) -> str:
 
 # -- data stage -------------------------------------------------------------
 
-#: Folder of the generated synthetic database (its layout: :mod:`brdfpipe.spec.layouts`).
+#: Folder of the generated synthetic database (its layout: :mod:`brdfpipe.registry.layouts`).
 SYNTHETIC = f"{RESULTS}/synthetic"
 
 
@@ -313,7 +313,7 @@ def gram(space: str) -> str:
 
 
 def gplvm_model(candidate: str, q: int | str) -> str:
-    """A GPLVM fit of one candidate (``<space>-mu<μ>``, :func:`brdfpipe.spec.manifold.candidate_label`)."""
+    """A GPLVM fit of one candidate (``<space>-mu<μ>``, :func:`brdfpipe.registry.manifold.candidate_label`)."""
     return f"{RESULTS}/gplvm/{candidate}/q{q}.npz"
 
 

@@ -2,7 +2,7 @@
 
 :func:`brdfpipe.core.plot.finish` writes it (``<stem>.json``, with its
 digest: :mod:`brdfpipe.core.integrity`) for the figures whose record says so
-(:attr:`brdfpipe.spec.figures.Figure.note`); the report's captions
+(:attr:`brdfpipe.registry.figures.Figure.note`); the report's captions
 (:mod:`brdfpipe.report.captions`, rule ``write_claims``) read it back.
 Light: no matplotlib, so the report's job reads notes without it.
 """

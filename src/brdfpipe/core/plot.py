@@ -40,7 +40,7 @@ from brdfpipe.core import integrity
 from brdfpipe.core.atomic import atomic_write
 from brdfpipe.core.notes import write_note
 from brdfpipe.core.version import full_version
-from brdfpipe.spec import figures as figure_specs
+from brdfpipe.registry import figures as figure_specs
 
 __all__ = [
     "DPI",
@@ -306,7 +306,7 @@ def figure_stems(track: str, rule: str, figures: Mapping[str, Sequence[str | os.
     """Key → output stem of each figure of ``rule`` asked for (``figures``: key → its declared files), checked.
 
     The keys and what each figure writes (a table, a note) are its record's
-    (:func:`brdfpipe.spec.figures.track_figures`); :class:`ValueError`
+    (:func:`brdfpipe.registry.figures.track_figures`); :class:`ValueError`
     naming ``what`` for a key that is not a figure of the rule, or files that
     are not the figure's (:func:`figure_stem`).
     """
@@ -321,7 +321,7 @@ def draw_figures(module: ModuleType, track: str, rule: str, stems: Mapping[str, 
                  inputs: Any) -> list[FigureOutput]:
     """Draw the figures of ``stems`` (:func:`figure_stems`), each by the function its record names.
 
-    The record (:class:`brdfpipe.spec.figures.Figure`) is the dispatcher:
+    The record (:class:`brdfpipe.registry.figures.Figure`) is the dispatcher:
     its ``draw`` is the name of a function of ``module`` called as
     ``draw(inputs, stem)``, where ``inputs`` holds everything the rule's
     figures read; nothing else maps a figure to its function.  In the

@@ -32,7 +32,7 @@ from brdfpipe.data.databases import MAX_NAME_LENGTH, RESERVED_NAMES, DatabaseErr
 from brdfpipe.core.version import full_version
 from brdfpipe.data import provenance, synth
 from brdfpipe.data.synth import default_test_count
-from brdfpipe.spec import layouts
+from brdfpipe.registry import layouts
 
 __all__ = [
     "XU2016_TEST_MATERIALS",

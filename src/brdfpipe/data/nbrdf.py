@@ -70,7 +70,7 @@ except ImportError:  # a Python built without lzma: zipfile then raises RuntimeE
 from brdfpipe.core import atomic, integrity
 from brdfpipe.core.threads import blas_threads
 from brdfpipe.data import databases, merl, provenance
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "NbrdfError",
@@ -679,7 +679,7 @@ _LUMA: Final = (0.2126, 0.7152, 0.0722)
 
 def albedo_rows(binaries: Mapping[str, str | os.PathLike[str]], database: str,
                 theta_i_deg: float = 0.0) -> list[dict[str, Any]]:
-    """Directional albedo ``∫ ρ cos θo dωo`` at incidence ``theta_i_deg`` of each table (:data:`~brdfpipe.spec.tables.FIT_ALBEDO`).
+    """Directional albedo ``∫ ρ cos θo dωo`` at incidence ``theta_i_deg`` of each table (:data:`~brdfpipe.registry.tables.FIT_ALBEDO`).
 
     ``binaries`` maps material → MERL file; computed with
     :func:`brdfpipe.data.merl.directional_albedo` (MERL's θh grid, 360 φh
@@ -727,7 +727,7 @@ def evaluate_to_store(
     assembled into the store ``store_out`` (label ``database``: a store has
     one label, so each unseen database has its own), and the directional
     albedo of each table at normal incidence written to ``albedo_out``
-    (:func:`albedo_rows`; CSV, :data:`~brdfpipe.spec.tables.FIT_ALBEDO`).  Returns the clamped
+    (:func:`albedo_rows`; CSV, :data:`~brdfpipe.registry.tables.FIT_ALBEDO`).  Returns the clamped
     count per material.
     """
     from brdfpipe.data import ingest, store

@@ -152,7 +152,7 @@ from brdfpipe.core.version import full_version
 from brdfpipe.data import databases, merl, provenance
 from brdfpipe.data.provenance import WATERMARK_CELLS, WATERMARK_MAGIC, WATERMARK_RAW
 from brdfpipe.data.synthmodel import DEV_CHANNEL, DEV_SHARED, Grid, cell_grid, model_values
-from brdfpipe.spec import layouts
+from brdfpipe.registry import layouts
 
 __all__ = [
     "FAMILIES",

@@ -91,7 +91,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import atomic, exr, integrity
 from brdfpipe.manifold import gplvm, latent
-from brdfpipe.spec.manifold import LINEAR_SPACES
+from brdfpipe.registry.manifold import LINEAR_SPACES
 from brdfpipe.explorer import ASSETS, STATIC_DIR
 from brdfpipe.core.version import full_version
 

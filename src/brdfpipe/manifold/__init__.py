@@ -2,7 +2,7 @@
 
 Fitting the GPLVM, exploring and analysing its latent space, measuring how
 faithful it is per data space, and the track's figures.  Imports
-:mod:`brdfpipe.data`, :mod:`brdfpipe.core` and :mod:`brdfpipe.spec`.
+:mod:`brdfpipe.data`, :mod:`brdfpipe.core` and :mod:`brdfpipe.registry`.
 
 * :mod:`brdfpipe.manifold.spaces`     – the data spaces' maps (forward map of a block, per-cell maps);
 * :mod:`brdfpipe.manifold.gram`       – the Gram matrices of the materials in a data space, streamed from the store,

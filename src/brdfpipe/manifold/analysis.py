@@ -61,8 +61,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.core.filenames import path_name
-from brdfpipe.spec.manifold import SOLER_PATHS, check_paths, default_paths
-from brdfpipe.spec import tables
+from brdfpipe.registry.manifold import SOLER_PATHS, check_paths, default_paths
+from brdfpipe.registry import tables
 from brdfpipe.data import merl
 from brdfpipe.data.store import BrdfStore, open_store
 from brdfpipe.manifold import blendpass, derivation, gplvm, latent
@@ -239,7 +239,7 @@ class LatentPath:
                 + [(first, last)])
 
     def rows(self, model: gplvm.GplvmModel, gram: ArrayLike, distances: ArrayLike) -> list[dict[str, Any]]:
-        """One row per point (:data:`~brdfpipe.spec.tables.LATENT_PATHS` without database, space, q); ``distances`` of :meth:`pairs`."""
+        """One row per point (:data:`~brdfpipe.registry.tables.LATENT_PATHS` without database, space, q); ``distances`` of :meth:`pairs`."""
         n = self.ts.size
         d = np.asarray(distances, dtype=np.float64)
         to_a, to_b, d_ab = d[:n], d[n : 2 * n], float(d[2 * n])

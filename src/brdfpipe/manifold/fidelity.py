@@ -2,8 +2,8 @@
 
 A fitted model (:class:`brdfpipe.manifold.gplvm.GplvmModel`) is judged here on what a
 user of the manifold relies on, with the same numbers for every candidate data
-space (:data:`brdfpipe.spec.manifold.SPACE_NAMES` × μ), so the default can be chosen by
-measurement (rule ``compare_spaces``, CSV :data:`~brdfpipe.spec.tables.SPACES`):
+space (:data:`brdfpipe.registry.manifold.SPACE_NAMES` × μ), so the default can be chosen by
+measurement (rule ``compare_spaces``, CSV :data:`~brdfpipe.registry.tables.SPACES`):
 
 Weights
 -------
@@ -94,8 +94,8 @@ from brdfpipe.manifold import analysis, blendpass, gplvm, latent
 from brdfpipe.manifold.gram import check_gram_store, load_gram
 from brdfpipe.manifold.likelihood import log_likelihood
 from brdfpipe.manifold.albedo import material_albedos, read_material_albedos
-from brdfpipe.spec.manifold import LINEAR_SPACES, candidate_label
-from brdfpipe.spec import tables
+from brdfpipe.registry.manifold import LINEAR_SPACES, candidate_label
+from brdfpipe.registry import tables
 
 __all__ = [
     "EPSILONS",
@@ -300,7 +300,7 @@ def measure_model(
     clamped_map_albedo: ArrayLike | None = None,
     albedo_grid: int = 96,
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """Every measure of the module docstring for one fit: a :data:`~brdfpipe.spec.tables.SPACES` row (partial) and stability rows.
+    """Every measure of the module docstring for one fit: a :data:`~brdfpipe.registry.tables.SPACES` row (partial) and stability rows.
 
     ``raw_gram`` / ``space_gram``: un-centred Gram matrices of the model's
     materials in raw units and in the model's space (``space_gram`` may be
@@ -454,8 +454,8 @@ def measure_candidate(
     ``models``: {q: model file} of the candidate (:func:`candidate_label` of
     its space, μ, normalisation, optimiser and start must give ``candidate``;
     the row records the last three); ``default``: the label of the configured
-    default.  Writes ``spaces_out`` (:data:`~brdfpipe.spec.tables.SPACES`, one row per q)
-    and ``stability_out`` (:data:`~brdfpipe.spec.tables.STABILITY`).  ``albedos``: the
+    default.  Writes ``spaces_out`` (:data:`~brdfpipe.registry.tables.SPACES`, one row per q)
+    and ``stability_out`` (:data:`~brdfpipe.registry.tables.STABILITY`).  ``albedos``: the
     materials' albedos (:func:`brdfpipe.manifold.albedo.write_material_albedos`,
     checked against the store); None computes them here.  The random hull
     points and directions are seeded by (``seed``, q, ``candidate``);
@@ -466,7 +466,7 @@ def measure_candidate(
     store (:func:`clamped_albedos`), the latent paths' points and the tables
     next to each material of every q in another (:func:`_table_pass`).
     """
-    from brdfpipe.spec.manifold import check_paths, default_paths
+    from brdfpipe.registry.manifold import check_paths, default_paths
     from brdfpipe.data.store import open_store
 
     if "raw" not in grams:
@@ -544,8 +544,8 @@ def combine_candidates(
 ) -> None:
     """The workflow's ``compare_spaces`` job: the candidates' tables, one after another, in one table each.
 
-    ValueError naming a file whose header is not :data:`~brdfpipe.spec.tables.SPACES` /
-    :data:`~brdfpipe.spec.tables.STABILITY` or that repeats a row (candidate, q[, norm, ε]),
+    ValueError naming a file whose header is not :data:`~brdfpipe.registry.tables.SPACES` /
+    :data:`~brdfpipe.registry.tables.STABILITY` or that repeats a row (candidate, q[, norm, ε]),
     or when not exactly one candidate is the default.
     """
     texts: list[tuple[str | os.PathLike[str], str]] = []

@@ -23,7 +23,7 @@ import numpy as np
 from brdfpipe.core import integrity
 from brdfpipe.core.plot import FigureInputError, parse_float, parse_int, read_csv, single_database
 from brdfpipe.manifold.lengthscale_figure import LengthscaleTable, read_lengthscales
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "TRACE_STAGES",
@@ -58,9 +58,9 @@ __all__ = [
 # * ``manifold/albedo.csv`` (``database,material,r,g,b,luminance``);
 # * albedo maps ``manifold/albedo-map-q{q}.npz`` (arrays x (W,), y (H,),
 #   dims (2,), albedo (H, W, 3), luminance (H, W), fixed (q,), q, database);
-# * ``manifold/paths.csv`` (:data:`~brdfpipe.spec.tables.LATENT_PATHS`, one row per step of each
+# * ``manifold/paths.csv`` (:data:`~brdfpipe.registry.tables.LATENT_PATHS`, one row per step of each
 #   latent path) and ``manifold/reproduction.csv``
-#   (:data:`~brdfpipe.spec.tables.REPRODUCTION`).
+#   (:data:`~brdfpipe.registry.tables.REPRODUCTION`).
 #
 # :func:`brdfpipe.manifold.figures.make_manifold_figures` reads and checks every input first (a
 # missing or malformed file raises FigureInputError naming it, before any
@@ -396,7 +396,7 @@ def read_model(path: str | os.PathLike[str], q: int) -> Any:
     return model
 
 
-#: The columns of ``spaces.csv`` and ``stability.csv`` (:data:`brdfpipe.spec.tables.SPACES`, ``STABILITY``) the figure reads.
+#: The columns of ``spaces.csv`` and ``stability.csv`` (:data:`brdfpipe.registry.tables.SPACES`, ``STABILITY``) the figure reads.
 SPACES_FIGURE_COLUMNS: tuple[str, ...] = tables.columns(
     tables.SPACES, "database", "candidate", "space", "mu", "q", "default", "kappa", "albedo_clamped_bad_hull",
     "albedo_clamped_bad_map", "albedo_bad_hull", "albedo_bad_map", "sum_abs_w_hull_median", "sum_abs_w_path_max", "nn_median",

@@ -597,7 +597,7 @@ def make_manifold_figures(*, models: Mapping[int, str | os.PathLike[str]],
                           spaces_csv: str | os.PathLike[str] | None = None,
                           stability_csv: str | os.PathLike[str] | None = None,
                           lengthscales_csv: str | os.PathLike[str] | None = None) -> list[Path]:
-    """Write the requested Soler 2018 figure analogues (keys of the rule's records in :mod:`brdfpipe.spec.figures`).
+    """Write the requested Soler 2018 figure analogues (keys of the rule's records in :mod:`brdfpipe.registry.figures`).
 
     ``models``, ``traces``, ``albedo_maps``: q → path.  ``figures``: key →
     its PNG and PDF paths, as the workflow declares them; only these are

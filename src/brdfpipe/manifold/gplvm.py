@@ -72,7 +72,7 @@ from brdfpipe.manifold.gram import (
     select_materials,
 )
 from brdfpipe.manifold.likelihood import check_latents, gram_scale, kernel_matrix, kernel_vector
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "MODEL_FORMAT",

@@ -15,7 +15,7 @@ training set, :mod:`brdfpipe.manifold.unseen`).
 
 Data spaces
 -----------
-``Z`` holds the stored values mapped to one data space (:data:`~brdfpipe.spec.manifold.SPACE_NAMES`):
+``Z`` holds the stored values mapped to one data space (:data:`~brdfpipe.registry.manifold.SPACE_NAMES`):
 
 * ``raw``: the stored values (the paper);
 * ``cosine``: each cell × cos θi · cos θo of its centre (``merl.cell_directions``);
@@ -30,13 +30,13 @@ Data spaces
   the cosines.
 
 Every space but ``log`` is a fixed per-value scaling ``z̃ = D z`` of the raw
-values (:data:`~brdfpipe.spec.manifold.LINEAR_SPACES`): the fit sees ``D z``, but the interpolant
+values (:data:`~brdfpipe.registry.manifold.LINEAR_SPACES`): the fit sees ``D z``, but the interpolant
 ``Σ wᵢ D zᵢ = D Σ wᵢ zᵢ``, so the blend weights apply to the raw BRDFs — and
 to images rendered from them (Soler §5.2) — unchanged.  ``log`` is not
 linear in the BRDF: its interpolant is a blend of log-mapped values.
 
 Where each part lives: the spaces' names and records (linear or not) in
-:data:`brdfpipe.spec.manifold.DATA_SPACES`; their maps — the per-cell maps
+:data:`brdfpipe.registry.manifold.DATA_SPACES`; their maps — the per-cell maps
 computed once over the materials used, and the map of a block of values — in
 :mod:`brdfpipe.manifold.spaces`; this module streams the store's cell blocks
 through them.  The fit and the interpolation (which maps a ``log`` blend
@@ -71,7 +71,7 @@ from numpy.typing import ArrayLike, NDArray
 from brdfpipe.core import integrity
 from brdfpipe.data.store import DIGEST_ALGORITHM, BrdfStore, iter_cell_blocks, material_indices, open_store
 from brdfpipe.manifold import spaces
-from brdfpipe.spec import manifold as manifold_spec
+from brdfpipe.registry import manifold as manifold_spec
 
 __all__ = [
     "MEAN_HANDLING",
@@ -117,7 +117,7 @@ class DataMismatchError(ValueError):
 
 
 def check_space(space: str) -> str:
-    """``space`` if it is a data space (:func:`brdfpipe.spec.manifold.data_space`); otherwise a ValueError listing them."""
+    """``space`` if it is a data space (:func:`brdfpipe.registry.manifold.data_space`); otherwise a ValueError listing them."""
     return manifold_spec.data_space(space).name
 
 
@@ -173,7 +173,7 @@ def gram_matrix(
 
     ``Z``: one row per material (``materials`` in the order given, default all
     of the store), the R, G, B values of the cells valid in every material of
-    the store, mapped to ``space`` (one of :data:`~brdfpipe.spec.manifold.SPACE_NAMES`, see the module
+    the store, mapped to ``space`` (one of :data:`~brdfpipe.registry.manifold.SPACE_NAMES`, see the module
     docstring); ``d`` = 3 × valid cells.  Streamed by blocks of 145,800
     cells, each mapped to float64 in sub-blocks of 16,384 cells and
     accumulated as ``G += B Bᵀ`` and ``s += B 1``; then centred with

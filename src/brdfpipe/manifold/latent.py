@@ -80,7 +80,7 @@ from numpy.typing import ArrayLike, NDArray
 from brdfpipe.data.store import BrdfStore
 from brdfpipe.data import merl
 from brdfpipe.manifold import derivation, gplvm
-from brdfpipe.spec.manifold import LINEAR_SPACES
+from brdfpipe.registry.manifold import LINEAR_SPACES
 from brdfpipe.manifold.albedo import material_albedo, material_albedos
 
 __all__ = [

@@ -30,7 +30,7 @@ table formed):
 
 The values are in the data units of the Gram file (the default candidate's
 data space); the figure divides them by ‖Z‖.  Written to
-``results/manifold/lengthscales.csv`` (:data:`brdfpipe.spec.tables.LENGTHSCALES`)
+``results/manifold/lengthscales.csv`` (:data:`brdfpipe.registry.tables.LENGTHSCALES`)
 by the workflow's ``measure_lengthscales`` job (:func:`measure_lengthscales`).
 """
 
@@ -50,8 +50,8 @@ from brdfpipe.manifold import gplvm
 from brdfpipe.manifold.analysis import deviation
 from brdfpipe.manifold.gram import load_gram
 from brdfpipe.manifold.likelihood import kernel_matrix, kernel_vector
-from brdfpipe.spec import tables
-from brdfpipe.spec.manifold import check_paths, path_name
+from brdfpipe.registry import tables
+from brdfpipe.registry.manifold import check_paths, path_name
 
 __all__ = [
     "LENGTH_SCALE_FACTORS",
@@ -88,7 +88,7 @@ def lengthscale_rows(
 
     ``gram``: the centred Gram matrix of the data the model was fitted on
     (its materials in the model's order).  Row keys: the columns of
-    :data:`~brdfpipe.spec.tables.LENGTHSCALES` but ``database``, ``space`` and ``q``.
+    :data:`~brdfpipe.registry.tables.LENGTHSCALES` but ``database``, ``space`` and ``q``.
     """
     names = list(model.names)
     check_paths([(a, b)], names, what="path")

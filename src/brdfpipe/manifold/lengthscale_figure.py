@@ -33,7 +33,7 @@ from brdfpipe.core.plot import (
     style,
 )
 from brdfpipe.data import databases
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = ["LengthscaleTable", "read_lengthscales", "draw_lengthscale_figure"]
 

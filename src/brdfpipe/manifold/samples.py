@@ -27,7 +27,7 @@ from brdfpipe.data.provenance import output_name
 from brdfpipe.data.store import open_store
 from brdfpipe.manifold import gplvm, latent
 from brdfpipe.manifold.albedo import read_material_albedos
-from brdfpipe.spec.manifold import LINEAR_SPACES
+from brdfpipe.registry.manifold import LINEAR_SPACES
 
 __all__ = ["SAMPLES_FORMAT", "sample_to_files", "read_samples"]
 

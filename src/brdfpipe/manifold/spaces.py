@@ -1,6 +1,6 @@
 """The maps of the manifold's data spaces: how a block of stored values becomes what the GPLVM sees.
 
-One :class:`SpaceMaps` per data space of :data:`brdfpipe.spec.manifold.DATA_SPACES`
+One :class:`SpaceMaps` per data space of :data:`brdfpipe.registry.manifold.DATA_SPACES`
 (the records: name, linear or not), registered under the same name in
 :data:`MAPS`.  A space maps in two steps, so the Gram matrix
 (:func:`brdfpipe.manifold.gram.gram_matrix`) streams the store once:
@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from brdfpipe.data import logmap, merl
 from brdfpipe.data.store import BrdfStore
-from brdfpipe.spec import manifold as manifold_spec
+from brdfpipe.registry import manifold as manifold_spec
 
 __all__ = [
     "RELATIVE_FLOOR",
@@ -122,7 +122,7 @@ def _log_inverse(y: F64, a: F64 | None, b: F64 | None) -> F64:
     return logmap.inverse(y, a, b)
 
 
-#: Data space → its maps (the names of :data:`brdfpipe.spec.manifold.DATA_SPACES`; a test keeps them equal).
+#: Data space → its maps (the names of :data:`brdfpipe.registry.manifold.DATA_SPACES`; a test keeps them equal).
 MAPS: dict[str, SpaceMaps] = {
     "raw": SpaceMaps(_no_maps, _identity),
     "cosine": SpaceMaps(_cosine_maps, _scale),
@@ -148,7 +148,7 @@ def check_blendable(space: str) -> str:
     ValueError otherwise (a space that is not linear and has no inverse):
     never a blend of mapped values read as raw values.  The config check
     refuses such a space at parse time from its record
-    (:attr:`brdfpipe.spec.manifold.DataSpace.blendable`).
+    (:attr:`brdfpipe.registry.manifold.DataSpace.blendable`).
     """
     spec = manifold_spec.data_space(space)
     if not spec.linear and space_maps(space).inverse is None:

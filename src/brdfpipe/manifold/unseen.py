@@ -39,7 +39,7 @@ y on the first k principal components of the same training materials
 (``G_c = VΛVᵀ``: residual ``‖y‖² − Σ_{j≤k} (V_jᵀc)²/λ_j``), for k = each
 latent dimension q and each of ``pca_components``.
 
-``unseen.csv`` (:data:`~brdfpipe.spec.tables.MANIFOLD_UNSEEN`): one row per unseen material and
+``unseen.csv`` (:data:`~brdfpipe.registry.tables.MANIFOLD_UNSEEN`): one row per unseen material and
 method — ``gplvm-likelihood`` and ``gplvm-least-squares`` (k = q, with the
 conditional log-likelihood at x*, the nearest training material in latent
 space and x* itself, coordinates separated by spaces) and ``pca`` (k) —
@@ -69,7 +69,7 @@ from brdfpipe.core.threads import blas_threads
 from brdfpipe.data.store import open_store
 from brdfpipe.manifold import gplvm
 from brdfpipe.manifold.gram import CrossGram, cross_gram, load_gram
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "METHODS",
@@ -246,7 +246,7 @@ def unseen_rows(
     pca_ks: Sequence[int] = (20, 40),
     starts: int = STARTS,
 ) -> list[dict[str, Any]]:
-    """Rows of ``unseen.csv`` (:data:`~brdfpipe.spec.tables.MANIFOLD_UNSEEN`) for every outside material of ``cross``.
+    """Rows of ``unseen.csv`` (:data:`~brdfpipe.registry.tables.MANIFOLD_UNSEEN`) for every outside material of ``cross``.
 
     ``gram``: the centred Gram matrix the models were fitted to (compared with
     ``cross.gram`` to :data:`GRAM_RTOL`: the outside materials must have been

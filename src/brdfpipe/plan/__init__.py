@@ -2,7 +2,7 @@
 
 The layer on top of the library beside the command line, read by the
 Snakefile at parse time: standard library only (``tests/test_plan.py``
-guards it), built on the specs (:mod:`brdfpipe.spec`: set-ups, data spaces,
+guards it), built on the specs (:mod:`brdfpipe.registry`: set-ups, data spaces,
 figures) and the DAG's file names (:mod:`brdfpipe.core.filenames`).  Nothing
 below it imports it.
 

@@ -6,7 +6,7 @@ tests call: one line for a schema violation naming the key
 dimensions below the number of materials, the GPLVM candidates, the latent
 paths, the closed loop's bounds.  A configuration that passes
 :func:`check_config` builds a DAG whose every declared output some job
-writes.  Every failure is a :class:`~brdfpipe.spec.errors.ConfigError`
+writes.  Every failure is a :class:`~brdfpipe.registry.errors.ConfigError`
 naming the key.  Standard library only.
 """
 
@@ -17,8 +17,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from brdfpipe.core import filenames
-from brdfpipe.spec.errors import ConfigError
-from brdfpipe.spec.manifold import STANDARD_FIT, GplvmCandidate, check_paths, data_space, default_paths
+from brdfpipe.registry.errors import ConfigError
+from brdfpipe.registry.manifold import STANDARD_FIT, GplvmCandidate, check_paths, data_space, default_paths
 
 __all__ = [
     "ConfigError",
@@ -168,7 +168,7 @@ def path_q(manifold: Mapping[str, Any]) -> int:
 
 
 def manifold_candidates(manifold: Mapping[str, Any]) -> dict[str, GplvmCandidate]:
-    """Label → :class:`~brdfpipe.spec.manifold.GplvmCandidate` of every GPLVM candidate: the default first.
+    """Label → :class:`~brdfpipe.registry.manifold.GplvmCandidate` of every GPLVM candidate: the default first.
 
     The default is (``space``, ``mu``) fitted with ``normalise``, ``method``
     and ``init``; each entry of ``candidates`` is fitted with its own
@@ -282,7 +282,7 @@ def check_closed_loop(config: Mapping[str, Any]) -> None:
     big = [n for n in cl["n_images"] if int(n) > int(acq["n_max_images"])]
     if big:
         raise ConfigError(f"config closed_loop.n_images: {big} exceed acquisition.n_max_images = {acq['n_max_images']}")
-    size = int(acq["grid"]) + (1 - int(acq["grid"]) % 2)  # the capture's image: brdfpipe.spec.nearfield.image_frame
+    size = int(acq["grid"]) + (1 - int(acq["grid"]) % 2)  # the capture's image: brdfpipe.registry.nearfield.image_frame
     most = (MITSUBA_MAX_SAMPLES - 1) // (size * size)
     if int(cl["spp"]) > most:
         raise ConfigError(f"config closed_loop.spp = {cl['spp']}: at most {most} with acquisition.grid = {acq['grid']} "

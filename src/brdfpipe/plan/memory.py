@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from brdfpipe.plan.outputs import closedloop_directions
-from brdfpipe.spec.errors import ConfigError
+from brdfpipe.registry.errors import ConfigError
 
 __all__ = [
     "MEMORY_MB",

@@ -3,7 +3,7 @@
 Read by the Snakefile while it builds the DAG (``workflow/rules/*.smk``) and
 by the tests: the direction sets each split optimises, the sets the closed
 loop captures and the unseen materials are looked up with, the figures of
-each track (from :data:`brdfpipe.spec.figures.FIGURES`), the GPLVM
+each track (from :data:`brdfpipe.registry.figures.FIGURES`), the GPLVM
 candidates the floor check renders; and where a finished run's results are
 (the console's last lines).  Standard library only.
 """
@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from brdfpipe.core import filenames
-from brdfpipe.spec import figures as figure_specs
-from brdfpipe.spec.figures import ReconSet
-from brdfpipe.spec.acquisition import PAPER_DIRECTIONS, setup_fovs, setup_metrics
+from brdfpipe.registry import figures as figure_specs
+from brdfpipe.registry.figures import ReconSet
+from brdfpipe.registry.acquisition import PAPER_DIRECTIONS, setup_fovs, setup_metrics
 
 __all__ = [
     "direction_files",
@@ -45,7 +45,7 @@ def direction_files(acquisition: Mapping[str, Any], split: str) -> list[str]:
     """Direction sets optimised on a split.
 
     ``train``: every setup × FOV × metric that applies to the setup (they are
-    evaluated; :func:`brdfpipe.spec.acquisition.setup_metrics`); ``all``: only
+    evaluated; :func:`brdfpipe.registry.acquisition.setup_metrics`); ``all``: only
     the near-field sets of the error metric (the paper's table of optimal
     configurations, Xu Fig. 8).
     """
@@ -122,7 +122,7 @@ def curve_directions(acquisition: Mapping[str, Any]) -> str | None:
 
 
 def paper_directions(acquisition: Mapping[str, Any]) -> list[str]:
-    """Keys of the paper's stated directions (:data:`~brdfpipe.spec.acquisition.PAPER_DIRECTIONS`) a config evaluates.
+    """Keys of the paper's stated directions (:data:`~brdfpipe.registry.acquisition.PAPER_DIRECTIONS`) a config evaluates.
 
     Those the claims compare with a near-field set of split ``all`` that the
     config optimises (Xu Fig. 8's table): near-field images at the
@@ -155,7 +155,7 @@ def figure_materials(test_materials: Sequence[str]) -> list[str]:
     """The held-out materials of Xu Figs. 2, 3 and 15: those of Xu's Fig. 2 that are held out, in its order.
 
     A run that holds none of them out (another database, other
-    ``test_materials``) shows its first :data:`~brdfpipe.spec.figures.FIG02_FALLBACK_COUNT`
+    ``test_materials``) shows its first :data:`~brdfpipe.registry.figures.FIG02_FALLBACK_COUNT`
     held-out materials.
     """
     held = list(test_materials)
@@ -167,7 +167,7 @@ def reconstruction_columns(acquisition: Mapping[str, Any]) -> dict[str, list[tup
     """Per figure of rule plot_reconstruction_figures that the config produces: its columns, (label, set).
 
     Xu Fig. 2: 1 image (near-field, :func:`curve_fov`, min E(S)), 5 point
-    samples of previous work (:data:`~brdfpipe.spec.figures.PREVIOUS_WORK_METRIC`),
+    samples of previous work (:data:`~brdfpipe.registry.figures.PREVIOUS_WORK_METRIC`),
     2 images, 20 point samples — set sizes capped at ``n_max_images`` /
     ``n_max_point``; the point columns only when the config optimises that
     metric for point samples.  Xu Fig. 15: 2 images with a fixed camera

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 from brdfpipe.core import filenames
-from brdfpipe.spec import figures as figure_specs
+from brdfpipe.registry import figures as figure_specs
 
 __all__ = [
     "ACQUISITION",
@@ -33,7 +33,7 @@ MANIFOLD = "Manifold — Soler 2018"
 RENDERING = "Rendering"
 CLAIMS = "Claims"
 
-#: Caption key → the paper figure (or equation) the output is an analogue of (:mod:`brdfpipe.spec.figures`).
+#: Caption key → the paper figure (or equation) the output is an analogue of (:mod:`brdfpipe.registry.figures`).
 FIGURE_NUMBERS: dict[str, str] = figure_specs.paper_figures()
 
 

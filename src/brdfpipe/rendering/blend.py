@@ -45,7 +45,7 @@ from brdfpipe.core.atomic import atomic_write, check_not_input
 from brdfpipe.core.exr import ExrError, read_exr, tonemap, write_exr
 from brdfpipe.core.filenames import format_t
 from brdfpipe.core.version import full_version
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "BlendError",
@@ -391,7 +391,7 @@ def error_maps(
     needs no render, being affine in the table.  Without ``prerenders_one``
     those cells are empty.
 
-    Then writes ``summary`` (CSV, columns :data:`~brdfpipe.spec.tables.ERROR_MAP_SUMMARY`, one line
+    Then writes ``summary`` (CSV, columns :data:`~brdfpipe.registry.tables.ERROR_MAP_SUMMARY`, one line
     per point in input order, numbers as ``%.9g``, ``t`` as ``format_t``)
     atomically, and returns the rows (floats unrounded).  Each pre-render is
     read once for all points.  Any missing or corrupt pre-render or
@@ -550,7 +550,7 @@ def _point_row(
 
 def _write_summary(summary: Path, database: str, points: Sequence[tuple[str, float, str]],
                    rows: Sequence[Mapping[str, Any]]) -> None:
-    """The summary CSV of :func:`error_maps` (:data:`~brdfpipe.spec.tables.ERROR_MAP_SUMMARY`), atomically with its digest."""
+    """The summary CSV of :func:`error_maps` (:data:`~brdfpipe.registry.tables.ERROR_MAP_SUMMARY`), atomically with its digest."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(tables.ERROR_MAP_SUMMARY)
@@ -634,7 +634,7 @@ def bounce_shares(
     whole pre-render ``I``, ``ones[m]`` its ``I¹⁻`` part (same render,
     :func:`brdfpipe.rendering.scene.render_material`), ``mask`` the object mask EXR
     (:func:`brdfpipe.rendering.scene.render_object_mask`; a pixel is the object's when
-    its mask is ≥ 0.5).  Writes ``out`` (CSV, columns :data:`~brdfpipe.spec.tables.BOUNCE_SHARES`,
+    its mask is ≥ 0.5).  Writes ``out`` (CSV, columns :data:`~brdfpipe.registry.tables.BOUNCE_SHARES`,
     one row per material in the order of ``images``, numbers ``%.9g``)
     atomically and returns the rows:
 
@@ -746,7 +746,7 @@ def floor_check_table(
     (a clamp the linear blend of images cannot know), the noise floor and
     the ratios of the summary with their standard errors (whole image,
     I¹⁻, and against the reference that differs only by the L²⁺ paths).  Writes ``out``
-    (columns :data:`~brdfpipe.spec.tables.FLOOR_CHECK`, numbers ``%.9g``) atomically.
+    (columns :data:`~brdfpipe.registry.tables.FLOOR_CHECK`, numbers ``%.9g``) atomically.
     :class:`BlendError` naming the file when a summary is of another
     database, its rows and the weights disagree on the points, or the renders
     differ in size or spp.

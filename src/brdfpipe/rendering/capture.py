@@ -10,9 +10,9 @@ Mitsuba 3 what the near-field camera of that configuration sees:
   BSDF (:mod:`brdfpipe.rendering.render`);
 * the camera: a pinhole at C = wo (R = 1) looking at the origin, ``up`` the
   frame's e_u, square film of the set-up's frame
-  (:func:`brdfpipe.spec.nearfield.image_frame`: the grid × grid lattice of
+  (:func:`brdfpipe.registry.nearfield.image_frame`: the grid × grid lattice of
   the acquisition geometry inside the smallest odd image centred on the
-  optical axis, pitch :func:`brdfpipe.spec.nearfield.pixel_pitch`, which
+  optical axis, pitch :func:`brdfpipe.registry.nearfield.pixel_pitch`, which
   frames the whole disk from every direction); box pixel filter, ``spp``
   uniformly jittered samples per pixel (the pixel *footprint* is averaged);
 * the light: a ``point`` emitter at L = D·wi (D = ``light_distance``, in units
@@ -67,8 +67,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from brdfpipe.core import integrity
 from brdfpipe.data import provenance
-from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec import nearfield
+from brdfpipe.registry import acquisition as acquisition_spec
+from brdfpipe.registry import nearfield
 from brdfpipe.core.exr import write_exr
 
 __all__ = [

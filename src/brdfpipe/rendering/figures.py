@@ -43,8 +43,8 @@ from brdfpipe.core.plot import (
     new_figure,
     style,
 )
-from brdfpipe.spec.manifold import SOLER_FIG1_MATERIALS, SOLER_FIG12_PATH, path_name
-from brdfpipe.spec import tables
+from brdfpipe.registry.manifold import SOLER_FIG1_MATERIALS, SOLER_FIG12_PATH, path_name
+from brdfpipe.registry import tables
 
 __all__ = [
     "RenderPoint",
@@ -171,7 +171,7 @@ def fig01_layout(n_samples: int, materials: Sequence[str], seed: int) -> tuple[l
 
     ``kind`` is ``measured`` (a material's pre-render) or ``sample`` (the
     k-th latent sample, name ``"k"``).  Four measured materials (fewer when
-    the database has fewer): Soler's four (:data:`~brdfpipe.spec.manifold.SOLER_FIG1_MATERIALS`)
+    the database has fewer): Soler's four (:data:`~brdfpipe.registry.manifold.SOLER_FIG1_MATERIALS`)
     where ``materials`` has them, at the paper's places, the rest drawn from
     the other materials with ``seed``; a place past the last cell moves to
     the last free cell.  The samples fill the other cells in order.

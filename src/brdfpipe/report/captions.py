@@ -20,11 +20,11 @@ from pathlib import Path
 from brdfpipe.core import atomic
 from brdfpipe.report import rst
 from brdfpipe.report.claims import Claim, rst_cell
-from brdfpipe.spec import figures as figure_specs
+from brdfpipe.registry import figures as figure_specs
 
 __all__ = ["DESCRIPTIONS", "caption_rst", "write_captions"]
 
-#: Caption key → what the figure or table shows (the claims follow it; :mod:`brdfpipe.spec.figures`).
+#: Caption key → what the figure or table shows (the claims follow it; :mod:`brdfpipe.registry.figures`).
 DESCRIPTIONS: dict[str, str] = figure_specs.captions()
 
 #: Extra note for the EXR error maps, which browsers cannot show ({error}, {blended}: rst literals).

@@ -30,7 +30,7 @@ from brdfpipe.report.claims_base import (
 )
 from brdfpipe.report.claims_soler import read_paths
 from brdfpipe.report.claims_xu import E, ErrorMeans
-from brdfpipe.spec import tables
+from brdfpipe.registry import tables
 
 __all__ = [
     "CLOSED_LOOP_TOLERANCE",

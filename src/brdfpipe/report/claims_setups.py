@@ -29,8 +29,8 @@ from brdfpipe.report.claims_base import (
     read_rows,
 )
 from brdfpipe.report.claims_xu import E, SIGNIFICANT, ErrorMeans
-from brdfpipe.spec import tables
-from brdfpipe.spec.acquisition import paper_direction
+from brdfpipe.registry import tables
+from brdfpipe.registry.acquisition import paper_direction
 
 _ONE_SHOT = paper_direction("one-shot")
 _TWO_SHOT = paper_direction("two-shot")

@@ -2,7 +2,7 @@
 
 The manifold claims read the default GPLVM candidate's rows of the manifold
 CSVs and say which candidate that is — its data space, μ and how it is
-fitted — against the paper's recipe (:data:`~brdfpipe.spec.manifold.PAPER_RECIPE`: raw BRDF values
+fitted — against the paper's recipe (:data:`~brdfpipe.registry.manifold.PAPER_RECIPE`: raw BRDF values
 and Gram, no normalisation, μ = 1e-4, Hooke–Jeeves from the truncated PCA).
 When ``spaces.csv`` has the recipe's own rows, a claim the default fails is
 put down to the method only if the recipe passes it.  What is checked is
@@ -47,8 +47,8 @@ from brdfpipe.report.claims_base import (
     read_rows,
     truthy,
 )
-from brdfpipe.spec import manifold as manifold_spec
-from brdfpipe.spec import tables
+from brdfpipe.registry import manifold as manifold_spec
+from brdfpipe.registry import tables
 
 __all__ = [
     "PERFECT",

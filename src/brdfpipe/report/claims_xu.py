@@ -36,8 +36,8 @@ from brdfpipe.report.claims_base import (
     one_database,
     read_rows,
 )
-from brdfpipe.spec import acquisition as acquisition_spec
-from brdfpipe.spec import tables
+from brdfpipe.registry import acquisition as acquisition_spec
+from brdfpipe.registry import tables
 
 __all__ = [
     "ErrorMeans",

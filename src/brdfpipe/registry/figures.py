@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from brdfpipe.spec.acquisition import FIXED_SETUPS, METRIC_KINDS
+from brdfpipe.registry.acquisition import FIXED_SETUPS, METRIC_KINDS
 
 __all__ = [
     "FIG02_MATERIALS",

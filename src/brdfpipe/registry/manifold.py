@@ -27,7 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final, NamedTuple
 
-from brdfpipe.spec.errors import ConfigError
+from brdfpipe.registry.errors import ConfigError
 
 __all__ = [
     "DataSpace",

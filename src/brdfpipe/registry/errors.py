@@ -1,7 +1,7 @@
 """The error of an unusable configuration value: one type, raised by every parse-time check.
 
 Defined at the bottom of the library so the planner (:mod:`brdfpipe.plan`)
-and the specs' own checks (:func:`brdfpipe.spec.manifold.check_paths`) raise
+and the specs' own checks (:func:`brdfpipe.registry.manifold.check_paths`) raise
 the same exception, which the Snakefile and the command line turn into one
 line naming the key.
 """

@@ -1,4 +1,4 @@
-"""The specs (brdfpipe.spec): the registries of what people add are the one source every stage reads.
+"""The specs (brdfpipe.registry): the registries of what people add are the one source every stage reads.
 
 Figures: each record's drawing function exists in its track's figures
 module and the track's ``make_*_figures`` calls it; its stem is the file
@@ -20,9 +20,9 @@ from brdfpipe import plan
 from brdfpipe.core import filenames
 from brdfpipe.plan import report as items
 from brdfpipe.report import captions
-from brdfpipe.spec import acquisition as acq_spec
-from brdfpipe.spec import figures as fig_spec
-from brdfpipe.spec import manifold as man_spec
+from brdfpipe.registry import acquisition as acq_spec
+from brdfpipe.registry import figures as fig_spec
+from brdfpipe.registry import manifold as man_spec
 
 MAKERS = {
     "plot_acquisition_figures": ("brdfpipe.acquisition.figures", "make_acquisition_figures"),
@@ -141,7 +141,7 @@ def test_every_data_space_has_its_maps() -> None:
 
 def _aliases(module: Path) -> list[str]:
     """Module-level names of ``module`` bound to a name of another brdfpipe module (``X = tables.ERRORS``,
-    ``X = ERRORS`` after ``from brdfpipe.spec.tables import ERRORS``, ``import … as`` another name)."""
+    ``X = ERRORS`` after ``from brdfpipe.registry.tables import ERRORS``, ``import … as`` another name)."""
     import brdfpipe
 
     package = Path(brdfpipe.__file__).parent.parent
@@ -170,7 +170,7 @@ def test_no_module_rebinds_a_name_of_another() -> None:
 
     An alias hides which list a caller reads, and a test that patches one copy
     leaves the others (issue 34 counted 28 re-bound spec names in 13 modules
-    before they went).  ``from brdfpipe.spec import manifold as manifold_spec``
+    before they went).  ``from brdfpipe.registry import manifold as manifold_spec``
     names a module, not one of its names, and stays.
     """
     import brdfpipe
@@ -182,17 +182,17 @@ def test_no_module_rebinds_a_name_of_another() -> None:
 
 def test_the_alias_check_sees_an_alias(tmp_path: Path) -> None:
     module = tmp_path / "m.py"
-    module.write_text("from brdfpipe.spec import tables\nfrom brdfpipe.spec.manifold import SPACE_NAMES\n"
+    module.write_text("from brdfpipe.registry import tables\nfrom brdfpipe.registry.manifold import SPACE_NAMES\n"
                       "from brdfpipe.manifold.gram import gram_matrix as gm\n"
                       "COLUMNS: tuple = tables.ERRORS\nSPACES = SPACE_NAMES\nOTHER = len(tables.ERRORS)\n")
     assert [b.split(":")[0] for b in _aliases(module)] == ["line 3", "line 4", "line 5"]
 
 
 def test_each_shared_table_has_one_column_declaration() -> None:
-    """The readers of the tables in brdfpipe.spec.tables use its tuples, not copies."""
+    """The readers of the tables in brdfpipe.registry.tables use its tuples, not copies."""
     from brdfpipe.manifold import figure_inputs as man_figures
     from brdfpipe.report import claims
-    from brdfpipe.spec import tables
+    from brdfpipe.registry import tables
 
     assert set(man_figures.SPACES_FIGURE_COLUMNS) <= set(tables.SPACES)
     # the claims name no column tuple of their own: every table they read is its owner's (or a checked subset)
@@ -211,7 +211,7 @@ def test_each_shared_table_has_one_column_declaration() -> None:
 
 
 def test_a_reader_cannot_name_a_column_its_table_lacks() -> None:
-    from brdfpipe.spec import tables
+    from brdfpipe.registry import tables
 
     assert tables.columns(tables.ERRORS, "fov", "value") == ("fov", "value")
     with pytest.raises(ValueError, match="column.s. fov_deg not in the table"):
