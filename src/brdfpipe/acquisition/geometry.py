@@ -293,17 +293,19 @@ def _kept_pixels(setup: Setup, wo: F64) -> tuple[F64, NDArray[np.intp]]:
     u, v, centre = _lattice(setup.fov_deg, setup.grid)
     nu = setup.nu
     f, e_r, e_u = nearfield.camera_basis(wo)
-    ray = f + u[:, None] * e_r + v[:, None] * e_u
-    dz = ray[:, 2]
+    # each pixel's ray f + u·e_r + v·e_u, one component at a time; views of the kept pixels only
+    dz = f[2] + u * e_r[2] + v * e_u[2]
     hit = dz < 0.0
     t = np.where(hit, -wo[2] / np.where(hit, dz, -1.0), 0.0)
-    px = wo[0] + t * ray[:, 0]
-    py = wo[1] + t * ray[:, 1]
-    keep = hit & (px * px + py * py <= nu * nu * (1.0 + 1e-12))
-    view = np.stack([wo[0] - px, wo[1] - py, np.full(px.shape, wo[2])], axis=1)
+    px = wo[0] + t * (f[0] + u * e_r[0] + v * e_u[0])
+    py = wo[1] + t * (f[1] + u * e_r[1] + v * e_u[1])
+    kept = np.flatnonzero(hit & (px * px + py * py <= nu * nu * (1.0 + 1e-12)))
+    view = np.stack([wo[0] - px[kept], wo[1] - py[kept], np.full(kept.size, wo[2])], axis=1)
     view /= np.linalg.norm(view, axis=1, keepdims=True)
-    view[centre] = wo  # the centre pixel looks exactly along −wo (P = 0)
-    return view[keep], np.flatnonzero(keep)
+    at = np.searchsorted(kept, centre)
+    if at < kept.size and kept[at] == centre:
+        view[at] = wo  # the centre pixel looks exactly along −wo (P = 0)
+    return view, kept
 
 
 def pixel_directions(setup: Setup, config: ArrayLike) -> tuple[F64, F64]:
