@@ -300,8 +300,9 @@ def _kept_pixels(setup: Setup, wo: F64) -> tuple[F64, NDArray[np.intp]]:
     px = wo[0] + t * (f[0] + u * e_r[0] + v * e_u[0])
     py = wo[1] + t * (f[1] + u * e_r[1] + v * e_u[1])
     kept = np.flatnonzero(hit & (px * px + py * py <= nu * nu * (1.0 + 1e-12)))
-    view = np.stack([wo[0] - px[kept], wo[1] - py[kept], np.full(kept.size, wo[2])], axis=1)
-    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    vx, vy, vz = wo[0] - px[kept], wo[1] - py[kept], np.full(kept.size, wo[2])
+    length = np.sqrt(vx * vx + vy * vy + vz * vz)  # np.linalg.norm's sum, (x² + y²) + z²: the same bits
+    view = np.stack([vx / length, vy / length, vz / length], axis=1)
     at = np.searchsorted(kept, centre)
     if at < kept.size and kept[at] == centre:
         view[at] = wo  # the centre pixel looks exactly along −wo (P = 0)

@@ -201,7 +201,8 @@ def half_diff(
     wi = as_directions(wi, "wi")
     wo = as_directions(wo, "wo")
     h = wi + wo
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    # ‖h‖ as np.linalg.norm(h, axis=1) sums it (x² + y²) + z², the same bits, without its (n, 3) temporary
+    h /= np.sqrt(h[:, 0] * h[:, 0] + h[:, 1] * h[:, 1] + h[:, 2] * h[:, 2])[:, None]
     theta_h = np.arccos(np.clip(h[:, 2], -1.0, 1.0))
     phi_h = np.arctan2(h[:, 1], h[:, 0])
     # Rotation about z by −φh, then about y by −θh (Rodrigues, as in MERL's code).
