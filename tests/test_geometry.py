@@ -441,3 +441,59 @@ def test_bad_records_raise() -> None:
         config_from_dict(setup, {"cell": 3.0})
     with pytest.raises(ValueError):
         config_from_dict(setup, [1, 2, 3])  # type: ignore[arg-type]
+
+
+def _kept_pixels_literal(setup: Setup, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The near-field pixel model as the section comment writes it: every lattice ray, then the kept ones."""
+    u, v, centre = geometry._lattice(setup.fov_deg, setup.grid)
+    f, e_r, e_u = nearfield.camera_basis(wo)
+    ray = f + u[:, None] * e_r + v[:, None] * e_u
+    hit = ray[:, 2] < 0.0
+    t = np.where(hit, -wo[2] / np.where(hit, ray[:, 2], -1.0), 0.0)
+    px, py = wo[0] + t * ray[:, 0], wo[1] + t * ray[:, 1]
+    keep = hit & (px * px + py * py <= setup.nu * setup.nu * (1.0 + 1e-12))
+    view = np.stack([wo[0] - px, wo[1] - py, np.full(px.shape, wo[2])], axis=1)
+    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    view[centre] = wo
+    return view[keep], np.flatnonzero(keep)
+
+
+@pytest.mark.parametrize("kind", ["nearfield", "fixed_camera", "fixed_light"])
+def test_kept_pixels_equal_the_literal_model_bit_for_bit(kind: str) -> None:
+    """The views are computed for the kept pixels only, component by component: the same bits as the literal model."""
+    rng = np.random.default_rng(11)
+    for fov in (15.0, 25.0, 45.0):
+        for grid in (1, 2, 7, 32, 128):
+            setup = Setup(kind, fov, grid)
+            for _ in range(6):
+                config = (int(rng.integers(0, 90)), int(rng.integers(0, 90)), int(rng.integers(0, 180)))
+                try:
+                    _, wo = centre_directions(setup, config)
+                except ValueError:
+                    continue
+                if wo[2] <= 0.0:
+                    continue
+                view, kept = geometry._kept_pixels(setup, wo)
+                ref_view, ref_kept = _kept_pixels_literal(setup, wo)
+                assert np.array_equal(kept, ref_kept) and np.array_equal(view, ref_view), (kind, fov, grid, config)
+
+
+def test_half_diff_normalises_the_half_vector_as_numpy_norm_does() -> None:
+    """θh, θd, φd equal, bit for bit, the angles of the half vector divided by np.linalg.norm (MERL's formulas)."""
+    rng = np.random.default_rng(5)
+    wi = rng.standard_normal((20_000, 3))
+    wo = rng.standard_normal((20_000, 3))
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    h = wi + wo
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    theta_h = np.arccos(np.clip(h[:, 2], -1.0, 1.0))
+    phi_h = np.arctan2(h[:, 1], h[:, 0])
+    cp, sp = np.cos(phi_h), np.sin(phi_h)
+    x1 = wi[:, 0] * cp + wi[:, 1] * sp
+    y1 = -wi[:, 0] * sp + wi[:, 1] * cp
+    ct, st = np.cos(theta_h), np.sin(theta_h)
+    dz = x1 * st + wi[:, 2] * ct
+    expected = (theta_h, np.arccos(np.clip(dz, -1.0, 1.0)), np.arctan2(y1, x1 * ct - wi[:, 2] * st))
+    for got, want in zip(merl.half_diff(wi, wo), expected):
+        assert np.array_equal(got, want)
